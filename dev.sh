@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# The two commands of the README:
+#   ./dev.sh demo   set up (virtualenv in .venv) and run the main job: `nlobs demo`
+#   ./dev.sh test   set up and run the test suite
+# Needs only Python 3.11+ (and, for the fast compiled engine, a C compiler; without one nlobs
+# falls back to CasADi's virtual machine).
+set -euo pipefail
+cd "$(dirname "$0")"
+PY=${PYTHON:-}
+if [ -z "$PY" ]; then
+  for cand in python3.11 python3.12 python3.13 python3; do
+    if command -v "$cand" >/dev/null 2>&1 && "$cand" -c 'import sys; sys.exit(sys.version_info < (3, 11))'; then PY=$cand; break; fi
+  done
+fi
+[ -n "$PY" ] || { echo "dev.sh: Python 3.11 or newer is required" >&2; exit 1; }
+if [ ! -x .venv/bin/python ]; then
+  "$PY" -m venv .venv
+fi
+stamp=.venv/.nlobs-installed
+if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
+  .venv/bin/python -m pip install --quiet --upgrade pip
+  .venv/bin/python -m pip install --quiet -e '.[test]'
+  touch "$stamp"
+fi
+case "${1:-}" in
+  demo) shift; exec .venv/bin/nlobs demo "$@" ;;
+  test) shift; exec .venv/bin/python -m pytest -q "$@" ;;
+  *) echo "usage: ./dev.sh demo|test [args]" >&2; exit 2 ;;
+esac

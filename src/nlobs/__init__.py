@@ -1,0 +1,41 @@
+"""nlobs: nonlinear observability analysis and state-observer design.
+
+The data flow, one way: ``model`` (System, forms, model files) -> ``engine`` (CasADi
+compilation, integrators, C) -> ``analysis`` -> ``design`` (one function per method,
+returning an ObserverDesign with its evidence) -> ``observer`` (the runnable contract) ->
+``simulate`` (plant + observers, noise, sampling, recorded data) -> ``report`` -> ``cli``.
+"""
+
+from . import analysis as analysis
+from . import design as design
+from . import engine as engine
+from . import model as model
+from . import observer as observer
+from .design import Certificate as Certificate
+from .design import ObserverDesign as ObserverDesign
+from .design import design_ekf as design_ekf
+from .design import design_luenberger as design_luenberger
+from .design import design_output_injection as design_output_injection
+from .errors import ConvergenceWarning as ConvergenceWarning
+from .errors import DataError as DataError
+from .errors import FiniteEscapeError as FiniteEscapeError
+from .errors import FormError as FormError
+from .errors import ModelError as ModelError
+from .errors import ModelFileError as ModelFileError
+from .errors import NlobsError as NlobsError
+from .errors import PreconditionError as PreconditionError
+from .errors import ShapeError as ShapeError
+from .model import LTI as LTI
+from .model import StateAffine as StateAffine
+from .model import System as System
+from .model import load_model as load_model
+from .model import loads_model as loads_model
+from .observer import Observer as Observer
+from .observer import OnlineObserver as OnlineObserver
+from .simulate import Noise as Noise
+from .simulate import ProcessNoise as ProcessNoise
+from .simulate import Run as Run
+from .simulate import Sampling as Sampling
+from .simulate import simulate as simulate
+
+__version__ = "0.1.0"

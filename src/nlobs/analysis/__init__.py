@@ -1,0 +1,7 @@
+"""Analysis: is it possible? Observability, excitation, forms, augmentation."""
+
+from ._linear import LinearObservability as LinearObservability
+from ._linear import PBHResult as PBHResult
+from ._linear import kalman_rank as kalman_rank
+from ._linear import observability_matrix as observability_matrix
+from ._linear import pbh_test as pbh_test

@@ -1,0 +1,14 @@
+"""Design: how? One function per method; each checks its preconditions and returns an ObserverDesign."""
+
+from ._base import Certificate as Certificate
+from ._base import Check as Check
+from ._base import ObserverDesign as ObserverDesign
+from ._base import Symbols as Symbols
+from ._checks import check_matrix as check_matrix
+from ._checks import observer_gain as observer_gain
+from ._ekf import design_ekf as design_ekf
+from ._linear import design_luenberger as design_luenberger
+from ._linear import design_output_injection as design_output_injection
+from ._registry import DESIGNS as DESIGNS
+from ._registry import design_from_config as design_from_config
+from ._registry import register_design as register_design

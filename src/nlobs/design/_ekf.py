@@ -1,0 +1,112 @@
+"""Extended Kalman filter: continuous-time and continuous-discrete (Joseph form)."""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+import casadi as ca
+import numpy as np
+
+from ..engine import compile_system
+from ..errors import PreconditionError
+from ..model import System
+from ._base import Certificate, Check, ObserverDesign, Symbols
+from ._checks import check_matrix
+
+__all__ = ["design_ekf"]
+
+REF_EKF = ("Extended Kalman filter (Jazwinski 1970; D. Simon, Optimal State Estimation, 2006, ch. 13); "
+           "Joseph-form update (Bucy & Joseph 1968)")
+
+
+def _sym(M: ca.SX) -> ca.SX:
+    return (M + M.T) / 2
+
+
+def design_ekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None,
+               mode: Literal["continuous", "continuous-discrete"] = "continuous") -> ObserverDesign:
+    r"""Extended Kalman filter, with exact Jacobians from automatic differentiation.
+
+    Continuous time (``mode="continuous"``), with :math:`F = \partial f/\partial x`,
+    :math:`H = \partial h/\partial x` at :math:`\hat x`:
+
+    .. math::
+
+        \dot{\hat x} = f(\hat x, u) + P H^\top R^{-1}(y - h(\hat x, u)), \qquad
+        \dot P = FP + PF^\top + Q - PH^\top R^{-1} H P .
+
+    Continuous-discrete (``mode="continuous-discrete"``): between samples
+    :math:`\dot{\hat x} = f`, :math:`\dot P = FP + PF^\top + Q`; at each sample
+    :math:`K = PH^\top(HPH^\top + R)^{-1}`, :math:`\hat x^+ = \hat x + K(y - h(\hat x))`,
+    :math:`P^+ = (I - KH)P(I - KH)^\top + KRK^\top` (Joseph form). Outputs missing at a
+    sample are left out of the update.
+
+    P is stored in full and kept exactly symmetric: every derivative and update is
+    symmetrised, so P stays symmetric to the last bit and positive definite as long as the
+    integration step resolves its dynamics.
+
+    Parameters
+    ----------
+    system : System
+    Q : array_like of shape (n, n)
+        Process-noise intensity (continuous time), positive semidefinite.
+    R : array_like of shape (p, p)
+        Measurement noise: the intensity (spectral density) in continuous mode; the
+        covariance of one sample in continuous-discrete mode. Positive definite. (A sampled
+        white noise of standard deviation σ every Δt has intensity σ²Δt.)
+    P0 : array_like of shape (n, n), optional
+        Initial covariance (identity), positive definite.
+    xhat0 : array_like of shape (n,), optional
+        Default initial estimate (zeros).
+    mode : {"continuous", "continuous-discrete"}
+
+    Raises
+    ------
+    PreconditionError, ShapeError
+        For matrices of the wrong shape, not symmetric, or not (semi)definite.
+    """
+    caller = "design_ekf"
+    if mode not in ("continuous", "continuous-discrete"):
+        raise PreconditionError(f"{caller}: `mode` must be 'continuous' or 'continuous-discrete', got {mode!r}")
+    n, p = system.n_states, system.n_outputs
+    Qm = check_matrix(Q, n, n, "Q", caller, definite="semidefinite")
+    Rm = check_matrix(R, p, p, "R", caller, definite="positive")
+    P0m = np.eye(n) if P0 is None else check_matrix(P0, n, n, "P0", caller, definite="positive")
+    f, h = compile_system(system).bind()
+    s = Symbols.make(system, n + n * n)
+    xh = s.z[:n]
+    P = _sym(ca.reshape(s.z[n:], n, n))
+    fx = f(s.t, xh, s.u)
+    hx = h(s.t, xh, s.u)
+    F = ca.jacobian(fx, xh)
+    H = ca.jacobian(hx, xh)
+    Qd, Rd = ca.DM(Qm), ca.DM(Rm)
+    update = None
+    if mode == "continuous":
+        Rinv = ca.DM(np.linalg.inv(Rm))
+        PHt = P @ H.T
+        dx = fx + PHt @ Rinv @ (s.y - hx)
+        dP = _sym(F @ P + P @ F.T + Qd - PHt @ Rinv @ PHt.T)
+    else:
+        dx = fx
+        dP = _sym(F @ P + P @ F.T + Qd)
+        Mdiag = ca.diag(s.m)
+        Hm = Mdiag @ H
+        Rmask = Mdiag @ Rd @ Mdiag + ca.diag(1 - s.m)  # unmeasured outputs: decoupled unit block, zero gain
+        S = _sym(Hm @ P @ Hm.T + Rmask)
+        K = ca.solve(S, Hm @ P).T
+        x_plus = xh + K @ (s.m * (s.y - hx))
+        IKH = ca.DM.eye(n) - K @ Hm
+        P_plus = _sym(IKH @ P @ IKH.T + K @ Rmask @ K.T)
+        update = ca.vertcat(x_plus, ca.vec(P_plus))
+    x0 = ca.SX.sym("xhat0", n)
+    cert = Certificate(
+        f"Extended Kalman filter ({mode})", REF_EKF,
+        (Check("Q positive semidefinite", True, f"min eig {np.linalg.eigvalsh(Qm).min():.3g}"),
+         Check("R positive definite", True, f"min eig {np.linalg.eigvalsh(Rm).min():.3g}"),
+         Check("P0 positive definite", True, f"min eig {np.linalg.eigvalsh(P0m).min():.3g}")),
+        {"Q": Qm, "R": Rm, "P0": P0m})
+    names = [f"xhat_{v}" for v in system.states] + [f"P_{i}_{j}" for j in range(n) for i in range(n)]
+    return ObserverDesign.build("ekf", system, s, z_names=names, flow=ca.vertcat(dx, ca.vec(dP)), xhat=xh,
+                                xhat0_sym=x0, z0=ca.vertcat(x0, ca.DM(P0m.reshape(-1, order="F"))),
+                                xhat0=np.zeros(n) if xhat0 is None else xhat0, certificate=cert, update=update)

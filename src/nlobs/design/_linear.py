@@ -1,0 +1,146 @@
+"""Luenberger observer (LTI) and the error-linearisation / output-injection observer (002)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from ..engine import to_casadi
+from ..errors import FormError, PreconditionError
+from ..model import LTI, TIME, OutputInjectionForm, System
+from ._base import Certificate, Check, ObserverDesign, Symbols
+from ._checks import observer_gain
+
+__all__ = ["design_luenberger", "design_output_injection"]
+
+REF_LUENBERGER = "002_613af42269ea26a7.txt, 'Result [Luenberger]': x̂' = Ax̂ + Bu - K(Cx̂ - y), A - KC stable"
+REF_INJECTION = "002_613af42269ea26a7.txt, 'Result [Error linearization]': x̂' = Ax̂ + B(u, y) - K(Cx̂ - y)"
+
+
+def _dm(M: np.ndarray) -> ca.DM:
+    return ca.DM(np.asarray(M, dtype=float))
+
+
+def design_luenberger(system: System, *, poles: Any = None, L: Any = None, Q: Any = None, R: Any = None,
+                      xhat0: Any = None) -> ObserverDesign:
+    r"""Luenberger observer for an LTI model x' = Ax + Bu, y = Cx + Du.
+
+    .. math::
+
+        \dot{\hat x} = A\hat x + Bu - L(C\hat x + Du - y), \qquad
+        \dot e = (A - LC)e .
+
+    Parameters
+    ----------
+    system : System
+        An LTI model (recognised with :meth:`nlobs.model.LTI.from_system`).
+    poles : sequence of complex, optional
+        Eigenvalues of A - LC (pole placement; needs (A, C) observable).
+    L : array_like of shape (n, p), optional
+        The gain, given directly (checked: A - LC Hurwitz).
+    Q, R : array_like, optional
+        Process and measurement noise intensities for the steady-state Kalman (LQE) gain.
+    xhat0 : array_like of shape (n,), optional
+        Default initial estimate (zeros).
+
+    Returns
+    -------
+    ObserverDesign
+        With ``L``, the achieved ``eigenvalues`` and the ``decay_rate`` in its certificate.
+
+    Raises
+    ------
+    PreconditionError
+        If the model is not LTI, (A, C) is not observable (with the rank and the unobservable
+        direction), the poles are unstable or cannot be placed, or a given L is not Hurwitz.
+
+    References
+    ----------
+    002_613af42269ea26a7.txt, "Result [Luenberger]".
+    001_1b4027b3a70d560f.txt §IV-C: L = [1+√2, 1, 1+√2] places eig(A - LC) at -1, -√2/2 ± j√2/2.
+
+    Examples
+    --------
+    >>> import nlobs
+    >>> sys = nlobs.System.lti([[0, 1], [0, 0]], None, [[1, 0]])
+    >>> d = design_luenberger(sys, poles=[-2, -3])
+    >>> sorted(d.certificate.values["eigenvalues"].real)
+    [-3.0, -2.0]
+    """
+    caller = "design_luenberger"
+    try:
+        lti = LTI.from_system(system)
+    except FormError as e:
+        raise PreconditionError(f"{caller}: {e}. For a nonlinear model use design_output_injection or design_ekf.") from e
+    gain, checks, values = observer_gain(lti.A, lti.C, poles=poles, L=L, Q=Q, R=R, caller=caller)
+    n = system.n_states
+    s = Symbols.make(system, n)
+    xh = s.z
+    innovation = _dm(lti.C) @ xh + (_dm(lti.D) @ s.u if system.n_inputs else 0) - s.y
+    dz = _dm(lti.A) @ xh + (_dm(lti.B) @ s.u if system.n_inputs else 0) - _dm(gain) @ innovation
+    x0 = ca.SX.sym("xhat0", n)
+    cert = Certificate(
+        "Luenberger observer (" + ("pole placement" if poles is not None else "given gain" if L is not None else "LQE gain") + ")",
+        REF_LUENBERGER, (Check("model is LTI", True, f"A {lti.A.shape}, C {lti.C.shape}"), *checks), values)
+    return ObserverDesign.build("luenberger", system, s, z_names=[f"xhat_{v}" for v in system.states], flow=dz, xhat=xh,
+                                xhat0_sym=x0, z0=x0, xhat0=np.zeros(n) if xhat0 is None else xhat0, certificate=cert)
+
+
+def design_output_injection(system: System, *, poles: Any = None, K: Any = None, Q: Any = None, R: Any = None,
+                            xhat0: Any = None) -> ObserverDesign:
+    r"""Error-linearisation (output-injection) observer for x' = Ax + B(u, y, t), y = Cx.
+
+    .. math::
+
+        \dot{\hat x} = A\hat x + B(u, y, t) - K(C\hat x - y), \qquad \dot e = (A - KC)e .
+
+    The form is recognised from the model (see :class:`nlobs.model.OutputInjectionForm`);
+    the error dynamics are linear, so any K with A - KC Hurwitz gives global exponential
+    convergence at the rate -max Re eig(A - KC).
+
+    Parameters
+    ----------
+    system : System
+    poles : sequence of complex, optional
+        Eigenvalues of A - KC (needs (A, C) observable).
+    K : array_like of shape (n, p), optional
+        The gain, given directly.
+    Q, R : array_like, optional
+        Weights for an LQE-type gain.
+    xhat0 : array_like of shape (n,), optional
+
+    Raises
+    ------
+    PreconditionError
+        If the model is not in the form (naming the entry that breaks it), (A, C) is not
+        observable, or the gain is not Hurwitz.
+
+    References
+    ----------
+    002_613af42269ea26a7.txt, "Result [Error linearization]" and the robot-arm example
+    (x1' = x2, x2' = -a1 sin x1 - a2 x2 + b u, y = x1).
+    """
+    caller = "design_output_injection"
+    try:
+        form = OutputInjectionForm.from_system(system)
+    except FormError as e:
+        raise PreconditionError(f"{caller}: {e}.") from e
+    gain, checks, values = observer_gain(form.A, form.C, poles=poles, L=K, Q=Q, R=R, caller=caller)
+    values = {"K": values.pop("L"), **values, "A": form.A, "C": form.C,
+              "B(u, y, t)": "[" + ", ".join(str(b) for b in form.B) + "]"}
+    n = system.n_states
+    s = Symbols.make(system, n)
+    leaves = {TIME: s.t}
+    leaves.update({sym: s.u[i] for i, sym in enumerate(system.u)})
+    leaves.update({sym: s.y[i] for i, sym in enumerate(system.y)})
+    B = to_casadi(list(form.B), leaves)
+    xh = s.z
+    dz = _dm(form.A) @ xh + B - _dm(gain) @ (_dm(form.C) @ xh - s.y)
+    x0 = ca.SX.sym("xhat0", n)
+    cert = Certificate("Output-injection (error linearisation) observer", REF_INJECTION,
+                       (Check("model in output-injection form x' = Ax + B(u, y), y = Cx", True), *checks), values)
+    return ObserverDesign.build("output_injection", system, s, z_names=[f"xhat_{v}" for v in system.states], flow=dz,
+                                xhat=xh, xhat0_sym=x0, z0=x0, xhat0=np.zeros(n) if xhat0 is None else xhat0,
+                                certificate=cert)

@@ -1,0 +1,55 @@
+"""Observer kinds by name, for model files (``[observers.NAME] kind = "..."``) and the CLI."""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import Callable, Mapping
+from typing import Any
+
+from ..errors import ModelError
+from ..model import System
+from ._base import ObserverDesign
+from ._ekf import design_ekf
+from ._linear import design_luenberger, design_output_injection
+
+__all__ = ["DESIGNS", "register_design", "design_from_config"]
+
+#: Design functions by the ``kind`` used in model files.
+DESIGNS: dict[str, Callable[..., ObserverDesign]] = {
+    "luenberger": design_luenberger,
+    "output_injection": design_output_injection,
+    "ekf": design_ekf,
+}
+
+
+def register_design(kind: str, fn: Callable[..., ObserverDesign]) -> None:
+    """Make a design function available to model files under `kind`."""
+    DESIGNS[kind] = fn
+
+
+def options_of(fn: Callable[..., Any]) -> tuple[str, ...]:
+    """The keyword-only tuning options a design function accepts."""
+    return tuple(n for n, p in inspect.signature(fn).parameters.items() if p.kind is inspect.Parameter.KEYWORD_ONLY)
+
+
+def design_from_config(system: System, kind: str, options: Mapping[str, Any], *, where: str = "") -> ObserverDesign:
+    """Run the design `kind` on `system` with the `options` of a model file.
+
+    Raises
+    ------
+    ModelError
+        For an unknown kind or option (listing the allowed ones); the design's own errors
+        (PreconditionError, ShapeError) pass through with `where` prepended.
+    """
+    prefix = f"{where}: " if where else ""
+    if kind not in DESIGNS:
+        raise ModelError(f"{prefix}unknown observer kind {kind!r}; available: {', '.join(sorted(DESIGNS))}")
+    fn = DESIGNS[kind]
+    allowed = options_of(fn)
+    unknown = [k for k in options if k not in allowed]
+    if unknown:
+        raise ModelError(f"{prefix}unknown option `{unknown[0]}` for kind {kind!r}; {fn.__name__} accepts: {', '.join(allowed)}")
+    try:
+        return fn(system, **options)
+    except (ValueError, TypeError) as e:
+        raise type(e)(f"{prefix}{e}") from e

@@ -1,0 +1,14 @@
+"""Support: compile a System once to CasADi (f, h, Jacobians), integrate, generate C."""
+
+from ._casadi import CASADI as CASADI
+from ._casadi import CompiledSystem as CompiledSystem
+from ._casadi import compile_system as compile_system
+from ._casadi import to_casadi as to_casadi
+from ._codegen import Backend as Backend
+from ._codegen import cache_dir as cache_dir
+from ._codegen import compile_c as compile_c
+from ._codegen import find_compiler as find_compiler
+from ._codegen import resolve_backend as resolve_backend
+from ._integrate import DEFAULT_CHUNK as DEFAULT_CHUNK
+from ._integrate import StepRunner as StepRunner
+from ._integrate import rk4_step as rk4_step

@@ -1,0 +1,182 @@
+"""Run CasADi functions either on CasADi's virtual machine or as generated, compiled C.
+
+The C path writes the function with :meth:`casadi.Function.generate`, compiles it with the
+system C compiler (``$CC``, else ``gcc``/``cc``) and loads it with :func:`casadi.external`.
+The shared object is cached on disk, keyed by a hash of the C source, the compiler and its
+flags, so a model is compiled once per machine. Without a compiler the VM is used, with a
+warning when C was asked for explicitly.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import os
+import platform
+import shutil
+import subprocess
+import tempfile
+import warnings
+from pathlib import Path
+from typing import Literal
+
+import casadi as ca
+import numpy as np
+
+from ..errors import ConvergenceWarning, EngineError
+
+__all__ = ["Backend", "CompiledLoop", "cache_dir", "find_compiler", "compile_c", "resolve_backend"]
+
+Backend = Literal["auto", "vm", "c"]
+
+CFLAGS = ("-O3", "-march=native", "-shared", "-fPIC")
+
+
+def cache_dir() -> Path:
+    """Where compiled models live: ``$NLOBS_CACHE_DIR``, else ``~/.cache/nlobs``."""
+    env = os.environ.get("NLOBS_CACHE_DIR")
+    base = Path(env) if env else Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "nlobs"
+    return base
+
+
+def find_compiler() -> str | None:
+    """The C compiler to use, or None when there is none (``NLOBS_CC=none`` forces None)."""
+    forced = os.environ.get("NLOBS_CC")
+    if forced is not None:
+        return None if forced in ("", "none") else shutil.which(forced)
+    for cand in (os.environ.get("CC"), "gcc", "cc", "clang"):
+        if cand and shutil.which(cand):
+            return shutil.which(cand)
+    return None
+
+
+def resolve_backend(backend: Backend, *, work: int, threshold: int = 200_000) -> Literal["vm", "c"]:
+    """Choose the backend: ``"auto"`` compiles when `work` (steps x states) exceeds `threshold`
+    and a compiler exists. ``$NLOBS_ENGINE`` (vm/c/auto) overrides ``"auto"``."""
+    if backend == "auto":
+        backend = os.environ.get("NLOBS_ENGINE", "auto")  # type: ignore[assignment]
+    if backend not in ("auto", "vm", "c"):
+        raise ValueError(f"the engine backend must be 'auto', 'vm' or 'c', got {backend!r}")
+    if backend == "vm":
+        return "vm"
+    if find_compiler() is None:
+        if backend == "c":
+            warnings.warn("no C compiler found (set $CC); running on the CasADi virtual machine instead",
+                          ConvergenceWarning, stacklevel=3)
+        return "vm"
+    if backend == "c" or work >= threshold:
+        return "c"
+    return "vm"
+
+
+_DRIVER = r"""
+/* nlobs driver: s_{k+1} = step(s_k, a_k, c), states written to out[k*ns ...] */
+#include <string.h>
+int nlobs_run(const casadi_real* s0, const casadi_real* a, const casadi_real* c,
+              casadi_real* out, long long n_steps) {
+  casadi_int sz_arg = 0, sz_res = 0, sz_iw = 0, sz_w = 0;
+  const casadi_real* arg[NLOBS_SZ_ARG];
+  casadi_real* res[NLOBS_SZ_RES];
+  casadi_int iw[NLOBS_SZ_IW + 1];
+  casadi_real w[NLOBS_SZ_W + 1];
+  const casadi_real* s = s0;
+  long long k;
+  NLOBS_STEP_work(&sz_arg, &sz_res, &sz_iw, &sz_w);
+  if (sz_arg > NLOBS_SZ_ARG || sz_res > NLOBS_SZ_RES || sz_iw > NLOBS_SZ_IW || sz_w > NLOBS_SZ_W) return -1;
+  for (k = 0; k < n_steps; ++k) {
+    arg[0] = s; arg[1] = a + k * NLOBS_NA; arg[2] = c;
+    res[0] = out + k * NLOBS_NS;
+    if (NLOBS_STEP(arg, res, iw, w, 0)) return (int)(k + 1);
+    s = out + k * NLOBS_NS;
+  }
+  return 0;
+}
+"""
+
+
+def _generate(fn: ca.Function) -> str:
+    with tempfile.TemporaryDirectory(prefix="nlobs-gen-") as tmp:
+        gen = ca.CodeGenerator("gen.c", {"with_header": False, "main": False})
+        gen.add(fn)
+        gen.generate(tmp + os.sep)
+        return (Path(tmp) / "gen.c").read_text()
+
+
+def _build(code: str, tag: str) -> Path:
+    """Compile `code` to a shared object in the cache (once per machine) and return its path."""
+    cc = find_compiler()
+    if cc is None:
+        raise EngineError("no C compiler found: install gcc or set $CC, or use the 'vm' backend")
+    key = hashlib.sha256("\0".join([code, cc, *CFLAGS, platform.machine(), platform.node(), ca.__version__]).encode()).hexdigest()[:32]
+    out_dir = cache_dir()
+    so = out_dir / f"{tag}-{key}.so"
+    if not so.exists():
+        out_dir.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(prefix="nlobs-cc-", dir=out_dir) as tmp:
+            c_file = Path(tmp) / "gen.c"
+            c_file.write_text(code)
+            tmp_so = Path(tmp) / "gen.so"
+            proc = subprocess.run([cc, *CFLAGS, str(c_file), "-o", str(tmp_so), "-lm"], capture_output=True, text=True)
+            if proc.returncode != 0:
+                raise EngineError(f"the C compiler {cc} failed on the generated code for {tag}:\n{proc.stderr[-2000:]}")
+            os.replace(tmp_so, so)  # atomic: concurrent builders never see a half-written file
+    return so
+
+
+def compile_c(fn: ca.Function) -> ca.Function:
+    """Generate C for `fn`, compile it (or reuse the cached build) and load it with ``casadi.external``.
+
+    Raises
+    ------
+    EngineError
+        If there is no compiler or the compiler fails (its message is included).
+    """
+    so = _build(_generate(fn), fn.name())
+    try:
+        return ca.external(fn.name(), str(so))
+    except RuntimeError as e:
+        raise EngineError(f"cannot load the compiled model {so}: {e}") from e
+
+
+class CompiledLoop:
+    """A step function ``(s, a, c) -> s_next`` compiled together with a C loop over the steps.
+
+    Calling it runs ``n`` steps and writes every state into `out` (shape (n, ns)), with no
+    Python work per step.
+    """
+
+    def __init__(self, step: ca.Function):
+        if step.n_in() != 3 or step.n_out() != 1:
+            raise ValueError("CompiledLoop needs step(s, a, c) -> s_next")
+        name = "nlobs_step"
+        self.ns, self.na, self.nc = step.size1_in(0), step.size1_in(1), step.size1_in(2)
+        renamed = _renamed(step, name)
+        code = _generate(renamed)
+        defs = {
+            "NLOBS_SZ_ARG": renamed.sz_arg(), "NLOBS_SZ_RES": renamed.sz_res(),
+            "NLOBS_SZ_IW": renamed.sz_iw(), "NLOBS_SZ_W": renamed.sz_w(),
+            "NLOBS_NA": self.na, "NLOBS_NS": self.ns,
+        }
+        driver = _DRIVER.replace("NLOBS_STEP_work", f"{name}_work").replace("NLOBS_STEP", name)
+        for k, v in defs.items():
+            driver = driver.replace(k, str(int(v)))
+        self.path = _build(code + driver, "loop")
+        lib = ctypes.CDLL(str(self.path))
+        self._run = lib.nlobs_run
+        dbl = ctypes.POINTER(ctypes.c_double)
+        self._run.argtypes = [dbl, dbl, dbl, dbl, ctypes.c_longlong]
+        self._run.restype = ctypes.c_int
+        self._lib = lib
+
+    def __call__(self, s0: np.ndarray, a: np.ndarray, c: np.ndarray, out: np.ndarray) -> None:
+        n = out.shape[0]
+        ptr = ctypes.POINTER(ctypes.c_double)
+        rc = self._run(s0.ctypes.data_as(ptr), a.ctypes.data_as(ptr), c.ctypes.data_as(ptr), out.ctypes.data_as(ptr), n)
+        if rc != 0:
+            raise EngineError(f"the compiled step failed at step {rc - 1}")
+
+
+def _renamed(fn: ca.Function, name: str) -> ca.Function:
+    """`fn` under another name (the C symbol), evaluated symbolically so it stays SX when it was."""
+    args = [ca.SX.sym(fn.name_in(i), fn.sparsity_in(i)) for i in range(fn.n_in())]
+    return ca.Function(name, args, fn.call(args))

@@ -1,0 +1,108 @@
+"""The nlobs exception tree.
+
+Every error nlobs raises on purpose is a :class:`NlobsError`, and each one also
+derives from the built-in exception a caller would naturally catch
+(``ValueError`` for bad input, ``RuntimeError`` for numerical failures), so
+``except ValueError`` keeps working for code that does not know about nlobs.
+
+Messages follow one template: what failed, where, what was expected, what was
+found, and what to change.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+__all__ = [
+    "NlobsError",
+    "ModelError",
+    "ModelFileError",
+    "FormError",
+    "ShapeError",
+    "PreconditionError",
+    "DataError",
+    "EngineError",
+    "FiniteEscapeError",
+    "ConvergenceWarning",
+]
+
+
+class NlobsError(Exception):
+    """Base class of every error raised by nlobs on purpose."""
+
+
+class ModelError(NlobsError, ValueError):
+    """A model is malformed: unknown symbol, duplicate name, wrong number of equations."""
+
+
+class ModelFileError(ModelError):
+    """A model file is malformed or tries to do something a model file may not do.
+
+    Attributes
+    ----------
+    path : str
+        The file (or ``"<string>"``).
+    key : str
+        The dotted TOML key where the problem is (``"dynamics.x2"``), or ``""``.
+    text : str
+        The offending text, if any.
+    """
+
+    def __init__(self, message: str, *, path: str = "<string>", key: str = "", text: str = ""):
+        where = path + (f", key `{key}`" if key else "")
+        shown = f": {text!r}" if text else ""
+        super().__init__(f"{where}{shown}: {message}")
+        self.path = path
+        self.key = key
+        self.text = text
+
+
+class FormError(NlobsError, ValueError):
+    """A model is not in the structured form asked for; the message names the entry that breaks it."""
+
+
+class ShapeError(NlobsError, ValueError):
+    """An array has the wrong shape."""
+
+
+class PreconditionError(NlobsError, ValueError):
+    """A design's precondition does not hold (unobservable pair, non-Hurwitz gain, ...)."""
+
+
+class DataError(NlobsError, ValueError):
+    """Measured or recorded data are unusable (NaN/inf, non-increasing time, ...)."""
+
+
+class EngineError(NlobsError, RuntimeError):
+    """The numeric engine failed (compiler error, CasADi error)."""
+
+
+class FiniteEscapeError(NlobsError, RuntimeError):
+    """A simulation blew up: a state became non-finite or left the allowed bound.
+
+    Attributes
+    ----------
+    t : float
+        Time of the last finite sample before the blow-up.
+    x : numpy.ndarray
+        The state at that time.
+    where : str
+        Which system blew up (``"plant"`` or the observer's name).
+    """
+
+    def __init__(self, where: str, t: float, x: np.ndarray, names: Sequence[str], bound: float):
+        shown = ", ".join(f"{n}={v:.6g}" for n, v in zip(names, np.asarray(x, dtype=float)))
+        super().__init__(
+            f"{where} blew up after t = {t:.6g}: the state left |x| <= {bound:g} or became "
+            f"non-finite in the next step; last finite state: {shown}. "
+            "Check the model and the initial state, or reduce `dt`."
+        )
+        self.where = where
+        self.t = float(t)
+        self.x = np.asarray(x, dtype=float)
+
+
+class ConvergenceWarning(UserWarning):
+    """A soft failure: an estimate did not converge, a fallback was used."""

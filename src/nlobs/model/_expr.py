@@ -1,0 +1,241 @@
+"""Safe parsing of expression text into SymPy, through a whitelist of Python AST nodes.
+
+A model file (or a string given to :class:`~nlobs.System`) is user text. It is parsed with
+:func:`ast.parse` in ``eval`` mode and then *walked*: only numbers, declared names, the
+operators ``+ - * / **`` (binary and unary) and calls of a fixed list of functions are
+turned into SymPy objects. Nothing is ever evaluated by Python: no ``eval``, ``exec``,
+``sympify`` or ``parse_expr`` touches the text, so a model file cannot run code.
+
+Limits keep SymPy from doing unbounded work on hostile input: the text length, the nesting
+depth, the size of constant exponents and the magnitude of constant sub-expressions.
+"""
+
+from __future__ import annotations
+
+import ast
+import math
+from collections.abc import Callable, Mapping
+
+import sympy as sp
+
+__all__ = ["FUNCTIONS", "CONSTANTS", "ExpressionError", "parse_expression", "MAX_EXPONENT"]
+
+#: Functions a model expression may call, with their number of arguments.
+FUNCTIONS: Mapping[str, tuple[Callable[..., sp.Expr], int]] = {
+    "sin": (sp.sin, 1),
+    "cos": (sp.cos, 1),
+    "tan": (sp.tan, 1),
+    "asin": (sp.asin, 1),
+    "acos": (sp.acos, 1),
+    "atan": (sp.atan, 1),
+    "atan2": (sp.atan2, 2),
+    "sinh": (sp.sinh, 1),
+    "cosh": (sp.cosh, 1),
+    "tanh": (sp.tanh, 1),
+    "exp": (sp.exp, 1),
+    "log": (sp.log, 1),
+    "sqrt": (sp.sqrt, 1),
+    "abs": (sp.Abs, 1),
+    "sign": (sp.sign, 1),
+}
+
+#: Named constants a model expression may use.
+CONSTANTS: Mapping[str, sp.Expr] = {"pi": sp.pi}
+
+MAX_TEXT = 10_000  #: longest accepted expression text, in characters
+MAX_DEPTH = 200  #: deepest accepted nesting of operations
+MAX_EXPONENT = 64  #: largest accepted magnitude of a constant exponent
+MAX_CONSTANT = 1e300  #: largest accepted magnitude of a constant sub-expression
+
+_BINOPS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/", ast.Pow: "**"}
+
+_NODE_WORDS = {
+    ast.Attribute: "attribute access (`a.b`)",
+    ast.Subscript: "indexing (`a[i]`)",
+    ast.Lambda: "lambda",
+    ast.ListComp: "comprehension",
+    ast.SetComp: "comprehension",
+    ast.DictComp: "comprehension",
+    ast.GeneratorExp: "comprehension",
+    ast.Compare: "comparison",
+    ast.BoolOp: "`and`/`or`",
+    ast.IfExp: "`if ... else`",
+    ast.JoinedStr: "f-string",
+    ast.NamedExpr: "assignment (`:=`)",
+    ast.Starred: "`*` unpacking",
+    ast.List: "list",
+    ast.Tuple: "tuple",
+    ast.Dict: "dict",
+    ast.Set: "set",
+    ast.Await: "await",
+    ast.Yield: "yield",
+}
+
+
+class ExpressionError(ValueError):
+    """Raised by :func:`parse_expression`; the caller adds the file and key."""
+
+
+def parse_expression(text: str, symbols: Mapping[str, sp.Symbol]) -> sp.Expr:
+    """Parse `text` into a SymPy expression over the declared `symbols`, without evaluating it.
+
+    Parameters
+    ----------
+    text : str
+        The expression, in Python syntax (``"mu*(1 - x1**2)*x2 - x1 + u"``).
+    symbols : mapping of str to sympy.Symbol
+        The names the expression may use.
+
+    Returns
+    -------
+    sympy.Expr
+
+    Raises
+    ------
+    ExpressionError
+        If the text is not an expression made only of numbers, declared names,
+        ``+ - * / **`` and the functions in :data:`FUNCTIONS`, or exceeds a size limit.
+    """
+    if not isinstance(text, str):
+        raise ExpressionError(f"an expression must be a string, got {type(text).__name__}")
+    if len(text) > MAX_TEXT:
+        raise ExpressionError(f"the expression is {len(text)} characters long; the limit is {MAX_TEXT}")
+    if "__" in text:
+        raise ExpressionError("double underscores (dunder names) are not allowed in a model expression")
+    if not text.strip():
+        raise ExpressionError("the expression is empty")
+    try:
+        tree = ast.parse(text.strip(), mode="eval")
+    except SyntaxError as e:
+        raise ExpressionError(f"not a valid expression ({e.msg})") from None
+    except (ValueError, RecursionError, MemoryError, OverflowError) as e:
+        raise ExpressionError(f"cannot be parsed ({type(e).__name__})") from None
+    return _Walker(symbols).expr(tree.body, 0)
+
+
+def _spine(node: ast.AST, ops: tuple[type, ...]) -> list[tuple[bool, ast.AST]]:
+    """Flatten a left-deep chain ``a + b - c + ...`` into ``[(negated, operand), ...]``.
+
+    Long sums and products would otherwise be walked recursively one level per term.
+    """
+    items: list[tuple[bool, ast.AST]] = []
+    while isinstance(node, ast.BinOp) and isinstance(node.op, ops):
+        items.append((isinstance(node.op, (ast.Sub, ast.Div)), node.right))
+        node = node.left
+    items.append((False, node))
+    items.reverse()
+    return items
+
+
+class _Walker:
+    def __init__(self, symbols: Mapping[str, sp.Symbol]):
+        self.symbols = symbols
+
+    def expr(self, node: ast.AST, depth: int) -> sp.Expr:
+        if depth > MAX_DEPTH:
+            raise ExpressionError(f"the expression is nested more than {MAX_DEPTH} levels deep")
+        if isinstance(node, ast.Constant):
+            return self.constant(node.value)
+        if isinstance(node, ast.Name):
+            return self.name(node.id)
+        if isinstance(node, ast.UnaryOp):
+            if isinstance(node.op, ast.USub):
+                return -self.expr(node.operand, depth + 1)
+            if isinstance(node.op, ast.UAdd):
+                return self.expr(node.operand, depth + 1)
+            raise ExpressionError(f"the operator `{type(node.op).__name__}` is not allowed; use + - * / **")
+        if isinstance(node, ast.BinOp):
+            if isinstance(node.op, (ast.Add, ast.Sub)):
+                terms = []
+                for neg, operand in _spine(node, (ast.Add, ast.Sub)):
+                    value = self.expr(operand, depth + 1)
+                    terms.append(-value if neg else value)
+                return self.checked(sp.Add(*terms))
+            if isinstance(node.op, (ast.Mult, ast.Div)):
+                out = []
+                for neg, operand in _spine(node, (ast.Mult, ast.Div)):
+                    value = self.expr(operand, depth + 1)
+                    if neg:
+                        if value.is_zero:
+                            raise ExpressionError("division by zero")
+                        value = sp.Pow(value, -1)
+                    out.append(value)
+                return self.checked(sp.Mul(*out))
+            if isinstance(node.op, ast.Pow):
+                return self.power(self.expr(node.left, depth + 1), self.expr(node.right, depth + 1))
+            raise ExpressionError(
+                f"the operator `{type(node.op).__name__}` is not allowed; use + - * / **"
+            )
+        if isinstance(node, ast.Call):
+            return self.call(node, depth)
+        word = _NODE_WORDS.get(type(node), f"`{type(node).__name__}`")
+        raise ExpressionError(f"{word} is not allowed in a model expression")
+
+    def constant(self, value: object) -> sp.Expr:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            kind = "a string" if isinstance(value, str) else type(value).__name__
+            raise ExpressionError(f"{kind} is not allowed here; only numbers, names and + - * / **")
+        if isinstance(value, float) and not math.isfinite(value):
+            raise ExpressionError("the number is out of range")
+        if abs(value) > MAX_CONSTANT:
+            raise ExpressionError(f"the number exceeds {MAX_CONSTANT:g} in magnitude")
+        if isinstance(value, int):
+            return sp.Integer(value)
+        # decimal literals become exact rationals (0.1 -> 1/10) so symbolic work stays exact
+        return sp.Rational(repr(value))
+
+    def name(self, name: str) -> sp.Expr:
+        if name in self.symbols:
+            return self.symbols[name]
+        if name in CONSTANTS:
+            return CONSTANTS[name]
+        if name in FUNCTIONS:
+            raise ExpressionError(f"`{name}` is a function; call it, as in `{name}(x)`")
+        known = ", ".join(sorted(self.symbols)) or "(none)"
+        raise ExpressionError(f"unknown name `{name}`; the names declared here are: {known}")
+
+    def call(self, node: ast.Call, depth: int) -> sp.Expr:
+        if not isinstance(node.func, ast.Name):
+            raise ExpressionError("only the functions " + ", ".join(FUNCTIONS) + " may be called")
+        fname = node.func.id
+        if fname not in FUNCTIONS:
+            raise ExpressionError(
+                f"`{fname}` is not an allowed function; allowed: {', '.join(FUNCTIONS)}"
+            )
+        if node.keywords or any(isinstance(a, ast.Starred) for a in node.args):
+            raise ExpressionError(f"`{fname}` takes positional arguments only")
+        fn, nargs = FUNCTIONS[fname]
+        if len(node.args) != nargs:
+            raise ExpressionError(f"`{fname}` takes {nargs} argument(s), got {len(node.args)}")
+        args = [self.expr(a, depth + 1) for a in node.args]
+        return self.checked(fn(*args))
+
+    def power(self, base: sp.Expr, exponent: sp.Expr) -> sp.Expr:
+        if exponent.is_number:
+            e = complex(exponent.evalf(30))
+            if e.imag != 0 or not math.isfinite(e.real):
+                raise ExpressionError("the exponent is not a finite real number")
+            if abs(e.real) > MAX_EXPONENT:
+                raise ExpressionError(
+                    f"the constant exponent {e.real:g} exceeds {MAX_EXPONENT} in magnitude"
+                )
+            if base.is_number:
+                b = complex(base.evalf(30))
+                if b == 0 and e.real < 0:
+                    raise ExpressionError("zero raised to a negative power")
+                if b != 0 and e.real * math.log10(abs(b)) > math.log10(MAX_CONSTANT):
+                    raise ExpressionError(f"the constant power exceeds {MAX_CONSTANT:g}")
+        return self.checked(sp.Pow(base, exponent))
+
+    @staticmethod
+    def checked(value: sp.Expr) -> sp.Expr:
+        """Reject constant sub-expressions that are infinite, complex or too large."""
+        if value.has(sp.zoo, sp.oo, -sp.oo, sp.nan):
+            raise ExpressionError("the expression is undefined (division by zero or infinity)")
+        if value.is_number:
+            v = complex(value.evalf(30))
+            if not (math.isfinite(v.real) and math.isfinite(v.imag)) or abs(v) > MAX_CONSTANT:
+                raise ExpressionError(f"a constant part exceeds {MAX_CONSTANT:g} in magnitude")
+            if abs(v.imag) > 1e-12 * max(1.0, abs(v.real)):
+                raise ExpressionError("a constant part is not a real number")
+        return value

@@ -1,0 +1,357 @@
+"""The model an engineer writes: x' = f(x, u, t, p), y = h(x, u, t, p)."""
+
+from __future__ import annotations
+
+import hashlib
+import keyword
+import re
+from collections.abc import Iterable, Mapping, Sequence
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+import sympy as sp
+
+from ..errors import ModelError
+from ._expr import CONSTANTS, FUNCTIONS, ExpressionError, parse_expression
+
+__all__ = ["System", "TIME", "symbol", "exact", "ExprLike"]
+
+ExprLike = str | sp.Expr | int | float
+
+_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
+#: Names a model may not declare: time, the functions and constants of expressions.
+RESERVED = frozenset({"t", "I", "E", "oo", "nan", "zoo", *FUNCTIONS, *CONSTANTS})
+
+#: SymPy function classes the numeric engine can translate (see ``nlobs.engine``).
+SUPPORTED_FUNCTIONS = (
+    sp.sin, sp.cos, sp.tan, sp.asin, sp.acos, sp.atan, sp.atan2,
+    sp.sinh, sp.cosh, sp.tanh, sp.exp, sp.log, sp.Abs, sp.sign,
+)
+
+
+def symbol(name: str) -> sp.Symbol:
+    """The canonical SymPy symbol nlobs uses for `name` (real-valued)."""
+    return sp.Symbol(name, real=True)
+
+
+#: The time symbol ``t``.
+TIME = symbol("t")
+
+
+def exact(value: float) -> sp.Rational:
+    """The exact rational of a float's shortest decimal form (0.1 -> 1/10)."""
+    return sp.Rational(repr(float(value)))
+
+
+def _check_names(kind: str, names: Iterable[str]) -> tuple[str, ...]:
+    if isinstance(names, str):
+        raise ModelError(f"`{kind}` must be a list of names, got the string {names!r}; write [{names!r}]")
+    out = tuple(names)
+    for n in out:
+        if not isinstance(n, str) or not _NAME.match(n) or keyword.iskeyword(n):
+            raise ModelError(
+                f"{kind[:-1] if kind.endswith('s') else kind} name {n!r} is not valid: names start "
+                "with a letter and contain only letters, digits and underscores"
+            )
+        if n in RESERVED:
+            raise ModelError(f"the name `{n}` is reserved (time `t`, functions and constants); rename it")
+    return out
+
+
+class System:
+    r"""A dynamical system with named states, inputs, outputs and parameters.
+
+    .. math::
+
+        \dot x = f(x, u, t, p), \qquad y = h(x, u, t, p)
+
+    `f` and `h` are SymPy expressions over the declared names and the time ``t``. A
+    ``System`` is immutable: :meth:`with_params` returns a new one.
+
+    Parameters
+    ----------
+    states : sequence of str
+        State names, in order.
+    f : sequence or mapping of expressions
+        One time derivative per state: a list in state order, or a mapping
+        ``{state: expression}``. Expressions are SymPy expressions, numbers or strings
+        (parsed safely, see :func:`nlobs.model.parse_expression`).
+    outputs : sequence of str
+        Output names.
+    h : sequence or mapping of expressions
+        One expression per output.
+    inputs : sequence of str, optional
+        Input names.
+    params : mapping of str to float, optional
+        Parameter names and their values.
+    name : str, optional
+        A name used in reports.
+
+    Raises
+    ------
+    ModelError
+        On duplicate or invalid names, a wrong number of equations, an unknown symbol or an
+        unsupported function in an expression.
+
+    Examples
+    --------
+    >>> vdp = System(states=["x1", "x2"], f=["x2", "mu*(1 - x1**2)*x2 - x1"],
+    ...              outputs=["y"], h=["x1"], params={"mu": 1.0}, name="vdp")
+    >>> vdp.n_states, vdp.with_params(mu=2.0).params["mu"]
+    (2, 2.0)
+    """
+
+    __slots__ = ("_name", "_states", "_inputs", "_outputs", "_params", "_f", "_h", "_key")
+
+    def __init__(
+        self,
+        *,
+        states: Sequence[str],
+        f: Sequence[ExprLike] | Mapping[str, ExprLike],
+        outputs: Sequence[str],
+        h: Sequence[ExprLike] | Mapping[str, ExprLike],
+        inputs: Sequence[str] = (),
+        params: Mapping[str, float] | None = None,
+        name: str = "system",
+    ):
+        states_ = _check_names("states", states)
+        inputs_ = _check_names("inputs", inputs)
+        outputs_ = _check_names("outputs", outputs)
+        params = dict(params or {})
+        params_ = _check_names("params", params)
+        if not states_:
+            raise ModelError("a system needs at least one state")
+        seen: dict[str, str] = {}
+        for kind, names in (("state", states_), ("input", inputs_), ("output", outputs_), ("parameter", params_)):
+            for n in names:
+                if n in seen:
+                    raise ModelError(f"the name `{n}` is declared twice (as {seen[n]} and as {kind}); names must be unique")
+                seen[n] = kind
+        values = {}
+        for k, v in params.items():
+            try:
+                fv = float(v)
+            except (TypeError, ValueError):
+                raise ModelError(f"parameter `{k}` must be a number, got {v!r}") from None
+            if not np.isfinite(fv):
+                raise ModelError(f"parameter `{k}` must be finite, got {fv}")
+            values[k] = fv
+
+        allowed = {n: symbol(n) for n in (*states_, *inputs_, *params_)}
+        allowed["t"] = TIME
+        object.__setattr__(self, "_name", str(name))
+        object.__setattr__(self, "_states", states_)
+        object.__setattr__(self, "_inputs", inputs_)
+        object.__setattr__(self, "_outputs", outputs_)
+        object.__setattr__(self, "_params", MappingProxyType(values))
+        object.__setattr__(self, "_f", _equations("f", f, states_, allowed))
+        object.__setattr__(self, "_h", _equations("h", h, outputs_, allowed))
+        key = hashlib.sha256(
+            repr((states_, inputs_, outputs_, params_, [sp.srepr(e) for e in (*self._f, *self._h)])).encode()
+        ).hexdigest()
+        object.__setattr__(self, "_key", key)
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        raise AttributeError("System is immutable; use with_params() or build a new System")
+
+    # -- names and sizes ---------------------------------------------------------------
+    name = property(lambda self: self._name, doc="The system's name.")
+    states = property(lambda self: self._states, doc="State names, in order.")
+    inputs = property(lambda self: self._inputs, doc="Input names, in order.")
+    outputs = property(lambda self: self._outputs, doc="Output names, in order.")
+    params = property(lambda self: self._params, doc="Parameter values (read-only mapping).")
+    f = property(lambda self: self._f, doc="The time derivatives, one SymPy expression per state.")
+    h = property(lambda self: self._h, doc="The outputs, one SymPy expression per output.")
+    key = property(lambda self: self._key, doc="A hash of the structure (names and expressions, not parameter values).")
+
+    @property
+    def n_states(self) -> int:
+        return len(self._states)
+
+    @property
+    def n_inputs(self) -> int:
+        return len(self._inputs)
+
+    @property
+    def n_outputs(self) -> int:
+        return len(self._outputs)
+
+    @property
+    def n_params(self) -> int:
+        return len(self._params)
+
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        return tuple(self._params)
+
+    @property
+    def param_values(self) -> np.ndarray:
+        """Parameter values as an array, in the order of :attr:`param_names`."""
+        return np.array(list(self._params.values()), dtype=float)
+
+    # -- symbols -----------------------------------------------------------------------
+    @property
+    def x(self) -> tuple[sp.Symbol, ...]:
+        """State symbols."""
+        return tuple(symbol(n) for n in self._states)
+
+    @property
+    def u(self) -> tuple[sp.Symbol, ...]:
+        """Input symbols."""
+        return tuple(symbol(n) for n in self._inputs)
+
+    @property
+    def p(self) -> tuple[sp.Symbol, ...]:
+        """Parameter symbols."""
+        return tuple(symbol(n) for n in self._params)
+
+    @property
+    def y(self) -> tuple[sp.Symbol, ...]:
+        """Output symbols (for forms such as A(u, y, t) that use the measured output)."""
+        return tuple(symbol(n) for n in self._outputs)
+
+    t = TIME
+
+    @property
+    def is_time_varying(self) -> bool:
+        """Whether ``t`` appears explicitly in f or h."""
+        return any(e.has(TIME) for e in (*self._f, *self._h))
+
+    # -- derived objects ---------------------------------------------------------------
+    def with_params(self, **values: float) -> System:
+        """Return a copy with some parameter values replaced.
+
+        Raises
+        ------
+        ModelError
+            If a name is not a parameter of this system.
+        """
+        unknown = [k for k in values if k not in self._params]
+        if unknown:
+            raise ModelError(
+                f"with_params: {', '.join(f'`{k}`' for k in unknown)} is not a parameter of "
+                f"{self._name!r}; its parameters are: {', '.join(self._params) or '(none)'}"
+            )
+        return System(
+            states=self._states, f=self._f, outputs=self._outputs, h=self._h,
+            inputs=self._inputs, params={**self._params, **values}, name=self._name,
+        )
+
+    def with_name(self, name: str) -> System:
+        """Return a copy with another name."""
+        return System(
+            states=self._states, f=self._f, outputs=self._outputs, h=self._h,
+            inputs=self._inputs, params=self._params, name=name,
+        )
+
+    def substituted(self) -> tuple[sp.Matrix, sp.Matrix]:
+        """f and h with the parameter values substituted (as exact rationals where possible)."""
+        subs = {symbol(k): exact(v) for k, v in self._params.items()}
+        return sp.Matrix(self._f).xreplace(subs), sp.Matrix(self._h).xreplace(subs)
+
+    # -- dunder ------------------------------------------------------------------------
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, System) and self._key == other._key and dict(self._params) == dict(other._params) and self._name == other._name
+
+    def __hash__(self) -> int:
+        return hash((self._key, tuple(self._params.items()), self._name))
+
+    def __repr__(self) -> str:
+        return f"System({self._name!r}, states={list(self._states)}, inputs={list(self._inputs)}, outputs={list(self._outputs)}, params={dict(self._params)})"
+
+    def __str__(self) -> str:
+        def plural(n: int, word: str) -> str:
+            return f"{n} {word}{'' if n == 1 else 's'}"
+
+        head = [
+            f"System {self._name!r}: {plural(self.n_states, 'state')} ({', '.join(self._states)})",
+            f"{plural(self.n_inputs, 'input')}" + (f" ({', '.join(self._inputs)})" if self._inputs else ""),
+            f"{plural(self.n_outputs, 'output')} ({', '.join(self._outputs)})",
+        ]
+        if self._params:
+            head.append(f"{plural(self.n_params, 'parameter')} ({', '.join(f'{k}={v:g}' for k, v in self._params.items())})")
+        lines = [", ".join(head)]
+        lines += [f"  {n}' = {e}" for n, e in zip(self._states, self._f)]
+        lines += [f"  {n} = {e}" for n, e in zip(self._outputs, self._h)]
+        return "\n".join(lines)
+
+    # -- constructors for structured forms (see model/_forms.py) -----------------------
+    @staticmethod
+    def lti(A: Any, B: Any = None, C: Any = None, D: Any = None, **names: Any) -> System:
+        """An LTI system x' = Ax + Bu, y = Cx + Du; see :class:`nlobs.model.LTI`."""
+        from ._forms import LTI
+
+        return LTI(A, B, C, D, **names).to_system()
+
+    @staticmethod
+    def state_affine(A: Any, b: Any, C: Any, **names: Any) -> System:
+        """A state-affine system x' = A(u, y, t)x + b(u, y, t), y = C(u, t)ᵀx (000 eq. 1).
+
+        See :class:`nlobs.model.StateAffine`.
+        """
+        from ._forms import StateAffine
+
+        return StateAffine(A, b, C, **names).to_system()
+
+
+def _equations(
+    label: str,
+    given: Sequence[ExprLike] | Mapping[str, ExprLike],
+    names: tuple[str, ...],
+    allowed: Mapping[str, sp.Symbol],
+) -> tuple[sp.Expr, ...]:
+    """Turn the user's f or h into a tuple of validated SymPy expressions, in `names` order."""
+    what = "state" if label == "f" else "output"
+    if isinstance(given, Mapping):
+        extra = [k for k in given if k not in names]
+        missing = [n for n in names if n not in given]
+        if extra:
+            raise ModelError(f"`{label}` has an equation for {', '.join(map(repr, extra))}, which is not a declared {what}; declared: {', '.join(names)}")
+        if missing:
+            raise ModelError(f"`{label}` has no equation for the {what}(s) {', '.join(map(repr, missing))}; give one per {what}")
+        items = [(n, given[n]) for n in names]
+    else:
+        if isinstance(given, (str, sp.Basic)):
+            given = [given]
+        seq = list(given)
+        if len(seq) != len(names):
+            raise ModelError(f"`{label}` has {len(seq)} equation(s) but there are {len(names)} {what}s ({', '.join(names)}); give one per {what}")
+        items = list(zip(names, seq))
+    return tuple(to_expr(e, allowed, where=f"{label}[{n}]") for n, e in items)
+
+
+def to_expr(value: ExprLike, allowed: Mapping[str, sp.Symbol], *, where: str) -> sp.Expr:
+    """Convert a string, number or SymPy expression to a validated SymPy expression.
+
+    Symbols are matched to `allowed` by name (whatever their SymPy assumptions), so
+    expressions built with plain ``sympy.symbols`` work.
+    """
+    if isinstance(value, str):
+        try:
+            return parse_expression(value, allowed)
+        except ExpressionError as e:
+            raise ModelError(f"{where}: {value!r}: {e}") from None
+    if isinstance(value, bool):
+        raise ModelError(f"{where}: expected an expression, got {value!r}")
+    if isinstance(value, (int, float, np.integer, np.floating)):
+        if not np.isfinite(value):
+            raise ModelError(f"{where}: the number {value} is not finite")
+        return sp.Integer(int(value)) if float(value).is_integer() and abs(value) < 2**53 else sp.Float(float(value))
+    if not isinstance(value, sp.Basic):
+        raise ModelError(f"{where}: expected a string, number or SymPy expression, got {type(value).__name__}")
+    expr = value
+    if not isinstance(expr, sp.Expr):
+        raise ModelError(f"{where}: expected a scalar expression, got {type(expr).__name__}")
+    subs = {}
+    for s in expr.free_symbols:
+        if s.name not in allowed:
+            raise ModelError(f"{where}: unknown symbol `{s.name}` in {expr}; declared names: {', '.join(sorted(allowed))}")
+        subs[s] = allowed[s.name]
+    expr = expr.xreplace(subs)
+    for fn in expr.atoms(sp.Function):
+        if isinstance(fn, sp.core.function.AppliedUndef) or not isinstance(fn, SUPPORTED_FUNCTIONS):
+            raise ModelError(f"{where}: the function `{fn.func}` is not supported; supported: {', '.join(FUNCTIONS)}")
+    if expr.has(sp.zoo, sp.oo, sp.nan, sp.I):
+        raise ModelError(f"{where}: the expression {expr} is infinite, undefined or complex")
+    return expr

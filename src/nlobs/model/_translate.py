@@ -1,0 +1,77 @@
+"""Translate a SymPy expression tree into another algebra (NumPy arrays, CasADi SX, ...).
+
+One walker serves every numeric backend; a backend is a table of the elementary functions.
+Only the node types a :class:`~nlobs.System` may contain are handled.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+import sympy as sp
+
+from ..errors import ModelError
+
+__all__ = ["translate", "NUMPY"]
+
+#: Elementary functions for NumPy arrays.
+NUMPY: Mapping[type, Callable[..., Any]] = {
+    sp.sin: np.sin, sp.cos: np.cos, sp.tan: np.tan,
+    sp.asin: np.arcsin, sp.acos: np.arccos, sp.atan: np.arctan, sp.atan2: np.arctan2,
+    sp.sinh: np.sinh, sp.cosh: np.cosh, sp.tanh: np.tanh,
+    sp.exp: np.exp, sp.log: np.log, sp.Abs: np.abs, sp.sign: np.sign,
+    "sqrt": np.sqrt,
+}
+
+
+def translate(expr: sp.Expr, leaves: Mapping[sp.Symbol, Any], table: Mapping[Any, Callable[..., Any]]) -> Any:
+    """Rebuild `expr` with the symbols replaced by `leaves` and functions taken from `table`.
+
+    Shared sub-expressions are translated once.
+
+    Raises
+    ------
+    ModelError
+        If the expression contains a symbol not in `leaves` or an unsupported node.
+    """
+    memo: dict[sp.Basic, Any] = {}
+
+    def walk(e: sp.Basic) -> Any:
+        if e in memo:
+            return memo[e]
+        if e.is_Symbol:
+            if e not in leaves:
+                raise ModelError(f"cannot evaluate: the symbol `{e}` has no value here")
+            out = leaves[e]
+        elif e.is_Number or e in (sp.pi, sp.E):
+            out = float(e)
+        elif e.is_Add:
+            args = [walk(a) for a in e.args]
+            out = args[0]
+            for a in args[1:]:
+                out = out + a
+        elif e.is_Mul:
+            args = [walk(a) for a in e.args]
+            out = args[0]
+            for a in args[1:]:
+                out = out * a
+        elif e.is_Pow:
+            base, ex = e.args
+            if ex == sp.S.Half:
+                out = table["sqrt"](walk(base))
+            elif ex == -sp.S.Half:
+                out = 1.0 / table["sqrt"](walk(base))
+            elif ex.is_Integer:
+                out = walk(base) ** int(ex)
+            else:
+                out = walk(base) ** walk(ex)
+        elif e.func in table:
+            out = table[e.func](*[walk(a) for a in e.args])
+        else:
+            raise ModelError(f"cannot evaluate `{e}`: `{e.func}` is not supported numerically")
+        memo[e] = out
+        return out
+
+    return walk(sp.Float(expr) if isinstance(expr, (int, float)) else expr)

@@ -1,0 +1,6 @@
+"""Observer: the runnable contract z' = F(t, z, u, y), x̂ = H(t, z, u, y) (+ sample-time update)."""
+
+from ._base import AbstractObserver as AbstractObserver
+from ._base import Observer as Observer
+from ._base import OnlineObserver as OnlineObserver
+from ._base import as_observer as as_observer

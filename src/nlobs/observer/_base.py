@@ -1,0 +1,213 @@
+"""The runnable observer contract.
+
+An observer is the dynamical system of its design (004 eq. 2, 000 eq. 6):
+
+.. math::
+
+    \\dot z = F(t, z, u, y), \\qquad \\hat x = H(t, z, u, y),
+
+plus, for continuous-discrete observers, the update :math:`z^+ = J(t, z^-, u, y, m)` at
+each sample. Between samples the measurement and the input are held (zero-order hold).
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from ..design import ObserverDesign
+from ..engine import compile_system, rk4_step
+from ..errors import DataError, ShapeError
+
+__all__ = ["AbstractObserver", "Observer", "OnlineObserver", "as_observer"]
+
+
+def _vec(value: Any, n: int, name: str) -> np.ndarray:
+    v = np.asarray(value if value is not None else np.zeros(n), dtype=float).reshape(-1)
+    if v.size != n:
+        raise ShapeError(f"`{name}` must have {n} entries, got {v.size}")
+    return v
+
+
+class AbstractObserver(ABC):
+    """What every runnable observer offers; see the module docstring for the equations."""
+
+    @property
+    @abstractmethod
+    def design(self) -> ObserverDesign:
+        """The design this observer runs (equations and certificate)."""
+
+    @abstractmethod
+    def rhs(self, t: float, z: Any, u: Any, y: Any) -> np.ndarray:
+        """dz/dt."""
+
+    @abstractmethod
+    def estimate(self, t: float, z: Any, u: Any, y: Any) -> np.ndarray:
+        """x̂ from the internal state."""
+
+    @abstractmethod
+    def update(self, t: float, z: Any, u: Any, y: Any, mask: Any = None) -> np.ndarray:
+        """z⁺ at a sample instant (identity for continuous observers)."""
+
+    @abstractmethod
+    def step(self, z: Any, t: float, dt: float, u: Any, y: Any, *, substeps: int = 1) -> np.ndarray:
+        """Integrate the flow from t to t + dt with u and y held (RK4, `substeps` steps)."""
+
+    @property
+    def system(self):  # noqa: ANN201 - System, re-exported from the design
+        return self.design.system
+
+    @property
+    def sampled(self) -> bool:
+        return self.design.sampled
+
+    @property
+    def n_z(self) -> int:
+        return self.design.n_z
+
+    def initial_state(self, xhat0: Any = None) -> np.ndarray:
+        """The internal state that starts from the estimate `xhat0` (default: the design's)."""
+        x0 = self.design.xhat0 if xhat0 is None else _vec(xhat0, self.system.n_states, "xhat0")
+        return np.asarray(self.design.initial(x0), dtype=float).reshape(-1)
+
+    def start(self, xhat0: Any = None) -> OnlineObserver:
+        """An online estimator fed one sample at a time (see :class:`OnlineObserver`)."""
+        return OnlineObserver(self, xhat0)
+
+
+class Observer(AbstractObserver):
+    """An observer whose equations are CasADi functions (every design in nlobs).
+
+    Parameters
+    ----------
+    design : ObserverDesign
+    name : str, optional
+        A label for results (default: the design's method).
+    """
+
+    def __init__(self, design: ObserverDesign, name: str | None = None):
+        if not isinstance(design, ObserverDesign):
+            raise TypeError(f"Observer needs an ObserverDesign (from a design_* function), got {type(design).__name__}")
+        self._design = design
+        self.name = name or design.method
+        self._step_fns: dict[int, ca.Function] = {}
+
+    @property
+    def design(self) -> ObserverDesign:
+        return self._design
+
+    def _io(self, t: float, z: Any, u: Any, y: Any) -> list[np.ndarray]:
+        s = self.system
+        return [np.array([float(t)]), _vec(z, self.n_z, "z"), _vec(u, s.n_inputs, "u"), _vec(y, s.n_outputs, "y")]
+
+    def rhs(self, t: float, z: Any, u: Any = None, y: Any = None) -> np.ndarray:
+        return np.asarray(self._design.flow(*self._io(t, z, u, y)), dtype=float).reshape(-1)
+
+    def estimate(self, t: float, z: Any, u: Any = None, y: Any = None) -> np.ndarray:
+        return np.asarray(self._design.output(*self._io(t, z, u, y)), dtype=float).reshape(-1)
+
+    def update(self, t: float, z: Any, u: Any = None, y: Any = None, mask: Any = None) -> np.ndarray:
+        if self._design.update is None:
+            return _vec(z, self.n_z, "z").copy()
+        m = np.ones(self.system.n_outputs) if mask is None else _vec(mask, self.system.n_outputs, "mask")
+        return np.asarray(self._design.update(*self._io(t, z, u, y), m), dtype=float).reshape(-1)
+
+    def step_function(self, substeps: int = 1) -> ca.Function:
+        """``(z, t, dt, u, y) -> z(t + dt)``: `substeps` RK4 steps of the flow with u, y held."""
+        fn = self._step_fns.get(substeps)
+        if fn is None:
+            d, s = self._design, self.system
+            z, t, dt = ca.SX.sym("z", d.n_z), ca.SX.sym("t"), ca.SX.sym("dt")
+            u, y = ca.SX.sym("u", s.n_inputs), ca.SX.sym("y", s.n_outputs)
+            h = dt / substeps
+            zk = z
+            for i in range(substeps):
+                zk = rk4_step(lambda tt, zz, _k: d.flow(tt, zz, u, y), t + i * h, zk, h)
+            fn = self._step_fns[substeps] = ca.Function(f"{d.method}_step", [z, t, dt, u, y], [zk])
+        return fn
+
+    def step(self, z: Any, t: float, dt: float, u: Any = None, y: Any = None, *, substeps: int = 1) -> np.ndarray:
+        if substeps < 1:
+            raise ValueError(f"`substeps` must be at least 1, got {substeps}")
+        s = self.system
+        out = self.step_function(substeps)(_vec(z, self.n_z, "z"), float(t), float(dt),
+                                            _vec(u, s.n_inputs, "u"), _vec(y, s.n_outputs, "y"))
+        return np.asarray(out, dtype=float).reshape(-1)
+
+    def __repr__(self) -> str:
+        return f"Observer({self.name!r}, method={self._design.method!r}, system={self.system.name!r})"
+
+    def __str__(self) -> str:
+        return str(self._design)
+
+
+def as_observer(obj: Any, name: str | None = None) -> AbstractObserver:
+    """An observer from an observer or a design."""
+    if isinstance(obj, AbstractObserver):
+        return obj
+    if isinstance(obj, ObserverDesign):
+        return Observer(obj, name)
+    raise TypeError(f"expected an observer or an ObserverDesign (from a design_* function), got {type(obj).__name__}")
+
+
+class OnlineObserver:
+    """Run an observer one sample at a time, for use in a real loop.
+
+    Each :meth:`update` integrates the observer from the previous sample time to `t` with the
+    previous measurement and input held, applies the sample-time update with the new
+    measurement, and returns the estimate at `t`. Components of `y` that are NaN are
+    treated as missing: left out of the update, and replaced by the predicted output in the
+    flow.
+
+    Parameters
+    ----------
+    observer : AbstractObserver
+    xhat0 : array_like, optional
+        Initial estimate (default: the design's).
+    max_step : float, optional
+        Largest RK4 step between samples (default: one step per sample interval).
+    """
+
+    def __init__(self, observer: AbstractObserver, xhat0: Any = None, *, max_step: float | None = None):
+        self.observer = observer
+        self.z = observer.initial_state(xhat0)
+        self.t: float | None = None
+        self.max_step = max_step
+        self._u = np.zeros(observer.system.n_inputs)
+        self._y = np.zeros(observer.system.n_outputs)
+
+    @property
+    def xhat(self) -> np.ndarray:
+        """The current estimate."""
+        t = 0.0 if self.t is None else self.t
+        return self.observer.estimate(t, self.z, self._u, self._y)
+
+    def update(self, t: float, y: Any, u: Any = None) -> np.ndarray:
+        """Feed the measurement `y` taken at time `t` (and the input applied from `t` on)."""
+        obs, sys_ = self.observer, self.observer.system
+        y = _vec(y, sys_.n_outputs, "y")
+        u = _vec(u, sys_.n_inputs, "u")
+        if np.any(np.isinf(y)) or not np.isfinite(t):
+            raise DataError(f"OnlineObserver.update: t = {t} and y = {y} must be finite (NaN marks a missing output)")
+        if self.t is not None:
+            dt = float(t) - self.t
+            if dt < 0:
+                raise DataError(f"OnlineObserver.update: time went backwards, from {self.t:g} to {t:g}")
+            if dt > 0:
+                n = 1 if not self.max_step else max(1, int(np.ceil(dt / self.max_step - 1e-9)))
+                self.z = obs.step(self.z, self.t, dt, self._u, self._y, substeps=n)
+        mask = np.isfinite(y)
+        if not mask.all():
+            yhat = self._predicted_output(float(t), u)
+            y = np.where(mask, y, yhat)
+        self.z = obs.update(t, self.z, u, y, mask.astype(float))
+        self.t, self._u, self._y = float(t), u, y
+        return obs.estimate(self.t, self.z, u, y)
+
+    def _predicted_output(self, t: float, u: np.ndarray) -> np.ndarray:
+        xhat = self.observer.estimate(t, self.z, u, self._y)
+        _, h = compile_system(self.observer.system).bind()
+        return np.asarray(h(t, xhat, u), dtype=float).reshape(-1)

@@ -1,0 +1,115 @@
+"""Option objects for simulations: how measurements are sampled, and the noise on them."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from ..errors import ShapeError
+
+__all__ = ["Sampling", "Noise", "ProcessNoise"]
+
+
+@dataclass(frozen=True)
+class Sampling:
+    """Measurements taken every `period` seconds and held (zero-order hold) in between.
+
+    The period must be a whole multiple of the integration step ``dt``.
+    Without a ``Sampling``, observers see the output continuously (at every RK4 stage).
+    """
+
+    period: float
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.period) and self.period > 0):
+            raise ValueError(f"Sampling: `period` must be a positive number, got {self.period!r}")
+
+    def every(self, dt: float) -> int:
+        """Steps of size `dt` per sample."""
+        m = self.period / dt
+        if abs(m - round(m)) > 1e-9 * max(1.0, m) or round(m) < 1:
+            raise ValueError(f"Sampling: the period {self.period:g} must be a whole multiple of dt = {dt:g}")
+        return int(round(m))
+
+
+Kind = Literal["gaussian", "uniform"]
+
+
+def _per_channel(scale: float | Sequence[float] | Mapping[str, float], names: Sequence[str], what: str) -> np.ndarray:
+    if isinstance(scale, Mapping):
+        unknown = [k for k in scale if k not in names]
+        if unknown:
+            raise ShapeError(f"{what}: {unknown[0]!r} is not one of {', '.join(names)}")
+        s = np.array([float(scale.get(n, 0.0)) for n in names])
+    else:
+        s = np.broadcast_to(np.asarray(scale, dtype=float), (len(names),)).copy() if np.ndim(scale) == 0 else np.asarray(scale, dtype=float).ravel()
+    if s.size != len(names):
+        raise ShapeError(f"{what}: {s.size} value(s) for {len(names)} channel(s) ({', '.join(names)})")
+    if not np.all(np.isfinite(s)) or np.any(s < 0):
+        raise ShapeError(f"{what}: values must be finite and non-negative, got {s}")
+    return s
+
+
+@dataclass(frozen=True)
+class Noise:
+    """Measurement noise added to each output sample.
+
+    Build with :meth:`gaussian` (standard deviation) or :meth:`uniform` (bound b, uniform in
+    [-b, b], as in 004 §V), or combine per output with :meth:`per_output`.
+    Scales are a scalar (every output), a sequence (one per output) or a mapping by name.
+    """
+
+    kinds: Mapping[str, Kind] | Kind
+    scale: float | Sequence[float] | Mapping[str, float]
+
+    @classmethod
+    def gaussian(cls, std: float | Sequence[float] | Mapping[str, float]) -> Noise:
+        return cls("gaussian", std)
+
+    @classmethod
+    def uniform(cls, bound: float | Sequence[float] | Mapping[str, float]) -> Noise:
+        return cls("uniform", bound)
+
+    @classmethod
+    def per_output(cls, gaussian: Mapping[str, float] | None = None, uniform: Mapping[str, float] | None = None) -> Noise:
+        """Gaussian noise on some outputs and uniform noise on others (by name)."""
+        gaussian, uniform = dict(gaussian or {}), dict(uniform or {})
+        both = set(gaussian) & set(uniform)
+        if both:
+            raise ValueError(f"Noise.per_output: output {sorted(both)[0]!r} has both Gaussian and uniform noise")
+        kinds = {**{k: "gaussian" for k in gaussian}, **{k: "uniform" for k in uniform}}
+        return cls(kinds, {**gaussian, **uniform})
+
+    def scales(self, names: Sequence[str]) -> np.ndarray:
+        return _per_channel(self.scale, names, "Noise")
+
+    def draw(self, rng: np.random.Generator, n_rows: int, names: Sequence[str]) -> np.ndarray:
+        """Samples of shape (n_rows, len(names))."""
+        s = self.scales(names)
+        out = np.zeros((n_rows, len(names)))
+        for j, name in enumerate(names):
+            kind = self.kinds.get(name, "gaussian") if isinstance(self.kinds, Mapping) else self.kinds
+            if kind == "gaussian":
+                out[:, j] = s[j] * rng.standard_normal(n_rows)
+            elif kind == "uniform":
+                out[:, j] = rng.uniform(-s[j], s[j], n_rows)
+            else:
+                raise ValueError(f"Noise: unknown kind {kind!r}; use 'gaussian' or 'uniform'")
+        return out
+
+
+@dataclass(frozen=True)
+class ProcessNoise:
+    """Additive process noise dx = f dt + σ dW on the plant (Euler-Maruyama increment σ√dt·ξ per step).
+
+    `std` is σ: a scalar, one value per state, or a mapping by state name.
+    """
+
+    std: float | Sequence[float] | Mapping[str, float]
+
+    def draw(self, rng: np.random.Generator, n_rows: int, names: Sequence[str], dt: float) -> np.ndarray:
+        s = _per_channel(self.std, names, "ProcessNoise")
+        return s * np.sqrt(dt) * rng.standard_normal((n_rows, len(names)))

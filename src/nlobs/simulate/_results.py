@@ -1,0 +1,143 @@
+"""The result of a simulation or of an estimation on recorded data."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ._metrics import Metrics, error_metrics
+
+__all__ = ["ObserverTrace", "Run"]
+
+
+@dataclass(frozen=True, eq=False)
+class ObserverTrace:
+    """One observer's signals in a :class:`Run` (time on the first axis).
+
+    Attributes
+    ----------
+    name, method : str
+    z_names : tuple of str
+    z : numpy.ndarray of shape (N, n_z)
+        Internal state at each time (after the sample-time update, for sampled observers).
+    xhat : numpy.ndarray of shape (N, n)
+        The estimate.
+    """
+
+    name: str
+    method: str
+    z_names: tuple[str, ...]
+    z: np.ndarray
+    xhat: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class Run:
+    """Time, true states (when known), inputs, measurements and every observer's estimate.
+
+    All arrays have time on the first axis; signals are labelled by the model's own names.
+    """
+
+    model: str
+    t: np.ndarray
+    state_names: tuple[str, ...]
+    input_names: tuple[str, ...]
+    output_names: tuple[str, ...]
+    u: np.ndarray
+    y: np.ndarray
+    observers: Mapping[str, ObserverTrace]
+    x: np.ndarray | None = None
+    y_true: np.ndarray | None = None
+    info: Mapping[str, Any] = field(default_factory=dict)
+
+    # -- errors and metrics -------------------------------------------------------------
+    def _trace(self, name: str | None) -> ObserverTrace:
+        if name is None:
+            if len(self.observers) != 1:
+                raise KeyError(f"this run has {len(self.observers)} observers; name one of: {', '.join(self.observers)}")
+            return next(iter(self.observers.values()))
+        if name not in self.observers:
+            raise KeyError(f"no observer named {name!r} in this run; observers: {', '.join(self.observers) or '(none)'}")
+        return self.observers[name]
+
+    def error(self, name: str | None = None) -> np.ndarray:
+        """x̂ - x, shape (N, n). Needs the true state."""
+        if self.x is None:
+            raise ValueError("this run has no true state (recorded data without states): errors cannot be computed")
+        return self._trace(name).xhat - self.x
+
+    def error_norm(self, name: str | None = None) -> np.ndarray:
+        """‖x̂(t) - x(t)‖₂ at each time."""
+        return np.linalg.norm(self.error(name), axis=1)
+
+    def metrics(self, name: str | None = None, *, tol: float | None = None, tail: float = 0.2) -> Metrics:
+        """Convergence time, RMS and peak errors of one observer (see :class:`Metrics`)."""
+        return error_metrics(self.t, self.error_norm(name), tol=tol, tail=tail)
+
+    def summary(self, *, tol: float | None = None) -> str:
+        """A text table of every observer's metrics."""
+        head = f"{'observer':<18} {'final err':>10} {'RMS (last 20%)':>15} {'peak err':>10} {'conv. time':>11}"
+        lines = [f"{self.model}: t in [{self.t[0]:g}, {self.t[-1]:g}], {len(self.t)} samples", head, "-" * len(head)]
+        for name in self.observers:
+            if self.x is None:
+                lines.append(f"{name:<18} (no true state)")
+                continue
+            m = self.metrics(name, tol=tol)
+            tc = "never" if m.convergence_time is None else f"{m.convergence_time:.3g}"
+            lines.append(f"{name:<18} {m.final_error:>10.3g} {m.rms_error:>15.3g} {m.peak_error:>10.3g} {tc:>11}")
+        return "\n".join(lines)
+
+    # -- export -------------------------------------------------------------------------
+    def to_numpy(self) -> dict[str, np.ndarray]:
+        """Every signal as a NumPy array, keyed ``t``, ``x``, ``u``, ``y``, ``y_true``, ``xhat[NAME]``, ``z[NAME]``."""
+        out = {"t": self.t, "u": self.u, "y": self.y}
+        if self.x is not None:
+            out["x"] = self.x
+        if self.y_true is not None:
+            out["y_true"] = self.y_true
+        for name, tr in self.observers.items():
+            out[f"xhat[{name}]"] = tr.xhat
+            out[f"z[{name}]"] = tr.z
+        return out
+
+    def to_pandas(self) -> Any:
+        """A DataFrame indexed by time: ``x1 ...`` (true states), inputs, measured outputs,
+        ``<output>_true``, then ``<observer>.<state>`` estimates and ``<observer>.error``."""
+        try:
+            import pandas as pd
+        except ImportError as e:  # pragma: no cover - depends on the environment
+            raise ImportError("to_pandas needs pandas: pip install 'nlobs[pandas]'") from e
+        cols: dict[str, np.ndarray] = {}
+        if self.x is not None:
+            cols.update({n: self.x[:, i] for i, n in enumerate(self.state_names)})
+        cols.update({n: self.u[:, i] for i, n in enumerate(self.input_names)})
+        cols.update({n: self.y[:, i] for i, n in enumerate(self.output_names)})
+        if self.y_true is not None:
+            cols.update({f"{n}_true": self.y_true[:, i] for i, n in enumerate(self.output_names)})
+        for name, tr in self.observers.items():
+            cols.update({f"{name}.{n}": tr.xhat[:, i] for i, n in enumerate(self.state_names)})
+            if self.x is not None:
+                cols[f"{name}.error"] = self.error_norm(name)
+        return pd.DataFrame(cols, index=pd.Index(self.t, name="t"))
+
+    def summary_dict(self, *, tol: float | None = None) -> dict[str, Any]:
+        """``{"model": str, "observers": {NAME: {"final_error", "rms_error", "convergence_time", ...}}}``."""
+        obs: dict[str, Any] = {}
+        for name, tr in self.observers.items():
+            entry: dict[str, Any] = {"method": tr.method, "final_estimate": tr.xhat[-1].tolist()}
+            if self.x is not None:
+                entry.update(self.metrics(name, tol=tol).to_dict())
+            obs[name] = entry
+        return {"model": self.model, "t_final": float(self.t[-1]), "samples": int(self.t.size), "observers": obs}
+
+    def plot(self, path: str | None = None, *, observers: Sequence[str] | None = None) -> Any:
+        """States vs estimates, and the error norms on a log scale; saved to `path` if given.
+
+        Returns the matplotlib Figure.
+        """
+        from ._plot import plot_run
+
+        return plot_run(self, path, observers=observers)
