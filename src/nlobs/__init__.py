@@ -13,6 +13,7 @@ from . import model as model
 from . import observer as observer
 from .design import Certificate as Certificate
 from .design import ObserverDesign as ObserverDesign
+from .design import design_augmented as design_augmented
 from .design import design_ekf as design_ekf
 from .design import design_luenberger as design_luenberger
 from .design import design_output_injection as design_output_injection
@@ -34,8 +35,10 @@ from .observer import Observer as Observer
 from .observer import OnlineObserver as OnlineObserver
 from .simulate import Noise as Noise
 from .simulate import ProcessNoise as ProcessNoise
+from .simulate import Recording as Recording
 from .simulate import Run as Run
 from .simulate import Sampling as Sampling
+from .simulate import estimate as estimate
 from .simulate import simulate as simulate
 
 __version__ = "0.1.0"

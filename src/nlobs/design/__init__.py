@@ -1,5 +1,6 @@
 """Design: how? One function per method; each checks its preconditions and returns an ObserverDesign."""
 
+from ._augmented import design_augmented as design_augmented
 from ._base import Certificate as Certificate
 from ._base import Check as Check
 from ._base import ObserverDesign as ObserverDesign

@@ -8,6 +8,7 @@ from typing import Any
 
 from ..errors import ModelError
 from ..model import System
+from ._augmented import design_augmented
 from ._base import ObserverDesign
 from ._ekf import design_ekf
 from ._linear import design_luenberger, design_output_injection
@@ -19,6 +20,7 @@ DESIGNS: dict[str, Callable[..., ObserverDesign]] = {
     "luenberger": design_luenberger,
     "output_injection": design_output_injection,
     "ekf": design_ekf,
+    "augmented": design_augmented,
 }
 
 

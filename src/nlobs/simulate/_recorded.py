@@ -1,0 +1,261 @@
+"""Observers on recorded data: arrays or a CSV of t, u, y (and, optionally, the true states)."""
+
+from __future__ import annotations
+
+import csv
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import casadi as ca
+import numpy as np
+
+from ..engine import Backend, StepRunner, compile_system, rk4_step
+from ..errors import DataError, ModelError, ShapeError
+from ..model import System
+from ..observer import AbstractObserver
+from ._results import ObserverTrace, Run
+from ._run import _xhat0_for, evaluate_mapped, named_observers
+
+__all__ = ["Recording", "estimate"]
+
+
+@dataclass(frozen=True, eq=False)
+class Recording:
+    """Recorded signals on sample times ``t`` (time on the first axis).
+
+    NaN in `y` marks a missing sample (allowed only with ``on_missing="skip"`` in
+    :func:`estimate`); NaN or inf anywhere else is rejected with its row and column.
+    """
+
+    t: np.ndarray
+    u: np.ndarray
+    y: np.ndarray
+    input_names: tuple[str, ...]
+    output_names: tuple[str, ...]
+    x: np.ndarray | None = None
+    state_names: tuple[str, ...] = ()
+    source: str = "arrays"
+
+    @classmethod
+    def from_arrays(cls, system: System, t: Any, y: Any, u: Any = None, x: Any = None, *, source: str = "arrays") -> Recording:
+        """Check and wrap arrays: t (N,), y (N, p), u (N, m), optional true states x (N, n)."""
+        t_ = np.asarray(t, dtype=float).reshape(-1)
+        N = t_.size
+        if N < 2:
+            raise ShapeError(f"a recording needs at least 2 samples, got {N}")
+
+        def mat(v: Any, k: int, name: str) -> np.ndarray:
+            a = np.zeros((N, 0)) if v is None and k == 0 else np.asarray(v, dtype=float)
+            if a.ndim == 1 and k == 1:
+                a = a.reshape(-1, 1)
+            if a.shape != (N, k):
+                raise ShapeError(f"recording: `{name}` must have shape ({N}, {k}) for the model {system.name!r}, found {a.shape}")
+            return a
+
+        if u is None and system.n_inputs:
+            raise ShapeError(f"recording: the model {system.name!r} has inputs {list(system.inputs)}; pass `u`")
+        rec = cls(t_, mat(u, system.n_inputs, "u"), mat(y, system.n_outputs, "y"), system.inputs, system.outputs,
+                  None if x is None else mat(x, system.n_states, "x"), system.states if x is not None else (), source)
+        rec._check_time()
+        return rec
+
+    @classmethod
+    def from_csv(cls, path: str | Path, system: System) -> Recording:
+        """Read a CSV whose header names ``t``, the model's outputs and inputs, and optionally its states.
+
+        Empty cells and ``nan`` mark missing output samples.
+        """
+        p = Path(path)
+        try:
+            with p.open(newline="", encoding="utf-8") as fh:
+                rows = list(csv.reader(fh))
+        except OSError as e:
+            raise DataError(f"cannot read the recording {p}: {e.strerror}") from None
+        if not rows:
+            raise DataError(f"{p}: the file is empty; expected a header naming t, {', '.join(system.outputs)}")
+        header = [h.strip() for h in rows[0]]
+        need = ["t", *system.outputs, *system.inputs]
+        missing = [h for h in need if h not in header]
+        if missing:
+            raise DataError(f"{p}: the header lacks column(s) {', '.join(missing)}; it must name t, the outputs "
+                            f"({', '.join(system.outputs)}) and the inputs ({', '.join(system.inputs) or 'none'}); found {header}")
+        data = np.full((len(rows) - 1, len(header)), np.nan)
+        for i, row in enumerate(rows[1:]):
+            if len(row) != len(header):
+                raise DataError(f"{p}, line {i + 2}: {len(row)} field(s), the header has {len(header)}")
+            for j, cell in enumerate(row):
+                cell = cell.strip()
+                if cell == "":
+                    continue
+                try:
+                    data[i, j] = float(cell)
+                except ValueError:
+                    raise DataError(f"{p}, line {i + 2}, column {header[j]!r}: {cell!r} is not a number") from None
+        col = {h: data[:, j] for j, h in enumerate(header)}
+        has_x = all(s in header for s in system.states)
+        return cls.from_arrays(
+            system, col["t"], np.column_stack([col[o] for o in system.outputs]),
+            np.column_stack([col[u] for u in system.inputs]) if system.inputs else None,
+            np.column_stack([col[s] for s in system.states]) if has_x else None, source=str(p))
+
+    @classmethod
+    def from_run(cls, run: Run, *, every: int = 1) -> Recording:
+        """The measured signals of a simulation (every `every`-th sample), with its true states."""
+        sl = slice(None, None, every)
+        return cls(run.t[sl].copy(), run.u[sl].copy(), run.y[sl].copy(), run.input_names, run.output_names,
+                   None if run.x is None else run.x[sl].copy(), run.state_names if run.x is not None else (), f"run of {run.model}")
+
+    def _check_time(self) -> None:
+        bad = np.flatnonzero(~np.isfinite(self.t))
+        if bad.size:
+            raise DataError(f"recording ({self.source}): t is {self.t[bad[0]]} at row {bad[0]}; times must be finite")
+        back = np.flatnonzero(np.diff(self.t) <= 0)
+        if back.size:
+            k = back[0]
+            raise DataError(f"recording ({self.source}): time does not increase at row {k + 1} "
+                            f"(t = {self.t[k]:g} then {self.t[k + 1]:g}); sort the samples or remove duplicates")
+
+    def check_finite(self, on_missing: str) -> np.ndarray:
+        """The mask of measured outputs (1 = measured), after rejecting what may not be missing."""
+        for name, arr, names in (("u", self.u, self.input_names), ("x", self.x, self.state_names)):
+            if arr is None:
+                continue
+            bad = np.argwhere(~np.isfinite(arr))
+            if bad.size:
+                r, c = bad[0]
+                raise DataError(f"recording ({self.source}): input/state {names[c]!r} is {arr[r, c]} at row {r} (t = {self.t[r]:g}); "
+                                "inputs and states must be finite")
+        inf = np.argwhere(np.isinf(self.y))
+        if inf.size:
+            r, c = inf[0]
+            raise DataError(f"recording ({self.source}): output {self.output_names[c]!r} is {self.y[r, c]} at row {r} (t = {self.t[r]:g})")
+        nan = np.argwhere(np.isnan(self.y))
+        if nan.size and on_missing == "error":
+            r, c = nan[0]
+            raise DataError(f"recording ({self.source}): output {self.output_names[c]!r} is missing (NaN) at row {r} (t = {self.t[r]:g}), "
+                            f"{len(nan)} missing value(s) in all; pass on_missing='skip' to leave them out of the observer's update")
+        return np.isfinite(self.y).astype(float)
+
+
+def estimate(
+    observers: Any,
+    recording: Recording,
+    *,
+    xhat0: Mapping[str, Sequence[float]] | Sequence[float] | None = None,
+    max_step: float | None = None,
+    on_missing: Literal["error", "skip"] = "error",
+    hold: Literal["zoh", "linear"] = "zoh",
+    engine: Backend = "auto",
+) -> Run:
+    """Run observers on recorded data.
+
+    Between samples each observer integrates its flow with the last sample of u and y held
+    (zero-order hold), in RK4 steps no longer than `max_step` (default: one step per sample
+    interval); at each sample the continuous-discrete observers apply their update.
+    Irregular sample times are allowed.
+
+    Parameters
+    ----------
+    observers : observer, design, or a mapping/sequence of them
+    recording : Recording
+    xhat0 : mapping of name to vector, or one vector, optional
+        Initial estimates (default: each design's).
+    max_step : float, optional
+        Largest RK4 step between samples.
+    on_missing : {"error", "skip"}
+        With ``"skip"``, NaN output samples are left out of the update (the prediction carries
+        on; a continuous observer sees its own predicted output for the missing component).
+    hold : {"zoh", "linear"}
+        How the measurement is held between samples: zero-order hold (causal, as in a real
+        loop) or linear interpolation to the next sample (offline only; more accurate when
+        the output changes fast between samples).
+
+    Returns
+    -------
+    Run
+        With the recording's true states when it has them (then errors and metrics work).
+
+    Raises
+    ------
+    DataError
+        For NaN/inf in the data (with the row and column) unless skipped, or non-increasing time.
+    """
+    if hold not in ("zoh", "linear"):
+        raise ValueError(f"estimate: `hold` must be 'zoh' or 'linear', got {hold!r}")
+    if on_missing not in ("error", "skip"):
+        raise ValueError(f"estimate: `on_missing` must be 'error' or 'skip', got {on_missing!r}")
+    obs = named_observers(observers)
+    if not obs:
+        raise ModelError("estimate: give at least one observer")
+    for name, o in obs.items():
+        s = o.system
+        if tuple(s.outputs) != recording.output_names or tuple(s.inputs) != recording.input_names:
+            raise ModelError(f"estimate: observer {name!r} expects outputs {list(s.outputs)} and inputs {list(s.inputs)}; "
+                             f"the recording has {list(recording.output_names)} and {list(recording.input_names)}")
+    mask = recording.check_finite(on_missing)
+    y0 = np.where(mask > 0, recording.y, 0.0)
+    t, u = recording.t, recording.u
+    dts = np.diff(t)
+    n_sub = 1 if max_step is None else max(1, int(np.ceil(dts.max() / max_step - 1e-9)))
+    step, fill = _estimation_step(obs, n_sub, linear=hold == "linear")
+    nu, ny = u.shape[1], y0.shape[1]
+    A = np.hstack([t[:-1, None], dts[:, None], u[:-1], y0[:-1], mask[:-1], u[1:], y0[1:], mask[1:]])
+    z0 = []
+    for name, o in obs.items():
+        z = o.initial_state(_xhat0_for(xhat0, name, o.system.n_states))
+        if o.sampled:
+            z = o.update(t[0], z, u[0], y0[0], mask[0])
+        z0.append(z)
+    s0 = np.concatenate(z0)
+    states = StepRunner(step, backend=engine).run(s0, A, np.zeros(1))
+    S = np.vstack([s0, states])
+    traces = {}
+    off = 0
+    for name, o in obs.items():
+        z = S[:, off:off + o.n_z]
+        off += o.n_z
+        y_used = evaluate_mapped(fill[name], t[:, None], z, u, y0, mask) if (mask < 1).any() else y0
+        xhat = evaluate_mapped(o.design.output, t[:, None], z, u, y_used)
+        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, z, xhat)
+    system = next(iter(obs.values())).system
+    return Run(f"{system.name} (recorded: {recording.source})", t, system.states, recording.input_names, recording.output_names,
+               u, recording.y, traces, x=recording.x, info={"max_step": max_step, "substeps": n_sub, "on_missing": on_missing, "hold": hold})
+
+
+def _estimation_step(obs: Mapping[str, AbstractObserver], n_sub: int, *, linear: bool) -> tuple[ca.Function, dict[str, ca.Function]]:
+    first = next(iter(obs.values())).system
+    nu, ny = first.n_inputs, first.n_outputs
+    ns = sum(o.n_z for o in obs.values())
+    s = ca.SX.sym("s", ns)
+    a = ca.SX.sym("a", 2 + 2 * (nu + 2 * ny))
+    t, dt = a[0], a[1]
+    u0, y0, m0 = a[2:2 + nu], a[2 + nu:2 + nu + ny], a[2 + nu + ny:2 + nu + 2 * ny]
+    o1 = 2 + nu + 2 * ny
+    u1, y1, m1 = a[o1:o1 + nu], a[o1 + nu:o1 + nu + ny], a[o1 + nu + ny:o1 + nu + 2 * ny]
+    parts, fills = [], {}
+    off = 0
+    for name, o in obs.items():
+        d = o.design
+        z = s[off:off + o.n_z]
+        off += o.n_z
+        _, h = compile_system(o.system).bind()
+        zz, tt, uu, yy, mm = ca.SX.sym("z", o.n_z), ca.SX.sym("t"), ca.SX.sym("u", nu), ca.SX.sym("y", ny), ca.SX.sym("m", ny)
+        yhat = h(tt, d.output(tt, zz, uu, yy), uu)
+        fill = ca.Function(f"{d.method}_fill", [tt, zz, uu, yy, mm], [mm * yy + (1 - mm) * yhat])
+        fills[name] = fill
+        y_use = fill(t, z, u0, y0, m0)
+        # first-order hold where both ends were measured, else the held (or predicted) value
+        slope = (m0 * m1) * (y1 - y_use) / dt if linear else ca.DM.zeros(ny)
+
+        def rhs(t_: ca.SX, z_: ca.SX, _k: int, d=d, y_use=y_use, slope=slope) -> ca.SX:
+            return d.flow(t_, z_, u0, y_use + (t_ - t) * slope)
+
+        h_ = dt / n_sub
+        for i in range(n_sub):
+            z = rk4_step(rhs, t + i * h_, z, h_)
+        if d.update is not None:
+            z = d.update(t + dt, z, u1, y1, m1)
+        parts.append(z)
+    return ca.Function("estimation_step", [s, a, ca.SX.sym("c", 1)], [ca.vertcat(*parts)]), fills
