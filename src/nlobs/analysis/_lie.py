@@ -266,10 +266,9 @@ def _float_kernel(st: _Setup, system: System, res: _ModResult, rng: np.random.Ge
     M = len(st.unknowns)
     notes: list[str] = []
     if res.rank == M:
-        return np.zeros((0, M)), np.zeros(M), float("inf"), notes
+        return np.zeros((0, M)), _real_point(st, system, rng, at), float("inf"), notes
     if res.rank == 0:
-        point_only = _real_point(st, system, rng, at)
-        return np.eye(M), point_only, float("inf"), notes
+        return np.eye(M), _real_point(st, system, rng, at), float("inf"), notes
     kmax = max(k for _, k in res.pivot_rows)
     for attempt in range(10):
         use_at = at if attempt == 0 else None
