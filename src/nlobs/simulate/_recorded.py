@@ -202,9 +202,10 @@ def estimate(
     step, fill = _estimation_step(obs, n_sub, linear=hold == "linear")
     nu, ny = u.shape[1], y0.shape[1]
     A = np.hstack([t[:-1, None], dts[:, None], u[:-1], y0[:-1], mask[:-1], u[1:], y0[1:], mask[1:]])
-    z0 = []
+    z0, priors = [], {}
     for name, o in obs.items():
         z = o.initial_state(_xhat0_for(xhat0, name, o.system.n_states))
+        priors[name] = o.estimate(t[0], z, u[0], y0[0])
         if o.sampled:
             z = o.update(t[0], z, u[0], y0[0], mask[0])
         z0.append(z)
@@ -218,7 +219,7 @@ def estimate(
         off += o.n_z
         y_used = evaluate_mapped(fill[name], t[:, None], z, u, y0, mask) if (mask < 1).any() else y0
         xhat = evaluate_mapped(o.design.output, t[:, None], z, u, y_used)
-        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, z, xhat)
+        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, z, xhat, priors[name])
     system = next(iter(obs.values())).system
     return Run(f"{system.name} (recorded: {recording.source})", t, system.states, recording.input_names, recording.output_names,
                u, recording.y, traces, x=recording.x, info={"max_step": max_step, "substeps": n_sub, "on_missing": on_missing, "hold": hold})

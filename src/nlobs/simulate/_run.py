@@ -308,5 +308,6 @@ def _assemble(plant: System, obs: Mapping[str, AbstractObserver], layout: _Layou
             jumped = evaluate_mapped(d.update, t[:, None], z, u, y, ones)
             z = np.where(flags[:, None] > 0, jumped, z)
         xhat = evaluate_mapped(d.output, t[:, None], z, u, y)
-        traces[name] = ObserverTrace(name, d.method, d.z_names, z, xhat)
+        prior = evaluate_mapped(d.output, t[:1, None], S[:1, layout.slices[name]], u[:1], y[:1])[0]
+        traces[name] = ObserverTrace(name, d.method, d.z_names, z, xhat, prior)
     return Run(plant.name, t, plant.states, plant.inputs, plant.outputs, u, y, traces, x=x, y_true=y_true, info=info)
