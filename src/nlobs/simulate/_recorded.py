@@ -11,7 +11,7 @@ from typing import Any, Literal
 import casadi as ca
 import numpy as np
 
-from ..engine import Backend, StepRunner, compile_system, rk4_step
+from ..engine import Backend, StepRunner, compile_system, rk4_step, rows
 from ..errors import DataError, ModelError, ShapeError
 from ..model import System
 from ..observer import AbstractObserver
@@ -232,14 +232,14 @@ def _estimation_step(obs: Mapping[str, AbstractObserver], n_sub: int, *, linear:
     s = ca.SX.sym("s", ns)
     a = ca.SX.sym("a", 2 + 2 * (nu + 2 * ny))
     t, dt = a[0], a[1]
-    u0, y0, m0 = a[2:2 + nu], a[2 + nu:2 + nu + ny], a[2 + nu + ny:2 + nu + 2 * ny]
+    u0, y0, m0 = rows(a, 2, 2 + nu), rows(a, 2 + nu, 2 + nu + ny), rows(a, 2 + nu + ny, 2 + nu + 2 * ny)
     o1 = 2 + nu + 2 * ny
-    u1, y1, m1 = a[o1:o1 + nu], a[o1 + nu:o1 + nu + ny], a[o1 + nu + ny:o1 + nu + 2 * ny]
+    u1, y1, m1 = rows(a, o1, o1 + nu), rows(a, o1 + nu, o1 + nu + ny), rows(a, o1 + nu + ny, o1 + nu + 2 * ny)
     parts, fills = [], {}
     off = 0
     for name, o in obs.items():
         d = o.design
-        z = s[off:off + o.n_z]
+        z = rows(s, off, off + o.n_z)
         off += o.n_z
         _, h = compile_system(o.system).bind()
         zz, tt, uu, yy, mm = ca.SX.sym("z", o.n_z), ca.SX.sym("t"), ca.SX.sym("u", nu), ca.SX.sym("y", ny), ca.SX.sym("m", ny)
