@@ -22,3 +22,11 @@ from ._gramian import state_affine_ltv as state_affine_ltv
 from ._gramian import uco_test as uco_test
 from ._linear import KalmanDecomposition as KalmanDecomposition
 from ._linear import kalman_decomposition as kalman_decomposition
+from ._excitation import ExcitationResult as ExcitationResult
+from ._excitation import IdentifiabilityResult as IdentifiabilityResult
+from ._excitation import LocalRegularity as LocalRegularity
+from ._excitation import identifiability_rank as identifiability_rank
+from ._excitation import interval_excitation as interval_excitation
+from ._excitation import local_regularity as local_regularity
+from ._excitation import persistent_excitation as persistent_excitation
+from ._excitation import regular_persistence as regular_persistence
