@@ -45,3 +45,13 @@ from ._conditions import check_box as check_box
 from ._conditions import lipschitz_bound as lipschitz_bound
 from ._conditions import matrix_measure as matrix_measure
 from ._conditions import max_slope as max_slope
+from ._augment import Augmentation as Augmentation
+from ._augment import AugmentedObservability as AugmentedObservability
+from ._augment import InjectivityCheck as InjectivityCheck
+from ._augment import LeftInverseBounds as LeftInverseBounds
+from ._augment import MimickingCheck as MimickingCheck
+from ._augment import augmented_observability as augmented_observability
+from ._augment import check_mimicking as check_mimicking
+from ._augment import injectivity as injectivity
+from ._augment import left_inverse_bounds as left_inverse_bounds
+from ._augment import propose_augmentation as propose_augmentation

@@ -168,15 +168,33 @@ class GramianResult:
             return (f"observable on [{t0:g}, {t1:g}]: rank W = {n}; λ_min(W) = {self.eigenvalues[0]:.4g}, "
                     f"λ_max(W) = {self.eigenvalues[-1]:.4g}; full rank from t = {self.t_full_rank:g} (000 eq. 3)")
         dirs = "; ".join(fmt_vec(clean_direction(v)) for v in self.unobservable_directions)
-        return (f"NOT observable on [{t0:g}, {t1:g}]: rank W = {self.rank} < {n} (eigenvalues below {self.rtol:g}·λ_max count "
-                f"as zero); unobservable direction(s) {dirs}")
+        return (f"NOT observable on [{t0:g}, {t1:g}]: rank W = {self.rank} < {n} (eigenvalues of the Jacobi-scaled W below "
+                f"{self.rtol:g}·λ_max count as zero); unobservable direction(s) {dirs}")
 
 
 def _rank_of(W: np.ndarray, rtol: float) -> tuple[np.ndarray, np.ndarray, int]:
-    lam, V = _sym_eig(W)
-    top = max(lam[-1], 0.0)
-    zero = lam <= rtol * top if top > 0 else np.ones_like(lam, dtype=bool)
-    return lam, V, int(np.sum(~zero))
+    """Eigenvalues of W, a basis of its numerical kernel (columns of V beyond the rank), and the rank.
+
+    The rank is decided on the Jacobi-scaled Gramian S = D^-½ W D^-½ (D = diag W): a congruence
+    with a positive diagonal keeps the rank and the kernel (ker W = D^-½ ker S), and removes the
+    effect of units and magnitudes, so that one relative threshold `rtol` is meaningful (the
+    augmented systems of 001 mix positions and products of positions, with diagonal entries
+    spanning ten orders of magnitude).
+    """
+    lam = np.linalg.eigvalsh((W + W.T) / 2)
+    d = np.sqrt(np.clip(np.diag(W), 0.0, None))
+    d[d == 0] = 1.0
+    S = W / np.outer(d, d)
+    mu, U = np.linalg.eigh((S + S.T) / 2)
+    top = max(mu[-1], 0.0)
+    zero = mu <= rtol * top if top > 0 else np.ones_like(mu, dtype=bool)
+    rank = int(np.sum(~zero))
+    K = U[:, zero] / d[:, None]
+    K = K / np.linalg.norm(K, axis=0, keepdims=True) if K.size else K
+    if K.shape[1] > 1:
+        K, _ = np.linalg.qr(K)
+    V = np.hstack([K, np.zeros((W.shape[0], W.shape[0] - K.shape[1]))])
+    return lam, V, rank
 
 
 def ltv_gramian(A: Any, C: Any, timepts: Any, *, rtol: float = RTOL) -> GramianResult:
@@ -216,13 +234,14 @@ def ltv_gramian(A: Any, C: Any, timepts: Any, *, rtol: float = RTOL) -> GramianR
     W = (path[-1] + path[-1].T) / 2
     lam, V, rank = _rank_of(W, rtol)
     n = W.shape[0]
+    kernel = V[:, : n - rank].T.copy()
     t_full = None
     if rank == n:
         for k in range(1, t.size):
             if _rank_of(path[k], rtol)[2] == n:
                 t_full = float(t[k])
                 break
-    return GramianResult(W, t, path, lam, rank, rank == n, V[:, : n - rank].T.copy(), t_full, rtol)
+    return GramianResult(W, t, path, lam, rank, rank == n, kernel, t_full, rtol)
 
 
 @dataclass(frozen=True, eq=False)
@@ -365,8 +384,10 @@ def state_affine_ltv(model: StateAffine, timepts: Any, *, u: Any = None, y: Any 
 # ----------------------------------------------------------------------------------------------
 # nonlinear: simulation-based
 # ----------------------------------------------------------------------------------------------
-def _simulator(system: System, t_final: float, dt: float, inputs: Any, params: Mapping[str, float] | None, caller: str):
-    """A CasADi function x0 -> output samples (N+1, p) by RK4, plus the grid."""
+def _simulator(system: System, t_final: float, dt: float, inputs: Any, params: Mapping[str, float] | None, caller: str,
+               with_inputs: bool = False) -> tuple[Any, ...]:
+    """CasADi functions x0 -> output samples (N+1, p) and their sensitivity, by RK4, plus the grid
+    (and the input samples (N+1, m) when `with_inputs`)."""
     import casadi as ca
 
     from ..engine import compile_system, rk4_step
@@ -394,7 +415,8 @@ def _simulator(system: System, t_final: float, dt: float, inputs: Any, params: M
     Uall = ca.DM(np.hstack([U0, U1[:, -1:]]))
     hmap = h.map(N + 1)
     Y = hmap(T, X, Uall)  # (p, N+1)
-    return ca.Function("sim", [x0], [Y.T]), ca.Function("sens", [x0], [ca.jacobian(ca.vec(Y.T), x0)]), t
+    out = (ca.Function("sim", [x0], [Y.T]), ca.Function("sens", [x0], [ca.jacobian(ca.vec(Y.T), x0)]), t)
+    return (*out, np.array(Uall).T.reshape(t.size, system.n_inputs)) if with_inputs else out
 
 
 @dataclass(frozen=True, eq=False)
