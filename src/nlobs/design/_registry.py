@@ -10,6 +10,7 @@ from ..errors import ModelError
 from ..model import System
 from ._augmented import design_augmented
 from ._base import ObserverDesign
+from ._custom import design_custom
 from ._ekf import design_ekf
 from ._linear import design_luenberger, design_output_injection
 
@@ -21,6 +22,7 @@ DESIGNS: dict[str, Callable[..., ObserverDesign]] = {
     "output_injection": design_output_injection,
     "ekf": design_ekf,
     "augmented": design_augmented,
+    "custom": design_custom,
 }
 
 
