@@ -42,3 +42,5 @@ from .simulate import estimate as estimate
 from .simulate import simulate as simulate
 
 __version__ = "0.1.0"
+from .design import design_high_gain as design_high_gain  # noqa: E402
+from .design import design_high_gain_derivatives as design_high_gain_derivatives  # noqa: E402

@@ -13,3 +13,5 @@ from ._linear import design_output_injection as design_output_injection
 from ._registry import DESIGNS as DESIGNS
 from ._registry import design_from_config as design_from_config
 from ._registry import register_design as register_design
+from ._high_gain import design_high_gain as design_high_gain
+from ._high_gain import design_high_gain_derivatives as design_high_gain_derivatives

@@ -11,6 +11,7 @@ from ..model import System
 from ._augmented import design_augmented
 from ._base import ObserverDesign
 from ._ekf import design_ekf
+from ._high_gain import design_high_gain, design_high_gain_derivatives
 from ._linear import design_luenberger, design_output_injection
 
 __all__ = ["DESIGNS", "register_design", "design_from_config"]
@@ -21,6 +22,8 @@ DESIGNS: dict[str, Callable[..., ObserverDesign]] = {
     "output_injection": design_output_injection,
     "ekf": design_ekf,
     "augmented": design_augmented,
+    "high_gain": design_high_gain,
+    "high_gain_derivatives": design_high_gain_derivatives,
 }
 
 
