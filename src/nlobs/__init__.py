@@ -44,3 +44,4 @@ from .simulate import simulate as simulate
 __version__ = "0.1.0"
 from .design import design_high_gain as design_high_gain  # noqa: E402
 from .design import design_high_gain_derivatives as design_high_gain_derivatives  # noqa: E402
+from .design import design_lipschitz as design_lipschitz  # noqa: E402

@@ -15,3 +15,4 @@ from ._registry import design_from_config as design_from_config
 from ._registry import register_design as register_design
 from ._high_gain import design_high_gain as design_high_gain
 from ._high_gain import design_high_gain_derivatives as design_high_gain_derivatives
+from ._lipschitz import design_lipschitz as design_lipschitz

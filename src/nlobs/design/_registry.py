@@ -13,6 +13,7 @@ from ._base import ObserverDesign
 from ._ekf import design_ekf
 from ._high_gain import design_high_gain, design_high_gain_derivatives
 from ._linear import design_luenberger, design_output_injection
+from ._lipschitz import design_lipschitz
 
 __all__ = ["DESIGNS", "register_design", "design_from_config"]
 
@@ -24,6 +25,7 @@ DESIGNS: dict[str, Callable[..., ObserverDesign]] = {
     "augmented": design_augmented,
     "high_gain": design_high_gain,
     "high_gain_derivatives": design_high_gain_derivatives,
+    "lipschitz": design_lipschitz,
 }
 
 
