@@ -16,3 +16,6 @@ from ._registry import register_design as register_design
 from ._high_gain import design_high_gain as design_high_gain
 from ._high_gain import design_high_gain_derivatives as design_high_gain_derivatives
 from ._lipschitz import design_lipschitz as design_lipschitz
+from ._kalman import design_high_gain_kalman as design_high_gain_kalman
+from ._kalman import design_kalman_bucy as design_kalman_bucy
+from ._kalman import design_kalman_like as design_kalman_like
