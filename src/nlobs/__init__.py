@@ -48,3 +48,4 @@ from .design import design_lipschitz as design_lipschitz  # noqa: E402
 from .design import design_high_gain_kalman as design_high_gain_kalman  # noqa: E402
 from .design import design_kalman_bucy as design_kalman_bucy  # noqa: E402
 from .design import design_kalman_like as design_kalman_like  # noqa: E402
+from .design import design_banks as design_banks  # noqa: E402

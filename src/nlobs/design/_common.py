@@ -21,7 +21,7 @@ from ..errors import PreconditionError, ShapeError
 from ..model import TIME, System
 from ._base import Symbols
 
-__all__ = ["leaves_of", "to_sx", "measured_states", "chain_gain", "box_of", "sup_over_box", "saturate", "saturation_bounds"]
+__all__ = ["leaves_of", "to_sx", "measured_states", "chain_gain", "box_of", "sup_over_box", "saturate", "saturation_bounds", "batch"]
 
 
 def leaves_of(system: System, s: Symbols, x: Any = None) -> dict[sp.Symbol, Any]:
@@ -156,3 +156,12 @@ def saturation_bounds(saturation: Mapping[str, float] | Sequence[float] | None, 
     if np.any(np.isnan(b)) or np.any(b <= 0):
         raise PreconditionError(f"{caller}: saturation bounds must be positive (inf for none), got {b}")
     return b
+
+
+def batch(fn: ca.Function, points: np.ndarray) -> np.ndarray:
+    """Evaluate a one-input CasADi function of a vector at many points: (N, d) -> (N, rows, cols)."""
+    P = np.atleast_2d(np.asarray(points, dtype=float))
+    N = P.shape[0]
+    out = np.asarray(fn.map(N)(ca.DM(P.T)), dtype=float)
+    r, c = fn.size1_out(0), fn.size2_out(0)
+    return out.reshape(r, N, c).transpose(1, 0, 2)  # map() concatenates the N results horizontally

@@ -17,7 +17,7 @@ from ..errors import PreconditionError
 from ..model import TIME, System
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import check_matrix
-from ._common import box_of, sup_over_box
+from ._common import batch, box_of, sup_over_box
 
 __all__ = ["design_lipschitz", "lipschitz_constant", "thau_margin"]
 
@@ -123,13 +123,10 @@ def lipschitz_constant(system: System, phi: Sequence[sp.Expr], region: Mapping[s
     leaves[TIME] = pt[len(names) - 1] if "t" in names else 0.0
     params = {sp.Symbol(k, real=True): v for k, v in system.params.items()}
     J = ca.jacobian(to_casadi([sp.sympify(e).xreplace(params) for e in phi], leaves), pt[:n])
-    Jf = ca.Function("J", [pt], [J]).map(1)
+    Jf = ca.Function("J", [pt], [J])
 
     def norms(P: np.ndarray) -> np.ndarray:
-        out = np.empty(P.shape[0])
-        for i, row in enumerate(P):
-            out[i] = np.linalg.norm(np.array(Jf(row)), 2)
-        return out
+        return np.linalg.norm(batch(Jf, P), 2, axis=(1, 2))
 
     val, arg = sup_over_box(norms, lo, hi, points_per_dim=None)
     return val, dict(zip(names, map(float, arg)))

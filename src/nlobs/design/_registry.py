@@ -9,6 +9,7 @@ from typing import Any
 from ..errors import ModelError
 from ..model import System
 from ._augmented import design_augmented
+from ._banks import design_banks
 from ._base import ObserverDesign
 from ._ekf import design_ekf
 from ._high_gain import design_high_gain, design_high_gain_derivatives
@@ -30,6 +31,7 @@ DESIGNS: dict[str, Callable[..., ObserverDesign]] = {
     "kalman_bucy": design_kalman_bucy,
     "kalman_like": design_kalman_like,
     "high_gain_kalman": design_high_gain_kalman,
+    "banks": design_banks,
 }
 
 
