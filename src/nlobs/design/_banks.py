@@ -103,7 +103,8 @@ def banks_conditions(system: System, P: np.ndarray, perturbation: Sequence[sp.Ex
     def fn(M: sp.Matrix) -> ca.Function:
         return ca.Function("M", [pt], [ca.reshape(to_casadi(list(M.T), leaves), M.shape[0], M.shape[1])])
 
-    Jf, Df = fn(J), fn(D2)
+    Jf = fn(J)
+    Df = fn(D2) if perturbation_bound is None else None
     exact_ = not (J.free_symbols & set(lookup.values()))
     if exact_:
         lam = float(matrix_measure(np.array(J, dtype=float)))
