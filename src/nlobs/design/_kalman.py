@@ -4,7 +4,7 @@ high-gain Kalman observer."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -116,9 +116,15 @@ def _sup_norm(parts: StateAffineParts, region: Mapping[str, Sequence[float]] | N
 def _riccati_design(method: str, title: str, ref: str, parts: StateAffineParts, *, V: Any, W: Any, delta: float,
                     M0: Any, xhat0: Any, region: Mapping[str, Sequence[float]] | None, caller: str,
                     lam: float | None = None, phi: sp.Matrix | None = None, extra_checks: Sequence[Check] = (),
-                    extra_values: Mapping[str, Any] | None = None) -> ObserverDesign:
+                    extra_values: Mapping[str, Any] | None = None, estimate: Callable[[ca.SX], ca.SX] | None = None,
+                    initial: Callable[[ca.SX], ca.SX] | None = None, state_names: Sequence[str] | None = None) -> ObserverDesign:
+    """The observer x̂' = A x̂ + b - K(Cx̂ - y) with the Riccati equation of 002 (see design_kalman_like).
+
+    `estimate` maps the filter state to the plant estimate and `initial` maps xhat0 to the
+    filter's initial state (both identity by default): used for augmented systems (001).
+    """
     system = parts.system
-    n, p = system.n_states, system.n_outputs
+    n, p = parts.A.shape[0], system.n_outputs
     Wm = check_matrix(W, p, p, "W", caller, definite="positive")
     Vm = np.zeros((n, n)) if V is None else check_matrix(V, n, n, "V", caller, definite="semidefinite")
     M0m = np.eye(n) if M0 is None else check_matrix(M0, n, n, "M0", caller, definite="positive")
@@ -163,13 +169,17 @@ def _riccati_design(method: str, title: str, ref: str, parts: StateAffineParts, 
         Lam = ca.diag(ca.DM([lam ** (i + 1) for i in range(n)]))
         dx = A @ xh + to_sx(list(phi), Lx) - Lam @ K @ (C @ xh - s.y)
     dM = (dM + dM.T) / 2
-    x0 = ca.SX.sym("xhat0", n)
-    names = [f"xhat_{v}" for v in system.states] + [f"M_{i}_{j}" for j in range(n) for i in range(n)]
+    nx = system.n_states
+    x0 = ca.SX.sym("xhat0", nx)
+    w0 = x0 if initial is None else initial(x0)
+    first = list(state_names) if state_names is not None else [f"xhat_{v}" for v in system.states]
+    names = first + [f"M_{i}_{j}" for j in range(n) for i in range(n)]
     values.update({"A(u, y, t)": str(parts.A.tolist()), "C": str(parts.C.tolist())})
     cert = Certificate(title, ref, tuple(checks), values)
-    return ObserverDesign.build(method, system, s, z_names=names, flow=ca.vertcat(dx, ca.vec(dM)), xhat=xh, xhat0_sym=x0,
-                                z0=ca.vertcat(x0, ca.DM(M0m.reshape(-1, order="F"))),
-                                xhat0=np.zeros(n) if xhat0 is None else xhat0, certificate=cert)
+    return ObserverDesign.build(method, system, s, z_names=names, flow=ca.vertcat(dx, ca.vec(dM)),
+                                xhat=xh if estimate is None else estimate(xh), xhat0_sym=x0,
+                                z0=ca.vertcat(w0, ca.DM(M0m.reshape(-1, order="F"))),
+                                xhat0=np.zeros(nx) if xhat0 is None else xhat0, certificate=cert)
 
 
 def design_kalman_like(model: System | StateAffine, *, W: Any = None, V: Any = None, delta: float = 0.0, M0: Any = None,
