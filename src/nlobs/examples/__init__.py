@@ -1,0 +1,9 @@
+"""The papers' examples (SPEC M8), each a registered function returning an ExampleResult."""
+
+from . import pendulum as pendulum
+from . import toy_augmented as toy_augmented
+from ._base import EXAMPLES as EXAMPLES
+from ._base import Claim as Claim
+from ._base import ExampleResult as ExampleResult
+from ._base import register as register
+from ._base import rows_from_run as rows_from_run
