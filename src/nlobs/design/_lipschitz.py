@@ -111,8 +111,9 @@ def lipschitz_constant(system: System, phi: Sequence[sp.Expr], region: Mapping[s
     where : dict
         The point where the sup was found.
     """
+    phi = [e if isinstance(e, sp.Basic) else sp.Float(float(e)) for e in phi]
     names = list(system.states) + list(system.inputs)
-    f_free = set().union(*(sp.sympify(e).free_symbols for e in phi)) if phi else set()
+    f_free = set().union(*(e.free_symbols for e in phi)) if phi else set()
     if TIME in f_free:
         names.append("t")
     lo, hi = box_of(system, region, names, caller)
@@ -122,7 +123,7 @@ def lipschitz_constant(system: System, phi: Sequence[sp.Expr], region: Mapping[s
     leaves.update({sym: pt[n + i] for i, sym in enumerate(system.u)})
     leaves[TIME] = pt[len(names) - 1] if "t" in names else 0.0
     params = {sp.Symbol(k, real=True): v for k, v in system.params.items()}
-    J = ca.jacobian(to_casadi([sp.sympify(e).xreplace(params) for e in phi], leaves), pt[:n])
+    J = ca.jacobian(to_casadi([e.xreplace(params) for e in phi], leaves), pt[:n])
     Jf = ca.Function("J", [pt], [J])
 
     def norms(P: np.ndarray) -> np.ndarray:
