@@ -7,3 +7,4 @@ from ._base import Claim as Claim
 from ._base import ExampleResult as ExampleResult
 from ._base import register as register
 from ._base import rows_from_run as rows_from_run
+from . import banks as banks  # noqa: E402
