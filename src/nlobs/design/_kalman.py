@@ -146,6 +146,9 @@ def _riccati_design(method: str, title: str, ref: str, parts: StateAffineParts, 
     else:
         raise PreconditionError(f"{caller}: neither forgetting nor noise: give δ > 2‖A‖ (`delta`) or V positive definite "
                                 "(`V`); with δ = 0 and V singular the gain may vanish (002, Kalman observer)")
+    # stiffness of the Riccati ODE at t = 0: the correction term MCᵀW⁻¹CM acts at rate ~ λmax(M0)‖C‖²/λmin(W);
+    # explicit RK4 needs dt·rate below ~2.8 (reported so a blow-up can be traced to the step size)
+    values["riccati_rate0"] = float(np.linalg.eigvalsh(M0m).max() / np.linalg.eigvalsh(Wm).min()) * (lam or 1.0)
     checks.append(Check("input regularly persistent / (A, C) uniformly completely observable (002)", True,
                         "assumed, not checked at design time: it depends on the input and output trajectory"))
     s = Symbols.make(system, n + n * n)
@@ -200,7 +203,9 @@ def design_kalman_like(model: System | StateAffine, *, W: Any = None, V: Any = N
     input to be regularly persistent (A, C uniformly completely observable along the
     trajectory), which depends on the data and is not checked here.
 
-    M is integrated in full and kept exactly symmetric (every derivative is symmetrised).
+    M is integrated in full and kept exactly symmetric (every derivative is symmetrised). The
+    certificate's ``riccati_rate0`` (≈ λmax(M0)‖C‖²/λmin(W) for unit C rows) is the fastest rate of
+    the Riccati equation at the start: with fixed-step RK4 keep dt·riccati_rate0 below about 2.8.
 
     Parameters
     ----------
