@@ -43,3 +43,10 @@ from .simulate import estimate as estimate
 from .simulate import simulate as simulate
 
 __version__ = "0.1.0"
+from .design import design_high_gain as design_high_gain  # noqa: E402
+from .design import design_high_gain_derivatives as design_high_gain_derivatives  # noqa: E402
+from .design import design_lipschitz as design_lipschitz  # noqa: E402
+from .design import design_high_gain_kalman as design_high_gain_kalman  # noqa: E402
+from .design import design_kalman_bucy as design_kalman_bucy  # noqa: E402
+from .design import design_kalman_like as design_kalman_like  # noqa: E402
+from .design import design_banks as design_banks  # noqa: E402
