@@ -1,5 +1,6 @@
 """Support: compile a System once to CasADi (f, h, Jacobians), integrate, generate C."""
 
+from ._batch import evaluate_many as evaluate_many
 from ._casadi import CASADI as CASADI
 from ._casadi import CompiledSystem as CompiledSystem
 from ._casadi import compile_system as compile_system

@@ -7,3 +7,6 @@ from ._base import Claim as Claim
 from ._base import ExampleResult as ExampleResult
 from ._base import register as register
 from ._base import rows_from_run as rows_from_run
+from . import banks as banks  # noqa: E402
+from . import van_der_pol_unknown as van_der_pol_unknown  # noqa: E402
+from . import pendulum_unknown_b as pendulum_unknown_b  # noqa: E402

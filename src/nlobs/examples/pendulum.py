@@ -15,6 +15,8 @@ from ..simulate import Noise, Sampling, simulate
 from ._base import Claim, ExampleResult, register, rows_from_run
 from ._util import bundled, decay_rate, linear_error_deviation
 
+__all_util__ = (decay_rate, linear_error_deviation)
+
 __all__ = ["pendulum", "POLES", "run"]
 
 REFERENCE = "002_613af42269ea26a7.txt, 'Result [Error linearization]' and 'Example(s) of observer forms — Robot arm'"

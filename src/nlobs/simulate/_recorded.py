@@ -11,12 +11,12 @@ from typing import Any, Literal
 import casadi as ca
 import numpy as np
 
-from ..engine import Backend, StepRunner, compile_system, rk4_step, rows
+from ..engine import Backend, StepRunner, compile_system, evaluate_many, rk4_step, rows
 from ..errors import DataError, ModelError, ShapeError
 from ..model import System
 from ..observer import AbstractObserver
 from ._results import ObserverTrace, Run
-from ._run import _xhat0_for, evaluate_mapped, named_observers
+from ._run import _xhat0_for, named_observers
 
 __all__ = ["Recording", "estimate"]
 
@@ -210,15 +210,15 @@ def estimate(
             z = o.update(t[0], z, u[0], y0[0], mask[0])
         z0.append(z)
     s0 = np.concatenate(z0)
-    states = StepRunner(step, backend=engine).run(s0, A, np.zeros(1))
+    states, _, _ = StepRunner(step, backend=engine).run(s0, A, np.zeros(1))
     S = np.vstack([s0, states])
     traces = {}
     off = 0
     for name, o in obs.items():
         z = S[:, off:off + o.n_z]
         off += o.n_z
-        y_used = evaluate_mapped(fill[name], t[:, None], z, u, y0, mask) if (mask < 1).any() else y0
-        xhat = evaluate_mapped(o.design.output, t[:, None], z, u, y_used)
+        y_used = evaluate_many(fill[name], t[:, None], z, u, y0, mask) if (mask < 1).any() else y0
+        xhat = evaluate_many(o.design.output, t[:, None], z, u, y_used)
         traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, z, xhat, priors[name])
     system = next(iter(obs.values())).system
     return Run(f"{system.name} (recorded: {recording.source})", t, system.states, recording.input_names, recording.output_names,
