@@ -17,7 +17,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import scipy.linalg
 
 from ..errors import DataError, ShapeError
 from ..model import StateAffine
@@ -205,6 +204,8 @@ def identifiability_rank(timepts: Any, psi: Any, *, rtol: float = RTOL) -> Ident
     ----------
     000_6cd8bea7ca1db43b.txt S2 and Proposition 2 (identifiability ⇔ observability of (2)).
     """
+    import scipy.linalg
+
     t, P = _regressor(timepts, psi, "identifiability_rank")
     q = P.shape[1]
     _, s, Vt = np.linalg.svd(P, full_matrices=True)

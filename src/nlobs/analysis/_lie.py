@@ -112,6 +112,9 @@ def _unknown_params(system: System, unknown_params: Any) -> tuple[str, ...]:
     if isinstance(unknown_params, str):
         unknown_params = [unknown_params]
     names = tuple(unknown_params)
+    dup = sorted({k for k in names if names.count(k) > 1})
+    if dup:
+        raise ModelError(f"`unknown_params` lists {', '.join(map(repr, dup))} more than once; name each parameter once")
     bad = [k for k in names if k not in system.params]
     if bad:
         raise ModelError(f"`unknown_params` names {', '.join(map(repr, bad))}, not a parameter of {system.name!r}; its "
@@ -471,6 +474,11 @@ def analyze(system: System, *, unknown_params: Any = (), inputs: Any = "generic"
             raise ModelError(f"`unknown_inputs[{k!r}]` must be a polynomial degree >= 0, got {d!r}")
     classes = _input_classes(system, inputs, ui)
     funcs = _parse_functions(system, functions)
+    if at is not None:
+        extra_keys = [k for k in at if k not in system.states and k not in params_unknown]
+        if extra_keys:
+            raise ModelError(f"`at` names {', '.join(map(repr, extra_keys))}, which is not a state or an unknown parameter of "
+                             f"{system.name!r}")
     st = _setup(system, params_unknown, classes, ui, funcs)
     M = len(st.unknowns)
     res = _mod_run(st, system, rng)

@@ -292,7 +292,7 @@ def build_program(f: Sequence[sp.Expr], h: Sequence[sp.Expr], leaves: Mapping[sp
                   extra: Sequence[sp.Expr] = ()) -> Program:
     """Compile f, h (and `extra` functions) into one straight-line program over the given leaves."""
     b = _Builder(leaves)
-    exprs = [sp.expand_log(sp.sympify(e), force=True) for e in (*f, *h, *extra)]
+    exprs = [sp.expand_log(e, force=True) for e in (*f, *h, *extra)]
     b.prepass(exprs)
     idx = [b.build(e) for e in exprs]
     nf, nh = len(f), len(h)
