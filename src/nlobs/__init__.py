@@ -50,3 +50,4 @@ from .design import design_high_gain_kalman as design_high_gain_kalman  # noqa: 
 from .design import design_kalman_bucy as design_kalman_bucy  # noqa: E402
 from .design import design_kalman_like as design_kalman_like  # noqa: E402
 from .design import design_banks as design_banks  # noqa: E402
+from .analysis import analyze as analyze

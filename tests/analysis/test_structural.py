@@ -157,6 +157,11 @@ class TestOptionsAndErrors:
         rep = analyze(s, unknown_inputs={"w": 1})
         assert rep.observable and rep.unknown_input_coefficients == ("w_0", "w_1")
 
+    def test_time_varying_model(self):
+        # x1' = t x2, x2' = 0, y = x1: y' = t x2 reveals x2 at a generic initial time (t0 != 0)
+        s = System(states=["x1", "x2"], f=["t*x2", "0"], outputs=["y"], h=["x1"])
+        assert analyze(s).observable
+
     def test_input_classes(self):
         s = bilinear()
         assert "generic constant" in analyze(s, inputs=InputClass.constant()).inputs
@@ -169,10 +174,16 @@ class TestOptionsAndErrors:
         ({"inputs": -1}, ">= 0"),
         ({"unknown_inputs": {"u": -2}}, "degree"),
         ({"functions": ["x1 +* 2"]}, "functions"),
+        ({"at": {"zz": 1.0}}, "not a state"),
     ])
     def test_bad_options(self, kwargs, match):
         with pytest.raises(ModelError, match=match):
             analyze(bilinear(), **kwargs)
+
+    def test_duplicate_unknown_params(self):
+        s = System(states=["x"], f=["-k*x"], outputs=["y"], h=["x"], params={"k": 1.0})
+        with pytest.raises(ModelError, match="more than once"):
+            analyze(s, unknown_params=["k", "k"])
 
     def test_report_contract_and_cli(self, capsys):
         rep = analyze(bilinear(), inputs={"u": 0})
