@@ -25,7 +25,7 @@ from ..errors import DataError, ModelError, ShapeError
 from ..model import parse_expression, symbol
 from ..model._expr import ExpressionError
 from ..model._system import to_expr
-from ._reports import fmt_vec
+from ._reports import fmt_point, fmt_vec
 
 __all__ = ["check_box", "matrix_measure", "box_sup", "SlopeResult", "max_slope", "BanksCheck", "banks_condition", "lipschitz_bound"]
 
@@ -157,7 +157,7 @@ class SlopeResult:
     tol: float
 
     def __str__(self) -> str:
-        where = ", ".join(f"{v}={x:.4g}" for v, x in zip(self.variables, self.worst_point))
+        where = fmt_point(self.variables, self.worst_point)
         verdict = "dissipative (Lemma 2.3)" if self.dissipative else "NOT dissipative"
         return f"maximum slope μ_N ≈ {self.mu:.4g} over the box, at ({where}): {verdict} (003)"
 
@@ -217,7 +217,7 @@ class BanksCheck:
         return -self.lam_max
 
     def __str__(self) -> str:
-        where = ", ".join(f"{v}={x:.4g}" for v, x in zip(self.variables, self.worst_point))
+        where = fmt_point(self.variables, self.worst_point)
         bound = f"≤ -ε = {-self.epsilon:.4g}" if self.epsilon > 0 else "< 0"
         if self.holds:
             return (f"Banks' condition holds: max over the region of λ(Df1 + P·DB) = {self.lam_max:.4g} {bound} "

@@ -21,6 +21,7 @@ import numpy as np
 from ..errors import DataError, ShapeError
 from ..model import StateAffine
 from ._gramian import UCOResult, _integrate, _matrix_path, check_timepts, state_affine_ltv, uco_test
+from ._reports import fmt_directions
 
 __all__ = ["ExcitationResult", "interval_excitation", "persistent_excitation", "IdentifiabilityResult",
            "identifiability_rank", "regular_persistence", "LocalRegularity", "local_regularity"]
@@ -187,9 +188,7 @@ class IdentifiabilityResult:
         if self.identifiable:
             ts = ", ".join(f"{v:g}" for v in self.times)
             return f"identifiable: rank [ψ(t1) … ψ(tq)] = {self.q} at t = {ts} (000 S2)"
-        from ._reports import clean_direction, fmt_vec
-
-        dirs = "; ".join(fmt_vec(clean_direction(v)) for v in self.unidentifiable_directions)
+        dirs = fmt_directions(self.unidentifiable_directions)
         return (f"NOT identifiable: rank [ψ(t1) … ψ(tN)] = {self.rank} < {self.q} over all samples; θ is unknown along "
                 f"{dirs}")
 

@@ -25,7 +25,7 @@ import sympy as sp
 
 from ..errors import DataError, ModelError, ShapeError
 from ..model import StateAffine, System
-from ._reports import clean_direction, fmt_vec
+from ._reports import fmt_directions, fmt_vec
 
 __all__ = ["GramianResult", "ltv_gramian", "UCOResult", "uco_test", "state_affine_ltv", "EmpiricalGramian",
            "empirical_gramian", "Indistinguishability", "indistinguishable", "check_timepts"]
@@ -167,7 +167,7 @@ class GramianResult:
         if self.observable:
             return (f"observable on [{t0:g}, {t1:g}]: rank W = {n}; λ_min(W) = {self.eigenvalues[0]:.4g}, "
                     f"λ_max(W) = {self.eigenvalues[-1]:.4g}; full rank from t = {self.t_full_rank:g} (000 eq. 3)")
-        dirs = "; ".join(fmt_vec(clean_direction(v)) for v in self.unobservable_directions)
+        dirs = fmt_directions(self.unobservable_directions)
         return (f"NOT observable on [{t0:g}, {t1:g}]: rank W = {self.rank} < {n} (eigenvalues of the Jacobi-scaled W below "
                 f"{self.rtol:g}·λ_max count as zero); unobservable direction(s) {dirs}")
 
@@ -443,7 +443,7 @@ class EmpiricalGramian:
         if self.observable:
             return (f"observable along this trajectory: empirical Gramian of rank {n}, eigenvalues "
                     f"[{self.eigenvalues[0]:.3g} .. {self.eigenvalues[-1]:.3g}] (condition {cond:.3g}); {self.method}")
-        dirs = "; ".join(fmt_vec(clean_direction(v)) for v in self.unobservable_directions)
+        dirs = fmt_directions(self.unobservable_directions)
         return (f"NOT observable along this trajectory: empirical Gramian rank {self.rank} < {n}; unobservable "
                 f"direction(s) in ({', '.join(self.states)}): {dirs}; {self.method}")
 

@@ -9,6 +9,7 @@ import numpy as np
 
 from ..errors import ShapeError
 from ._reports import clean_direction as _clean
+from ._reports import fmt_directions
 
 __all__ = ["observability_matrix", "LinearObservability", "kalman_rank", "pbh_test", "PBHResult",
            "KalmanDecomposition", "kalman_decomposition", "check_pair"]
@@ -73,7 +74,7 @@ class LinearObservability:
     def __str__(self) -> str:
         if self.observable:
             return f"(A, C) is observable: rank O = {self.rank} = n; smallest singular value {self.singular_values[-1]:.3g}"
-        dirs = "; ".join(np.array2string(_clean(v), precision=4, separator=", ") for v in self.unobservable_directions)
+        dirs = fmt_directions(self.unobservable_directions)
         return f"(A, C) is not observable: rank {self.rank} < {self.n}; unobservable direction(s) {dirs}"
 
 

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["clean_direction", "fmt_vec", "ObservabilityReport", "FunctionCheck", "Symmetry"]
+__all__ = ["clean_direction", "fmt_vec", "fmt_directions", "fmt_point", "ObservabilityReport", "FunctionCheck", "Symmetry"]
 
 
 def clean_direction(v: np.ndarray) -> np.ndarray:
@@ -24,6 +24,16 @@ def clean_direction(v: np.ndarray) -> np.ndarray:
 
 def fmt_vec(v: Any, precision: int = 4) -> str:
     return np.array2string(np.asarray(v, dtype=float), precision=precision, separator=", ", suppress_small=True)
+
+
+def fmt_directions(rows: Any) -> str:
+    """Kernel directions for a message: each cleaned (unit, largest entry positive), separated by '; '."""
+    return "; ".join(fmt_vec(clean_direction(v)) for v in rows)
+
+
+def fmt_point(names: Any, point: Any) -> str:
+    """``x1=0.5, x2=-1`` for a worst point."""
+    return ", ".join(f"{n}={v:.4g}" for n, v in zip(names, point))
 
 
 @dataclass(frozen=True)
