@@ -164,7 +164,7 @@ class ObservabilityReport:
         if self.observable:
             head += f"locally {what} (generic rank {self.rank} = {M} unknowns)"
         else:
-            head += f"NOT {what} (generic rank {self.rank} < {M} unknowns)"
+            head += f"NOT {what.replace(' and ', '/')} (generic rank {self.rank} < {M} unknowns)"
         lines = [head, f"  inputs: {self.inputs}"]
         lines.append(f"  observable states: {', '.join(self.observable_states) or '(none)'}")
         bad = [s for s in self.states if s not in self.observable_states]
