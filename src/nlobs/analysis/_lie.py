@@ -490,6 +490,8 @@ def analyze(system: System, *, unknown_params: Any = (), inputs: Any = "generic"
         error = _error_bound(res, M) * _error_bound(res2, M)
         if res2.rank > res.rank:
             res = res2
+        if res.rank == M:  # a full rank at one point is a proof
+            error = 0.0
     kernel = res.ech.kernel()
     observable_unknowns = [name for j, name in enumerate(st.unknowns) if not np.any(kernel[:, j])]
     checks = tuple(FunctionCheck(text, res.ech.contains(row)) for (text, _), row in zip(funcs, res.function_rows))
