@@ -72,7 +72,7 @@ class TestBanks:
     def test_perturbation_slope_and_lipschitz(self):
         # f(x) = 0.5 sin x: slope and Lipschitz constant 0.5 (at x = 0), both < ε = 1 of example 3.1
         assert max_slope(["0.5*sin(x)"], ["x"], [[-1, 1]]).mu == pytest.approx(0.5)
-        assert lipschitz_bound(["0.5*sin(x)"], ["x"], [[-1, 1]])[0] == pytest.approx(0.5)
+        assert lipschitz_bound(["0.5*sin(x)"], ["x"], [[-1, 1]]).gamma == pytest.approx(0.5)
 
     def test_bad_regions(self):
         with pytest.raises(DataError, match="NaN or infinite"):

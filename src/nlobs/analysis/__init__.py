@@ -45,13 +45,13 @@ from ._excitation import persistent_excitation as persistent_excitation
 from ._excitation import regular_persistence as regular_persistence
 from ._recognise import FormCheck as FormCheck
 from ._recognise import FormsReport as FormsReport
-from ._recognise import LipschitzEstimate as LipschitzEstimate
 from ._recognise import lipschitz_constant as lipschitz_constant
 from ._recognise import recognise_forms as recognise_forms
 from ._recognise import state_affine_form as state_affine_form
 from ._recognise import triangular_form as triangular_form
 from ._recognise import with_params_as_states as with_params_as_states
 from ._conditions import BanksCheck as BanksCheck
+from ._conditions import LipschitzEstimate as LipschitzEstimate
 from ._conditions import SlopeResult as SlopeResult
 from ._conditions import banks_condition as banks_condition
 from ._conditions import check_box as check_box

@@ -426,7 +426,7 @@ def left_inverse_bounds(left_inverse: Sequence[ExprLike], n_w: int, *, box: Any 
         return LeftInverseBounds(float(s.max()), lower, True)
     if box is None:
         raise ShapeError("left_inverse_bounds: a nonlinear left inverse needs `box` ([low, high] per w) to bound its slope")
-    up, _ = lipschitz_bound(list(inv), [w.name for w in ws], box)
+    up = lipschitz_bound(list(inv), [w.name for w in ws], box).gamma
     return LeftInverseBounds(up, 0.0, False)
 
 

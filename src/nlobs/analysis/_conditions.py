@@ -27,7 +27,8 @@ from ..model._expr import ExpressionError
 from ..model._system import to_expr
 from ._reports import fmt_point, fmt_vec
 
-__all__ = ["check_box", "matrix_measure", "box_sup", "SlopeResult", "max_slope", "BanksCheck", "banks_condition", "lipschitz_bound"]
+__all__ = ["check_box", "matrix_measure", "box_sup", "SlopeResult", "max_slope", "BanksCheck", "banks_condition", "LipschitzEstimate",
+           "lipschitz_bound"]
 
 REF = "003_a2c72ccb4281ea3f.txt"
 
@@ -283,16 +284,41 @@ def banks_condition(f1: Any, B: Any, P: Any, variables: Sequence[str], region: A
     return BanksCheck(lam, x, variables, eps, lam <= -eps and (epsilon is not None or lam < 0), Pm)
 
 
+@dataclass(frozen=True, eq=False)
+class LipschitzEstimate:
+    r"""Estimate of a Lipschitz constant :math:`\gamma = \sup_{box}\|DN\|_2` on a convex box, with the worst point.
+
+    Sampling can only under-estimate the sup (a lower estimate of the true constant).
+    """
+
+    gamma: float
+    worst_point: np.ndarray
+    variables: tuple[str, ...]
+    samples: int
+    what: str = "N"
+    A: np.ndarray | None = None
+
+    def __str__(self) -> str:
+        return (f"Lipschitz constant of {self.what} over the box: γ ≈ {self.gamma:.4g} (largest ‖D{self.what.split()[0]}‖₂, at "
+                f"{fmt_point(self.variables, self.worst_point)}; {self.samples} samples + local refinement; a lower estimate "
+                "of the true sup)")
+
+
 def lipschitz_bound(exprs: Any, variables: Sequence[str], box: Any, *, wrt: int | None = None, samples: int = 2000,
-                    seed: int = 0) -> tuple[float, np.ndarray]:
+                    seed: int = 0) -> LipschitzEstimate:
     r"""Estimate the Lipschitz constant :math:`\sup_x\|DN(x)\|_2` of N over a (convex) box, with the worst point.
 
-    For Banks' perturbation f2 (Theorem 2.6 needs K < ε) and the Lipschitz form of 002. With `wrt`
-    = k only the first k variables are differentiated (the rest, e.g. inputs, range over the box).
+    For Banks' perturbation f2 (003 Theorem 2.6 needs K < ε) and the Lipschitz form of 002. With
+    `wrt` = k only the first k variables are differentiated (the rest, e.g. inputs, range over the box).
+
+    Returns
+    -------
+    LipschitzEstimate
     """
     caller = "lipschitz_bound"
     variables = tuple(variables)
     ex = _exprs(exprs, variables, "exprs", caller)
     b = check_box(box, len(variables), "box", caller)
     jac = _jacobian_fn(ex, variables, wrt)
-    return box_sup(lambda P: np.linalg.norm(jac(P), ord=2, axis=(1, 2)), b, samples=samples, seed=seed)
+    gamma, x = box_sup(lambda P: np.linalg.norm(jac(P), ord=2, axis=(1, 2)), b, samples=samples, seed=seed)
+    return LipschitzEstimate(gamma, x, variables, samples)

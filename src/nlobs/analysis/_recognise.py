@@ -22,11 +22,11 @@ import sympy as sp
 
 from ..errors import FormError, ModelError, ShapeError
 from ..model import OutputInjectionForm, System
-from ._conditions import check_box, lipschitz_bound
+from ._conditions import LipschitzEstimate, check_box, lipschitz_bound
 from ._reports import fmt_vec
 
 __all__ = ["FormCheck", "FormsReport", "with_params_as_states", "state_affine_form", "lipschitz_constant",
-           "LipschitzEstimate", "triangular_form", "recognise_forms"]
+           "triangular_form", "recognise_forms"]
 
 
 def with_params_as_states(system: System, params: Sequence[str] | str = "all") -> System:
@@ -111,21 +111,6 @@ def state_affine_form(system: System) -> FormCheck:
     return FormCheck(form, True, "A(u, y, t) = ∂f/∂x·K·Kᵀ depends on x only through y", {"A": A, "b": b, "C": Cm})
 
 
-@dataclass(frozen=True, eq=False)
-class LipschitzEstimate:
-    r"""Estimate of :math:`\gamma = \sup_{box}\|\partial\varphi/\partial x\|_2` (a Lipschitz constant of φ on a convex box)."""
-
-    gamma: float
-    worst_point: np.ndarray
-    worst_input: np.ndarray
-    samples: int
-    A: np.ndarray
-
-    def __str__(self) -> str:
-        return (f"Lipschitz constant of φ = f - Ax over the box: γ ≈ {self.gamma:.4g} (largest ‖∂φ/∂x‖₂, found at "
-                f"x = {fmt_vec(self.worst_point)}; {self.samples} samples + local refinement; a lower estimate of the true sup)")
-
-
 def lipschitz_constant(system: System, box: Any, *, A: Any = None, input_box: Any = None, samples: int = 2000,
                        seed: int = 0) -> LipschitzEstimate:
     r"""Estimate the Lipschitz constant of :math:`\varphi(x, u) = f(x, u) - Ax` over a box.
@@ -173,8 +158,8 @@ def lipschitz_constant(system: System, box: Any, *, A: Any = None, input_box: An
     if A_.shape != (n, n):
         raise ShapeError(f"{caller}: incompatible dimensions of `A`: expected ({n}, {n}), found {A_.shape}")
     phi = list(f - sp.Matrix(A_) * x)
-    gamma, z = lipschitz_bound(phi, names, np.vstack([B, U]), wrt=n, samples=samples, seed=seed)
-    return LipschitzEstimate(gamma, z[:n], z[n:], samples, A_)
+    est = lipschitz_bound(phi, names, np.vstack([B, U]), wrt=n, samples=samples, seed=seed)
+    return LipschitzEstimate(est.gamma, est.worst_point, est.variables, samples, "φ = f - Ax", A_)
 
 
 def triangular_form(system: System) -> FormCheck:
