@@ -16,6 +16,7 @@ from ._high_gain import design_high_gain, design_high_gain_derivatives
 from ._linear import design_luenberger, design_output_injection
 from ._kalman import design_high_gain_kalman, design_kalman_bucy, design_kalman_like
 from ._lipschitz import design_lipschitz
+from ._mhe import design_mhe
 from ._ukf import design_ukf
 
 __all__ = ["DESIGNS", "register_design", "design_from_config"]
@@ -34,6 +35,7 @@ DESIGNS: dict[str, Callable[..., ObserverDesign]] = {
     "high_gain_kalman": design_high_gain_kalman,
     "banks": design_banks,
     "ukf": design_ukf,
+    "mhe": design_mhe,
 }
 
 

@@ -246,10 +246,12 @@ def _joint_step(plant: System, obs: Mapping[str, AbstractObserver], *, sampled: 
     comp = compile_system(plant)
     n, nu, ny = plant.n_states, plant.n_inputs, plant.n_outputs
     layout = _Layout(plant, obs, sampled)
-    s = ca.SX.sym("s", layout.size)
+    # designs whose functions are not SX (MHE embeds an NLP solver) need an MX graph (run on the VM)
+    X = ca.MX if any(o.design.needs_mx for o in obs.values()) else ca.SX
+    s = X.sym("s", layout.size)
     na = 2 + 3 * nu + ny + n + 1
-    a = ca.SX.sym("a", na)
-    c = ca.SX.sym("c", max(plant.n_params, 1))
+    a = X.sym("a", na)
+    c = X.sym("c", max(plant.n_params, 1))
     p = rows(c, 0, plant.n_params)
     t, dt = a[0], a[1]
     U = [rows(a, 2 + k * nu, 2 + (k + 1) * nu) for k in range(3)]
@@ -264,7 +266,7 @@ def _joint_step(plant: System, obs: Mapping[str, AbstractObserver], *, sampled: 
         z = rows(s, sl.start, sl.stop)
         d = o.design
         if d.update is not None:
-            z = ca.if_else(flag, d.update(t, z, U[0], y_s, ca.DM.ones(ny)), z)
+            z = ca.if_else(flag, d.update(t, z, U[0], y_s, ca.DM.ones(ny)), z, X is ca.MX)  # MX: evaluate only when sampled
         zs[name] = z
 
     def rhs(tt: ca.SX, S: ca.SX, k: int) -> ca.SX:
@@ -279,7 +281,7 @@ def _joint_step(plant: System, obs: Mapping[str, AbstractObserver], *, sampled: 
 
     joint = ca.vertcat(x, *zs.values())
     S_next = rk4_step(rhs, t, joint, dt)
-    s_next = ca.vertcat(rows(S_next, 0, n) + w, rows(S_next, n, joint.shape[0]), y_s if sampled else ca.SX(0, 1))
+    s_next = ca.vertcat(rows(S_next, 0, n) + w, rows(S_next, n, joint.shape[0]), y_s if sampled else X(0, 1))
     return ca.Function("joint_step", [s, a, c], [s_next]), layout
 
 
@@ -298,8 +300,9 @@ def _assemble(plant: System, obs: Mapping[str, AbstractObserver], layout: _Layou
         z = S[:, layout.slices[name]]
         d = o.design
         if d.update is not None:
-            jumped = evaluate_many(d.update, t[:, None], z, u, y, ones)
-            z = np.where(flags[:, None] > 0, jumped, z)
+            k = np.flatnonzero(flags > 0)  # the update only at the sample instants (it may be an NLP solve)
+            z = z.copy()
+            z[k] = evaluate_many(d.update, t[k, None], z[k], u[k], y[k], ones[k])
         xhat = evaluate_many(d.output, t[:, None], z, u, y)
         prior = evaluate_many(d.output, t[:1, None], S[:1, layout.slices[name]], u[:1], y[:1])[0]
         traces[name] = ObserverTrace(name, d.method, d.z_names, z, xhat, prior)
