@@ -14,6 +14,7 @@ from . import observer as observer
 from .design import Certificate as Certificate
 from .design import ObserverDesign as ObserverDesign
 from .design import design_augmented as design_augmented
+from .design import design_custom as design_custom
 from .design import design_ekf as design_ekf
 from .design import design_luenberger as design_luenberger
 from .design import design_output_injection as design_output_injection

@@ -11,6 +11,7 @@ from ..model import System
 from ._augmented import design_augmented
 from ._banks import design_banks
 from ._base import ObserverDesign
+from ._custom import design_custom
 from ._ekf import design_ekf
 from ._high_gain import design_high_gain, design_high_gain_derivatives
 from ._linear import design_luenberger, design_output_injection
@@ -27,6 +28,7 @@ DESIGNS: dict[str, Callable[..., ObserverDesign]] = {
     "output_injection": design_output_injection,
     "ekf": design_ekf,
     "augmented": design_augmented,
+    "custom": design_custom,
     "high_gain": design_high_gain,
     "high_gain_derivatives": design_high_gain_derivatives,
     "lipschitz": design_lipschitz,
@@ -40,7 +42,7 @@ DESIGNS: dict[str, Callable[..., ObserverDesign]] = {
 
 
 def register_design(kind: str, fn: Callable[..., ObserverDesign]) -> None:
-    """Make a design function available to model files under `kind`."""
+    """Make a design function `fn` available to model files under the name `kind`."""
     DESIGNS[kind] = fn
 
 
