@@ -11,9 +11,20 @@ import numpy as np
 import pytest
 
 import nlobs
-from nlobs.design import (DESIGNS, design_augmented, design_banks, design_from_config, design_high_gain,
-                          design_high_gain_derivatives, design_high_gain_kalman, design_kalman_bucy, design_kalman_like,
-                          design_lipschitz, design_mhe, design_ukf)
+from nlobs.design import (
+    DESIGNS,
+    design_augmented,
+    design_banks,
+    design_from_config,
+    design_high_gain,
+    design_high_gain_derivatives,
+    design_high_gain_kalman,
+    design_kalman_bucy,
+    design_kalman_like,
+    design_lipschitz,
+    design_mhe,
+    design_ukf,
+)
 from nlobs.errors import ModelError
 
 #: x1' = x2, x2' = -x1 - x2, y = x1: observable, stable, and in every form the catalogue needs.

@@ -134,7 +134,7 @@ def design_mhe(system: System, *, horizon: int = 20, R: Any = None, P_arrival: A
         return [z[int(offs[i]):int(offs[i + 1])] for i in range(len(sizes))]
 
     # flow (SX): predict the estimate, keep the window
-    t, z, u, y, m = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("y", p), ca.SX.sym("m", p)
+    t, z, u, y = ca.SX.sym("t"), ca.SX.sym("z", nz), ca.SX.sym("u", nu), ca.SX.sym("y", p)
     flow = ca.vertcat(f(t, split(z)[0], u), ca.SX.zeros(nz - n))
     ins, names = [t, z, u, y], ["t", "z", "u", "y"]
     # update (MX): shift the window, propagate the prior, solve, predict to the newest sample

@@ -14,8 +14,8 @@ from ._base import ObserverDesign
 from ._custom import design_custom
 from ._ekf import design_ekf
 from ._high_gain import design_high_gain, design_high_gain_derivatives
-from ._linear import design_luenberger, design_output_injection
 from ._kalman import design_high_gain_kalman, design_kalman_bucy, design_kalman_like
+from ._linear import design_luenberger, design_output_injection
 from ._lipschitz import design_lipschitz
 from ._mhe import design_mhe
 from ._ukf import design_ukf

@@ -13,12 +13,16 @@ derivation. design_augmented checks the mimicking identities symbolically, so a 
 
 from __future__ import annotations
 
+import casadi as ca
 import numpy as np
 
 from ..design import design_augmented
-from ..model import System
+from ..engine import to_casadi
+from ..model import System, symbol
+from ..model._forms import matrix_of
 from ..simulate import Noise, simulate
 from ._base import Claim, ExampleResult, register, rows_from_run
+from ._classical_util import gramian
 
 __all__ = ["velocity_model", "velocity_augmentation", "acceleration_model", "acceleration_augmentation", "run_velocity",
            "run_acceleration", "augmented_matrix", "scaled_min_eig", "WINDOW"]
@@ -83,12 +87,6 @@ def acceleration_augmentation() -> dict:
 
 def augmented_matrix(aug: dict, system: System):  # noqa: ANN201 - callable (t, u, y) -> A
     """A(u, y) of an augmentation as a NumPy function of one sample (for Gramians)."""
-    import casadi as ca
-
-    from ..model import symbol
-    from ..model._forms import matrix_of
-    from ..engine import to_casadi
-
     names = {k: symbol(k) for k in (*system.inputs, *system.outputs)}
     A = matrix_of(aug["A"], len(aug["T"]), len(aug["T"]), names, name="A")
     u, y = ca.SX.sym("u", system.n_inputs), ca.SX.sym("y", system.n_outputs)
@@ -142,26 +140,8 @@ def scaled_min_eig(W: np.ndarray) -> float:
 
 def _gramian(aug: dict, system: System, run, window: float) -> np.ndarray:  # noqa: ANN001
     """The observability Gramian of the augmented LTV system over [0, window] along `run` (000 eq. 3)."""
-    A = augmented_matrix(aug, system)
-    C = np.array(aug["C"], dtype=float)
-    k = int(np.searchsorted(run.t, window))
-    t, u, y = run.t[:k + 1], run.u[:k + 1], run.y_true[:k + 1]
-    n = C.shape[1]
-    Phi, W = np.eye(n), np.zeros((n, n))
-    prev = C.T @ C
-    Ak = A(t[0], u[0], y[0])
-    for j in range(k):
-        h = t[j + 1] - t[j]
-        An = A(t[j + 1], u[j + 1], y[j + 1])
-        Am = (Ak + An) / 2
-        k1 = Ak @ Phi
-        k2 = Am @ (Phi + h / 2 * k1)
-        k3 = Am @ (Phi + h / 2 * k2)
-        Phi = Phi + h / 6 * (k1 + 2 * k2 + 2 * k3 + An @ (Phi + h * k3))
-        cur = Phi.T @ C.T @ C @ Phi
-        W += h / 2 * (prev + cur)
-        prev, Ak = cur, An
-    return (W + W.T) / 2
+    k = int(np.searchsorted(run.t, window)) + 1
+    return gramian(augmented_matrix(aug, system), np.array(aug["C"], dtype=float), run.t[:k], run.u[:k], run.y_true[:k])
 
 
 @register("001-range-velocity", "001 §IV-A — range-only localisation with velocity input (9-state augmentation)", 20)
