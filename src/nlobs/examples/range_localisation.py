@@ -116,8 +116,8 @@ def _run(key: str, title: str, system: System, aug: dict, x0, xhat0, rich: dict,
         Claim(f"straight-line trajectory (constant u): the Gramian over [0, {WINDOW:g}] is singular (not observable)",
               abs(r_line) < 1e-13, f"λmin of the Jacobi-scaled Gramian = {r_line:.2e} (round-off level)"),
     ]
-    table = [*rows_from_run("rich u, noise-free", clean), *rows_from_run(f"rich u, noise σ={NOISE}", noisy),
-             *rows_from_run("straight line, noise-free", line)]
+    table = [*rows_from_run("rich u", clean), *rows_from_run(f"rich u σ={NOISE}", noisy),
+             *rows_from_run("straight line", line)]
     for row, r in zip(table, (r_rich, r_rich, r_line)):
         row["gramian_min_eig"] = r
     return ExampleResult(
