@@ -207,21 +207,9 @@ class CompiledLoop:
     def __init__(self, step: ca.Function):
         if step.n_in() != 3 or step.n_out() not in (1, 2):
             raise ValueError("CompiledLoop needs step(s, a, c) -> s_next or -> (s_next, o)")
-        name = "nlobs_step"
         self.ns, self.na, self.nc = step.size1_in(0), step.size1_in(1), step.size1_in(2)
         self.no = step.size1_out(1) if step.n_out() == 2 else 0
-        renamed = _renamed(step, name)
-        code = _generate(renamed)
-        defs = {
-            "NLOBS_SZ_ARG": renamed.sz_arg(), "NLOBS_SZ_RES": renamed.sz_res(),
-            "NLOBS_SZ_IW": renamed.sz_iw(), "NLOBS_SZ_W": renamed.sz_w(),
-            "NLOBS_NA": self.na, "NLOBS_NS": self.ns, "NLOBS_NO": self.no,
-        }
-        driver = _DRIVER.replace("NLOBS_STEP_work", f"{name}_work").replace("NLOBS_STEP", name)
-        for k, v in defs.items():
-            driver = driver.replace(k, str(int(v)))
-        self.path = _build(code + driver, "loop")
-        lib = ctypes.CDLL(str(self.path))
+        self.path, lib = _compile_driver(step, _DRIVER, "loop", self.no)
         self._run = lib.nlobs_run
         dbl = ctypes.POINTER(ctypes.c_double)
         self._run.argtypes = [dbl, dbl, dbl, dbl, dbl, ctypes.c_longlong, ctypes.c_double]
@@ -251,19 +239,8 @@ class CompiledBatch:
     def __init__(self, step: ca.Function):
         if step.n_in() != 3 or step.n_out() != 2:
             raise ValueError("CompiledBatch needs step(s, a, c) -> (s_next, o)")
-        name = "nlobs_step"
         self.ns, self.na, self.nc, self.no = step.size1_in(0), step.size1_in(1), step.size1_in(2), step.size1_out(1)
-        renamed = _renamed(step, name)
-        defs = {
-            "NLOBS_SZ_ARG": renamed.sz_arg(), "NLOBS_SZ_RES": renamed.sz_res(),
-            "NLOBS_SZ_IW": renamed.sz_iw(), "NLOBS_SZ_W": renamed.sz_w(),
-            "NLOBS_NA": self.na, "NLOBS_NS": self.ns, "NLOBS_NO": self.no,
-        }
-        driver = _BATCH.replace("NLOBS_STEP_work", f"{name}_work").replace("NLOBS_STEP", name)
-        for k, v in defs.items():
-            driver = driver.replace(k, str(int(v)))
-        self.path = _build(_generate(renamed) + driver, "batch")
-        lib = ctypes.CDLL(str(self.path))
+        self.path, lib = _compile_driver(step, _BATCH, "batch", self.no)
         dbl, ll = ctypes.POINTER(ctypes.c_double), ctypes.c_longlong
         self._run = lib.nlobs_batch
         self._run.argtypes = [dbl, dbl, ll, dbl, ll, dbl, dbl, ll, ll, ll, ll, ctypes.c_double, ctypes.POINTER(ll)]
@@ -278,6 +255,23 @@ class CompiledBatch:
                        bound, status.ctypes.data_as(ctypes.POINTER(ctypes.c_longlong)))
         if rc != 0:
             raise EngineError(f"the compiled step failed in trajectory {rc - 1}")
+
+
+def _compile_driver(step: ca.Function, template: str, tag: str, no: int) -> tuple[Path, ctypes.CDLL]:
+    """Generate C for `step` (as ``nlobs_step``), append a driver `template` with its sizes filled in,
+    compile (or reuse the cached build) and load it."""
+    name = "nlobs_step"
+    renamed = _renamed(step, name)
+    defs = {
+        "NLOBS_SZ_ARG": renamed.sz_arg(), "NLOBS_SZ_RES": renamed.sz_res(),
+        "NLOBS_SZ_IW": renamed.sz_iw(), "NLOBS_SZ_W": renamed.sz_w(),
+        "NLOBS_NA": step.size1_in(1), "NLOBS_NS": step.size1_in(0), "NLOBS_NO": no,
+    }
+    driver = template.replace("NLOBS_STEP_work", f"{name}_work").replace("NLOBS_STEP", name)
+    for k, v in defs.items():
+        driver = driver.replace(k, str(int(v)))
+    path = _build(_generate(renamed) + driver, tag)
+    return path, ctypes.CDLL(str(path))
 
 
 def _renamed(fn: ca.Function, name: str) -> ca.Function:
