@@ -35,7 +35,13 @@ def check_pair(A: Any, C: Any, caller: str) -> tuple[np.ndarray, np.ndarray]:
 
 
 def observability_matrix(A: np.ndarray, C: np.ndarray) -> np.ndarray:
-    r"""The observability matrix :math:`\mathcal O = [C; CA; \dots; CA^{n-1}]`."""
+    r"""The observability matrix :math:`\mathcal O = [C; CA; \dots; CA^{n-1}]`.
+
+    Parameters
+    ----------
+    A : array_like of shape (n, n)
+    C : array_like of shape (p, n)
+    """
     A, C = check_pair(A, C, "observability_matrix")
     blocks = [C]
     for _ in range(A.shape[0] - 1):
@@ -81,6 +87,11 @@ class LinearObservability:
 def kalman_rank(A: np.ndarray, C: np.ndarray) -> LinearObservability:
     """Kalman rank test of (A, C), with a basis of the unobservable subspace.
 
+    Parameters
+    ----------
+    A : array_like of shape (n, n)
+    C : array_like of shape (p, n)
+
     References
     ----------
     002_613af42269ea26a7.txt, "Result [Luenberger]": an observer with arbitrary rate exists
@@ -125,7 +136,13 @@ class PBHResult:
 
 
 def pbh_test(A: np.ndarray, C: np.ndarray) -> PBHResult:
-    """PBH rank test at every eigenvalue of A."""
+    """PBH rank test: rank [A - λI; C] at every eigenvalue λ of A.
+
+    Parameters
+    ----------
+    A : array_like of shape (n, n)
+    C : array_like of shape (p, n)
+    """
     A, C = check_pair(A, C, "pbh_test")
     n = A.shape[0]
     lams = np.linalg.eigvals(A)
