@@ -54,7 +54,6 @@ from ._conditions import BanksCheck as BanksCheck
 from ._conditions import LipschitzEstimate as LipschitzEstimate
 from ._conditions import SlopeResult as SlopeResult
 from ._conditions import banks_condition as banks_condition
-from ._conditions import check_box as check_box
 from ._conditions import lipschitz_bound as lipschitz_bound
 from ._conditions import matrix_measure as matrix_measure
 from ._conditions import max_slope as max_slope

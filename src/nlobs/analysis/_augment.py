@@ -347,6 +347,21 @@ def injectivity(system: System, T: Sequence[ExprLike] | Augmentation, *, left_in
     left inverse [I 0]), or the given left inverse satisfies T'(T(x)) = x identically. Disproof: the
     Jacobian ∂T/∂x has rank < n at every sampled point (T is then not an immersion, hence not
     injective on any open set). Otherwise undecided.
+
+    Parameters
+    ----------
+    system : System
+    T : sequence of expressions in the states, or an Augmentation
+    left_inverse : sequence of expressions in ``w1, w2, ...``, optional
+        A candidate T' with T'(T(x)) = x.
+    samples : int
+        Random points for the Jacobian-rank disproof.
+    seed : int
+        Seed of those points.
+
+    Returns
+    -------
+    InjectivityCheck
     """
     if isinstance(T, Augmentation):
         T = list(T.T)
@@ -410,6 +425,19 @@ def left_inverse_bounds(left_inverse: Sequence[ExprLike], n_w: int, *, box: Any 
     bound is 0: Lemma 2 cannot hold, as 001 notes for [I 0]). Nonlinear T': the upper bound is
     estimated as sup ‖DT'‖₂ over `box` (required).
 
+    Parameters
+    ----------
+    left_inverse : sequence of expressions in ``w1, ..., wp``
+        T'(w), one expression per original state.
+    n_w : int
+        p, the dimension of w.
+    box : array_like of shape (p, 2), optional
+        Region of w for a nonlinear T'.
+
+    Returns
+    -------
+    LeftInverseBounds
+
     References
     ----------
     001_1b4027b3a70d560f.txt Lemma 1 eq. (3), Lemma 2 eq. (9), remark after Def. 5.
@@ -462,6 +490,33 @@ def augmented_observability(system: System, aug: Augmentation, x0: Any, *, t_fin
     and the Gramian W(0, T) of (A(t), C) is computed (000 eq. 3). With T injective, a full rank
     proves observability of the model for this input (001 Theorem 1); the unobservable directions
     are reported as combinations of the w's (001 §IV-B: only w6 + w7 is seen in (19)).
+
+    Parameters
+    ----------
+    system : System
+        The model (simulated to get u(t) and y(t)).
+    aug : Augmentation
+        T, A(u, y, t), b and C (from :func:`propose_augmentation`, or a user's, checked with
+        :func:`check_mimicking`).
+    x0 : array_like of shape (n,)
+        Initial state of the model.
+    t_final : float
+        Horizon T of W(0, T).
+    dt : float
+        RK4 step and sampling of A(t).
+    inputs : signal-like or mapping, optional
+        The known inputs (numbers, expressions of t, callables); default zero.
+    rtol : float
+        Rank threshold on the Jacobi-scaled Gramian (see :func:`ltv_gramian`).
+
+    Returns
+    -------
+    AugmentedObservability
+
+    Raises
+    ------
+    ShapeError
+        If x0 does not have n finite entries.
     """
     from ..model._translate import NUMPY, translate
     from ._gramian import _simulator

@@ -34,7 +34,21 @@ REF = "003_a2c72ccb4281ea3f.txt"
 
 
 def check_box(box: Any, n: int, name: str, caller: str) -> np.ndarray:
-    """A box as an array (n, 2) of finite [low, high] bounds with low <= high."""
+    """A box as an array (n, 2) of finite [low, high] bounds with low <= high.
+
+    Parameters
+    ----------
+    box : array_like of shape (n, 2)
+    n : int
+        Number of coordinates.
+    name, caller : str
+        The argument's name and the calling function, for the error message.
+
+    Raises
+    ------
+    ShapeError, DataError
+        Wrong shape; NaN or infinite bounds; low > high.
+    """
     try:
         b = np.array(box, dtype=float)
     except (TypeError, ValueError) as e:
@@ -176,6 +190,10 @@ def max_slope(exprs: Any, variables: Sequence[str], box: Any, *, samples: int = 
         The components of N (as many as `variables`).
     variables : sequence of str
     box : array_like of shape (d, 2)
+    samples, seed : int
+        Random points of the box and their seed; see :func:`box_sup`.
+    tol : float
+        μ_N ≤ tol counts as dissipative.
 
     Returns
     -------
@@ -246,6 +264,8 @@ def banks_condition(f1: Any, B: Any, P: Any, variables: Sequence[str], region: A
         The box Ω (convex, as the theorem requires).
     epsilon : float, optional
         The ε to check; default: the condition holds when the max is < 0 (any ε up to the margin).
+    samples, seed : int
+        Random points of the box (corners and centre included) and their seed; see :func:`box_sup`.
 
     Returns
     -------
@@ -310,6 +330,17 @@ def lipschitz_bound(exprs: Any, variables: Sequence[str], box: Any, *, wrt: int 
 
     For Banks' perturbation f2 (003 Theorem 2.6 needs K < ε) and the Lipschitz form of 002. With
     `wrt` = k only the first k variables are differentiated (the rest, e.g. inputs, range over the box).
+
+    Parameters
+    ----------
+    exprs : sequence of str or SymPy expressions
+        The components of N.
+    variables : sequence of str
+    box : array_like of shape (d, 2)
+    wrt : int, optional
+        Differentiate with respect to the first `wrt` variables only.
+    samples, seed : int
+        Random points of the box and their seed; see :func:`box_sup`.
 
     Returns
     -------

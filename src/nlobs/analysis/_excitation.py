@@ -199,6 +199,17 @@ def identifiability_rank(timepts: Any, psi: Any, *, rtol: float = RTOL) -> Ident
     The times returned are chosen by QR with column pivoting (the best-conditioned q samples).
     A singular value below ``rtol`` times the largest counts as zero.
 
+    Parameters
+    ----------
+    timepts : array_like of shape (N,)
+    psi : array_like of shape (N, q)
+        ψ(t_k) in rows.
+    rtol : float
+
+    Returns
+    -------
+    IdentifiabilityResult
+
     References
     ----------
     000_6cd8bea7ca1db43b.txt S2 and Proposition 2 (identifiability ⇔ observability of (2)).
@@ -221,6 +232,24 @@ def regular_persistence(model: StateAffine, timepts: Any, window: float, *, u: A
     u is regularly persistent when :math:`\int_{t-T}^t \Phi_u^\top C^\top C \Phi_u\,d\tau \ge \alpha I`
     for all t ≥ t0: the UCO test of the LTV system obtained by freezing A(u, y) along the
     measured u(t), y(t).
+
+    Parameters
+    ----------
+    model : StateAffine
+    timepts : array_like
+        A uniform grid.
+    window : float
+        T.
+    u, y : array_like of shape (N, m) / (N, p), optional
+        The measured input and output on the grid.
+    alpha : float, optional
+        The α to check (default: 1e-3 of the largest window value).
+    stride : int
+        Test every `stride`-th window start.
+
+    Returns
+    -------
+    UCOResult
 
     References
     ----------
@@ -262,6 +291,25 @@ def local_regularity(model: StateAffine, timepts: Any, windows: Any, *, u: Any =
     (The slide's formula is garbled in the text; re-derived: for the chain x' = A_0 x, y = x1 the
     Gramian entries scale as :math:`T^{i+j-1}`, which is exactly :math:`\frac1T T^i T^j`.) Returns
     :math:`\alpha(t, T) = T\,\lambda_{\min}(\Lambda_T^{-1}W\Lambda_T^{-1})` on a uniform grid.
+
+    Parameters
+    ----------
+    model : StateAffine
+    timepts : array_like
+        A uniform grid.
+    windows : array_like
+        The short window lengths T (all ≤ T0).
+    u, y : array_like, optional
+        The measured input and output on the grid.
+    alpha : float, optional
+        The α to check; default ``ratio`` times the largest α(t, T).
+    stride : int
+        Test every `stride`-th window start.
+    ratio : float
+
+    Returns
+    -------
+    LocalRegularity
 
     References
     ----------

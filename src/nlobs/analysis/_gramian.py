@@ -350,6 +350,15 @@ def state_affine_ltv(model: StateAffine, timepts: Any, *, u: Any = None, y: Any 
     Returns the sampled A of shape (N, n, n) and C of shape (N, p, n) (y = C(t) x) for
     :func:`ltv_gramian` and :func:`uco_test`.
 
+    Parameters
+    ----------
+    model : StateAffine
+    timepts : array_like of shape (N,)
+    u : array_like of shape (N, m), optional
+        Measured inputs on the grid (default zero).
+    y : array_like of shape (N, p), optional
+        Measured outputs on the grid (needed when A or b depends on y).
+
     Raises
     ------
     ShapeError
@@ -471,8 +480,14 @@ def empirical_gramian(system: System, x0: Any, *, t_final: float, dt: float = 1e
         RK4 step (also the output sampling; trapezoidal rule for the integral).
     inputs : signal-like or mapping, optional
         As for :func:`nlobs.simulate` (numbers, expressions of t, callables); default zero.
+    params : mapping of str to float, optional
+        Parameter values overriding the model's.
     method : {"sensitivity", "difference"}
         Exact sensitivities by automatic differentiation (default), or central differences with `eps`.
+    eps : float
+        Perturbation of the central differences.
+    rtol : float
+        Rank threshold on the Jacobi-scaled Gramian (see :data:`RTOL`).
 
     Returns
     -------
@@ -543,6 +558,25 @@ def indistinguishable(system: System, x0_a: Any, x0_b: Any, *, t_final: float, d
     The pair is reported indistinguishable when
     :math:`\max_t |y_a(t) - y_b(t)| \le \text{atol} + \text{rtol}\,\max_t |y_a(t)|` (RK4 with the same
     step on both trajectories; the default tolerances sit well above its round-off).
+
+    Parameters
+    ----------
+    system : System
+    x0_a, x0_b : array_like of shape (n,)
+        The two initial states.
+    t_final : float
+    dt : float
+        RK4 step and output sampling.
+    inputs : signal-like or mapping, optional
+        The common known input (default zero).
+    params : mapping of str to float, optional
+        Parameter values overriding the model's.
+    rtol, atol : float
+        Tolerances of the verdict.
+
+    Returns
+    -------
+    Indistinguishability
 
     References
     ----------

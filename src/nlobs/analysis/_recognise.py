@@ -30,7 +30,14 @@ __all__ = ["FormCheck", "FormsReport", "with_params_as_states", "state_affine_fo
 
 
 def with_params_as_states(system: System, params: Sequence[str] | str = "all") -> System:
-    """The model with the given parameters moved to the state (p' = 0), e.g. 002's robot arm with unknown b."""
+    """The model with the given parameters moved to the state (p' = 0), e.g. 002's robot arm with unknown b.
+
+    Parameters
+    ----------
+    system : System
+    params : sequence of str or "all"
+        The parameters to move.
+    """
     names = system.param_names if params == "all" else tuple([params] if isinstance(params, str) else params)
     bad = [k for k in names if k not in system.params]
     if bad:
@@ -129,6 +136,8 @@ def lipschitz_constant(system: System, box: Any, *, A: Any = None, input_box: An
         The linear part; default the Jacobian of f at the box centre with u = 0 (or the input box centre).
     input_box : array_like of shape (m, 2), optional
         Range of the inputs (default: u = 0).
+    samples, seed : int
+        Random points of the box and their seed.
 
     Returns
     -------
