@@ -66,13 +66,21 @@ def check_box(box: Any, n: int, name: str, caller: str) -> np.ndarray:
     return b
 
 
-def matrix_measure(A: Any) -> float:
+def matrix_measure(A: Any) -> Any:
     r"""Banks' matrix measure :math:`\lambda(A) = \sup_{x}\langle Ax, x\rangle/\|x\|^2 = \max\operatorname{spec}((A+A^\top)/2)`.
+
+    Parameters
+    ----------
+    A : array_like of shape (n, n), or a stack (N, n, n)
+
+    Returns
+    -------
+    float, or numpy.ndarray of shape (N,) for a stack
 
     Raises
     ------
     ShapeError
-        If A is not a finite square matrix.
+        If A is not a finite square matrix (or stack of them).
 
     References
     ----------
@@ -84,11 +92,12 @@ def matrix_measure(A: Any) -> float:
     -1.0
     """
     a = np.array(A, dtype=float)
-    if a.ndim != 2 or a.shape[0] != a.shape[1]:
-        raise ShapeError(f"matrix_measure: `A` must be square, found shape {a.shape}")
+    if a.ndim not in (2, 3) or a.shape[-1] != a.shape[-2]:
+        raise ShapeError(f"matrix_measure: `A` must be square (or a stack of square matrices), found shape {a.shape}")
     if not np.all(np.isfinite(a)):
         raise ShapeError("matrix_measure: `A` has non-finite entries")
-    return float(np.linalg.eigvalsh((a + a.T) / 2)[-1])
+    lam = np.linalg.eigvalsh((a + np.swapaxes(a, -1, -2)) / 2)[..., -1]
+    return float(lam) if a.ndim == 2 else lam
 
 
 def box_sup(fun: Callable[[np.ndarray], np.ndarray], box: np.ndarray, *, samples: int = 2000, refine: int = 3,
