@@ -50,3 +50,5 @@ from .design import design_high_gain_kalman as design_high_gain_kalman  # noqa: 
 from .design import design_kalman_bucy as design_kalman_bucy  # noqa: E402
 from .design import design_kalman_like as design_kalman_like  # noqa: E402
 from .design import design_banks as design_banks  # noqa: E402
+from .observer import CExport as CExport  # noqa: E402
+from .observer import export_c as export_c  # noqa: E402
