@@ -156,7 +156,7 @@ _HEADER = """\
  * Usage, one call per sample (see main.c):
  *
  *   double z[{NAME}_NZ], xhat[{NAME}_NX], y_held[{NAME}_NY_ALLOC], u_prev[{NAME}_NU_ALLOC];
- *   {name}_init(NULL, z);                       // z0 from the design's default x̂0
+ *   {name}_init(NULL, z);                       // z0 from the design's default xhat0
  *   {name}_step(z, t0, 0.0, NULL, NULL, u0, y0, z, xhat, y_held);   // first sample: dt = 0
  *   ...                                         // then, for each new sample (t, u, y):
  *   {name}_step(z, t, t - t_prev, u_prev, y_held, u, y, z, xhat, y_held);
@@ -192,7 +192,7 @@ extern "C" {{
 #define {NAME}_ENONFINITE 2 /* the new state or the estimate is not finite (the observer diverged) */
 #define {NAME}_EINTERNAL 3  /* a generated function failed */
 
-/* The design's default initial estimate x̂0 ({nx} numbers). */
+/* The design's default initial estimate xhat0 ({nx} numbers). */
 extern const double {name}_xhat0_default[{NAME}_NX];
 
 /* z0 from the initial estimate xhat0 (NULL: {name}_xhat0_default). Returns {NAME}_OK. */
@@ -296,7 +296,7 @@ _MAIN = """\
  *   t,{in_cols}
  * (a first line that does not start with a number is a header and is skipped; an empty
  * y field or "nan" marks a missing output). Output: "t,xhat..." per sample, on stdout.
- * Optional arguments: the initial estimate x̂0 ({nx} numbers; default: the design's).
+ * Optional arguments: the initial estimate xhat0 ({nx} numbers; default: the design's).
  *
  * Build and run:  cc -std=c99 -O2 -o {name} {name}.c main.c -lm
  *                 ./{name} < data.csv > estimates.csv
