@@ -198,7 +198,8 @@ def test_step_through_ctypes_in_place_first_sample_and_errors(tmp_path):
     np.testing.assert_array_equal(z, z_before)
     z_bad = z.copy()
     z_bad[2:] = 1e308  # a covariance whose flow overflows
-    rc = lib.lib_ekf_step(ptr(z_bad), 0.2, 0.1, ptr(u_prev), ptr(y_held), ptr(arr([0.0])), ptr(arr([0.1])), ptr(z_bad), ptr(xhat), None)
+    rc = lib.lib_ekf_step(ptr(z_bad), 0.2, 0.1, ptr(u_prev), ptr(y_held), ptr(arr([0.0])), ptr(arr([0.1])), ptr(z_bad),
+                          ptr(xhat), None)
     assert rc == 2  # LIB_EKF_ENONFINITE
 
 

@@ -223,7 +223,8 @@ def _labels(given: str | Sequence[str] | None, default: Sequence[str], n: int, k
         return list(default)
     if isinstance(given, str):
         if "{i}" not in given:
-            raise ValueError(f"to_control: `{kind}` as a string must be a format with '{{i}}' (e.g. 'xhat[{{i}}]'), got {given!r}")
+            raise ValueError(f"to_control: `{kind}` as a string must be a format with '{{i}}' (e.g. 'xhat[{{i}}]'), "
+                             f"got {given!r}")
         return [given.format(i=i) for i in range(n)]
     out = [str(g) for g in given]
     if len(out) != n:

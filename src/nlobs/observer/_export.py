@@ -427,9 +427,12 @@ def export_c(observer: AbstractObserver | ObserverDesign, directory: str | os.Pa
     --------
     >>> import tempfile, nlobs
     >>> vdp = nlobs.System(states=["x1", "x2"], f=["x2", "(1 - x1**2)*x2 - x1"], outputs=["y"], h=["x1"], name="vdp")
-    >>> exp = export_c(nlobs.design_ekf(vdp, Q=0.01 * np.eye(2), R=[[1e-4]]), tempfile.mkdtemp(), max_step=1e-3)
-    >>> exp.name, exp.n_z, exp.source.name
-    ('vdp_ekf', 6, 'vdp_ekf.c')
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     exp = export_c(nlobs.design_ekf(vdp, Q=0.01 * np.eye(2), R=[[1e-4]]), folder, max_step=1e-3)
+    ...     sorted(p.name for p in Path(folder).iterdir())
+    ['main.c', 'vdp_ekf.c', 'vdp_ekf.h']
+    >>> exp.name, exp.n_z
+    ('vdp_ekf', 6)
     """
     obs = as_observer(observer)
     if not isinstance(obs, Observer):
