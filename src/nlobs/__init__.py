@@ -34,12 +34,14 @@ from .model import load_model as load_model
 from .model import loads_model as loads_model
 from .observer import Observer as Observer
 from .observer import OnlineObserver as OnlineObserver
+from .simulate import MonteCarloResult as MonteCarloResult
 from .simulate import Noise as Noise
 from .simulate import ProcessNoise as ProcessNoise
 from .simulate import Recording as Recording
 from .simulate import Run as Run
 from .simulate import Sampling as Sampling
 from .simulate import estimate as estimate
+from .simulate import montecarlo as montecarlo
 from .simulate import simulate as simulate
 
 __version__ = "0.1.0"
@@ -50,6 +52,8 @@ from .design import design_high_gain_kalman as design_high_gain_kalman  # noqa: 
 from .design import design_kalman_bucy as design_kalman_bucy  # noqa: E402
 from .design import design_kalman_like as design_kalman_like  # noqa: E402
 from .design import design_banks as design_banks  # noqa: E402
+from .design import design_ukf as design_ukf  # noqa: E402
+from .design import design_mhe as design_mhe  # noqa: E402
 from .observer import CExport as CExport  # noqa: E402
 from .observer import export_c as export_c  # noqa: E402
 from . import interop as interop  # noqa: E402

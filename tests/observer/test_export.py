@@ -17,6 +17,7 @@ import pytest
 
 import nlobs
 from nlobs.design import design_ekf, design_from_config, design_output_injection
+from nlobs.errors import PreconditionError
 from nlobs.observer import Observer, export_c
 
 CC = shutil.which("gcc") or shutil.which("cc")
@@ -59,14 +60,20 @@ def _run_program(exe: str, csv: str, *args: str) -> np.ndarray:
     return np.loadtxt(lines[1:], delimiter=",", ndmin=2)
 
 
+def _design_or_ukf(observer: str):
+    if observer == "ukf":
+        return nlobs.design_ukf(PEND.system, Q=np.diag([1e-3, 1e-2]), R=[[1e-4]])
+    return _design(observer)
+
+
 @needs_cc
-@pytest.mark.parametrize("observer", ["injection", "ekf"])  # continuous, continuous-discrete
+@pytest.mark.parametrize("observer", ["injection", "ekf", "ukf"])  # continuous, continuous-discrete (x2)
 def test_compiled_program_matches_estimate_on_a_recording(observer, tmp_path):
     rec = _recording()
-    exp = export_c(_design(observer), tmp_path, max_step=MAX_STEP)
+    exp = export_c(_design_or_ukf(observer), tmp_path, max_step=MAX_STEP)
     exe = _build_program(exp, tmp_path)
     out = _run_program(exe, "t,u,y\n" + _csv(rec.t, rec.u, rec.y))
-    ref = nlobs.estimate({observer: _design(observer)}, rec, max_step=MAX_STEP, hold="zoh", engine="vm")
+    ref = nlobs.estimate({observer: _design_or_ukf(observer)}, rec, max_step=MAX_STEP, hold="zoh", engine="vm")
     assert out.shape == (rec.t.size, 3)
     np.testing.assert_array_equal(out[:, 0], rec.t)
     xhat = ref.observers[observer].xhat
@@ -213,6 +220,12 @@ def test_bad_arguments_are_named():
         export_c(d, "/nonexistent-never-written", max_step=-0.1)
     with pytest.raises(TypeError, match="expected an observer or an ObserverDesign"):
         export_c(PEND.system, "/nonexistent-never-written")
+
+
+def test_an_embedded_solver_is_refused_by_name(tmp_path):
+    with pytest.raises(PreconditionError, match=r"'mhe' observer cannot be exported as dependency-free C.*IpStdCInterface"):
+        export_c(nlobs.design_mhe(PEND.system, horizon=4), tmp_path / "out")
+    assert not (tmp_path / "out").exists()  # nothing half-written
 
 
 def test_default_name_and_summary(tmp_path):

@@ -10,3 +10,4 @@ from ._base import rows_from_run as rows_from_run
 from . import banks as banks  # noqa: E402
 from . import van_der_pol_unknown as van_der_pol_unknown  # noqa: E402
 from . import pendulum_unknown_b as pendulum_unknown_b  # noqa: E402
+from . import range_localisation as range_localisation  # noqa: E402
