@@ -46,6 +46,12 @@ def test_state_space_becomes_the_same_lti_model():
         np.testing.assert_array_equal(mine, theirs)
     named = nlobs.from_control(_cart(), name="c2")
     assert named.states == ("p", "v") and named.inputs == ("F",) and named.outputs == ("pos",) and named.name == "c2"
+    # a StateSpace may bring a twin too; it is checked like any other
+    twin = nlobs.System(states=["p", "v"], inputs=["F"], outputs=["pos"], f=["v", "2*p - v + F"], h=["p"], name="cart")
+    assert nlobs.from_control(_cart(), twin=twin) is twin
+    with pytest.raises(ModelError, match=r"d\(v\)/dt"):
+        nlobs.from_control(_cart(), twin=nlobs.System(states=["p", "v"], inputs=["F"], outputs=["pos"],
+                                                      f=["v", "2*p - v + 2*F"], h=["p"]))
 
 
 def _pendulum_nlsys(a1=9.81, sign=1.0, labels=True):

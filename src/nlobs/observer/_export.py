@@ -202,9 +202,9 @@ extern const double {name}_xhat0_default[{NAME}_NX];
 /* z0 from the initial estimate xhat0 (NULL: {name}_xhat0_default). Returns {NAME}_OK. */
 int {name}_init(const double *xhat0, double *z);
 
-/* One sample: see above. u_prev, y_prev and u, y may be NULL when there are no inputs
- * (u) or for the first sample (u_prev, y_prev: zeros). z_next may be z (in place);
- * y_held may be NULL. On an error z_next and xhat are left unchanged. */
+/* One sample: see above. y is required; u may be NULL when the model has no inputs;
+ * u_prev and y_prev may be NULL on the first sample (dt = 0; zeros). z_next may be z
+ * (in place); y_held may be NULL. On an error z_next and xhat are left unchanged. */
 int {name}_step(const double *z, double t, double dt,
                 const double *u_prev, const double *y_prev,
                 const double *u, const double *y,
