@@ -1,4 +1,4 @@
-"""The command line: ``nlobs demo | simulate | estimate | export`` (and ``analyze`` when available).
+"""The command line: ``nlobs demo | analyze | simulate | estimate | export``.
 
 Errors print one line (``nlobs: error: ...``) and exit non-zero; ``--debug`` shows the traceback.
 """
@@ -25,6 +25,17 @@ def _parser() -> argparse.ArgumentParser:
     d.add_argument("--only", action="append", metavar="KEY", help="run only this example (repeatable); see --list")
     d.add_argument("--list", action="store_true", help="list the examples and exit")
     d.add_argument("--quiet", action="store_true", help="no progress lines")
+
+    a = sub.add_parser("analyze", help="structural observability of a model file (generic rank, 002)")
+    a.add_argument("model", help="model file (TOML)")
+    a.add_argument("--params", default="", metavar="NAMES",
+                   help="comma-separated parameters to treat as unknown constants (identifiability), or 'all'")
+    a.add_argument("--inputs", default="generic", metavar="CLASS",
+                   help="'generic' (default: the observation space of 002), 'constant', or a polynomial degree")
+    a.add_argument("--function", action="append", default=[], metavar="EXPR",
+                   help="a function of the states to test for observability (repeatable), e.g. 'x1**2 + x2**2'")
+    a.add_argument("--seed", type=int, default=0, help="seed of the random point and prime (default 0)")
+    a.add_argument("--json", action="store_true", help="print one JSON object")
 
     s = sub.add_parser("simulate", help="simulate a model file's plant with its observers")
     s.add_argument("model", help="model file (TOML)")
@@ -60,7 +71,8 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
-        return {"demo": _demo, "simulate": _simulate, "estimate": _estimate, "export": _export}[args.command](args)
+        return {"demo": _demo, "analyze": _analyze, "simulate": _simulate, "estimate": _estimate,
+                "export": _export}[args.command](args)
     except KeyboardInterrupt:
         print("nlobs: interrupted", file=sys.stderr)
         return 130
@@ -80,6 +92,19 @@ def _demo(args: argparse.Namespace) -> int:
             print(f"{ex.key:<16} {ex.title}")
         return 0
     return run_demo(args.out, only=args.only, progress=not args.quiet).exit_code
+
+
+def _analyze(args: argparse.Namespace) -> int:
+    from .analysis import analyze
+    from .model import load_model
+
+    mf = load_model(args.model)
+    params = args.params.strip()
+    unknown: Any = "all" if params == "all" else [p.strip() for p in params.split(",") if p.strip()]
+    inputs: Any = int(args.inputs) if args.inputs.strip().isdigit() else args.inputs.strip()
+    report = analyze(mf.system, unknown_params=unknown, inputs=inputs, functions=args.function, seed=args.seed)
+    print(json.dumps(_clean(report.to_dict())) if args.json else report)
+    return 0
 
 
 def _designs(model_file: Any, names: Sequence[str] | None) -> dict[str, Any]:
