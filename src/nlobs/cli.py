@@ -1,4 +1,4 @@
-"""The command line: ``nlobs demo | analyze | simulate | estimate``.
+"""The command line: ``nlobs demo | analyze | simulate | estimate | export``.
 
 Errors print one line (``nlobs: error: ...``) and exit non-zero; ``--debug`` shows the traceback.
 """
@@ -58,13 +58,21 @@ def _parser() -> argparse.ArgumentParser:
     e.add_argument("--engine", choices=("auto", "vm", "c"), default="auto", help="numeric backend")
     e.add_argument("--output", metavar="FILE", help="write t and the estimates to this CSV")
     e.add_argument("--json", action="store_true", help="print one JSON object")
+
+    x = sub.add_parser("export", help="write an observer's sample-to-sample step as dependency-free C")
+    x.add_argument("model", help="model file (TOML)")
+    x.add_argument("--observer", required=True, metavar="NAME", help="observer configured in the file")
+    x.add_argument("--c", required=True, metavar="DIR", dest="c_dir", help="folder for NAME.c, NAME.h and an example main.c")
+    x.add_argument("--name", help="C prefix and file name (default: MODEL_KIND)")
+    x.add_argument("--max-step", type=float, help="largest RK4 step between samples (default: one step per interval)")
     return p
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
-        return {"demo": _demo, "analyze": _analyze, "simulate": _simulate, "estimate": _estimate}[args.command](args)
+        return {"demo": _demo, "analyze": _analyze, "simulate": _simulate, "estimate": _estimate,
+                "export": _export}[args.command](args)
     except KeyboardInterrupt:
         print("nlobs: interrupted", file=sys.stderr)
         return 130
@@ -171,6 +179,16 @@ def _estimate(args: argparse.Namespace) -> int:
         print(run.summary())
         for name, tr in run.observers.items():
             print(f"{name}: final estimate " + ", ".join(f"{s}={v:.6g}" for s, v in zip(run.state_names, tr.xhat[-1])))
+    return 0
+
+
+def _export(args: argparse.Namespace) -> int:
+    from .model import load_model
+    from .observer import export_c
+
+    mf = load_model(args.model)
+    design = _designs(mf, [args.observer])[args.observer]
+    print(export_c(design, args.c_dir, name=args.name, max_step=args.max_step))
     return 0
 
 
