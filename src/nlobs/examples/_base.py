@@ -11,6 +11,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from ..model import System
 from ..simulate import Run
 
 __all__ = ["Claim", "ExampleResult", "Example", "EXAMPLES", "register", "rows_from_run"]
@@ -53,6 +54,9 @@ class ExampleResult:
         Extra figures beyond the runs (Gramian eigenvalues, excitation, ...).
     notes : sequence of str
         Choices made where the paper is silent, and deviations found.
+    systems : mapping of label to System
+        The example's models; the demo reports the observability verdict of each
+        (:func:`nlobs.analysis.analyze`).
     """
 
     key: str
@@ -66,6 +70,7 @@ class ExampleResult:
     claims: Sequence[Claim] = ()
     figures: Mapping[str, Any] = field(default_factory=dict)
     notes: Sequence[str] = ()
+    systems: Mapping[str, System] = field(default_factory=dict)
 
     @property
     def ok(self) -> bool:

@@ -87,6 +87,7 @@ def run() -> ExampleResult:
     claims.append(Claim("3.2: Df + P·DB = diag(-1 - 3x1², -1 - 5x2⁴) (the paper prints -1 - 2x1² and -1 - 5x2²: typos)",
                         sp.simplify(J - sp.diag(-1 - 3 * x1**2, -1 - 5 * x2**4)) == sp.zeros(2, 2), str(J.tolist())))
     return ExampleResult(
+        systems={"example 3.1": example_31(False), "example 3.2": example_32(False)},
         key="003-banks",
         title="003 — Banks' exponential observers, examples 3.1 and 3.2",
         reference=REFERENCE,

@@ -52,6 +52,7 @@ def run() -> ExampleResult:
         Claim("the error decays at the rate set by the slowest pole (2)", abs(rate - 2.0) < 0.05, f"measured {rate:.3f}"),
     ]
     return ExampleResult(
+        systems={"robot arm / pendulum": system},
         key="002-pendulum",
         title="002 — robot arm / pendulum with an output-injection observer",
         reference=REFERENCE,

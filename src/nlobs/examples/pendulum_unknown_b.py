@@ -70,6 +70,7 @@ def run() -> ExampleResult:
             claims.append(Claim(f"{label}: the Gramian over every 5 s window is positive definite (regular persistence)",
                                 lam > 1e-6, f"min over windows of λmin(W) = {lam:.2e}"))
     return ExampleResult(
+        systems={"pendulum with b as a state": pendulum_unknown_b()},
         key="002-pendulum-b",
         title="002 — robot arm with unknown b: Kalman-like observer, exciting vs zero input",
         reference=REFERENCE,

@@ -121,6 +121,7 @@ def _run(key: str, title: str, system: System, aug: dict, x0, xhat0, rich: dict,
     for row, r in zip(table, (r_rich, r_rich, r_line)):
         row["gramian_min_eig"] = r
     return ExampleResult(
+        systems={"range-only model": system},
         key=key, title=title, reference=reference,
         summary=(f"The {n_w}-state augmented system mimics the range-only model (checked symbolically) through an injective T "
                  "with the linear left inverse [I 0]. Along a rich trajectory its Gramian is nonsingular and the Kalman-Bucy "

@@ -71,6 +71,7 @@ def run() -> ExampleResult:
               abs(rate - SQ2 / 2) < 0.02 * SQ2 / 2, f"measured rate {rate:.4f} over one period from t = 10"),
     ]
     return ExampleResult(
+        systems={"the toy system (20), c = 0.5": system, "the toy system (20), c = 0": toy_system(0.0)},
         key="001-IV-C",
         title="001 §IV-C — a toy system observed through state augmentation",
         reference=REFERENCE,

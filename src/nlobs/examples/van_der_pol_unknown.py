@@ -65,6 +65,7 @@ def run() -> ExampleResult:
         tr = (clean if row["run"] == "noise-free" else noisy).observers[row["observer"]].xhat[-1]
         row["gamma_hat"], row["omega2_hat"] = float(tr[2]), float(tr[3])
     return ExampleResult(
+        systems={"Van der Pol with γ, ω² as states": van_der_pol_unknown()},
         key="002-vdp",
         title="002 — Van der Pol with unknown γ, ω²: Kalman-like observer on ż = A(y)z",
         reference=REFERENCE,

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import TextIO
 
 from .. import __version__
+from ..analysis import analyze
 from ..examples import EXAMPLES, ExampleResult
 from ._html import fmt, img, page, table
 
@@ -95,6 +96,26 @@ def _section(r: ExampleResult, seconds: float) -> str:
         parts.append(f"<li><span class='{cls}'>{word}</span> — {html.escape(c.text)}"
                      + (f" <span class='note'>({html.escape(c.detail)})</span>" if c.detail else "") + "</li>")
     parts.append("</ul>")
+    if r.systems:
+        parts.append("<h3>Observability (nlobs.analyze)</h3><ul>")
+        details = []
+        for label, system in r.systems.items():
+            try:
+                rep = analyze(system)
+                d = rep.to_dict()
+                verdict = (f"observable: generic rank {d['rank']} = {d['n_states']}" if d["observable"] else
+                           f"not observable: generic rank {d['rank']} < {d['n_states']}; observable states: "
+                           f"{', '.join(d['observable_states']) or 'none'}")
+                if d.get("globally_observable") is False:
+                    verdict += "; locally only (a symmetry makes it globally unobservable)"
+                cls = "ok" if d["observable"] else "fail"
+                parts.append(f"<li>{html.escape(label)}: <span class='{cls}'>{html.escape(verdict)}</span></li>")
+                details.append(f"<pre>{html.escape(label)}\n{html.escape(str(rep))}</pre>")
+            except Exception as e:  # noqa: BLE001 - an analysis that cannot run is reported, not fatal
+                parts.append(f"<li>{html.escape(label)}: <span class='fail'>analysis failed: {html.escape(str(e))}</span></li>")
+        parts.append("</ul>")
+        if details:
+            parts.append("<details><summary>Observability reports</summary>" + "".join(details) + "</details>")
     if r.table:
         parts.append("<h3>Convergence and accuracy</h3>" + table(r.table, COLUMNS)
                      + "<p class='note'>Convergence time: first time after which ‖x̂ − x‖ stays below 2 % of its initial "
