@@ -106,9 +106,10 @@ def _section(r: ExampleResult, seconds: float) -> str:
                 verdict = (f"observable: generic rank {d['rank']} = {d['n_states']}" if d["observable"] else
                            f"not observable: generic rank {d['rank']} < {d['n_states']}; observable states: "
                            f"{', '.join(d['observable_states']) or 'none'}")
-                if d.get("globally_observable") is False:
-                    verdict += "; locally only (a symmetry makes it globally unobservable)"
                 cls = "ok" if d["observable"] else "fail"
+                if d.get("globally_observable") is False:
+                    verdict += "; locally only: a symmetry makes it globally unobservable"
+                    cls = "warn"
                 parts.append(f"<li>{html.escape(label)}: <span class='{cls}'>{html.escape(verdict)}</span></li>")
                 details.append(f"<pre>{html.escape(label)}\n{html.escape(str(rep))}</pre>")
             except Exception as e:  # noqa: BLE001 - an analysis that cannot run is reported, not fatal
@@ -120,8 +121,10 @@ def _section(r: ExampleResult, seconds: float) -> str:
         parts.append("<h3>Convergence and accuracy</h3>" + table(r.table, COLUMNS)
                      + "<p class='note'>Convergence time: first time after which ‖x̂ − x‖ stays below 2 % of its initial "
                        "value (— : not within the run). RMS over the last 20 % of the run.</p>")
-    for label, run in r.runs.items():
-        parts.append(f"<h3>{html.escape(label)}</h3>" + img(run.plot(), f"{r.key} {label}"))
+    if r.runs:
+        parts.append("<div class='runs'>" + "".join(
+            f"<figure><figcaption>{html.escape(label)}</figcaption>{img(run.plot(), f'{r.key} {label}')}</figure>"
+            for label, run in r.runs.items()) + "</div>")
     for caption, fig in r.figures.items():
         parts.append(f"<h3>{html.escape(caption)}</h3>" + img(fig, caption))
     parts.append(f"<details><summary>Model</summary><pre>{html.escape(r.model)}</pre></details>")
@@ -138,7 +141,12 @@ def _html(results: Sequence[ExampleResult], failed: Sequence[tuple[str, str]], t
         f"<li><a href='#{html.escape(r.key)}'>{html.escape(r.title)}</a> — "
         f"<span class='{'ok' if r.ok else 'fail'}'>{sum(c.holds for c in r.claims)}/{len(r.claims)} claims</span></li>"
         for r in results) + "".join(f"<li><span class='fail'>{html.escape(k)} crashed</span></li>" for k, _ in failed) + "</ul></nav>"
-    body = [nav] + [_section(r, timings[r.key]) for r in results]
+    overview = [dict(row, example=r.key) for r in results for row in r.table]
+    body = [nav]
+    if overview:
+        body.append("<details open><summary>All observers at a glance</summary>"
+                    + table(overview, [("example", "example"), *COLUMNS]) + "</details>")
+    body += [_section(r, timings[r.key]) for r in results]
     for key, err in failed:
         body.append(f"<h2>{html.escape(key)}</h2><p class='fail'>This example crashed:</p><pre>{html.escape(err)}</pre>")
     subtitle = (f"nlobs {__version__} · the papers' examples reproduced · {len(results)} example(s) in {seconds:.1f} s · "

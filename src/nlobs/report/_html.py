@@ -16,6 +16,9 @@ body { font-family: system-ui, -apple-system, 'Segoe UI', sans-serif; margin: 0 
 h1 { font-size: 1.7rem; margin-bottom: .2rem; } h2 { border-bottom: 2px solid #dfe3e8; padding-bottom: .25rem; margin-top: 2.5rem; }
 h3 { font-size: 1.05rem; margin: 1.2rem 0 .4rem; }
 .ref { color: #57606a; font-size: .9rem; } .ok { color: #1a7f37; font-weight: 600; } .fail { color: #cf222e; font-weight: 600; }
+.warn { color: #9a6700; font-weight: 600; }
+.runs { display: flex; flex-wrap: wrap; gap: 1rem; } .runs figure { flex: 1 1 460px; margin: 0; }
+figcaption { font-weight: 600; margin: .2rem 0; }
 table { border-collapse: collapse; margin: .5rem 0 1rem; font-size: .9rem; }
 th, td { border: 1px solid #d0d7de; padding: .3rem .6rem; text-align: right; } th { background: #f6f8fa; }
 td:first-child, th:first-child, td.l { text-align: left; }
@@ -51,7 +54,9 @@ def table(rows: Sequence[Mapping[str, Any]], columns: Sequence[tuple[str, str]])
     head = "".join(f"<th>{html.escape(h)}</th>" for _, h in columns)
     body = []
     for r in rows:
-        body.append("<tr>" + "".join(f"<td>{html.escape(fmt(r.get(k)))}</td>" for k, _ in columns) + "</tr>")
+        body.append("<tr>" + "".join(
+            f"<td{'' if isinstance(r.get(k), (int, float)) or r.get(k) is None else ' class=l'}>{html.escape(fmt(r.get(k)))}</td>"
+            for k, _ in columns) + "</tr>")
     return f"<table><thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"
 
 
