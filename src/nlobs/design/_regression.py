@@ -91,6 +91,7 @@ class StateStack:
         self.xhat0 = ca.SX.sym("xhat0", system.n_states)
         self._blocks: list[tuple[ca.SX, list[str], ca.SX]] = []
         self._flows: dict[int, ca.SX] = {}
+        self._jumps: dict[int, ca.SX] = {}
 
     def add(self, name: str, rows: int, cols: int = 1, init: Any = 0.0) -> ca.SX:
         """A new block of `rows` x `cols` states named `name`, starting at `init`
@@ -121,6 +122,14 @@ class StateStack:
             raise ShapeError(f"StateStack.set_flow: flow of shape {f.shape} for a block of shape {sym.shape}")
         self._flows[id(sym)] = f
 
+    def set_update(self, sym: ca.SX, value: Any) -> None:
+        """The value of a block right after a sample instant (z⁺ = J(t, z⁻, u, y, m)); blocks
+        without one are continuous across samples."""
+        v = ca.SX(value)
+        if v.shape != sym.shape:
+            raise ShapeError(f"StateStack.set_update: value of shape {v.shape} for a block of shape {sym.shape}")
+        self._jumps[id(sym)] = v
+
     @property
     def n_z(self) -> int:
         return sum(b[0].numel() for b in self._blocks)
@@ -132,15 +141,18 @@ class StateStack:
     def symbols(self) -> Symbols:
         return Symbols(self.t, self.z, self.u, self.y, self.m)
 
-    def build(self, method: str, *, xhat: ca.SX, certificate: Certificate, xhat0: Any = None,
-              update: ca.SX | None = None) -> ObserverDesign:
-        """Assemble the design: flow = the blocks' flows in order, z0 = their initial values."""
+    def build(self, method: str, *, xhat: ca.SX, certificate: Certificate, xhat0: Any = None) -> ObserverDesign:
+        """Assemble the design: flow = the blocks' flows in order, z0 = their initial values, and
+        an update at the sample instants when a block has one (:meth:`set_update`)."""
         missing = [b[1][0] for b in self._blocks if id(b[0]) not in self._flows]
         if missing:  # a bug in a design, not a user error
             raise RuntimeError(f"StateStack.build: no flow for block(s) {missing}")
         flow = ca.vertcat(*[ca.vec(self._flows[id(b[0])]) for b in self._blocks])
         z0 = ca.vertcat(*[b[2] for b in self._blocks])
         names = [n for b in self._blocks for n in b[1]]
+        update = None
+        if self._jumps:
+            update = ca.vertcat(*[ca.vec(self._jumps.get(id(b[0]), b[0])) for b in self._blocks])
         x0 = np.zeros(self.system.n_states) if xhat0 is None else xhat0
         return ObserverDesign.build(method, self.system, self.symbols(), z_names=names, flow=flow, xhat=xhat,
                                     xhat0_sym=self.xhat0, z0=z0, xhat0=x0, certificate=certificate, update=update)
