@@ -1,0 +1,3 @@
+"""The papers' examples (M8); importing this package registers them."""
+
+from . import gpebo_not_uco as gpebo_not_uco
