@@ -234,7 +234,8 @@ class WindowedNLS:
         \quad\big(+ \sum_j |y_j - h(\phi^L(\xi_j + E\theta, y_j))|^2 \text{ for algebraic rows}\big),
 
     with :math:`g = \nabla h^\top f(\phi^L(\xi + E\theta, y), u)` (the right-hand side of 004 eq. 11)
-    and the integral by the trapezoidal rule on the stored samples. The data enter through
+    and the integral on the stored samples by Simpson's rule (odd `samples`, residuals at every
+    second sample, error O(h⁴)) or the trapezoidal rule (even `samples`, O(h²)). The data enter through
     output increments, so no derivative of y is taken. The fit runs at sample instants (the
     observer's update, :math:`z^+ = J(t, z^-, u, y)`); samples with a missing output are skipped.
 
@@ -243,7 +244,7 @@ class WindowedNLS:
     window : float
         Length of the data window (seconds).
     samples : int
-        Stored samples M ≥ 3 (the trapezoidal step is window / (M - 1)).
+        Stored samples M ≥ 3, spaced window / (M - 1); odd M uses Simpson's rule.
     iterations : int
         Levenberg-Marquardt steps per new sample.
     damping : float
@@ -251,8 +252,8 @@ class WindowedNLS:
     """
 
     window: float
-    samples: int = 20
-    iterations: int = 3
+    samples: int = 21
+    iterations: int = 2
     damping: float = 1e-6
     kind = "windowed_nls"
 
@@ -290,9 +291,16 @@ def _build_nls(stack: StateStack, nls: WindowedNLS, xi_sx: ca.SX, g_der: ca.Func
     if g_der is not None:
         gs = [g_der(T, xs[j, :].T, ys[j, :].T, us[j, :].T) for j in range(M)]
         acc = ca.SX.zeros(len(der_rows), 1)
-        for j in range(1, M):
-            acc = acc + (ts[j] - ts[j - 1]) / 2 * (gs[j] + gs[j - 1])
-            rows.append(ys[j, der_rows].T - ys[0, der_rows].T - acc)
+        if M % 2:  # Simpson's rule on pairs of (possibly unequal) intervals: residuals at even j, error O(h^4)
+            for j in range(2, M, 2):
+                h1, h2 = ts[j - 1] - ts[j - 2], ts[j] - ts[j - 1]
+                acc = acc + (h1 + h2) / 6 * ((2 - h2 / h1) * gs[j - 2] + (h1 + h2) ** 2 / (h1 * h2) * gs[j - 1]
+                                             + (2 - h1 / h2) * gs[j])
+                rows.append(ys[j, der_rows].T - ys[0, der_rows].T - acc)
+        else:      # trapezoidal rule, residual at every sample, error O(h^2)
+            for j in range(1, M):
+                acc = acc + (ts[j] - ts[j - 1]) / 2 * (gs[j] + gs[j - 1])
+                rows.append(ys[j, der_rows].T - ys[0, der_rows].T - acc)
     if g_alg is not None:
         for j in range(M):
             rows.append(ys[j, alg_rows].T - g_alg(T, xs[j, :].T, ys[j, :].T, us[j, :].T))
