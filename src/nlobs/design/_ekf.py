@@ -24,8 +24,15 @@ def _sym(M: ca.SX) -> ca.SX:
 
 
 def design_ekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None,
-               mode: Literal["continuous", "continuous-discrete"] = "continuous") -> ObserverDesign:
+               mode: Literal["continuous", "continuous-discrete"] = "continuous-discrete") -> ObserverDesign:
     r"""Extended Kalman filter, with exact Jacobians from automatic differentiation.
+
+    Continuous-discrete (the default, ``mode="continuous-discrete"``): between samples
+    :math:`\dot{\hat x} = f`, :math:`\dot P = FP + PF^\top + Q`; at each sample
+    :math:`K = PH^\top(HPH^\top + R)^{-1}`, :math:`\hat x^+ = \hat x + K(y - h(\hat x))`,
+    :math:`P^+ = (I - KH)P(I - KH)^\top + KRK^\top` (Joseph form). Outputs missing at a
+    sample are left out of the update. R is then the covariance of one measurement sample
+    (σ² for Gaussian noise of standard deviation σ).
 
     Continuous time (``mode="continuous"``), with :math:`F = \partial f/\partial x`,
     :math:`H = \partial h/\partial x` at :math:`\hat x`:
@@ -35,11 +42,9 @@ def design_ekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
         \dot{\hat x} = f(\hat x, u) + P H^\top R^{-1}(y - h(\hat x, u)), \qquad
         \dot P = FP + PF^\top + Q - PH^\top R^{-1} H P .
 
-    Continuous-discrete (``mode="continuous-discrete"``): between samples
-    :math:`\dot{\hat x} = f`, :math:`\dot P = FP + PF^\top + Q`; at each sample
-    :math:`K = PH^\top(HPH^\top + R)^{-1}`, :math:`\hat x^+ = \hat x + K(y - h(\hat x))`,
-    :math:`P^+ = (I - KH)P(I - KH)^\top + KRK^\top` (Joseph form). Outputs missing at a
-    sample are left out of the update.
+    Here R is an intensity: white noise sampled with standard deviation σ every Δt has
+    intensity σ²Δt, and a small R makes the gain P Hᵀ R⁻¹ H large, so the integration step
+    must resolve it (RK4 is stable for |λ|Δt < 2.8).
 
     P is stored in full and kept exactly symmetric: every derivative and update is
     symmetrised, so P stays symmetric to the last bit and positive definite as long as the
@@ -58,7 +63,7 @@ def design_ekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
         Initial covariance (identity), positive definite.
     xhat0 : array_like of shape (n,), optional
         Default initial estimate (zeros).
-    mode : {"continuous", "continuous-discrete"}
+    mode : {"continuous-discrete", "continuous"}
 
     Raises
     ------

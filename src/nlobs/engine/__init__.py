@@ -1,8 +1,10 @@
 """Support: compile a System once to CasADi (f, h, Jacobians), integrate, generate C."""
 
+from ._batch import evaluate_many as evaluate_many
 from ._casadi import CASADI as CASADI
 from ._casadi import CompiledSystem as CompiledSystem
 from ._casadi import compile_system as compile_system
+from ._casadi import rows as rows
 from ._casadi import to_casadi as to_casadi
 from ._codegen import Backend as Backend
 from ._codegen import cache_dir as cache_dir

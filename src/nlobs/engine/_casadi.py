@@ -11,7 +11,7 @@ import sympy as sp
 
 from ..model import TIME, System, translate
 
-__all__ = ["CASADI", "to_casadi", "CompiledSystem", "compile_system"]
+__all__ = ["CASADI", "to_casadi", "rows", "CompiledSystem", "compile_system"]
 
 #: Elementary functions for CasADi SX/MX.
 CASADI: Mapping[Any, Any] = {
@@ -28,6 +28,13 @@ def to_casadi(exprs: Sequence[sp.Expr], leaves: Mapping[sp.Symbol, Any]) -> ca.S
     if not exprs:
         return ca.SX(0, 1)
     return ca.vertcat(*[ca.SX(translate(e, leaves, CASADI)) for e in exprs])
+
+
+def rows(v: Any, start: int, stop: int) -> Any:
+    """Rows start:stop of a CasADi column, always as a column (an empty slice of a 1x1 SX is 1x0 in CasADi)."""
+    if stop <= start:
+        return type(v)(0, 1) if isinstance(v, (ca.SX, ca.MX, ca.DM)) else ca.SX(0, 1)
+    return v[start:stop]
 
 
 @dataclass(frozen=True, eq=False)

@@ -108,7 +108,10 @@ def parse_expression(text: str, symbols: Mapping[str, sp.Symbol]) -> sp.Expr:
         tree = ast.parse(text.strip(), mode="eval")
     except SyntaxError as e:
         raise ExpressionError(f"not a valid expression ({e.msg})") from None
-    except (ValueError, RecursionError, MemoryError, OverflowError) as e:
+    except RecursionError:
+        raise ExpressionError("the expression is nested too deeply (or is too long a chain) for Python's parser; "
+                              "split it into shorter expressions") from None
+    except (ValueError, MemoryError, OverflowError) as e:
         raise ExpressionError(f"cannot be parsed ({type(e).__name__})") from None
     return _Walker(symbols).expr(tree.body, 0)
 

@@ -11,12 +11,12 @@ from typing import Any, Literal
 import casadi as ca
 import numpy as np
 
-from ..engine import Backend, StepRunner, compile_system, rk4_step
+from ..engine import Backend, StepRunner, compile_system, evaluate_many, rk4_step, rows
 from ..errors import DataError, ModelError, ShapeError
 from ..model import System
 from ..observer import AbstractObserver
 from ._results import ObserverTrace, Run
-from ._run import _xhat0_for, evaluate_mapped, named_observers
+from ._run import _xhat0_for, named_observers
 
 __all__ = ["Recording", "estimate"]
 
@@ -202,9 +202,10 @@ def estimate(
     step, fill = _estimation_step(obs, n_sub, linear=hold == "linear")
     nu, ny = u.shape[1], y0.shape[1]
     A = np.hstack([t[:-1, None], dts[:, None], u[:-1], y0[:-1], mask[:-1], u[1:], y0[1:], mask[1:]])
-    z0 = []
+    z0, priors = [], {}
     for name, o in obs.items():
         z = o.initial_state(_xhat0_for(xhat0, name, o.system.n_states))
+        priors[name] = o.estimate(t[0], z, u[0], y0[0])
         if o.sampled:
             z = o.update(t[0], z, u[0], y0[0], mask[0])
         z0.append(z)
@@ -216,9 +217,9 @@ def estimate(
     for name, o in obs.items():
         z = S[:, off:off + o.n_z]
         off += o.n_z
-        y_used = evaluate_mapped(fill[name], t[:, None], z, u, y0, mask) if (mask < 1).any() else y0
-        xhat = evaluate_mapped(o.design.output, t[:, None], z, u, y_used)
-        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, z, xhat)
+        y_used = evaluate_many(fill[name], t[:, None], z, u, y0, mask) if (mask < 1).any() else y0
+        xhat = evaluate_many(o.design.output, t[:, None], z, u, y_used)
+        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, z, xhat, priors[name])
     system = next(iter(obs.values())).system
     return Run(f"{system.name} (recorded: {recording.source})", t, system.states, recording.input_names, recording.output_names,
                u, recording.y, traces, x=recording.x, info={"max_step": max_step, "substeps": n_sub, "on_missing": on_missing, "hold": hold})
@@ -231,14 +232,14 @@ def _estimation_step(obs: Mapping[str, AbstractObserver], n_sub: int, *, linear:
     s = ca.SX.sym("s", ns)
     a = ca.SX.sym("a", 2 + 2 * (nu + 2 * ny))
     t, dt = a[0], a[1]
-    u0, y0, m0 = a[2:2 + nu], a[2 + nu:2 + nu + ny], a[2 + nu + ny:2 + nu + 2 * ny]
+    u0, y0, m0 = rows(a, 2, 2 + nu), rows(a, 2 + nu, 2 + nu + ny), rows(a, 2 + nu + ny, 2 + nu + 2 * ny)
     o1 = 2 + nu + 2 * ny
-    u1, y1, m1 = a[o1:o1 + nu], a[o1 + nu:o1 + nu + ny], a[o1 + nu + ny:o1 + nu + 2 * ny]
+    u1, y1, m1 = rows(a, o1, o1 + nu), rows(a, o1 + nu, o1 + nu + ny), rows(a, o1 + nu + ny, o1 + nu + 2 * ny)
     parts, fills = [], {}
     off = 0
     for name, o in obs.items():
         d = o.design
-        z = s[off:off + o.n_z]
+        z = rows(s, off, off + o.n_z)
         off += o.n_z
         _, h = compile_system(o.system).bind()
         zz, tt, uu, yy, mm = ca.SX.sym("z", o.n_z), ca.SX.sym("t"), ca.SX.sym("u", nu), ca.SX.sym("y", ny), ca.SX.sym("m", ny)

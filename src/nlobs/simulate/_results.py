@@ -32,6 +32,7 @@ class ObserverTrace:
     z_names: tuple[str, ...]
     z: np.ndarray
     xhat: np.ndarray
+    xhat_prior: np.ndarray | None = None  #: the initial estimate before any measurement (sets the default tolerance)
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,7 +75,15 @@ class Run:
         return np.linalg.norm(self.error(name), axis=1)
 
     def metrics(self, name: str | None = None, *, tol: float | None = None, tail: float = 0.2) -> Metrics:
-        """Convergence time, RMS and peak errors of one observer (see :class:`Metrics`)."""
+        """Convergence time, RMS and peak errors of one observer (see :class:`Metrics`).
+
+        The default tolerance is 2 % of the initial error before any measurement,
+        ‖x̂(0⁻) − x(0)‖ (a settling criterion that filters updating at t = 0 cannot game).
+        """
+        trace = self._trace(name)
+        if tol is None and trace.xhat_prior is not None and self.x is not None:
+            e0 = float(np.linalg.norm(trace.xhat_prior - self.x[0]))
+            tol = 0.02 * e0 if e0 > 0 else None
         return error_metrics(self.t, self.error_norm(name), tol=tol, tail=tail)
 
     def summary(self, *, tol: float | None = None) -> str:

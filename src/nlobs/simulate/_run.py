@@ -20,14 +20,14 @@ import numpy as np
 
 from .._progress import as_progress
 from ..design import ObserverDesign
-from ..engine import Backend, StepRunner, compile_system, rk4_step
+from ..engine import Backend, StepRunner, compile_system, evaluate_many, rk4_step, rows
 from ..errors import FiniteEscapeError, ModelError, ShapeError
 from ..model import System, input_signals
 from ..observer import AbstractObserver, Observer, as_observer
 from ._options import Noise, ProcessNoise, Sampling
 from ._results import ObserverTrace, Run
 
-__all__ = ["simulate", "named_observers", "check_compatible", "evaluate_mapped", "stage_inputs"]
+__all__ = ["simulate", "named_observers", "check_compatible", "stage_inputs"]
 
 
 def named_observers(observers: Any) -> dict[str, AbstractObserver]:
@@ -57,15 +57,6 @@ def check_compatible(plant: System, name: str, obs: AbstractObserver) -> None:
         if tuple(mine) != tuple(theirs):
             raise ModelError(f"observer {name!r} was designed for {what} {list(mine)}, but the plant {plant.name!r} has "
                              f"{list(theirs)}; design it on a model with the same {what}")
-
-
-def evaluate_mapped(fn: ca.Function, *args: np.ndarray) -> np.ndarray:
-    """Evaluate `fn` on many points at once: each arg has shape (N, k) (or (k,) for a constant);
-    returns shape (N, m) for the first output."""
-    N = max(a.shape[0] for a in args if a.ndim == 2)
-    cols = [ca.DM(a.T) if a.ndim == 2 else ca.DM(a.reshape(-1, 1)) for a in args]
-    out = np.asarray(fn.map(N)(*cols), dtype=float)
-    return out.reshape(-1, N).T
 
 
 def stage_inputs(plant: System, inputs: Any, params: Mapping[str, float], t: np.ndarray, dt: np.ndarray) -> np.ndarray:
@@ -259,34 +250,36 @@ def _joint_step(plant: System, obs: Mapping[str, AbstractObserver], *, sampled: 
     na = 2 + 3 * nu + ny + n + 1
     a = ca.SX.sym("a", na)
     c = ca.SX.sym("c", max(plant.n_params, 1))
-    p = c[:plant.n_params]
+    p = rows(c, 0, plant.n_params)
     t, dt = a[0], a[1]
-    U = [a[2 + k * nu: 2 + (k + 1) * nu] for k in range(3)]
+    U = [rows(a, 2 + k * nu, 2 + (k + 1) * nu) for k in range(3)]
     off = 2 + 3 * nu
-    noise, w, flag = a[off:off + ny], a[off + ny:off + ny + n], a[off + ny + n]
-    x = s[:n]
+    noise, w, flag = rows(a, off, off + ny), rows(a, off + ny, off + ny + n), a[off + ny + n]
+    x = rows(s, 0, n)
     y_now = comp.h(t, x, U[0], p) + noise
-    y_s = ca.if_else(flag, y_now, s[layout.held]) if sampled else y_now
+    y_s = ca.if_else(flag, y_now, rows(s, layout.held.start, layout.held.stop)) if sampled else y_now
     zs = {}
     for name, o in obs.items():
-        z = s[layout.slices[name]]
+        sl = layout.slices[name]
+        z = rows(s, sl.start, sl.stop)
         d = o.design
         if d.update is not None:
             z = ca.if_else(flag, d.update(t, z, U[0], y_s, ca.DM.ones(ny)), z)
         zs[name] = z
 
     def rhs(tt: ca.SX, S: ca.SX, k: int) -> ca.SX:
-        xx, u = S[:n], U[k]
+        xx, u = rows(S, 0, n), U[k]
         y = y_s if sampled else comp.h(tt, xx, u, p) + noise
         parts = [comp.f(tt, xx, u, p)]
         off_ = n
         for o in obs.values():
-            parts.append(o.design.flow(tt, S[off_:off_ + o.n_z], u, y))
+            parts.append(o.design.flow(tt, rows(S, off_, off_ + o.n_z), u, y))
             off_ += o.n_z
         return ca.vertcat(*parts)
 
-    S_next = rk4_step(rhs, t, ca.vertcat(x, *zs.values()), dt)
-    s_next = ca.vertcat(S_next[:n] + w, S_next[n:], y_s if sampled else ca.SX(0, 1))
+    joint = ca.vertcat(x, *zs.values())
+    S_next = rk4_step(rhs, t, joint, dt)
+    s_next = ca.vertcat(rows(S_next, 0, n) + w, rows(S_next, n, joint.shape[0]), y_s if sampled else ca.SX(0, 1))
     return ca.Function("joint_step", [s, a, c], [s_next]), layout
 
 
@@ -296,7 +289,7 @@ def _assemble(plant: System, obs: Mapping[str, AbstractObserver], layout: _Layou
     K = t.size
     x = S[:, :layout.n]
     p = c[:plant.n_params]
-    y_true = evaluate_mapped(comp.h, t[:, None], x, u, p) if plant.n_outputs else np.zeros((K, 0))
+    y_true = evaluate_many(comp.h, t[:, None], x, u, p) if plant.n_outputs else np.zeros((K, 0))
     held_idx = (np.arange(K) // every) * every
     y = y_true[held_idx] + noise[held_idx]
     ones = np.ones((K, plant.n_outputs))
@@ -305,8 +298,9 @@ def _assemble(plant: System, obs: Mapping[str, AbstractObserver], layout: _Layou
         z = S[:, layout.slices[name]]
         d = o.design
         if d.update is not None:
-            jumped = evaluate_mapped(d.update, t[:, None], z, u, y, ones)
+            jumped = evaluate_many(d.update, t[:, None], z, u, y, ones)
             z = np.where(flags[:, None] > 0, jumped, z)
-        xhat = evaluate_mapped(d.output, t[:, None], z, u, y)
-        traces[name] = ObserverTrace(name, d.method, d.z_names, z, xhat)
+        xhat = evaluate_many(d.output, t[:, None], z, u, y)
+        prior = evaluate_many(d.output, t[:1, None], S[:1, layout.slices[name]], u[:1], y[:1])[0]
+        traces[name] = ObserverTrace(name, d.method, d.z_names, z, xhat, prior)
     return Run(plant.name, t, plant.states, plant.inputs, plant.outputs, u, y, traces, x=x, y_true=y_true, info=info)

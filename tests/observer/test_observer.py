@@ -1,0 +1,54 @@
+"""The runnable observer: step, update, online use, agreement with the batch paths."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from nlobs import DataError, Observer, Recording, Sampling, System, design_ekf, design_output_injection, estimate, simulate
+
+PEND = System(states=["x1", "x2"], f=["x2", "-9.81*sin(x1) - 0.5*x2 + u"], inputs=["u"], outputs=["y"], h=["x1"], name="pend")
+
+
+def test_step_matches_an_independent_rk4():
+    d = design_output_injection(PEND, poles=[-2, -3])
+    obs = Observer(d)
+    z, y, u, dt = np.array([0.2, -0.1]), 0.5, 0.3, 0.05
+
+    def f(zz):
+        return obs.rhs(0.0, zz, [u], [y])
+
+    k1 = f(z); k2 = f(z + dt / 2 * k1); k3 = f(z + dt / 2 * k2); k4 = f(z + dt * k3)  # noqa: E702
+    assert np.allclose(obs.step(z, 0.0, dt, [u], [y]), z + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4), atol=1e-15)
+    # substeps converge to the same flow
+    assert np.allclose(obs.step(z, 0.0, dt, [u], [y], substeps=50), obs.step(z, 0.0, dt, [u], [y], substeps=100), atol=1e-12)
+
+
+def test_online_observer_equals_the_batch_estimate():
+    run = simulate(PEND, t_final=3.0, dt=1e-3, x0=[1.0, 0.0], inputs={"u": "sin(t)"}, sampling=Sampling(0.01))
+    rec = Recording.from_run(run, every=10)
+    for design in (design_output_injection(PEND, poles=[-2, -3]), design_ekf(PEND, Q=np.eye(2) * 1e-3, R=[[1e-4]])):
+        batch = estimate(design, rec, max_step=2e-3).observers[design.method].xhat
+        online = Observer(design).start()
+        online.max_step = 2e-3
+        xs = np.array([online.update(t, y, u) for t, y, u in zip(rec.t, rec.y, rec.u)])
+        assert np.max(np.abs(xs - batch)) < 1e-12
+
+
+def test_online_observer_checks_time_and_handles_missing_outputs():
+    d = design_ekf(PEND, Q=np.eye(2) * 1e-3, R=[[1e-4]])
+    online = Observer(d).start(xhat0=[0.1, 0.0])
+    online.update(0.0, [0.2], [0.0])
+    before = online.z.copy()
+    online.update(0.01, [np.nan], [0.0])  # missing: prediction only
+    pred = Observer(d).step(before, 0.0, 0.01, [0.0], [0.2])
+    assert np.allclose(online.z, pred)
+    with pytest.raises(DataError, match="time went backwards"):
+        online.update(0.005, [0.2], [0.0])
+    with pytest.raises(DataError, match="must be finite"):
+        online.update(0.02, [np.inf], [0.0])
+
+
+def test_observer_needs_a_design():
+    with pytest.raises(TypeError, match="needs an ObserverDesign"):
+        Observer(PEND)  # type: ignore[arg-type]

@@ -1,0 +1,114 @@
+"""Observers on recorded data: CSV, missing samples, irregular times, holds."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from nlobs import DataError, ModelError, Noise, Recording, Sampling, ShapeError, System, design_ekf, design_output_injection, estimate, simulate
+
+PEND = System(states=["x1", "x2"], f=["x2", "-9.81*sin(x1) - 0.5*x2 + u"], inputs=["u"], outputs=["y"], h=["x1"], name="pend")
+
+
+@pytest.fixture(scope="module")
+def recorded():
+    run = simulate(PEND, t_final=5.0, dt=1e-3, x0=[1.0, 0.0], inputs={"u": "sin(t)"}, noise=Noise.gaussian(0.005),
+                   sampling=Sampling(0.01), seed=2)
+    return run, Recording.from_run(run, every=10)
+
+
+def test_csv_round_trip_with_states(tmp_path, recorded):
+    run, rec = recorded
+    path = tmp_path / "data.csv"
+    header = "t,u,y,x1,x2"
+    np.savetxt(path, np.column_stack([rec.t, rec.u, rec.y, rec.x]), delimiter=",", header=header, comments="")
+    back = Recording.from_csv(path, PEND)
+    assert np.allclose(back.y, rec.y) and np.allclose(back.x, rec.x) and back.source == str(path)
+    res = estimate(design_output_injection(PEND, poles=[-4, -5]), back)
+    assert res.metrics().final_error < 0.05
+
+
+def test_csv_errors_name_line_and_column(tmp_path):
+    p = tmp_path / "bad.csv"
+    p.write_text("t,u\n0,1\n")
+    with pytest.raises(DataError, match="lacks column\\(s\\) y"):
+        Recording.from_csv(p, PEND)
+    p.write_text("t,u,y\n0,1,2\n0.1,abc,2\n")
+    with pytest.raises(DataError, match="line 3, column 'u': 'abc' is not a number"):
+        Recording.from_csv(p, PEND)
+    p.write_text("t,u,y\n0,1,2\n0.1,1\n")
+    with pytest.raises(DataError, match="line 3: 2 field"):
+        Recording.from_csv(p, PEND)
+    with pytest.raises(DataError, match="cannot read"):
+        Recording.from_csv(tmp_path / "missing.csv", PEND)
+
+
+def test_nan_is_rejected_with_row_and_column_or_skipped(recorded):
+    run, rec = recorded
+    y = rec.y.copy()
+    y[[40, 41, 200], 0] = np.nan
+    holey = Recording.from_arrays(PEND, rec.t, y, rec.u, rec.x)
+    d = design_ekf(PEND, Q=np.eye(2) * 1e-3, R=[[2.5e-5]])
+    with pytest.raises(DataError, match=r"output 'y' is missing \(NaN\) at row 40 \(t = 0.4\), 3 missing value\(s\)"):
+        estimate(d, holey)
+    full = estimate(d, rec)
+    skipped = estimate(d, holey, on_missing="skip")
+    # up to the first gap the runs are identical; after it the estimate stays close
+    assert np.array_equal(skipped.observers["ekf"].xhat[:40], full.observers["ekf"].xhat[:40])
+    assert not np.allclose(skipped.observers["ekf"].xhat[41], full.observers["ekf"].xhat[41])
+    assert skipped.metrics().rms_error < 0.02
+    u = rec.u.copy()
+    u[5] = np.inf
+    with pytest.raises(DataError, match="input/state 'u' is inf at row 5"):
+        estimate(d, Recording.from_arrays(PEND, rec.t, rec.y, u))
+
+
+def test_skipped_sample_predicts_without_correction(recorded):
+    _, rec = recorded
+    y = rec.y.copy()
+    y[10, 0] = np.nan
+    d = design_ekf(PEND, Q=np.eye(2) * 1e-3, R=[[2.5e-5]])
+    res = estimate(d, Recording.from_arrays(PEND, rec.t, y, rec.u), on_missing="skip")
+    from nlobs import Observer
+
+    obs = Observer(d)
+    z9 = res.observers["ekf"].z[9]
+    predicted = obs.step(z9, rec.t[9], rec.t[10] - rec.t[9], rec.u[9], y[9])
+    assert np.allclose(res.observers["ekf"].z[10], predicted, atol=1e-12)
+
+
+def test_irregular_times_and_time_checks(recorded):
+    run, rec = recorded
+    keep = np.sort(np.random.default_rng(0).choice(rec.t.size, 300, replace=False))
+    keep[0] = 0
+    irregular = Recording.from_arrays(PEND, rec.t[keep], rec.y[keep], rec.u[keep], rec.x[keep])
+    res = estimate(design_output_injection(PEND, poles=[-4, -5]), irregular, max_step=1e-3)
+    assert res.metrics().final_error < 0.05 and res.info["substeps"] >= 10
+    with pytest.raises(DataError, match="time does not increase at row 2"):
+        Recording.from_arrays(PEND, [0, 1, 1, 2], [0, 0, 0, 0], [0, 0, 0, 0])
+    with pytest.raises(ShapeError, match="pass `u`"):
+        Recording.from_arrays(PEND, [0, 1], [0, 0])
+
+
+def test_linear_hold_beats_zero_order_hold_on_a_fast_output():
+    sys = System(states=["x1", "x2"], f=["x2**2", "c"], outputs=["y"], h=["x1"], params={"c": 0.5}, name="toy")
+    from nlobs import design_augmented
+
+    d = design_augmented(sys, T=["x1", "x2", "x2**2"], A=[[0, 0, 1], [0, 0, 0], [0, "2*c", 0]], b=[0, "c", 0],
+                         C=[[1, 0, 0]], left_inverse=["w1", "w2"], poles=[-1, -1.5, -2])
+    run = simulate(sys, t_final=12.0, dt=1e-3, x0=[2.0, -2.0])
+    rec = Recording.from_run(run, every=20)
+    zoh = estimate(d, rec, max_step=1e-3).metrics().final_error
+    lin = estimate(d, rec, max_step=1e-3, hold="linear").metrics().final_error
+    assert lin < zoh / 50
+
+
+def test_estimate_argument_checks(recorded):
+    _, rec = recorded
+    other = System(states=["a", "b"], f=["b", "-a"], outputs=["z"], h=["a"])
+    with pytest.raises(ModelError, match="expects outputs \\['z'\\]"):
+        estimate(design_output_injection(other, poles=[-1, -2]), rec)
+    with pytest.raises(ValueError, match="`hold` must be"):
+        estimate(design_output_injection(PEND, poles=[-1, -2]), rec, hold="cubic")  # type: ignore[arg-type]
+    with pytest.raises(ModelError, match="at least one observer"):
+        estimate({}, rec)

@@ -1,0 +1,148 @@
+"""simulate(): accuracy against SciPy, inputs, noise, sampling, blow-ups, results and metrics."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from nlobs import FiniteEscapeError, ModelError, Noise, ProcessNoise, Sampling, ShapeError, System, design_output_injection, simulate
+from nlobs.model import Sampled
+from nlobs.simulate import convergence_time, error_metrics
+
+VDP = System(states=["x1", "x2"], f=["x2", "mu*(1 - x1**2)*x2 - x1 + u"], inputs=["u"], outputs=["y"], h=["x1"],
+             params={"mu": 1.0}, name="vdp")
+PEND = System(states=["x1", "x2"], f=["x2", "-9.81*sin(x1) - 0.5*x2 + u"], inputs=["u"], outputs=["y"], h=["x1"], name="pend")
+
+
+def test_plant_trajectory_matches_scipy_solve_ivp():
+    run = simulate(VDP, t_final=10.0, dt=1e-3, x0=[2.0, 0.0], inputs={"u": "0.5*sin(t)"}, params={"mu": 1.3})
+    ref = solve_ivp(lambda t, x: [x[1], 1.3 * (1 - x[0] ** 2) * x[1] - x[0] + 0.5 * np.sin(t)], (0, 10), [2.0, 0.0],
+                    t_eval=run.t, rtol=1e-11, atol=1e-12, method="DOP853")
+    assert np.max(np.abs(run.x - ref.y.T)) < 1e-8
+    assert np.allclose(run.y_true[:, 0], run.x[:, 0]) and np.array_equal(run.y, run.y_true)
+
+
+def test_input_forms_agree():
+    base = dict(t_final=2.0, dt=1e-3, x0=[1.0, 0.0])
+    a = simulate(VDP, inputs={"u": "cos(2*t)"}, **base)
+    b = simulate(VDP, inputs={"u": lambda t: np.cos(2 * t)}, **base)
+    assert np.max(np.abs(a.x - b.x)) < 1e-14
+    tt = np.linspace(0, 2, 20001)
+    c = simulate(VDP, inputs={"u": Sampled(tt, np.cos(2 * tt), hold="linear")}, **base)
+    assert np.max(np.abs(a.x - c.x)) < 1e-8
+
+
+def test_piecewise_input_switches_on_the_grid():
+    sys = System(states=["x"], f=["u"], inputs=["u"], outputs=["y"], h=["x"])
+    run = simulate(sys, t_final=1.0, dt=0.1, x0=[0.0], inputs={"u": Sampled.piecewise([0, 0.5], [1.0, -1.0])})
+    assert np.allclose(run.x[:, 0], np.r_[np.arange(6) * 0.1, 0.5 - np.arange(1, 6) * 0.1])
+
+
+def test_noise_is_seeded_and_has_the_requested_statistics():
+    kw = dict(t_final=20.0, dt=1e-3, x0=[1.0, 0.0])
+    a = simulate(PEND, noise=Noise.gaussian(0.05), seed=7, **kw)
+    b = simulate(PEND, noise=Noise.gaussian(0.05), seed=7, **kw)
+    c = simulate(PEND, noise=Noise.gaussian(0.05), seed=8, **kw)
+    assert np.array_equal(a.y, b.y) and not np.array_equal(a.y, c.y)
+    n = (a.y - a.y_true)[:, 0]
+    assert abs(n.std() - 0.05) < 0.002 and abs(n.mean()) < 0.002
+    u = simulate(PEND, noise=Noise.uniform(0.02), seed=1, **kw)
+    nu = (u.y - u.y_true)[:, 0]
+    assert np.max(np.abs(nu)) <= 0.02 and np.max(np.abs(nu)) > 0.0199 and abs(nu.std() - 0.02 / np.sqrt(3)) < 5e-4
+
+
+def test_sampled_measurements_are_held():
+    run = simulate(PEND, t_final=1.0, dt=1e-3, x0=[1.0, 0.0], noise=Noise.gaussian(0.01), sampling=Sampling(0.05), seed=0)
+    y = run.y[:, 0]
+    blocks = y[:-1].reshape(20, 50)
+    assert np.all(blocks == blocks[:, :1])  # constant between samples
+    assert np.allclose(blocks[:, 0], run.y_true[::50, 0][:20] + (run.y - run.y_true)[::50, 0][:20])
+    with pytest.raises(ValueError, match="whole multiple of dt"):
+        simulate(PEND, t_final=1.0, dt=1e-3, x0=[1.0, 0.0], sampling=Sampling(0.0015))
+
+
+def test_process_noise_is_brownian():
+    sys = System(states=["x"], f=["0"], outputs=["y"], h=["x"])
+    runs = [simulate(sys, t_final=1.0, dt=1e-3, x0=[0.0], process_noise=ProcessNoise(0.5), seed=s).x[-1, 0] for s in range(300)]
+    assert abs(np.std(runs) - 0.5) < 0.06  # Var x(1) = sigma^2 * 1
+
+
+def test_finite_escape_is_reported_with_time_state_and_partial_result():
+    blow = System(states=["x"], f=["x**2"], outputs=["y"], h=["x"], name="riccati")  # x(t) = 1/(1 - t)
+    with pytest.raises(FiniteEscapeError, match="plant blew up after t = ") as info:
+        simulate(blow, t_final=2.0, dt=1e-3, x0=[1.0], escape_bound=1e6)
+    err = info.value
+    assert 0.99 < err.t <= 1.01 and err.x[0] > 1e2  # the exact solution 1/(1 - t) escapes at t = 1
+    assert err.partial.t[-1] == pytest.approx(err.t) and np.all(np.isfinite(err.partial.x))
+
+
+def test_observer_blow_up_names_the_observer():
+    bad = System(states=["x1", "x2"], f=["x2", "-9.81*sin(x1) - 0.5*x2 + u"], inputs=["u"], outputs=["y"], h=["x1"])
+    from nlobs import design_ekf
+
+    stiff = design_ekf(bad, Q=np.eye(2), R=[[1e-9]], mode="continuous")
+    with pytest.raises(FiniteEscapeError, match="observer 'stiff' blew up") as info:
+        simulate(PEND, {"stiff": stiff}, t_final=1.0, dt=1e-3, x0=[1.0, 0.0])
+    assert "xhat_x1=" in str(info.value)
+
+
+@pytest.mark.parametrize(
+    "kwargs, error, match",
+    [
+        (dict(t_final=1.0, dt=0.3, x0=[1.0, 0.0]), ShapeError, "whole multiple of dt"),
+        (dict(t_final=-1.0, dt=0.1, x0=[1.0, 0.0]), ShapeError, "`t_final` must be a positive number"),
+        (dict(t_final=1.0, dt=0.1, x0=[1.0]), ShapeError, "`x0` must be 2 finite numbers"),
+        (dict(t_final=1.0, dt=0.1, x0=[1.0, np.nan]), ShapeError, "`x0` must be 2 finite numbers"),
+        (dict(t_final=1.0, dt=0.1, x0=[1.0, 0.0], inputs={"v": 1}), ModelError, "'v', which is not an input"),
+        (dict(t_final=1.0, dt=0.1, x0=[1.0, 0.0], params={"mass": 2}), ModelError, "not a parameter"),
+        (dict(t_final=1.0, dt=0.1, x0=[1.0, 0.0], inputs={"u": lambda t: np.where(t > 0.5, np.nan, 0.0)}), ShapeError, "inputs must be finite"),
+    ],
+)
+def test_bad_arguments(kwargs, error, match):
+    with pytest.raises(error, match=match):
+        simulate(PEND, **kwargs)
+
+
+def test_observer_must_match_the_plant_signals():
+    other = System(states=["a", "b"], f=["b", "-a"], outputs=["y"], h=["a"])
+    d = design_output_injection(other, poles=[-1, -2])
+    with pytest.raises(ModelError, match="designed for inputs \\[\\], but the plant 'pend' has \\['u'\\]"):
+        simulate(PEND, {"o": d}, t_final=1.0, dt=0.1, x0=[1.0, 0.0])
+
+
+def test_observer_keeps_its_design_model_when_plant_parameters_change():
+    lin = System(states=["x1", "x2"], f=["x2", "-k*x1"], outputs=["y"], h=["x1"], params={"k": 1.0})
+    obs = design_output_injection(lin, poles=[-2, -3])
+    exact = simulate(lin, {"o": obs}, t_final=10.0, dt=1e-3, x0=[1.0, 0.0])
+    mismatch = simulate(lin, {"o": obs}, t_final=10.0, dt=1e-3, x0=[1.0, 0.0], params={"k": 1.5})
+    assert exact.metrics("o").final_error < 1e-6 and mismatch.metrics("o").final_error > 1e-2
+
+
+def test_results_export_and_plot(tmp_path):
+    obs = design_output_injection(PEND, poles=[-2, -3])
+    run = simulate(PEND, {"oi": obs}, t_final=2.0, dt=1e-2, x0=[1.0, 0.0], inputs={"u": "sin(t)"})
+    df = run.to_pandas()
+    assert list(df.columns) == ["x1", "x2", "u", "y", "y_true", "oi.x1", "oi.x2", "oi.error"]
+    assert df.index.name == "t" and len(df) == 201
+    arrays = run.to_numpy()
+    assert arrays["xhat[oi]"].shape == (201, 2) and arrays["z[oi]"].shape == (201, 2)
+    fig = run.plot(str(tmp_path / "run.png"))
+    assert (tmp_path / "run.png").stat().st_size > 10_000 and len(fig.axes) == 3
+    s = run.summary_dict()
+    assert set(s["observers"]["oi"]) >= {"final_error", "rms_error", "convergence_time"}
+    assert "oi" in run.summary()
+    with pytest.raises(KeyError, match="no observer named 'x'"):
+        run.metrics("x")
+
+
+def test_metrics_on_a_known_error_signal():
+    t = np.linspace(0, 10, 1001)
+    e = np.exp(-t)
+    assert convergence_time(t, e, 0.05) == pytest.approx(np.log(20), abs=0.01)
+    m = error_metrics(t, e)  # default tolerance: 2 % of the initial error
+    assert m.tol == pytest.approx(0.02) and m.convergence_time == pytest.approx(np.log(50), abs=0.01)
+    assert m.peak_error == 1.0 and m.final_error == pytest.approx(np.exp(-10))
+    tail = e[t >= 8]
+    assert m.rms_error == pytest.approx(np.sqrt(np.mean(tail**2)), rel=1e-12)
+    assert convergence_time(t, np.ones_like(t), 0.5) is None
