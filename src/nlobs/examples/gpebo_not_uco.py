@@ -17,7 +17,7 @@ from ..model import StateAffine
 from ..simulate import Noise, Run, Sampling, simulate
 from ._base import Claim, ExampleResult, register, rows_from_run
 
-__all__ = ["run_example", "model", "kalman_like"]
+__all__ = ["run", "model", "kalman_like"]
 
 REF = "000_6cd8bea7ca1db43b.txt Proposition 1, Lemmas 1-2, eqs. (3)-(4), (12)-(17); 002_613af42269ea26a7.txt Kalman-like observer"
 GAMMA_G, GAMMA = 5.0, 50.0          # the tuning (000 gives none)
@@ -79,8 +79,8 @@ def _uco_delta(d: ObserverDesign, run: Run, name: str, window: float) -> tuple[n
     return t0s, np.array(out)
 
 
-@register("000_2gd_not_uco", "000: 2G+D converges where the system is observable but not UCO", 70)
-def run_example() -> ExampleResult:
+@register("000-2gd-not-uco", "000: 2G+D converges where the system is observable but not UCO", 70)
+def run() -> ExampleResult:
     sa = model()
     system = sa.to_system()
     gd = design_2gd(sa, gamma_g=GAMMA_G, gamma=GAMMA)
@@ -144,7 +144,7 @@ def run_example() -> ExampleResult:
         "Φ(t0)^(-T) [∫ ψψᵀ] Φ(t0)^(-1) with ψ = Φ_Aᵀ C (000 Prop. 2 proof).",
     ]
     return ExampleResult(
-        key="000_2gd_not_uco", title="000: 2G+D on an observable, non-UCO LTV system", reference=REF,
+        key="000-2gd-not-uco", title="000: 2G+D on an observable, non-UCO LTV system", reference=REF,
         summary=(f"With u(t) = e^(-t) the system ẋ = [[0, u], [0, 0]]x, y = x1 is observable on [0, T] but not UCO. The 2G+D "
                  f"observer (order 14) reaches |x̂ - x| = {e_gd[-1]:.2g} at t = 20; the Kalman-like observer stalls at "
                  f"{e_kl[-1]:.3g}."),
