@@ -64,8 +64,8 @@ def vanishes(lhs: sp.Expr, rhs: sp.Expr = sp.S.Zero, *, samples: int = 12, seed:
     diff = sp.expand(lhs - rhs)
     if diff == 0 or sp.simplify(diff) == 0:
         return True, "simplifies to 0"
-    syms = sorted(diff.free_symbols, key=lambda s: s.name)
-    if not syms:
+    syms = sorted(diff.free_symbols | lhs.free_symbols | rhs.free_symbols, key=lambda s: s.name)
+    if not diff.free_symbols:
         return False, f"a non-zero constant {sp.nsimplify(diff)}"
     rng = np.random.default_rng(seed)
     pts = {s: rng.uniform(0.1, 0.9, samples) for s in syms}
@@ -193,7 +193,9 @@ def _partition(Lam: sp.Matrix, caller: str) -> tuple[sp.Matrix, sp.Matrix, list[
         Lr = Lam.applyfunc(lambda e: sp.nsimplify(e, rational=True))
         try:
             V, D = Lr.diagonalize()
-        except sp.MatrixError as e:
+        except sp.matrices.exceptions.NonSquareMatrixError as e:  # pragma: no cover - Λ is square by construction
+            raise PreconditionError(f"{caller}: Λ must be square") from e
+        except sp.matrices.exceptions.MatrixError as e:
             raise PreconditionError(f"{caller}: Λ = {Lam.tolist()} is not diagonalisable, so it is not similar to the form (14) "
                                     "(004 R5): a Jordan block makes ξ grow; choose another Λ") from e
         lam = [sp.nsimplify(D[i, i]) for i in range(n)]
