@@ -14,6 +14,7 @@ from . import observer as observer
 from .design import Certificate as Certificate
 from .design import ObserverDesign as ObserverDesign
 from .design import design_augmented as design_augmented
+from .design import design_custom as design_custom
 from .design import design_ekf as design_ekf
 from .design import design_luenberger as design_luenberger
 from .design import design_output_injection as design_output_injection
@@ -61,3 +62,10 @@ from .design import design_pebo as design_pebo
 from .design import excitation_report as excitation_report
 
 __version__ = "0.1.0"
+from .design import design_high_gain as design_high_gain  # noqa: E402
+from .design import design_high_gain_derivatives as design_high_gain_derivatives  # noqa: E402
+from .design import design_lipschitz as design_lipschitz  # noqa: E402
+from .design import design_high_gain_kalman as design_high_gain_kalman  # noqa: E402
+from .design import design_kalman_bucy as design_kalman_bucy  # noqa: E402
+from .design import design_kalman_like as design_kalman_like  # noqa: E402
+from .design import design_banks as design_banks  # noqa: E402

@@ -71,15 +71,15 @@ def test_vm_and_compiled_c_agree_with_a_plain_python_rk4():
     step = _vdp_step()
     A = np.full((2500, 1), 1e-2)
     ref = _reference_rk4([2.0, 0.0], 1e-2, 2500, 1.5)
-    vm = StepRunner(step, backend="vm", chunk=1000).run([2.0, 0.0], A, [1.5])
-    c = StepRunner(step, backend="c", chunk=1000).run([2.0, 0.0], A, [1.5])
+    vm = StepRunner(step, backend="vm", chunk=1000).run([2.0, 0.0], A, [1.5])[0]
+    c = StepRunner(step, backend="c", chunk=1000).run([2.0, 0.0], A, [1.5])[0]
     assert np.max(np.abs(vm - ref)) < 1e-11
     assert np.max(np.abs(c - ref)) < 1e-11
 
 
 def test_vm_path_alone():
     step = _vdp_step()
-    out = StepRunner(step, backend="vm", chunk=64).run([2.0, 0.0], np.full((200, 1), 1e-2), [1.5])
+    out = StepRunner(step, backend="vm", chunk=64).run([2.0, 0.0], np.full((200, 1), 1e-2), [1.5])[0]
     assert np.max(np.abs(out - _reference_rk4([2.0, 0.0], 1e-2, 200, 1.5))) < 1e-12
 
 
@@ -91,7 +91,7 @@ def test_without_a_compiler_c_falls_back_to_the_vm_with_a_warning(monkeypatch):
     assert resolve_backend("auto", work=10**9) == "vm"  # auto falls back silently
     step = _vdp_step()
     with pytest.warns(ConvergenceWarning):
-        out = StepRunner(step, backend="c").run([2.0, 0.0], np.full((100, 1), 1e-2), [1.5])
+        out = StepRunner(step, backend="c").run([2.0, 0.0], np.full((100, 1), 1e-2), [1.5])[0]
     assert np.max(np.abs(out - _reference_rk4([2.0, 0.0], 1e-2, 100, 1.5))) < 1e-12
 
 
@@ -122,6 +122,6 @@ def test_compiled_models_are_cached_on_disk(tmp_path, monkeypatch):
     loop = CompiledLoop(step)  # same code: reuses the build
     assert built[0].stat().st_mtime_ns == mtime and len(list(tmp_path.glob("loop-*.so"))) == 1
     out = np.empty((3, 1))
-    loop(np.array([1.0]), np.full((3, 1), 0.5), np.array([1.0]), out)
+    assert loop(np.array([1.0]), np.full((3, 1), 0.5), np.array([1.0]), out) == 3
     assert np.allclose(out.ravel(), [0.5, 0.25, 0.125])
     assert not os.listdir(tmp_path) == []

@@ -16,42 +16,53 @@ from ..model._forms import matrix_of
 from ..model._system import ExprLike, exact
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import observer_gain
+from ._kalman import StateAffineParts, _riccati_design
 
 __all__ = ["design_augmented"]
 
 REF = ("001_1b4027b3a70d560f.txt: mimicking systems (2), Def. 3, Theorem 1 (observable iff T injective), "
-       "Lemma 1 (observer through a left inverse); §IV-C eqs. (20)-(22)")
+       "Lemma 1 (observer through a left inverse); §IV-A eqs. (15)-(16), §IV-B (17)-(18), §IV-C (20)-(22)")
 
 
 def design_augmented(system: System, *, T: Sequence[ExprLike], A: Any, C: Any, left_inverse: Sequence[ExprLike],
                      b: Sequence[ExprLike] | None = None, poles: Any = None, L: Any = None, Q: Any = None, R: Any = None,
-                     xhat0: Any = None) -> ObserverDesign:
-    r"""Luenberger observer on an LTI system that mimics the model through w = T(x) (001).
+                     P0: Any = None, xhat0: Any = None) -> ObserverDesign:
+    r"""Linear observer on a system that mimics the model through w = T(x) (001).
 
-    The augmented system :math:`\dot w = Aw + b(u, t)`, :math:`y = Cw` mimics
-    :math:`\dot x = f(x, u, t)`, :math:`y = h(x)` when, identically in (x, u, t),
+    The augmented system :math:`\dot w = A(u, y, t)w + b(u, y, t)`, :math:`y = Cw` mimics
+    :math:`\dot x = f(x, u, t)`, :math:`y = h(x)` when, identically in (x, u, t) and with
+    y replaced by h(x) inside A and b,
 
     .. math::
 
-        \frac{\partial T}{\partial x} f(x, u, t) = A\,T(x) + b(u, t), \qquad C\,T(x) = h(x).
+        \frac{\partial T}{\partial x} f(x, u, t) = A(u, h(x), t)\,T(x) + b(u, h(x), t), \qquad C\,T(x) = h(x).
 
-    Then :math:`\dot{\hat w} = A\hat w + b(u, t) - L(C\hat w - y)` and
-    :math:`\hat x = T^+(\hat w)` with a left inverse :math:`T^+(T(x)) = x`. Both identities and
-    the left inverse are checked symbolically before the gain is computed.
+    Both identities and the left inverse :math:`T^+(T(x)) = x` are checked symbolically before
+    the gain is computed; the estimate is :math:`\hat x = T^+(\hat w)` (001 Lemma 1).
+
+    - A constant (LTI, 001 §IV-C): Luenberger :math:`\dot{\hat w} = A\hat w + b - L(C\hat w - y)`
+      with L from `poles`, `L`, or the LQE weights `Q`, `R`.
+    - A depending on (u, y, t) (LTV, 001 §IV-A/B): Kalman-Bucy filter
+      :math:`\dot{\hat w} = A\hat w + b - PC^\top R^{-1}(C\hat w - y)`,
+      :math:`\dot P = AP + PA^\top + Q - PC^\top R^{-1}CP` (`Q` > 0 and `R` > 0 required),
+      evaluated on the measured input and output.
 
     Parameters
     ----------
     system : System
     T : sequence of expressions in the states (and parameters)
         The state augmentation w = T(x).
-    A : (n_w, n_w) matrix of numbers or expressions in the parameters
-    C : (p, n_w) matrix
+    A : (n_w, n_w) matrix of numbers or expressions in the inputs, outputs, ``t`` and parameters
+    C : (p, n_w) matrix of numbers
     left_inverse : sequence of expressions in ``w1, w2, ...``
         x = T⁺(w), one expression per state.
-    b : sequence of expressions in the inputs, ``t`` and the parameters, optional
+    b : sequence of expressions in the inputs, outputs, ``t`` and the parameters, optional
         The input term of the augmented system (default zero).
     poles, L, Q, R :
-        The gain of the linear observer (see :func:`nlobs.design.observer_gain`).
+        The gain: for constant A see :func:`nlobs.design.observer_gain`; for a time-varying A,
+        the Kalman-Bucy intensities Q (n_w x n_w) and R (p x p).
+    P0 : array_like of shape (n_w, n_w), optional
+        Initial covariance of the Kalman-Bucy filter (identity).
     xhat0 : array_like, optional
         Initial estimate in x; the observer starts at ŵ = T(xhat0).
 
@@ -59,11 +70,12 @@ def design_augmented(system: System, *, T: Sequence[ExprLike], A: Any, C: Any, l
     ------
     PreconditionError
         If the augmented system does not mimic the model (naming the row and the residual),
-        T⁺ is not a left inverse of T, (A, C) is not observable, or the gain is not Hurwitz.
+        T⁺ is not a left inverse of T, (A, C) is not observable (constant A), the gain is not
+        Hurwitz, or a constant gain is asked for a time-varying A.
 
     References
     ----------
-    001_1b4027b3a70d560f.txt eqs. (2), (20)-(22), Def. 3, Theorem 1, Lemma 1.
+    001_1b4027b3a70d560f.txt eqs. (2), (15)-(18), (20)-(22), Def. 3, Theorem 1, Lemma 1.
     """
     caller = "design_augmented"
     n = system.n_states
@@ -71,23 +83,29 @@ def design_augmented(system: System, *, T: Sequence[ExprLike], A: Any, C: Any, l
     f, h = system.substituted()
     base = {k: symbol(k) for k in (*system.states, *system.inputs, *system.params)}
     base["t"] = TIME
+    with_y = {**base, **{k: symbol(k) for k in system.outputs}}
     Tm = matrix_of(list(T), len(T), 1, base, name="T").xreplace(params)
     nw = Tm.shape[0]
-    Am = matrix_of(A, nw, nw, base, name="A").xreplace(params)
+    Am = matrix_of(A, nw, nw, with_y, name="A").xreplace(params)
     Cm = matrix_of(C, system.n_outputs, nw, base, name="C").xreplace(params)
-    bm = matrix_of(list(b) if b is not None else [0] * nw, nw, 1, base, name="b").xreplace(params)
-    for label, M in (("A", Am), ("C", Cm)):
-        if M.free_symbols:
-            raise PreconditionError(f"{caller}: `{label}` must be constant (numbers and parameters); it contains "
-                                    f"{', '.join(sorted(s.name for s in M.free_symbols))}. Use a time-varying design for LTV systems.")
+    bm = matrix_of(list(b) if b is not None else [0] * nw, nw, 1, with_y, name="b").xreplace(params)
+    xset = set(system.x)
+    for label, M in (("A", Am), ("b", bm)):
+        if M.free_symbols & xset:
+            raise PreconditionError(f"{caller}: `{label}` may depend on the inputs, outputs and t, not on the states; it contains "
+                                    f"{', '.join(sorted(s.name for s in M.free_symbols & xset))}")
+    if Cm.free_symbols:
+        raise PreconditionError(f"{caller}: `C` must be constant (numbers and parameters); it contains "
+                                f"{', '.join(sorted(s.name for s in Cm.free_symbols))}")
     x = sp.Matrix(system.x)
+    y_of_x = {symbol(k): h[i] for i, k in enumerate(system.outputs)}
     checks = []
-    residual = (Tm.jacobian(x) * f - (Am * Tm + bm)).applyfunc(lambda e: sp.simplify(e))
+    residual = (Tm.jacobian(x) * f - (Am.xreplace(y_of_x) * Tm + bm.xreplace(y_of_x))).applyfunc(lambda e: sp.simplify(e))
     for i in range(nw):
         if residual[i] != 0:
             raise PreconditionError(f"{caller}: the augmented system does not mimic the model: row {i} of dT/dt - (A T + b) is "
                                     f"{residual[i]}, not 0 (001 eq. 2). Check T, A and b.")
-    checks.append(Check("mimicking: dT/dt = A T(x) + b(u, t) along f (001 eq. 2)", True, "residual simplifies to 0"))
+    checks.append(Check("mimicking: dT/dt = A(u, h(x), t) T(x) + b along f (001 eq. 2, Def. 3)", True, "residual simplifies to 0"))
     out_res = (Cm * Tm - h).applyfunc(sp.simplify)
     for i in range(system.n_outputs):
         if out_res[i] != 0:
@@ -101,17 +119,41 @@ def design_augmented(system: System, *, T: Sequence[ExprLike], A: Any, C: Any, l
             raise PreconditionError(f"{caller}: the given left inverse does not recover {system.states[i]}: T⁺(T(x)) - x = "
                                     f"{inv_res[i]}; T must be injective with T⁺(T(x)) = x (001 Theorem 1)")
     checks.append(Check("left inverse: T⁺(T(x)) = x, so T is injective (001 Theorem 1)", True))
+    lin = inv.jacobian(sp.Matrix(wsyms))
+    if not lin.free_symbols:
+        checks.append(Check("left inverse globally Lipschitz (001 Lemma 1, eq. 3)", True,
+                            f"linear, α = ‖∂T⁺/∂w‖ = {np.linalg.norm(np.array(lin, dtype=float), 2):.4g}"))
+
+    def estimate(zw: ca.SX) -> ca.SX:
+        return to_casadi(list(inv), {w: zw[i] for i, w in enumerate(wsyms)})
+
+    def initial(x0: ca.SX) -> ca.SX:
+        return to_casadi(list(Tm), {sym: x0[i] for i, sym in enumerate(system.x)})
+
+    info = {"T(x)": str(list(Tm)), "left inverse": str(list(inv))}
+    if Am.free_symbols or bm.free_symbols & set(system.y):
+        if poles is not None or L is not None:
+            raise PreconditionError(f"{caller}: A depends on {', '.join(sorted(s.name for s in Am.free_symbols))}, so a constant gain "
+                                    "(`poles`/`L`) does not apply; give `Q` and `R` for the Kalman-Bucy filter on the LTV system")
+        if Q is None or R is None:
+            raise PreconditionError(f"{caller}: the augmented system is time-varying (A depends on "
+                                    f"{', '.join(sorted(s.name for s in Am.free_symbols))}): give `Q` (n_w x n_w, positive "
+                                    "definite) and `R` for its Kalman-Bucy filter")
+        return _riccati_design("augmented", "Kalman-Bucy filter on a mimicking augmented LTV system", REF,
+                               StateAffineParts(system, Am, bm, Cm), V=Q, W=R, delta=0.0, M0=P0, xhat0=xhat0, region=None,
+                               caller=caller, extra_checks=checks, extra_values=info, estimate=estimate, initial=initial,
+                               state_names=[f"what_{i + 1}" for i in range(nw)])
     An, Cn = np.array(Am, dtype=float), np.array(Cm, dtype=float)
     gain, gchecks, values = observer_gain(An, Cn, poles=poles, L=L, Q=Q, R=R, caller=caller)
     s = Symbols.make(system, nw)
     leaves = {TIME: s.t}
     leaves.update({sym: s.u[i] for i, sym in enumerate(system.u)})
+    leaves.update({sym: s.y[i] for i, sym in enumerate(system.y)})
     bw = to_casadi(list(bm), leaves)
     dz = ca.DM(An) @ s.z + bw - ca.DM(gain) @ (ca.DM(Cn) @ s.z - s.y)
-    xhat = to_casadi(list(inv), {w: s.z[i] for i, w in enumerate(wsyms)})
     x0 = ca.SX.sym("xhat0", n)
-    z0 = to_casadi(list(Tm), {sym: x0[i] for i, sym in enumerate(system.x)})
-    values = {**values, "A": An, "C": Cn, "T(x)": str(list(Tm)), "left inverse": str(list(inv))}
+    values = {**values, "A": An, "C": Cn, **info}
     cert = Certificate("Luenberger observer on a mimicking augmented LTI system", REF, (*checks, *gchecks), values)
-    return ObserverDesign.build("augmented", system, s, z_names=[f"what_{i + 1}" for i in range(nw)], flow=dz, xhat=xhat,
-                                xhat0_sym=x0, z0=z0, xhat0=np.zeros(n) if xhat0 is None else xhat0, certificate=cert)
+    return ObserverDesign.build("augmented", system, s, z_names=[f"what_{i + 1}" for i in range(nw)], flow=dz,
+                                xhat=estimate(s.z), xhat0_sym=x0, z0=initial(x0),
+                                xhat0=np.zeros(n) if xhat0 is None else xhat0, certificate=cert)

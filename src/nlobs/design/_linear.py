@@ -66,7 +66,7 @@ def design_luenberger(system: System, *, poles: Any = None, L: Any = None, Q: An
     >>> import nlobs
     >>> sys = nlobs.System.lti([[0, 1], [0, 0]], None, [[1, 0]])
     >>> d = design_luenberger(sys, poles=[-2, -3])
-    >>> sorted(d.certificate.values["eigenvalues"].real)
+    >>> [round(float(v), 9) for v in sorted(d.certificate.values["eigenvalues"].real)]
     [-3.0, -2.0]
     """
     caller = "design_luenberger"

@@ -9,9 +9,14 @@ from typing import Any
 from ..errors import ModelError
 from ..model import System
 from ._augmented import design_augmented
+from ._banks import design_banks
 from ._base import ObserverDesign
+from ._custom import design_custom
 from ._ekf import design_ekf
+from ._high_gain import design_high_gain, design_high_gain_derivatives
 from ._linear import design_luenberger, design_output_injection
+from ._kalman import design_high_gain_kalman, design_kalman_bucy, design_kalman_like
+from ._lipschitz import design_lipschitz
 
 __all__ = ["DESIGNS", "register_design", "design_from_config"]
 
@@ -21,6 +26,14 @@ DESIGNS: dict[str, Callable[..., ObserverDesign]] = {
     "output_injection": design_output_injection,
     "ekf": design_ekf,
     "augmented": design_augmented,
+    "custom": design_custom,
+    "high_gain": design_high_gain,
+    "high_gain_derivatives": design_high_gain_derivatives,
+    "lipschitz": design_lipschitz,
+    "kalman_bucy": design_kalman_bucy,
+    "kalman_like": design_kalman_like,
+    "high_gain_kalman": design_high_gain_kalman,
+    "banks": design_banks,
 }
 
 

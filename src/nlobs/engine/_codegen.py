@@ -10,6 +10,7 @@ warning when C was asked for explicitly.
 from __future__ import annotations
 
 import ctypes
+import functools
 import hashlib
 import os
 import platform
@@ -41,12 +42,16 @@ def cache_dir() -> Path:
 
 def find_compiler() -> str | None:
     """The C compiler to use, or None when there is none (``NLOBS_CC=none`` forces None)."""
-    forced = os.environ.get("NLOBS_CC")
+    return _find_compiler(os.environ.get("NLOBS_CC"), os.environ.get("CC"), os.environ.get("PATH", ""))
+
+
+@functools.lru_cache(maxsize=16)
+def _find_compiler(forced: str | None, cc: str | None, path: str) -> str | None:
     if forced is not None:
-        return None if forced in ("", "none") else shutil.which(forced)
-    for cand in (os.environ.get("CC"), "gcc", "cc", "clang"):
-        if cand and shutil.which(cand):
-            return shutil.which(cand)
+        return None if forced in ("", "none") else shutil.which(forced, path=path)
+    for cand in (cc, "gcc", "cc", "clang"):
+        if cand and shutil.which(cand, path=path):
+            return shutil.which(cand, path=path)
     return None
 
 
@@ -70,10 +75,10 @@ def resolve_backend(backend: Backend, *, work: int, threshold: int = 200_000) ->
 
 
 _DRIVER = r"""
-/* nlobs driver: s_{k+1} = step(s_k, a_k, c), states written to out[k*ns ...] */
-#include <string.h>
-int nlobs_run(const casadi_real* s0, const casadi_real* a, const casadi_real* c,
-              casadi_real* out, long long n_steps) {
+/* nlobs driver: s_{k+1}, o_k = step(s_k, a_k, c); states to out[k*ns ...], per-step outputs to obuf[k*no ...].
+   Returns 0, or k + 1 when step k failed, or -(k + 2) when the state after step k is not finite or exceeds bound. */
+long long nlobs_run(const casadi_real* s0, const casadi_real* a, const casadi_real* c,
+                    casadi_real* out, casadi_real* obuf, long long n_steps, casadi_real bound) {
   casadi_int sz_arg = 0, sz_res = 0, sz_iw = 0, sz_w = 0;
   const casadi_real* arg[NLOBS_SZ_ARG];
   casadi_real* res[NLOBS_SZ_RES];
@@ -81,13 +86,16 @@ int nlobs_run(const casadi_real* s0, const casadi_real* a, const casadi_real* c,
   casadi_real w[NLOBS_SZ_W + 1];
   const casadi_real* s = s0;
   long long k;
+  int i;
   NLOBS_STEP_work(&sz_arg, &sz_res, &sz_iw, &sz_w);
   if (sz_arg > NLOBS_SZ_ARG || sz_res > NLOBS_SZ_RES || sz_iw > NLOBS_SZ_IW || sz_w > NLOBS_SZ_W) return -1;
   for (k = 0; k < n_steps; ++k) {
     arg[0] = s; arg[1] = a + k * NLOBS_NA; arg[2] = c;
     res[0] = out + k * NLOBS_NS;
-    if (NLOBS_STEP(arg, res, iw, w, 0)) return (int)(k + 1);
+    if (NLOBS_NO > 0) res[1] = obuf + k * NLOBS_NO;
+    if (NLOBS_STEP(arg, res, iw, w, 0)) return k + 1;
     s = out + k * NLOBS_NS;
+    for (i = 0; i < NLOBS_NS; ++i) if (!(s[i] <= bound && s[i] >= -bound)) return -(k + 2); /* NaN fails too */
   }
   return 0;
 }
@@ -139,23 +147,25 @@ def compile_c(fn: ca.Function) -> ca.Function:
 
 
 class CompiledLoop:
-    """A step function ``(s, a, c) -> s_next`` compiled together with a C loop over the steps.
+    """A step ``(s, a, c) -> (s_next[, o])`` compiled together with a C loop over the steps.
 
-    Calling it runs ``n`` steps and writes every state into `out` (shape (n, ns)), with no
+    Calling it runs ``n`` steps, writing every state into `out` (shape (n, ns)) and, when the
+    step has a second output, every per-step output into `obuf` (shape (n, no)), with no
     Python work per step.
     """
 
     def __init__(self, step: ca.Function):
-        if step.n_in() != 3 or step.n_out() != 1:
-            raise ValueError("CompiledLoop needs step(s, a, c) -> s_next")
+        if step.n_in() != 3 or step.n_out() not in (1, 2):
+            raise ValueError("CompiledLoop needs step(s, a, c) -> s_next or -> (s_next, o)")
         name = "nlobs_step"
         self.ns, self.na, self.nc = step.size1_in(0), step.size1_in(1), step.size1_in(2)
+        self.no = step.size1_out(1) if step.n_out() == 2 else 0
         renamed = _renamed(step, name)
         code = _generate(renamed)
         defs = {
             "NLOBS_SZ_ARG": renamed.sz_arg(), "NLOBS_SZ_RES": renamed.sz_res(),
             "NLOBS_SZ_IW": renamed.sz_iw(), "NLOBS_SZ_W": renamed.sz_w(),
-            "NLOBS_NA": self.na, "NLOBS_NS": self.ns,
+            "NLOBS_NA": self.na, "NLOBS_NS": self.ns, "NLOBS_NO": self.no,
         }
         driver = _DRIVER.replace("NLOBS_STEP_work", f"{name}_work").replace("NLOBS_STEP", name)
         for k, v in defs.items():
@@ -164,16 +174,22 @@ class CompiledLoop:
         lib = ctypes.CDLL(str(self.path))
         self._run = lib.nlobs_run
         dbl = ctypes.POINTER(ctypes.c_double)
-        self._run.argtypes = [dbl, dbl, dbl, dbl, ctypes.c_longlong]
-        self._run.restype = ctypes.c_int
+        self._run.argtypes = [dbl, dbl, dbl, dbl, dbl, ctypes.c_longlong, ctypes.c_double]
+        self._run.restype = ctypes.c_longlong
         self._lib = lib
 
-    def __call__(self, s0: np.ndarray, a: np.ndarray, c: np.ndarray, out: np.ndarray) -> None:
+    def __call__(self, s0: np.ndarray, a: np.ndarray, c: np.ndarray, out: np.ndarray, obuf: np.ndarray | None = None,
+                 bound: float = np.inf) -> int:
+        """Run; returns the number of steps completed (fewer than asked when a state left `bound`
+        or became non-finite: the offending state is the last row written)."""
         n = out.shape[0]
         ptr = ctypes.POINTER(ctypes.c_double)
-        rc = self._run(s0.ctypes.data_as(ptr), a.ctypes.data_as(ptr), c.ctypes.data_as(ptr), out.ctypes.data_as(ptr), n)
-        if rc != 0:
+        o = obuf if obuf is not None else out
+        rc = self._run(s0.ctypes.data_as(ptr), a.ctypes.data_as(ptr), c.ctypes.data_as(ptr), out.ctypes.data_as(ptr),
+                       o.ctypes.data_as(ptr), n, bound)
+        if rc > 0:
             raise EngineError(f"the compiled step failed at step {rc - 1}")
+        return n if rc == 0 else int(-rc - 1)
 
 
 def _renamed(fn: ca.Function, name: str) -> ca.Function:

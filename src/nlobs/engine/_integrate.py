@@ -40,25 +40,28 @@ def _signature(fn: ca.Function) -> str:
 
 
 class StepRunner:
-    """Run ``s_{k+1} = step(s_k, a_k, c)`` for many steps.
+    """Run ``s_{k+1}, o_k = step(s_k, a_k, c)`` for many steps.
 
     Parameters
     ----------
     step : casadi.Function
-        ``(s[ns], a[na], c[nc]) -> s_next[ns]``; `a` changes every step, `c` is constant.
+        ``(s[ns], a[na], c[nc]) -> s_next[ns]`` or ``-> (s_next[ns], o[no])``; `a` changes every
+        step, `c` is constant; `o` (optional) is a per-step output computed from the state
+        *before* the step (measurements, estimates).
     backend : {"auto", "vm", "c"}
         Where to run; see :func:`nlobs.engine.resolve_backend`.
     chunk : int
-        Steps per compiled call.
+        Steps per compiled call (progress and blow-up checks happen between chunks).
     """
 
     def __init__(self, step: ca.Function, *, backend: Backend = "auto", chunk: int = DEFAULT_CHUNK):
-        if step.n_in() != 3 or step.n_out() != 1:
-            raise ValueError("StepRunner needs step(s, a, c) -> s_next")
+        if step.n_in() != 3 or step.n_out() not in (1, 2):
+            raise ValueError("StepRunner needs step(s, a, c) -> s_next or -> (s_next, o)")
         self.step = step
         self.ns = step.size1_in(0)
         self.na = step.size1_in(1)
         self.nc = step.size1_in(2)
+        self.no = step.size1_out(1) if step.n_out() == 2 else 0
         self.backend = backend
         self.chunk = int(chunk)
         self._sig = _signature(step)
@@ -71,7 +74,8 @@ class StepRunner:
             s0 = ca.MX.sym("s0", self.ns)
             A = ca.MX.sym("a", self.na, K)
             c = ca.MX.sym("c", self.nc)
-            fn = ca.Function(f"nlobs_run_{K}", [s0, A, c], [acc(s0, A, ca.repmat(c, 1, K))])
+            res = acc(s0, A, ca.repmat(c, 1, K))
+            fn = ca.Function(f"nlobs_run_{K}", [s0, A, c], list(res) if isinstance(res, (list, tuple)) else [res])
             _VM[key] = fn
         return fn
 
@@ -82,17 +86,26 @@ class StepRunner:
         return loop
 
     def run(self, s0: np.ndarray, a: np.ndarray, c: np.ndarray, *,
-            on_chunk: Callable[[np.ndarray, int], None] | None = None) -> np.ndarray:
-        """Return the states after each step, shape (N, ns), for per-step inputs `a` of shape (N, na).
+            on_chunk: Callable[[np.ndarray, int], None] | None = None,
+            out: np.ndarray | None = None, obuf: np.ndarray | None = None,
+            bound: float = np.inf) -> tuple[np.ndarray, np.ndarray, int]:
+        """States after each step, shape (N, ns), per-step outputs, shape (N, no), for per-step
+        inputs `a` of shape (N, na), and the number of steps completed.
 
-        `on_chunk(states_so_far, k_end)` is called after each chunk; it may raise to stop early
-        (blow-up detection) or report progress.
+        The run stops early, after the first step whose state is non-finite or exceeds `bound`
+        in magnitude (that state is the last row written); the count says where.
+        `out` and `obuf` may be given (C-contiguous, of those shapes) to write into existing
+        arrays. `on_chunk(states_so_far, k_end)` is called after each chunk, for progress.
         """
         a = np.ascontiguousarray(a, dtype=float)
         N = a.shape[0]
-        out = np.empty((N, self.ns))
+        out = np.empty((N, self.ns)) if out is None else out
+        obuf = np.empty((N, self.no)) if obuf is None else obuf
+        for name, arr, cols in (("out", out, self.ns), ("obuf", obuf, self.no)):
+            if arr.shape != (N, cols) or not arr.flags.c_contiguous:
+                raise ValueError(f"`{name}` must be a C-contiguous array of shape {(N, cols)}")
         if N == 0:
-            return out
+            return out, obuf
         c = np.ascontiguousarray(np.asarray(c, dtype=float).reshape(self.nc))
         state = np.ascontiguousarray(np.asarray(s0, dtype=float).reshape(self.ns)).copy()
         backend = resolve_backend(self.backend, work=N * self.ns)
@@ -100,18 +113,24 @@ class StepRunner:
         k = 0
         while k < N:
             n = min(K, N - k)
-            block = out[k:k + n]
+            block, oblock = out[k:k + n], obuf[k:k + n]
             if backend == "c":
-                self._loop()(state, a[k:k + n], c, block)
+                done = self._loop()(state, a[k:k + n], c, block, oblock if self.no else None, bound)
             else:
                 buf, ev = self._vm_chunk(n).buffer()
                 buf.set_arg(0, memoryview(state))
                 buf.set_arg(1, memoryview(a[k:k + n]))
                 buf.set_arg(2, memoryview(c))
                 buf.set_res(0, memoryview(block))
+                if self.no:
+                    buf.set_res(1, memoryview(oblock))
                 ev()
+                bad = ~(np.abs(block) <= bound)  # NaN counts as bad
+                done = int(np.argmax(bad.any(axis=1))) + 1 if bad.any() else n
+            if done < n:
+                return out, obuf, k + done
             state = block[-1].copy()
             k += n
             if on_chunk is not None:
                 on_chunk(out[:k], k)
-        return out
+        return out, obuf, N

@@ -7,5 +7,8 @@ from ._base import Claim as Claim
 from ._base import ExampleResult as ExampleResult
 from ._base import register as register
 from ._base import rows_from_run as rows_from_run
+from . import banks as banks  # noqa: E402
+from . import van_der_pol_unknown as van_der_pol_unknown  # noqa: E402
+from . import pendulum_unknown_b as pendulum_unknown_b  # noqa: E402
 from . import gpebo_not_uco as gpebo_not_uco  # noqa: E402  (000, M8 #7)
 from . import kkl_pebo_academic as kkl_pebo_academic  # noqa: E402  (004 §V-A, M8 #8)

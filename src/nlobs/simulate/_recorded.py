@@ -210,7 +210,7 @@ def estimate(
             z = o.update(t[0], z, u[0], y0[0], mask[0])
         z0.append(z)
     s0 = np.concatenate(z0)
-    states = StepRunner(step, backend=engine).run(s0, A, np.zeros(1))
+    states, _, _ = StepRunner(step, backend=engine).run(s0, A, np.zeros(1))
     S = np.vstack([s0, states])
     traces = {}
     off = 0

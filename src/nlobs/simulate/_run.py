@@ -12,7 +12,9 @@ compiled through CasADi (see :mod:`nlobs.engine`). Two measurement modes:
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import casadi as ca
@@ -167,47 +169,45 @@ def simulate(
         check_compatible(plant, name, o)
     z0s = {name: o.initial_state(_xhat0_for(xhat0, name, n)) for name, o in obs.items()}
 
+    kind = _Kind(sampled=sampling is not None, noisy=noise is not None, process=process_noise is not None)
+    step, layout = _joint_step(plant, obs, kind)
     t = np.arange(N + 1) * dt
-    U = stage_inputs(plant, inputs, plant.params, t[:-1], np.full(N, dt))
-    u_grid = np.vstack([U[:, :nu], U[-1:, 2 * nu:3 * nu]]) if nu else np.zeros((N + 1, 0))
+    columns = [t[:, None]]
+    if nu:
+        U = stage_inputs(plant, inputs, plant.params, t, np.full(N + 1, dt))
+        columns.append(U)
+    elif inputs:
+        input_signals(plant, inputs)  # reports unknown input names
     rng = np.random.default_rng(seed)
-    meas_noise = noise.draw(rng, N + 1, plant.outputs) if noise is not None else np.zeros((N + 1, ny))
-    w = process_noise.draw(rng, N, plant.states, dt) if process_noise is not None else np.zeros((N, n))
+    if noise is not None:
+        columns.append(noise.draw(rng, N + 1, plant.outputs))
+    if process_noise is not None:
+        columns.append(np.vstack([process_noise.draw(rng, N, plant.states, dt), np.zeros((1, n))]))
     every = sampling.every(dt) if sampling is not None else 1
-    flags = (np.arange(N + 1) % every == 0).astype(float)
-
-    step, layout = _joint_step(plant, obs, sampled=sampling is not None)
-    A = np.hstack([t[:-1, None], np.full((N, 1), dt), U, meas_noise[:-1], w, flags[:-1, None]])
+    if sampling is not None:
+        columns.append((np.arange(N + 1) % every == 0).astype(float)[:, None])
+    A = columns[0] if len(columns) == 1 else np.hstack(columns)
     s0 = np.concatenate([x0v, *z0s.values(), np.zeros(ny if sampling is not None else 0)])
-    c = plant.param_values if plant.n_params else np.zeros(1)
+    c = np.concatenate([[dt], plant.param_values])
     report = as_progress(progress, f"simulate {plant.name}")
+    info = {"dt": dt, "sampling": None if sampling is None else sampling.period, "seed": seed, "engine": engine}
 
-    def assemble(states: np.ndarray) -> Run:
-        k = states.shape[0]
-        S = np.vstack([s0, states])
-        return _assemble(plant, obs, layout, S, t[:k + 1], u_grid[:k + 1], meas_noise[:k + 1], flags[:k + 1], every, c,
-                         info={"dt": dt, "sampling": None if sampling is None else sampling.period, "seed": seed,
-                               "engine": engine})
-
-    checked = [0]
-
-    def on_chunk(states: np.ndarray, k: int) -> None:
-        block = states[checked[0]:k]
-        bad = ~np.isfinite(block) | (np.abs(block) > escape_bound)
-        if bad.any():
-            r = checked[0] + int(np.flatnonzero(bad.any(axis=1))[0])
-            col = int(np.flatnonzero(bad[r - checked[0]])[0])
-            where, sl, names = layout.owner(col)
-            last = s0 if r == 0 else states[r - 1]
-            err = FiniteEscapeError(where, float(t[r]), last[sl], names, escape_bound)
-            err.partial = assemble(states[:r])  # type: ignore[attr-defined]
-            raise err
-        checked[0] = k
-        if report is not None:
-            report(k / N)
-
-    states = StepRunner(step, backend=engine).run(s0, A, c, on_chunk=on_chunk)
-    return assemble(states)
+    runner = layout.runner(engine)
+    S = np.empty((N + 1, layout.size))
+    O = np.empty((N + 1, layout.no))
+    S[0] = s0
+    _, _, done = runner.run(s0, A[:N], c, out=S[1:], obuf=O[:N], bound=escape_bound,
+                            on_chunk=None if report is None else (lambda states, k: report(k / N)))
+    if done < N:  # the state after step `done - 1` left the bound: report the last good one
+        r = done
+        col = int(np.flatnonzero(~(np.abs(S[r + 1]) <= escape_bound))[0])
+        where, sl, names = layout.owner(col)
+        err = FiniteEscapeError(where, float(t[r]), S[r, sl], names, escape_bound)
+        O[r] = runner.outputs(S[r:r + 1], A[r:r + 1], c)[0]
+        err.partial = _assemble(plant, obs, layout, S[:r + 1], O[:r + 1], t[:r + 1], A[:r + 1], info)
+        raise err
+    O[N] = runner.outputs(S[N:], A[N:], c)[0]  # measurements and estimates at t_final
+    return _assemble(plant, obs, layout, S, O, t, A, info)
 
 
 def _xhat0_for(xhat0: Any, name: str, n: int) -> Any:
@@ -218,20 +218,62 @@ def _xhat0_for(xhat0: Any, name: str, n: int) -> Any:
     return xhat0
 
 
-class _Layout:
-    """Where each subsystem lives in the joint state vector."""
+@dataclass(frozen=True)
+class _Kind:
+    """Which per-step inputs a run has (the compiled step is specialised to them)."""
 
-    def __init__(self, plant: System, obs: Mapping[str, AbstractObserver], sampled: bool):
-        self.n = plant.n_states
+    sampled: bool
+    noisy: bool
+    process: bool
+
+
+class _Layout:
+    """Where each subsystem lives in the joint state, the per-step inputs and the per-step outputs."""
+
+    def __init__(self, plant: System, obs: Mapping[str, AbstractObserver], kind: _Kind):
+        n, nu, ny = plant.n_states, plant.n_inputs, plant.n_outputs
+        self.n = n
         self.slices: dict[str, slice] = {}
         self.names: dict[str, Sequence[str]] = {"plant": plant.states}
-        off = self.n
+        off = n
         for name, o in obs.items():
             self.slices[name] = slice(off, off + o.n_z)
             self.names[name] = o.design.z_names
             off += o.n_z
-        self.held = slice(off, off + (plant.n_outputs if sampled else 0))
+        self.held = slice(off, off + (ny if kind.sampled else 0))
         self.size = self.held.stop
+        # per-step inputs a = [t, u(t), u(t + dt/2), u(t + dt), noise, w, flag], only those present
+        k = 1
+        self.u = slice(k, k + 3 * nu); k += 3 * nu  # noqa: E702
+        self.noise = slice(k, k + (ny if kind.noisy else 0)); k = self.noise.stop  # noqa: E702
+        self.w = slice(k, k + (n if kind.process else 0)); k = self.w.stop  # noqa: E702
+        self.flag = k if kind.sampled else None
+        self.na = k + (1 if kind.sampled else 0)
+        # per-step outputs o = [y_true, y_measured, (z after the sample update, xhat) per observer];
+        # the ones that are plain copies of the state are not written (None: read them from the state)
+        self.y_true = slice(0, ny)
+        k = ny
+        self.y_meas: slice | None = None
+        if kind.noisy or kind.sampled:
+            self.y_meas, k = slice(k, k + ny), k + ny
+        self.out: dict[str, tuple[slice | None, slice | None]] = {}
+        for name, o in obs.items():
+            zsl = xsl = None
+            if o.design.update is not None:
+                zsl, k = slice(k, k + o.n_z), k + o.n_z
+            if not _selects_state(o.design, n):
+                xsl, k = slice(k, k + n), k + n
+            self.out[name] = (zsl, xsl)
+        self.no = k
+        self.step: ca.Function | None = None
+        self.step_outputs: ca.Function | None = None
+        self.designs: tuple[ObserverDesign, ...] = ()  # keeps the cached designs (and their ids) alive
+        self._runners: dict[str, StepRunner] = {}
+
+    def runner(self, engine: Backend) -> _Runner:
+        if engine not in self._runners:
+            self._runners[engine] = StepRunner(self.step, backend=engine)
+        return _Runner(self._runners[engine], self)
 
     def owner(self, col: int) -> tuple[str, slice, Sequence[str]]:
         if col < self.n:
@@ -242,34 +284,73 @@ class _Layout:
         return "measurement hold", self.held, [f"y{i}" for i in range(self.held.stop - self.held.start)]
 
 
-def _joint_step(plant: System, obs: Mapping[str, AbstractObserver], *, sampled: bool) -> tuple[ca.Function, _Layout]:
+@dataclass(frozen=True)
+class _Runner:
+    engine: StepRunner
+    layout: _Layout
+
+    def run(self, s0: np.ndarray, A: np.ndarray, c: np.ndarray, **kw: Any) -> tuple[np.ndarray, np.ndarray]:
+        return self.engine.run(s0, A, c, **kw)
+
+    def outputs(self, S: np.ndarray, A: np.ndarray, c: np.ndarray) -> np.ndarray:
+        """Per-step outputs at given states (no step taken): for the final time and partial results."""
+        return evaluate_many(self.layout.step_outputs, S, A, c)
+
+
+_STEPS: OrderedDict[tuple[Any, ...], _Layout] = OrderedDict()
+
+
+def _joint_step(plant: System, obs: Mapping[str, AbstractObserver], kind: _Kind) -> tuple[ca.Function, _Layout]:
+    """The compiled joint step for this plant structure, these observer designs and this kind of run (cached)."""
+    key = (plant.key, tuple((name, id(o.design)) for name, o in obs.items()), kind)
+    hit = _STEPS.get(key)
+    if hit is not None and all(hit_d is o.design for hit_d, o in zip(hit.designs, obs.values())):
+        _STEPS.move_to_end(key)
+        return hit.step, hit
+    layout = _build_step(plant, obs, kind)
+    layout.designs = tuple(o.design for o in obs.values())
+    _STEPS[key] = layout
+    if len(_STEPS) > 64:
+        _STEPS.popitem(last=False)
+    return layout.step, layout
+
+
+def _build_step(plant: System, obs: Mapping[str, AbstractObserver], kind: _Kind) -> _Layout:
     comp = compile_system(plant)
-    n, nu, ny = plant.n_states, plant.n_inputs, plant.n_outputs
-    layout = _Layout(plant, obs, sampled)
+    n, ny = plant.n_states, plant.n_outputs
+    layout = _Layout(plant, obs, kind)
     s = ca.SX.sym("s", layout.size)
-    na = 2 + 3 * nu + ny + n + 1
-    a = ca.SX.sym("a", na)
-    c = ca.SX.sym("c", max(plant.n_params, 1))
-    p = rows(c, 0, plant.n_params)
-    t, dt = a[0], a[1]
-    U = [rows(a, 2 + k * nu, 2 + (k + 1) * nu) for k in range(3)]
-    off = 2 + 3 * nu
-    noise, w, flag = rows(a, off, off + ny), rows(a, off + ny, off + ny + n), a[off + ny + n]
+    a = ca.SX.sym("a", layout.na)
+    c = ca.SX.sym("c", 1 + plant.n_params)
+    dt, p = c[0], rows(c, 1, 1 + plant.n_params)
+    t = a[0]
+    nu = plant.n_inputs
+    U = [rows(a, layout.u.start + k * nu, layout.u.start + (k + 1) * nu) for k in range(3)]
+    noise = rows(a, layout.noise.start, layout.noise.stop) if kind.noisy else ca.DM.zeros(ny)
     x = rows(s, 0, n)
-    y_now = comp.h(t, x, U[0], p) + noise
-    y_s = ca.if_else(flag, y_now, rows(s, layout.held.start, layout.held.stop)) if sampled else y_now
-    zs = {}
+    y_true = comp.h(t, x, U[0], p)
+    y_now = y_true + noise
+    if kind.sampled:
+        flag = a[layout.flag]
+        y_s = ca.if_else(flag, y_now, rows(s, layout.held.start, layout.held.stop))
+    else:
+        flag, y_s = 1, y_now
+    zs, outs = {}, [y_true] + ([y_s] if layout.y_meas is not None else [])
     for name, o in obs.items():
         sl = layout.slices[name]
         z = rows(s, sl.start, sl.stop)
         d = o.design
         if d.update is not None:
-            z = ca.if_else(flag, d.update(t, z, U[0], y_s, ca.DM.ones(ny)), z)
+            jumped = d.update(t, z, U[0], y_s, ca.DM.ones(ny))
+            z = ca.if_else(flag, jumped, z) if kind.sampled else jumped
+            outs.append(z)
         zs[name] = z
+        if layout.out[name][1] is not None:
+            outs.append(d.output(t, z, U[0], y_s))
 
     def rhs(tt: ca.SX, S: ca.SX, k: int) -> ca.SX:
         xx, u = rows(S, 0, n), U[k]
-        y = y_s if sampled else comp.h(tt, xx, u, p) + noise
+        y = y_s if kind.sampled else comp.h(tt, xx, u, p) + noise
         parts = [comp.f(tt, xx, u, p)]
         off_ = n
         for o in obs.values():
@@ -279,28 +360,33 @@ def _joint_step(plant: System, obs: Mapping[str, AbstractObserver], *, sampled: 
 
     joint = ca.vertcat(x, *zs.values())
     S_next = rk4_step(rhs, t, joint, dt)
-    s_next = ca.vertcat(rows(S_next, 0, n) + w, rows(S_next, n, joint.shape[0]), y_s if sampled else ca.SX(0, 1))
-    return ca.Function("joint_step", [s, a, c], [s_next]), layout
+    x_next = rows(S_next, 0, n) + (rows(a, layout.w.start, layout.w.stop) if kind.process else 0)
+    s_next = ca.vertcat(x_next, rows(S_next, n, joint.shape[0]), y_s if kind.sampled else ca.SX(0, 1))
+    o = ca.vertcat(*outs)
+    layout.step = ca.Function("joint_step", [s, a, c], [s_next, o])
+    layout.step_outputs = ca.Function("joint_outputs", [s, a, c], [o])
+    return layout
 
 
-def _assemble(plant: System, obs: Mapping[str, AbstractObserver], layout: _Layout, S: np.ndarray, t: np.ndarray,
-              u: np.ndarray, noise: np.ndarray, flags: np.ndarray, every: int, c: np.ndarray, info: dict[str, Any]) -> Run:
-    comp = compile_system(plant)
-    K = t.size
-    x = S[:, :layout.n]
-    p = c[:plant.n_params]
-    y_true = evaluate_many(comp.h, t[:, None], x, u, p) if plant.n_outputs else np.zeros((K, 0))
-    held_idx = (np.arange(K) // every) * every
-    y = y_true[held_idx] + noise[held_idx]
-    ones = np.ones((K, plant.n_outputs))
+def _selects_state(design: ObserverDesign, n: int) -> bool:
+    """Whether the design's estimate is exactly the first n internal states (x̂ = z[:n])."""
+    z = ca.SX.sym("z", design.n_z)
+    t, u, y = ca.SX.sym("t"), ca.SX.sym("u", design.system.n_inputs), ca.SX.sym("y", design.system.n_outputs)
+    xhat = design.output(t, z, u, y)
+    return design.n_z >= n and all(ca.is_equal(xhat[i], z[i]) for i in range(n))
+
+
+def _assemble(plant: System, obs: Mapping[str, AbstractObserver], layout: _Layout, S: np.ndarray, O: np.ndarray,
+              t: np.ndarray, A: np.ndarray, info: dict[str, Any]) -> Run:
+    nu, n = plant.n_inputs, layout.n
+    u = A[:, layout.u.start:layout.u.start + nu] if nu else np.zeros((t.size, 0))
+    y_true = O[:, layout.y_true]
+    y = O[:, layout.y_meas] if layout.y_meas is not None else y_true
     traces = {}
     for name, o in obs.items():
-        z = S[:, layout.slices[name]]
-        d = o.design
-        if d.update is not None:
-            jumped = evaluate_many(d.update, t[:, None], z, u, y, ones)
-            z = np.where(flags[:, None] > 0, jumped, z)
-        xhat = evaluate_many(d.output, t[:, None], z, u, y)
-        prior = evaluate_many(d.output, t[:1, None], S[:1, layout.slices[name]], u[:1], y[:1])[0]
-        traces[name] = ObserverTrace(name, d.method, d.z_names, z, xhat, prior)
-    return Run(plant.name, t, plant.states, plant.inputs, plant.outputs, u, y, traces, x=x, y_true=y_true, info=info)
+        zsl, xsl = layout.out[name]
+        z = O[:, zsl] if zsl is not None else S[:, layout.slices[name]]
+        xhat = O[:, xsl] if xsl is not None else z[:, :n]
+        prior = o.estimate(t[0], S[0, layout.slices[name]], u[0], y[0])
+        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, z, xhat, prior)
+    return Run(plant.name, t, plant.states, plant.inputs, plant.outputs, u, y, traces, x=S[:, :n], y_true=y_true, info=info)

@@ -1,0 +1,60 @@
+"""Banks' observer (003): matrix measure, Lemma 2.3/2.4 and Theorem 2.6 conditions, guaranteed rate ε - K."""
+
+import numpy as np
+import pytest
+import sympy as sp
+
+import nlobs
+from nlobs.design import design_banks
+from nlobs.design._banks import matrix_measure
+from nlobs.errors import PreconditionError
+
+# 003 example 3.1 (Kou et al.), here without perturbation: x1' = x1, x2' = x1 - 2x2 + e^{-x2}, y = x1 + x2
+KOU = nlobs.System(states=["x1", "x2"], f=["x1", "x1 - 2*x2 + exp(-x2)"], outputs=["y"], h=["x1 + x2"])
+
+
+def test_matrix_measure_is_the_largest_eigenvalue_of_the_symmetric_part():
+    rng = np.random.default_rng(0)
+    M = rng.normal(size=(5, 3, 3))
+    ref = [np.linalg.eigvalsh((m + m.T) / 2).max() for m in M]
+    np.testing.assert_allclose(matrix_measure(M), ref)
+    # 003 example 3.1: λ([[-1, -2], [2, -1]]) = λ(-I) = -1
+    assert matrix_measure(np.array([[-1.0, -2.0], [2.0, -1.0]])) == pytest.approx(-1.0)
+
+
+def test_lemma_2_3_example_rate_and_monotone_error():
+    # e^{-x2} is dissipative, A + PB = [[-1, -2], [2, -1]] with P = (-2, 1)ᵀ: ε = 1 (003 §2 and ex. 3.1).
+    d = design_banks(KOU, P=[[-2.0], [1.0]], region={"x2": (-2.0, 40.0)})
+    assert d.certificate.values["epsilon"] == pytest.approx(1.0, abs=1e-9)
+    run = nlobs.simulate(KOU, d, t_final=6.0, dt=1e-3, x0=[1.0, 0.0], xhat0=[-1.0, 1.0], engine="vm")
+    e, t = run.error_norm(), run.t
+    # Lemma 2.3: ‖x̂ - x‖ <= e^{-εt}‖x̂(0) - x(0)‖, so e(t)e^{t} never exceeds e(0)
+    assert np.all(e * np.exp(t) <= e[0] * (1 + 1e-7))
+
+
+def test_theorem_2_6_with_a_nonlinear_output_reproduces_the_corrected_jacobian():
+    # 003 example 3.2. The paper prints Df + P·DB as diag(-1 - 2x1², -1 - 5x2²): both entries are
+    # typos (d/dx1 x1³ = 3x1², d/dx2 x2⁵ = 5x2⁴); the conclusion λ <= -1 is unaffected.
+    sys = nlobs.System(states=["x1", "x2"], f=["-x1 - x1**3 + x1*x2", "-x2 - x2**5 - 4*x1*x2"], outputs=["y"], h=["x1*x2"])
+    d = design_banks(sys, P=[[-1.0], [4.0]], region={"x1": (-2.0, 2.0), "x2": (-2.0, 2.0)})
+    x1, x2 = sp.symbols("x1 x2", real=True)
+    assert d.certificate.values["jacobian"] == str([[-3 * x1**2 - 1, 0], [0, -5 * x2**4 - 1]])
+    assert d.certificate.values["epsilon"] == pytest.approx(1.0, abs=1e-9)
+    assert d.certificate.values["guaranteed_rate"] == pytest.approx(1.0, abs=1e-9)
+
+
+def test_perturbation_lipschitz_constant_is_estimated_and_limits_the_rate():
+    sys = nlobs.System(states=["x1", "x2"], f=["x1 + 0.5*sin(x1)", "x1 - 2*x2 + exp(-x2)"], outputs=["y"], h=["x1 + x2"])
+    d = design_banks(sys, P=[[-2.0], [1.0]], region={"x1": (-3.0, 3.0), "x2": (-2.0, 40.0)}, perturbation=["0.5*sin(x1)", 0])
+    assert d.certificate.values["K"] == pytest.approx(0.5, abs=1e-9)
+    assert d.certificate.values["guaranteed_rate"] == pytest.approx(0.5, abs=1e-9)
+    with pytest.raises(PreconditionError, match=r"K = 1\.5 is not below ε = 1"):
+        design_banks(sys, P=[[-2.0], [1.0]], region={"x2": (-2.0, 40.0)}, perturbation=["0.5*sin(x1)", 0],
+                     perturbation_bound=1.5)
+
+
+def test_bad_gain_is_refused_with_the_point():
+    with pytest.raises(PreconditionError, match=r"λ\(Df1 \+ P·DB\) = .* >= 0"):
+        design_banks(KOU, P=[[1.0], [1.0]], region={"x2": (-2.0, 2.0)})
+    with pytest.raises(PreconditionError, match="region"):
+        design_banks(KOU, P=[[-2.0], [1.0]])
