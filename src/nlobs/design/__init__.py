@@ -14,7 +14,13 @@ from ._linear import design_output_injection as design_output_injection
 from ._registry import DESIGNS as DESIGNS
 from ._registry import design_from_config as design_from_config
 from ._registry import register_design as register_design
-<<<<<<< HEAD
+from ._high_gain import design_high_gain as design_high_gain
+from ._high_gain import design_high_gain_derivatives as design_high_gain_derivatives
+from ._lipschitz import design_lipschitz as design_lipschitz
+from ._kalman import design_high_gain_kalman as design_high_gain_kalman
+from ._kalman import design_kalman_bucy as design_kalman_bucy
+from ._kalman import design_kalman_like as design_kalman_like
+from ._banks import design_banks as design_banks
 from ._cascade import design_kkl_pebo_cascade as design_kkl_pebo_cascade
 from ._gpebo import design_2gd as design_2gd
 from ._gpebo import design_gpebo as design_gpebo
@@ -39,12 +45,3 @@ from ._regression import design_gradient as design_gradient
 from ._regression import design_least_squares as design_least_squares
 from ._regression import excitation_report as excitation_report
 from ._regression import lowpass as lowpass
-=======
-from ._high_gain import design_high_gain as design_high_gain
-from ._high_gain import design_high_gain_derivatives as design_high_gain_derivatives
-from ._lipschitz import design_lipschitz as design_lipschitz
-from ._kalman import design_high_gain_kalman as design_high_gain_kalman
-from ._kalman import design_kalman_bucy as design_kalman_bucy
-from ._kalman import design_kalman_like as design_kalman_like
-from ._banks import design_banks as design_banks
->>>>>>> main
