@@ -222,8 +222,8 @@ def design_2gd(system: StateAffine | System, *, gamma_g: float = 1.0, gamma: flo
     --------
     >>> import nlobs
     >>> sa = nlobs.StateAffine([[0, "u"], [0, 0]], [0, 0], [[1], [0]], inputs=["u"])
-    >>> design_2gd(sa, gamma_g=5, gamma=50).n_z
-    10
+    >>> design_2gd(sa, gamma_g=5, gamma=50).n_z        # (3 + 2n)n with n = 2
+    14
     """
     return design_gpebo(system, estimator=GD(gamma_g, gamma), L=L, xhat0=xhat0)
 
