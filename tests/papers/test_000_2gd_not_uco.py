@@ -37,7 +37,7 @@ def test_2gd_error_below_1e_minus_6_by_t_20():
 
 def test_kalman_like_stalls():
     sa = ex.model()
-    run = simulate(sa.to_system(), {"kl": ex.kalman_like(sa, delta=1.0)}, t_final=20.0, dt=1e-3, x0=ex.X0,
+    run = simulate(sa.to_system(), {"kl": ex.kalman_like(sa)}, t_final=20.0, dt=1e-3, x0=ex.X0,
                    inputs={"u": "exp(-t)"})
     e = run.error_norm("kl")
     assert e[-1] > 0.1 and e[-1] == pytest.approx(e[10000], rel=0.01)
