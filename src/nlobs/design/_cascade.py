@@ -37,8 +37,7 @@ from ..engine import to_casadi
 from ..errors import PreconditionError
 from ..model import TIME, System
 from ._base import Certificate, Check, ObserverDesign
-from ._regression import (ExcitationMonitor, Gradient, Regression, StateStack, derivative_filter, estimator_from,
-                          lowpass)
+from ._regression import ExcitationMonitor, Gradient, Regression, StateStack, estimator_from, lowpass
 
 __all__ = ["design_kkl_pebo_cascade"]
 
@@ -167,8 +166,8 @@ def design_kkl_pebo_cascade(system: System, *, x2: Sequence[str], x3: Sequence[s
     stack.set_flow(xi, to_casadi([fx[s] for s in blocks["x4"]], lv))                           # (45)
     b_sx = to_casadi(list(b), lv)
     yk = stack.y[[str(e) for e in h].index(k)]
-    Yhat = (derivative_filter(stack, yk, alpha, "W_yk") - lowpass(stack, to_casadi([f1k], lv), alpha, "F_f1k")
-            - lowpass(stack, b_sx.T @ xi, alpha, "F_bxi"))                                   # (47)
+    # (47): Ŷ = W[y_k] - F[f_1k] - F[bᵀξ] = αy_k - F[αy_k + f_1k + bᵀξ], since W = α(1 - F)
+    Yhat = alpha * yk - lowpass(stack, alpha * yk + to_casadi([f1k], lv) + b_sx.T @ xi, alpha, "F_Y")
     psi = lowpass(stack, b_sx, alpha, "F_b")
     out = est.build(stack, Regression(Yhat, psi, tuple(f"theta{i + 1}" for i in range(len(x4)))), np.zeros(len(x4)))
     parts = {str(e): stack.y[i] for i, e in enumerate(h)}

@@ -41,8 +41,7 @@ from ..model._forms import matrix_of
 from ..model._system import exact
 from ..model._translate import NUMPY, translate
 from ._base import Certificate, Check, ObserverDesign
-from ._regression import (ExcitationMonitor, Gradient, Regression, StateStack, derivative_filter,
-                          estimator_from, lowpass, sx_matrix)
+from ._regression import ExcitationMonitor, Gradient, Regression, StateStack, estimator_from, lowpass, sx_matrix
 
 __all__ = ["design_kkl", "design_pebo", "design_kkl_pebo", "WindowedNLS", "vanishes", "pde_residuals"]
 
@@ -475,8 +474,15 @@ def _theta_estimator(system: System, maps: _Maps, stack: StateStack, xi: ca.SX, 
     b_sx = ca.vertcat(*[sx_matrix(b, lv) for b in b_rows])             # rows x n_th
     Y_parts, psi_parts = [], []
     if nd:
-        Y_parts.append(derivative_filter(stack, ysel, alpha, "W_y") - lowpass(stack, a_sx[:nd], alpha, "F_a"))  # (37)
-        psi_parts.append(lowpass(stack, b_sx[:nd, :], alpha, "F_b"))
+        # (37): W[y] - F[a] = αy - F[αy + a] since W = α(1 - F): one filter state per row
+        Y_parts.append(alpha * ysel - lowpass(stack, alpha * ysel + a_sx[:nd], alpha, "F_Y"))
+        Fb = ca.SX(nd, n_th)                            # F[b], filtering only the entries that are not identically 0
+        nz = [(i, j) for i in range(nd) for j in range(n_th) if b_rows[i][0, j] != 0]
+        if nz:
+            Fnz = lowpass(stack, ca.vertcat(*[b_sx[i, j] for i, j in nz]), alpha, "F_b")
+            for k, (i, j) in enumerate(nz):
+                Fb[i, j] = Fnz[k]
+        psi_parts.append(Fb)
     if alg_rows:
         Y_parts.append(ca.vertcat(*[stack.y[k] for k in alg_rows]) - a_sx[nd:])
         psi_parts.append(b_sx[nd:, :])
@@ -485,7 +491,7 @@ def _theta_estimator(system: System, maps: _Maps, stack: StateStack, xi: ca.SX, 
     out = est.build(stack, reg, Theta0, prefix="Theta" if Theta is not None else "theta")
     theta_hat = to_casadi(list(th_of), {s: out.theta[k] for k, s in enumerate(Th)}) if Theta is not None else out.theta
     shown = {d: symbol(f"xi{i + 1}" if P == sp.eye(n_xi) else f"xibar{i + 1}") for i, d in enumerate(xib)}
-    values.update({"regression Y": f"W[y_k] - F[a_k], a = {[e.xreplace(shown) for e in a_rows]}",
+    values.update({"regression Y": f"W[y_k] - F[a_k] = αy_k - F[αy_k + a_k], a = {[e.xreplace(shown) for e in a_rows]}",
                    "regressor psi": f"F[b_k], b = {[list(b.xreplace(shown)) for b in b_rows]}",
                    "alpha": alpha, **est.describe(), "excitation monitor": ExcitationMonitor.of(stack, out, est)})
     checks.append(Check("regression (11) linear in " + ("Θ" if Theta is not None else "θ") + "; filtered with F, W (004 eq. 37)",
