@@ -61,7 +61,7 @@ def vanishes(lhs: sp.Expr, rhs: sp.Expr = sp.S.Zero, *, samples: int = 12, seed:
     requiring agreement to 1e-9 relative. Returns the verdict and how it was reached.
     """
     diff = sp.expand(lhs - rhs)
-    if diff == 0 or sp.simplify(diff) == 0:
+    if diff == 0 or sp.cancel(diff) == 0 or sp.simplify(diff) == 0:
         return True, "simplifies to 0"
     syms = sorted(diff.free_symbols | lhs.free_symbols | rhs.free_symbols, key=lambda s: s.name)
     if not diff.free_symbols:
@@ -465,7 +465,7 @@ def _theta_estimator(system: System, maps: _Maps, stack: StateStack, xi: ca.SX, 
                     f"{caller}: the regression (11) is not linear in θ: {kind}_{k + 1} = {sp.simplify(exprs[k])} with "
                     f"x = φ^L(ξ + θ, y). Give a reparametrisation Θ(θ) in which it is linear (`Theta`, `theta_from_Theta`, "
                     "as 004 §V-A does with Θ = exp(θ)), or use estimator=WindowedNLS(window=...)")
-            a_rows.append(sp.simplify(g - (J * sp.Matrix(Th))[0]))
+            a_rows.append(sp.expand(g - (J * sp.Matrix(Th))[0]))
             b_rows.append(J)
     nd = len(der_rows)
     ysel = ca.vertcat(*[stack.y[k] for k in der_rows]) if nd else ca.SX(0, 1)
