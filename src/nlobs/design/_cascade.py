@@ -35,7 +35,7 @@ import sympy as sp
 
 from ..engine import to_casadi
 from ..errors import PreconditionError
-from ..model import TIME, System
+from ..model import System
 from ._base import Certificate, Check, ObserverDesign
 from ._regression import ExcitationMonitor, Gradient, Regression, StateStack, estimator_from, lowpass
 
@@ -156,7 +156,7 @@ def design_kkl_pebo_cascade(system: System, *, x2: Sequence[str], x3: Sequence[s
     xh3 = stack.add("xhat3", len(x3), init=init["x3"]) if x3 else ca.SX(0, 1)
     xi = stack.add("xi", len(x4), init=init["x4"])
     # x1 = y: the x1 states are read from the measurement (h[j] is the state measured by output j)
-    lv = {TIME: stack.t, **{us: stack.u[i] for i, us in enumerate(system.u)}, **{h[j]: stack.y[j] for j in range(len(h))}}
+    lv = {**stack.leaves(), **{h[j]: stack.y[j] for j in range(len(h))}}
     lv.update({v: xh2[i] for i, v in enumerate(X["x2"])})
     lv.update({v: xh3[i] for i, v in enumerate(X["x3"])})
     if x2:

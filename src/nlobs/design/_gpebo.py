@@ -24,55 +24,20 @@ from __future__ import annotations
 
 from typing import Any
 
-import casadi as ca
 import numpy as np
 import sympy as sp
 
-from ..errors import PreconditionError
+from ..errors import FormError, PreconditionError
 from ..model import TIME, StateAffine, System, symbol
 from ..model._forms import matrix_of
-from ..model._system import exact
 from ._base import Certificate, Check, ObserverDesign
+from ._kalman import state_affine_parts
 from ._regression import GD, AbstractEstimator, ExcitationMonitor, Regression, StateStack, estimator_from, sx_matrix
 
-__all__ = ["design_gpebo", "design_2gd", "state_affine_of"]
+__all__ = ["design_gpebo", "design_2gd"]
 
 REF = ("000_6cd8bea7ca1db43b.txt Lemma 1 (eqs. 8-10, 13), eq. (12); G+D estimator eqs. (16)-(17); "
        "order (3 + 2n)n, §6")
-
-
-def state_affine_of(system: System | StateAffine, caller: str) -> StateAffine:
-    """The state-affine form of a model: a :class:`StateAffine` as given, or read off a System
-    whose f is affine in x and h linear in x, with coefficients in (u, t).
-
-    Raises
-    ------
-    PreconditionError
-        Naming the equation that is not state-affine.
-    """
-    if isinstance(system, StateAffine):
-        return system
-    if not isinstance(system, System):
-        raise TypeError(f"{caller}: expected a StateAffine or a System, got {type(system).__name__}")
-    f, h = system.substituted()
-    x = sp.Matrix(system.x)
-    xs = set(system.x)
-    A, Cm = f.jacobian(x), h.jacobian(x)
-    for label, M, eqs, names in (("f", A, f, system.states), ("h", Cm, h, system.outputs)):
-        for i, name in enumerate(names):
-            dep = sorted(s.name for e in M.row(i) for s in e.free_symbols if s in xs)
-            if dep:
-                raise PreconditionError(
-                    f"{caller}: {system.name!r} is not state-affine: {label}[{name}] = {eqs[i]} is not affine in the states "
-                    f"(its Jacobian depends on {', '.join(dep)}). Write the model as a StateAffine, with A(u, y, t) "
-                    "using the measured output y where the equation needs it (000 eq. 1).")
-    b = sp.expand(f - A * x)
-    rest = sp.expand(h - Cm * x)
-    if any(e != 0 for e in rest):
-        raise PreconditionError(f"{caller}: {system.name!r}: the output {list(h)} is not of the form C(u, t)ᵀx (it has the "
-                                f"term {list(rest)})")
-    return StateAffine(A, list(b), Cm.T, states=system.states, inputs=system.inputs, outputs=system.outputs,
-                       name=system.name)
 
 
 def _uniform_stability(A: sp.Matrix, caller: str, injected: bool) -> Check | None:
@@ -151,22 +116,23 @@ def design_gpebo(system: StateAffine | System, *, estimator: AbstractEstimator |
     000_6cd8bea7ca1db43b.txt Lemma 1, eqs. (5), (8)-(13), Proposition 1, §6.
     """
     caller = "design_gpebo"
-    sa = state_affine_of(system, caller)
+    try:
+        parts = state_affine_parts(system, caller)
+    except FormError as e:
+        raise PreconditionError(f"{e}. Write the model as a StateAffine, with A(u, y, t) using the measured output y where "
+                                "the equation needs it (000 eq. 1).") from e
     est = estimator_from(estimator, default=GD(1.0, 1.0), caller=caller)
-    plant = sa.to_system()
-    n, p = sa.n_states, len(sa.outputs)
-    params = {symbol(k): exact(v) for k, v in sa.params.items()}
-    A, b, C = (M.xreplace(params) for M in (sa.A, sa.b, sa.C))
-    allowed = {k: symbol(k) for k in (*sa.inputs, *sa.outputs, *sa.params)}
+    plant = parts.system
+    n, p = plant.n_states, plant.n_outputs
+    A, b, C = parts.A, parts.b, parts.C.T            # parameters substituted; C is n x p as in y = Cᵀx (000 eq. 1)
+    allowed = {k: symbol(k) for k in (*plant.inputs, *plant.outputs, *plant.params)}
     allowed["t"] = TIME
+    params = {symbol(k): v for k, v in plant.params.items()}
     Lm = sp.zeros(n, p) if L is None else matrix_of(L, n, p, allowed, name="L").xreplace(params)
     stab = _uniform_stability(A - Lm * C.T, caller, L is not None)
 
     stack = StateStack(plant)
-    leaves = {TIME: stack.t}
-    leaves.update({sym: stack.u[i] for i, sym in enumerate(plant.u)})
-    leaves.update({symbol(k): stack.y[i] for i, k in enumerate(sa.outputs)})
-
+    leaves = stack.leaves()
     A_, b_, C_, L_ = (sx_matrix(M, leaves) for M in (A, b, C, Lm))
     xi = stack.add("xi", n, init=stack.xhat0)
     Phi = stack.add("Phi", n, n, init=np.eye(n))

@@ -154,12 +154,11 @@ def design_iandi(system: System, *, beta: Sequence[Any], phi: Sequence[Any], lef
     chi_sx = stack.add("chi", nchi, init=np.zeros(nchi) if chi0 is None else np.asarray(chi0, dtype=float).reshape(-1))
     if chi0 is not None and np.asarray(chi0).size != nchi:
         raise ShapeError(f"{caller}: `chi0` must have {nchi} entries, got {np.asarray(chi0).size}")
-    lv = {TIME: stack.t, **{s: chi_sx[i] for i, s in enumerate(chi)},
-          **{sym: stack.y[i] for i, sym in enumerate(system.y)}, **{sym: stack.u[i] for i, sym in enumerate(system.u)}}
+    lv = {**stack.leaves(), **{s: chi_sx[i] for i, s in enumerate(chi)}}
     beta_sx = to_casadi(list(beta_m), lv)
     xhat = to_casadi(list(left_m), {**lv, **{s: beta_sx[i] for i, s in enumerate(xi)}})        # (19)
     X = ca.SX.sym("x", n)
-    xl = {TIME: stack.t, **{s: X[i] for i, s in enumerate(system.x)}, **{sym: stack.u[i] for i, sym in enumerate(system.u)}}
+    xl = stack.leaves(X)
     f_x, h_x, phi_x = to_casadi(list(f), xl), to_casadi(list(h), xl), to_casadi(list(phi_m), xl)
     drift = ca.Function("drift", [X, stack.y, stack.u, stack.t, chi_sx],
                         [(ca.jacobian(beta_sx, stack.y) @ ca.jacobian(h_x, X) - ca.jacobian(phi_x, X)) @ f_x])

@@ -352,9 +352,7 @@ def _kkl_pebo(system: System, *, phi: Any, left_inverse: Any, B: Any, Lambda: An
         raise PreconditionError(f"{caller}: the outputs must be functions of the state only, y = h(x) (004 eq. 1)")
 
     stack = StateStack(system)
-    leaves = {TIME: stack.t}
-    leaves.update({sym: stack.u[i] for i, sym in enumerate(system.u)})
-    leaves.update({sym: stack.y[i] for i, sym in enumerate(system.y)})
+    leaves = stack.leaves()
     phi0 = to_casadi(list(maps.phi), {s: stack.xhat0[i] for i, s in enumerate(system.x)})
     xi = stack.add("xi", n_xi, init=ca.DM(np.array(P, dtype=float)) @ phi0)
     Lam_d = sp.diag(*lam)
@@ -387,8 +385,7 @@ def _kkl_pebo(system: System, *, phi: Any, left_inverse: Any, B: Any, Lambda: An
     for k, i in enumerate(pebo):
         E[i, k] = 1.0
     xi_full = ca.DM(np.array(Pinv, dtype=float)) @ (xi + (ca.DM(E) @ theta_hat if n_th else 0))
-    left_leaves = {**{s: xi_full[i] for i, s in enumerate(maps.xi)}, **{sym: stack.y[i] for i, sym in enumerate(system.y)},
-                   TIME: stack.t}
+    left_leaves = {**leaves, **{s: xi_full[i] for i, s in enumerate(maps.xi)}}
     xhat = to_casadi(list(maps.left), left_leaves)                      # (6), (10), (15)
     values["internal states"] = stack.n_z
     ref = {"kkl": REF_KKL, "pebo": REF_PEBO, "kkl_pebo": REF_KKLPEBO}[require]

@@ -51,6 +51,7 @@ from ..model import TIME, System, symbol
 from ..model._forms import matrix_of
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import check_matrix
+from ._common import leaves_of
 
 __all__ = [
     "StateStack", "Regression", "sx_matrix", "lowpass", "derivative_filter", "adjugate",
@@ -140,6 +141,10 @@ class StateStack:
 
     def symbols(self) -> Symbols:
         return Symbols(self.t, self.z, self.u, self.y, self.m)
+
+    def leaves(self, x: Any = None) -> dict[sp.Symbol, Any]:
+        """The model's t, inputs, outputs (and states, if `x` is given) -> this stack's CasADi symbols."""
+        return leaves_of(self.system, self, x)  # type: ignore[arg-type]  # StateStack has the t, u, y of Symbols
 
     def build(self, method: str, *, xhat: ca.SX, certificate: Certificate, xhat0: Any = None) -> ObserverDesign:
         """Assemble the design: flow = the blocks' flows in order, z0 = their initial values, and
@@ -839,8 +844,7 @@ def _design_estimator(system: System | LinearRegression, estimator: AbstractEsti
                       xhat0: Any) -> ObserverDesign:
     sys_, psi, d = _regression_system(system, caller)
     stack = StateStack(sys_)
-    leaves = {TIME: stack.t}
-    leaves.update({sym: stack.u[i] for i, sym in enumerate(sys_.u)})
+    leaves = stack.leaves()
     n, q = psi.shape
     reg = Regression(stack.y - to_casadi(list(d), leaves), sx_matrix(psi, leaves), sys_.states)
     est = estimator.build(stack, reg, stack.xhat0)
