@@ -83,8 +83,9 @@ def design_gpebo(system: StateAffine | System, *, estimator: AbstractEstimator |
     Parameters
     ----------
     system : StateAffine or System
-        The model :math:`\dot x = A(u, y, t)x + b(u, y, t)`, :math:`y = C(u, t)^\top x`; a System
-        is accepted when f is affine in x with coefficients in (u, t).
+        The model :math:`\dot x = A(u, y, t)x + b(u, y, t)`, :math:`y = C(u, t)^\top x`; a System is
+        read as state-affine after replacing the measured states by the outputs (as
+        :func:`nlobs.design.design_kalman_like` does).
     estimator : estimator or mapping, optional
         :class:`GD` (default, gains 1: the 2G+D observer), :class:`DREM`, :class:`Gradient`,
         :class:`LeastSquares`, or a model-file table ``{kind = "gd", gamma_g = 5, gamma = 50}``.
