@@ -34,12 +34,14 @@ from .model import load_model as load_model
 from .model import loads_model as loads_model
 from .observer import Observer as Observer
 from .observer import OnlineObserver as OnlineObserver
+from .simulate import MonteCarloResult as MonteCarloResult
 from .simulate import Noise as Noise
 from .simulate import ProcessNoise as ProcessNoise
 from .simulate import Recording as Recording
 from .simulate import Run as Run
 from .simulate import Sampling as Sampling
 from .simulate import estimate as estimate
+from .simulate import montecarlo as montecarlo
 from .simulate import simulate as simulate
 from .design import DREM as DREM
 from .design import GD as GD

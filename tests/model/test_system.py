@@ -93,3 +93,11 @@ def test_substituted_uses_exact_rationals():
     s = System(states=["x"], f=["-k*x"], outputs=["y"], h=["x"], params={"k": 0.1})
     f, _ = s.substituted()
     assert f[0] == -sp.Rational(1, 10) * symbol("x")
+
+
+def test_pickle_round_trip():
+    import pickle
+
+    s = vdp()
+    back = pickle.loads(pickle.dumps(s))
+    assert back == s and back.f == s.f and dict(back.params) == dict(s.params)

@@ -10,7 +10,13 @@ __all__ = ["observability_matrix", "LinearObservability", "kalman_rank", "pbh_te
 
 
 def observability_matrix(A: np.ndarray, C: np.ndarray) -> np.ndarray:
-    r"""The observability matrix :math:`\mathcal O = [C; CA; \dots; CA^{n-1}]`."""
+    r"""The observability matrix :math:`\mathcal O = [C; CA; \dots; CA^{n-1}]`.
+
+    Parameters
+    ----------
+    A : array_like of shape (n, n)
+    C : array_like of shape (p, n)
+    """
     A = np.asarray(A, dtype=float)
     C = np.atleast_2d(np.asarray(C, dtype=float))
     blocks = [C]
@@ -65,6 +71,11 @@ class LinearObservability:
 def kalman_rank(A: np.ndarray, C: np.ndarray) -> LinearObservability:
     """Kalman rank test of (A, C), with a basis of the unobservable subspace.
 
+    Parameters
+    ----------
+    A : array_like of shape (n, n)
+    C : array_like of shape (p, n)
+
     References
     ----------
     002_613af42269ea26a7.txt, "Result [Luenberger]": an observer with arbitrary rate exists
@@ -108,7 +119,13 @@ class PBHResult:
 
 
 def pbh_test(A: np.ndarray, C: np.ndarray) -> PBHResult:
-    """PBH rank test at every eigenvalue of A."""
+    """PBH rank test: rank [A - λI; C] at every eigenvalue λ of A.
+
+    Parameters
+    ----------
+    A : array_like of shape (n, n)
+    C : array_like of shape (p, n)
+    """
     A = np.asarray(A, dtype=float)
     C = np.atleast_2d(np.asarray(C, dtype=float))
     n = A.shape[0]

@@ -26,6 +26,14 @@ def check_matrix(M: Any, rows: int, cols: int, name: str, caller: str, *,
 
     Parameters
     ----------
+    M : array_like
+        The matrix to check.
+    rows, cols : int
+        The expected shape.
+    name, caller : str
+        The argument's name and the function checking it, for the message.
+    symmetric : bool
+        Require (and return) a symmetric matrix.
     definite : {"positive", "semidefinite"}, optional
         Require the (symmetric) matrix to be positive definite or semidefinite.
     """
@@ -76,7 +84,8 @@ def observer_gain(A: np.ndarray, C: np.ndarray, *, poles: Any = None, L: Any = N
                   R: Any = None, caller: str) -> tuple[np.ndarray, list[Check], dict[str, Any]]:
     """An output-injection gain L with A - LC Hurwitz, from poles, LQE weights or given directly.
 
-    Exactly one of `poles`, `L`, or the pair (`Q`, `R`) must be given.
+    Exactly one of `poles`, `L`, or the pair (`Q`, `R`) must be given; `A` (n x n) and `C`
+    (p x n) are the pair, `caller` names the design in messages.
 
     - `poles`: pole placement on the dual pair (Aᵀ, Cᵀ) with
       :func:`scipy.signal.place_poles`; requires (A, C) observable.

@@ -38,7 +38,7 @@ DESIGNS: dict[str, Callable[..., ObserverDesign]] = {
 
 
 def register_design(kind: str, fn: Callable[..., ObserverDesign]) -> None:
-    """Make a design function available to model files under `kind`."""
+    """Make a design function `fn` available to model files under the name `kind`."""
     DESIGNS[kind] = fn
 
 

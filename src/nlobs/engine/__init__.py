@@ -14,3 +14,5 @@ from ._codegen import resolve_backend as resolve_backend
 from ._integrate import DEFAULT_CHUNK as DEFAULT_CHUNK
 from ._integrate import StepRunner as StepRunner
 from ._integrate import rk4_step as rk4_step
+from ._integrate import run_batch as run_batch
+from ._integrate import saved_steps as saved_steps

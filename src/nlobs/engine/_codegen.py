@@ -26,7 +26,7 @@ import numpy as np
 
 from ..errors import ConvergenceWarning, EngineError
 
-__all__ = ["Backend", "CompiledLoop", "cache_dir", "find_compiler", "compile_c", "resolve_backend"]
+__all__ = ["Backend", "CompiledBatch", "CompiledLoop", "cache_dir", "find_compiler", "compile_c", "resolve_backend"]
 
 Backend = Literal["auto", "vm", "c"]
 
@@ -102,6 +102,56 @@ long long nlobs_run(const casadi_real* s0, const casadi_real* a, const casadi_re
 """
 
 
+_BATCH = r"""
+/* nlobs batch driver: many trajectories of s_{k+1}, o_k = step(s_k, a_k, c), one after another.
+   Saves state and per-step output at k = 0, stride, 2 stride, ... (< n_steps) and at k = n_steps.
+   status[j] = n_steps when trajectory j finished, else the step after which its state left `bound`. */
+long long nlobs_batch(const casadi_real* S0, const casadi_real* A, long long a_stride, const casadi_real* C,
+                      long long c_stride, casadi_real* Sout, casadi_real* Oout, long long n_save, long long n_traj,
+                      long long n_steps, long long stride, casadi_real bound, long long* status) {
+  casadi_int sz_arg = 0, sz_res = 0, sz_iw = 0, sz_w = 0;
+  const casadi_real* arg[NLOBS_SZ_ARG];
+  casadi_real* res[NLOBS_SZ_RES];
+  casadi_int iw[NLOBS_SZ_IW + 1];
+  casadi_real w[NLOBS_SZ_W + 1];
+  casadi_real buf_a[NLOBS_NS + 1], buf_b[NLOBS_NS + 1], o[NLOBS_NO + 1];
+  casadi_real *cur, *nxt, *tmp;
+  long long j, k, isave, next_save;
+  int i, bad;
+  NLOBS_STEP_work(&sz_arg, &sz_res, &sz_iw, &sz_w);
+  if (sz_arg > NLOBS_SZ_ARG || sz_res > NLOBS_SZ_RES || sz_iw > NLOBS_SZ_IW || sz_w > NLOBS_SZ_W) return -1;
+  for (j = 0; j < n_traj; ++j) {
+    const casadi_real* a = A + j * a_stride;
+    const casadi_real* c = C + j * c_stride;
+    casadi_real* so = Sout + j * n_save * NLOBS_NS;
+    casadi_real* oo = Oout + j * n_save * NLOBS_NO;
+    cur = buf_a; nxt = buf_b;
+    for (i = 0; i < NLOBS_NS; ++i) cur[i] = S0[j * NLOBS_NS + i];
+    isave = 0;
+    next_save = 0;
+    status[j] = n_steps;
+    arg[2] = c; res[1] = o;
+    for (k = 0; k <= n_steps; ++k) {
+      arg[0] = cur; arg[1] = a + k * NLOBS_NA; res[0] = nxt;
+      if (NLOBS_STEP(arg, res, iw, w, 0)) return j + 1;
+      if (k == next_save) {
+        for (i = 0; i < NLOBS_NS; ++i) so[isave * NLOBS_NS + i] = cur[i];
+        for (i = 0; i < NLOBS_NO; ++i) oo[isave * NLOBS_NO + i] = o[i];
+        ++isave;
+        next_save = next_save + stride < n_steps ? next_save + stride : n_steps;
+      }
+      if (k == n_steps) break;
+      bad = 0;
+      for (i = 0; i < NLOBS_NS; ++i) bad |= !(nxt[i] <= bound && nxt[i] >= -bound);
+      if (bad) { status[j] = k; break; }
+      tmp = cur; cur = nxt; nxt = tmp;
+    }
+  }
+  return 0;
+}
+"""
+
+
 def _generate(fn: ca.Function) -> str:
     with tempfile.TemporaryDirectory(prefix="nlobs-gen-") as tmp:
         gen = ca.CodeGenerator("gen.c", {"with_header": False, "main": False})
@@ -157,21 +207,9 @@ class CompiledLoop:
     def __init__(self, step: ca.Function):
         if step.n_in() != 3 or step.n_out() not in (1, 2):
             raise ValueError("CompiledLoop needs step(s, a, c) -> s_next or -> (s_next, o)")
-        name = "nlobs_step"
         self.ns, self.na, self.nc = step.size1_in(0), step.size1_in(1), step.size1_in(2)
         self.no = step.size1_out(1) if step.n_out() == 2 else 0
-        renamed = _renamed(step, name)
-        code = _generate(renamed)
-        defs = {
-            "NLOBS_SZ_ARG": renamed.sz_arg(), "NLOBS_SZ_RES": renamed.sz_res(),
-            "NLOBS_SZ_IW": renamed.sz_iw(), "NLOBS_SZ_W": renamed.sz_w(),
-            "NLOBS_NA": self.na, "NLOBS_NS": self.ns, "NLOBS_NO": self.no,
-        }
-        driver = _DRIVER.replace("NLOBS_STEP_work", f"{name}_work").replace("NLOBS_STEP", name)
-        for k, v in defs.items():
-            driver = driver.replace(k, str(int(v)))
-        self.path = _build(code + driver, "loop")
-        lib = ctypes.CDLL(str(self.path))
+        self.path, lib = _compile_driver(step, _DRIVER, "loop", self.no)
         self._run = lib.nlobs_run
         dbl = ctypes.POINTER(ctypes.c_double)
         self._run.argtypes = [dbl, dbl, dbl, dbl, dbl, ctypes.c_longlong, ctypes.c_double]
@@ -190,6 +228,50 @@ class CompiledLoop:
         if rc > 0:
             raise EngineError(f"the compiled step failed at step {rc - 1}")
         return n if rc == 0 else int(-rc - 1)
+
+
+class CompiledBatch:
+    """A step ``(s, a, c) -> (s_next, o)`` compiled with a C loop over trajectories and steps.
+
+    See :func:`nlobs.engine.run_batch` for the arguments.
+    """
+
+    def __init__(self, step: ca.Function):
+        if step.n_in() != 3 or step.n_out() != 2:
+            raise ValueError("CompiledBatch needs step(s, a, c) -> (s_next, o)")
+        self.ns, self.na, self.nc, self.no = step.size1_in(0), step.size1_in(1), step.size1_in(2), step.size1_out(1)
+        self.path, lib = _compile_driver(step, _BATCH, "batch", self.no)
+        dbl, ll = ctypes.POINTER(ctypes.c_double), ctypes.c_longlong
+        self._run = lib.nlobs_batch
+        self._run.argtypes = [dbl, dbl, ll, dbl, ll, dbl, dbl, ll, ll, ll, ll, ctypes.c_double, ctypes.POINTER(ll)]
+        self._run.restype = ll
+        self._lib = lib
+
+    def __call__(self, S0: np.ndarray, A: np.ndarray, a_stride: int, C: np.ndarray, c_stride: int, Sout: np.ndarray,
+                 Oout: np.ndarray, n_steps: int, stride: int, bound: float, status: np.ndarray) -> None:
+        dbl = ctypes.POINTER(ctypes.c_double)
+        rc = self._run(S0.ctypes.data_as(dbl), A.ctypes.data_as(dbl), a_stride, C.ctypes.data_as(dbl), c_stride,
+                       Sout.ctypes.data_as(dbl), Oout.ctypes.data_as(dbl), Sout.shape[1], S0.shape[0], n_steps, stride,
+                       bound, status.ctypes.data_as(ctypes.POINTER(ctypes.c_longlong)))
+        if rc != 0:
+            raise EngineError(f"the compiled step failed in trajectory {rc - 1}")
+
+
+def _compile_driver(step: ca.Function, template: str, tag: str, no: int) -> tuple[Path, ctypes.CDLL]:
+    """Generate C for `step` (as ``nlobs_step``), append a driver `template` with its sizes filled in,
+    compile (or reuse the cached build) and load it."""
+    name = "nlobs_step"
+    renamed = _renamed(step, name)
+    defs = {
+        "NLOBS_SZ_ARG": renamed.sz_arg(), "NLOBS_SZ_RES": renamed.sz_res(),
+        "NLOBS_SZ_IW": renamed.sz_iw(), "NLOBS_SZ_W": renamed.sz_w(),
+        "NLOBS_NA": step.size1_in(1), "NLOBS_NS": step.size1_in(0), "NLOBS_NO": no,
+    }
+    driver = template.replace("NLOBS_STEP_work", f"{name}_work").replace("NLOBS_STEP", name)
+    for k, v in defs.items():
+        driver = driver.replace(k, str(int(v)))
+    path = _build(_generate(renamed) + driver, tag)
+    return path, ctypes.CDLL(str(path))
 
 
 def _renamed(fn: ca.Function, name: str) -> ca.Function:

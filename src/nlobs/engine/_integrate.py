@@ -14,9 +14,9 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from ._codegen import Backend, CompiledLoop, resolve_backend
+from ._codegen import Backend, CompiledBatch, CompiledLoop, resolve_backend
 
-__all__ = ["rk4_step", "StepRunner", "DEFAULT_CHUNK"]
+__all__ = ["rk4_step", "StepRunner", "DEFAULT_CHUNK", "run_batch", "saved_steps"]
 
 DEFAULT_CHUNK = 10_000
 
@@ -33,6 +33,7 @@ def rk4_step(rhs: Callable[[Any, Any, int], Any], t: Any, s: Any, dt: Any) -> An
 
 _VM: dict[tuple[Any, ...], ca.Function] = {}
 _LOOPS: dict[str, CompiledLoop] = {}
+_BATCHES: dict[str, CompiledBatch] = {}
 
 
 def _signature(fn: ca.Function) -> str:
@@ -134,3 +135,78 @@ class StepRunner:
             if on_chunk is not None:
                 on_chunk(out[:k], k)
         return out, obuf, N
+
+
+def saved_steps(n_steps: int, stride: int) -> np.ndarray:
+    """The step indices a batch run saves: 0, stride, 2·stride, ... (< n_steps), and n_steps."""
+    return np.r_[np.arange(0, n_steps, stride), n_steps]
+
+
+def run_batch(step: ca.Function, S0: np.ndarray, A: np.ndarray, C: np.ndarray, n_steps: int, *, stride: int = 1,
+              bound: float = np.inf, backend: Backend = "auto") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Run many trajectories of ``s_{k+1}, o_k = step(s_k, a_k, c)``, saving every `stride` steps.
+
+    Parameters
+    ----------
+    step : casadi.Function
+        ``(s[ns], a[na], c[nc]) -> (s_next[ns], o[no])``.
+    S0 : numpy.ndarray of shape (B, ns)
+        Initial states.
+    A : numpy.ndarray of shape (n_steps + 1, na) or (B, n_steps + 1, na)
+        Per-step inputs, shared by every trajectory or one set per trajectory.
+    C : numpy.ndarray of shape (nc,) or (B, nc)
+        Constants, shared or per trajectory.
+    n_steps : int
+    stride : int
+        Save at steps 0, stride, 2·stride, ... and at n_steps (see :func:`saved_steps`).
+    bound : float
+        A state leaving [-bound, bound] (or non-finite) stops its trajectory; the rest continue.
+    backend : {"auto", "vm", "c"}
+
+    Returns
+    -------
+    S : numpy.ndarray of shape (B, n_save, ns)
+        Saved states (NaN after a trajectory stopped).
+    O : numpy.ndarray of shape (B, n_save, no)
+        Saved per-step outputs (computed from the state before the step).
+    status : numpy.ndarray of shape (B,)
+        n_steps for trajectories that finished, else the step after which the state left the bound.
+    """
+    S0 = np.ascontiguousarray(S0, dtype=float)
+    B, ns = S0.shape
+    no = step.size1_out(1)
+    A = np.ascontiguousarray(A, dtype=float)
+    C = np.ascontiguousarray(C, dtype=float)
+    shared_a, shared_c = A.ndim == 2, C.ndim == 1
+    steps = saved_steps(n_steps, stride)
+    S = np.full((B, steps.size, ns), np.nan)
+    O = np.full((B, steps.size, no), np.nan)
+    status = np.full(B, n_steps, dtype=np.int64)
+    work = B * n_steps * ns
+    if resolve_backend(backend, work=work) == "c":
+        sig = _signature(step)
+        batch = _BATCHES.get(sig)
+        if batch is None:
+            batch = _BATCHES[sig] = CompiledBatch(step)
+        batch(S0, A, 0 if shared_a else A.shape[1] * A.shape[2], C, 0 if shared_c else C.shape[1], S, O, n_steps, stride,
+              bound, status)
+        return S, O, status
+    runner = StepRunner(step, backend="vm")
+    ins = step.mx_in()
+    outputs = ca.Function("o", ins, [step(*ins)[1]])
+    for j in range(B):
+        a = A if shared_a else A[j]
+        c = C if shared_c else C[j]
+        states, outs, done = runner.run(S0[j], a[:n_steps], c, bound=bound)
+        if done == n_steps:
+            full = np.vstack([S0[j], states])
+            last = np.asarray(outputs(full[-1], a[n_steps], c), dtype=float).reshape(1, -1)
+            o_full = np.vstack([outs, last])
+        else:  # the state after step done - 1 left the bound: keep the good states 0 .. done - 1
+            status[j] = done - 1
+            full = np.vstack([S0[j], states[:done - 1]])
+            o_full = outs[:done]
+        keep = steps[steps < full.shape[0]]
+        S[j, :keep.size] = full[keep]
+        O[j, :keep.size] = o_full[keep]
+    return S, O, status

@@ -113,8 +113,15 @@ class Sampled(AbstractSignal):
 def as_signal(value: Any, *, name: str, params: Mapping[str, float] | None = None) -> AbstractSignal:
     """Turn what a user passes for one input into a signal.
 
-    Accepts a signal, a number, an expression string or SymPy expression in ``t`` (and the
-    model's parameters, substituted by their values), or a callable.
+    Parameters
+    ----------
+    value : signal, number, str, sympy.Expr or callable
+        A signal; a number; an expression in ``t`` (and the model's parameters, substituted
+        by their values); or a callable ``u(t)``.
+    name : str
+        The input's name, for messages.
+    params : mapping of str to float, optional
+        Parameter values usable in expressions.
     """
     if isinstance(value, AbstractSignal):
         return value
@@ -130,9 +137,10 @@ def as_signal(value: Any, *, name: str, params: Mapping[str, float] | None = Non
 
 
 def input_signals(system: System, inputs: Any, params: Mapping[str, float] | None = None) -> tuple[AbstractSignal, ...]:
-    """One signal per input of `system` from a mapping ``{name: signal-like}``.
+    """One signal per input of `system` from `inputs`, a mapping ``{name: signal-like}``.
 
     Inputs not given are zero. With a single input, a bare signal-like value is accepted.
+    `params` (default: the system's) are the values usable in expressions.
     """
     params = system.params if params is None else params
     if inputs is None:

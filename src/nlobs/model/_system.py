@@ -155,6 +155,9 @@ class System:
     def __setattr__(self, name: str, value: Any) -> None:
         raise AttributeError("System is immutable; use with_params() or build a new System")
 
+    def __reduce__(self) -> tuple[Any, ...]:  # pickling (Monte Carlo on other processes)
+        return (_rebuild, (self._states, self._f, self._outputs, self._h, self._inputs, dict(self._params), self._name))
+
     # -- names and sizes ---------------------------------------------------------------
     name = property(lambda self: self._name, doc="The system's name.")
     states = property(lambda self: self._states, doc="State names, in order.")
@@ -293,6 +296,10 @@ class System:
         from ._forms import StateAffine
 
         return StateAffine(A, b, C, **names).to_system()
+
+
+def _rebuild(states: Any, f: Any, outputs: Any, h: Any, inputs: Any, params: Any, name: str) -> System:
+    return System(states=states, f=f, outputs=outputs, h=h, inputs=inputs, params=params, name=name)
 
 
 def _equations(

@@ -106,7 +106,8 @@ def load_model(path: str | Path) -> ModelFile:
 
 
 def loads_model(text: str, *, path: str = "<string>", default_name: str = "model") -> ModelFile:
-    """Parse model-file text (see :func:`load_model`)."""
+    """Parse model-file `text` (see :func:`load_model`); `path` names it in messages and
+    `default_name` is the model's name when the file has no ``name``."""
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:

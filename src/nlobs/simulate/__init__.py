@@ -11,3 +11,5 @@ from ._results import Run as Run
 from ._run import simulate as simulate
 from ._recorded import Recording as Recording
 from ._recorded import estimate as estimate
+from ._montecarlo import MonteCarloResult as MonteCarloResult
+from ._montecarlo import montecarlo as montecarlo

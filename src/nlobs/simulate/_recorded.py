@@ -171,6 +171,8 @@ def estimate(
         How the measurement is held between samples: zero-order hold (causal, as in a real
         loop) or linear interpolation to the next sample (offline only; more accurate when
         the output changes fast between samples).
+    engine : {"auto", "vm", "c"}
+        Numeric backend (see :func:`nlobs.simulate`).
 
     Returns
     -------

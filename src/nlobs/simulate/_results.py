@@ -86,6 +86,18 @@ class Run:
             tol = 0.02 * e0 if e0 > 0 else None
         return error_metrics(self.t, self.error_norm(name), tol=tol, tail=tail)
 
+    def noise_gain(self, name: str | None = None, *, tail: float = 0.2) -> float:
+        """RMS estimation error over the last `tail` of the run divided by the RMS of the
+        measurement noise y − y_true over the same window (SPEC M5). Needs a noisy simulation."""
+        if self.y_true is None or self.x is None:
+            raise ValueError("noise_gain needs a simulated run (true states and noise-free outputs)")
+        sel = self.t >= self.t[-1] - tail * (self.t[-1] - self.t[0])
+        noise = self.y[sel] - self.y_true[sel]
+        noise_rms = float(np.sqrt(np.mean(np.sum(noise**2, axis=1))))
+        if noise_rms == 0:
+            raise ValueError("noise_gain: this run has no measurement noise")
+        return float(np.sqrt(np.mean(self.error_norm(name)[sel] ** 2)) / noise_rms)
+
     def summary(self, *, tol: float | None = None) -> str:
         """A text table of every observer's metrics."""
         head = f"{'observer':<18} {'final err':>10} {'RMS (last 20%)':>15} {'peak err':>10} {'conv. time':>11}"
@@ -139,6 +151,8 @@ class Run:
             entry: dict[str, Any] = {"method": tr.method, "final_estimate": tr.xhat[-1].tolist()}
             if self.x is not None:
                 entry.update(self.metrics(name, tol=tol).to_dict())
+                if self.y_true is not None and not np.array_equal(self.y, self.y_true):
+                    entry["noise_gain"] = self.noise_gain(name)
             obs[name] = entry
         return {"model": self.model, "t_final": float(self.t[-1]), "samples": int(self.t.size), "observers": obs}
 

@@ -29,7 +29,7 @@ from ..observer import AbstractObserver, Observer, as_observer
 from ._options import Noise, ProcessNoise, Sampling
 from ._results import ObserverTrace, Run
 
-__all__ = ["simulate", "named_observers", "check_compatible", "stage_inputs"]
+__all__ = ["simulate", "prepare", "Prepared", "named_observers", "check_compatible", "stage_inputs"]
 
 
 def named_observers(observers: Any) -> dict[str, AbstractObserver]:
@@ -149,46 +149,12 @@ def simulate(
     ModelError, ShapeError
         For inconsistent arguments (wrong sizes, unknown names, incompatible observers).
     """
-    if not isinstance(plant, System):
-        raise TypeError(f"simulate: `plant` must be an nlobs.System, got {type(plant).__name__}")
-    for label, v in (("t_final", t_final), ("dt", dt)):
-        if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
-            raise ShapeError(f"simulate: `{label}` must be a positive number, got {v!r}")
-    N = int(round(t_final / dt))
-    if N < 1 or abs(N * dt - t_final) > 1e-9 * max(1.0, t_final):
-        raise ShapeError(f"simulate: t_final = {t_final:g} must be a whole multiple of dt = {dt:g}")
-    plant = plant.with_params(**params) if params else plant
-    n, nu, ny = plant.n_states, plant.n_inputs, plant.n_outputs
-    x0v = np.asarray(x0, dtype=float).reshape(-1)
-    if x0v.size != n or not np.all(np.isfinite(x0v)):
-        raise ShapeError(f"simulate: `x0` must be {n} finite numbers (one per state: {', '.join(plant.states)}), got {list(x0v)}")
-    obs = named_observers(observers)
-    if obs and ny == 0:
-        raise ModelError(f"simulate: the plant {plant.name!r} has no outputs; an observer needs a measurement")
-    for name, o in obs.items():
-        check_compatible(plant, name, o)
-    z0s = {name: o.initial_state(_xhat0_for(xhat0, name, n)) for name, o in obs.items()}
-
-    kind = _Kind(sampled=sampling is not None, noisy=noise is not None, process=process_noise is not None)
-    step, layout = _joint_step(plant, obs, kind)
-    t = np.arange(N + 1) * dt
-    columns = [t[:, None]]
-    if nu:
-        U = stage_inputs(plant, inputs, plant.params, t, np.full(N + 1, dt))
-        columns.append(U)
-    elif inputs:
-        input_signals(plant, inputs)  # reports unknown input names
-    rng = np.random.default_rng(seed)
-    if noise is not None:
-        columns.append(noise.draw(rng, N + 1, plant.outputs))
-    if process_noise is not None:
-        columns.append(np.vstack([process_noise.draw(rng, N, plant.states, dt), np.zeros((1, n))]))
-    every = sampling.every(dt) if sampling is not None else 1
-    if sampling is not None:
-        columns.append((np.arange(N + 1) % every == 0).astype(float)[:, None])
-    A = columns[0] if len(columns) == 1 else np.hstack(columns)
-    s0 = np.concatenate([x0v, *z0s.values(), np.zeros(ny if sampling is not None else 0)])
-    c = np.concatenate([[dt], plant.param_values])
+    prep = prepare(plant, observers, t_final=t_final, dt=dt, inputs=inputs, params=params, noise=noise,
+                   process_noise=process_noise, sampling=sampling, caller="simulate")
+    plant, obs, layout, N, t = prep.plant, prep.obs, prep.layout, prep.n_steps, prep.t
+    s0 = prep.initial_state(x0, xhat0)
+    A = prep.inputs_for(seed)
+    c = prep.constants()
     report = as_progress(progress, f"simulate {plant.name}")
     info = {"dt": dt, "sampling": None if sampling is None else sampling.period, "seed": seed, "engine": engine}
 
@@ -208,6 +174,84 @@ def simulate(
         raise err
     O[N] = runner.outputs(S[N:], A[N:], c)[0]  # measurements and estimates at t_final
     return _assemble(plant, obs, layout, S, O, t, A, info)
+
+
+@dataclass(frozen=True, eq=False)
+class Prepared:
+    """A validated run set-up: plant, observers, the compiled joint step, the time grid and the
+    per-step inputs that do not depend on the noise seed. Shared by simulate and montecarlo."""
+
+    plant: System
+    obs: Mapping[str, AbstractObserver]
+    kind: _Kind
+    layout: _Layout
+    n_steps: int
+    dt: float
+    t: np.ndarray
+    base: np.ndarray  # per-step inputs before noise: [t, u stages], shape (N + 1, 1 + 3 nu)
+    noise: Noise | None
+    process_noise: ProcessNoise | None
+    every: int
+    caller: str
+
+    def initial_state(self, x0: Sequence[float], xhat0: Any) -> np.ndarray:
+        n, ny = self.plant.n_states, self.plant.n_outputs
+        x0v = np.asarray(x0, dtype=float).reshape(-1)
+        if x0v.size != n or not np.all(np.isfinite(x0v)):
+            raise ShapeError(f"{self.caller}: `x0` must be {n} finite numbers (one per state: {', '.join(self.plant.states)}), "
+                             f"got {list(x0v)}")
+        z0s = [o.initial_state(_xhat0_for(xhat0, name, n)) for name, o in self.obs.items()]
+        return np.concatenate([x0v, *z0s, np.zeros(ny if self.kind.sampled else 0)])
+
+    def constants(self, params: Sequence[float] | None = None) -> np.ndarray:
+        return np.concatenate([[self.dt], self.plant.param_values if params is None else np.asarray(params, dtype=float)])
+
+    def inputs_for(self, seed: int | None) -> np.ndarray:
+        """The per-step inputs with the noise of `seed` (measurement noise drawn first, then process noise)."""
+        N, plant = self.n_steps, self.plant
+        columns = [self.base]
+        rng = np.random.default_rng(seed)
+        if self.noise is not None:
+            columns.append(self.noise.draw(rng, N + 1, plant.outputs))
+        if self.process_noise is not None:
+            columns.append(np.vstack([self.process_noise.draw(rng, N, plant.states, self.dt), np.zeros((1, plant.n_states))]))
+        if self.kind.sampled:
+            columns.append((np.arange(N + 1) % self.every == 0).astype(float)[:, None])
+        return columns[0] if len(columns) == 1 else np.hstack(columns)
+
+    @property
+    def seeded(self) -> bool:
+        """Whether the per-step inputs depend on the seed (noise of any kind)."""
+        return self.noise is not None or self.process_noise is not None
+
+
+def prepare(plant: System, observers: Any, *, t_final: float, dt: float, inputs: Any, params: Mapping[str, float] | None,
+            noise: Noise | None, process_noise: ProcessNoise | None, sampling: Sampling | None, caller: str) -> Prepared:
+    """Validate the arguments shared by simulate and montecarlo and build the compiled joint step."""
+    if not isinstance(plant, System):
+        raise TypeError(f"{caller}: `plant` must be an nlobs.System, got {type(plant).__name__}")
+    for label, v in (("t_final", t_final), ("dt", dt)):
+        if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
+            raise ShapeError(f"{caller}: `{label}` must be a positive number, got {v!r}")
+    N = int(round(t_final / dt))
+    if N < 1 or abs(N * dt - t_final) > 1e-9 * max(1.0, t_final):
+        raise ShapeError(f"{caller}: t_final = {t_final:g} must be a whole multiple of dt = {dt:g}")
+    plant = plant.with_params(**params) if params else plant
+    obs = named_observers(observers)
+    if obs and plant.n_outputs == 0:
+        raise ModelError(f"{caller}: the plant {plant.name!r} has no outputs; an observer needs a measurement")
+    for name, o in obs.items():
+        check_compatible(plant, name, o)
+    kind = _Kind(sampled=sampling is not None, noisy=noise is not None, process=process_noise is not None)
+    _, layout = _joint_step(plant, obs, kind)
+    t = np.arange(N + 1) * dt
+    base = t[:, None]
+    if plant.n_inputs:
+        base = np.hstack([base, stage_inputs(plant, inputs, plant.params, t, np.full(N + 1, dt))])
+    elif inputs:
+        input_signals(plant, inputs)  # reports unknown input names
+    every = sampling.every(dt) if sampling is not None else 1
+    return Prepared(plant, obs, kind, layout, N, float(dt), t, base, noise, process_noise, every, caller)
 
 
 def _xhat0_for(xhat0: Any, name: str, n: int) -> Any:

@@ -1,0 +1,367 @@
+"""Monte Carlo over initial states, noise seeds and parameter draws: compiled batches, optionally on Dask.
+
+Trajectory j uses exactly the per-step inputs ``simulate(..., seed=seeds[j])`` would use, so
+any trajectory can be re-run alone (:meth:`MonteCarloResult.trajectory`). The work is split
+into chunks of trajectories; each chunk is one call of a compiled C loop (or of the CasADi VM).
+With a Dask scheduler the chunks run on its workers with the same code, so the same seeds give
+the same numbers on both paths.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .._progress import as_progress
+from ..engine import Backend, evaluate_many, run_batch, saved_steps
+from ..errors import FiniteEscapeError, ShapeError
+from ..model import System
+from ._metrics import convergence_time
+from ._options import Noise, ProcessNoise, Sampling
+from ._results import Run
+from ._run import Prepared, prepare, simulate
+
+__all__ = ["montecarlo", "MonteCarloResult", "ObserverStats"]
+
+
+@dataclass(frozen=True, eq=False)
+class ObserverStats:
+    """Per-trajectory metrics of one observer (arrays of length M; NaN where undefined).
+
+    Attributes
+    ----------
+    xhat : numpy.ndarray of shape (M, n_save, n)
+    error_norm : numpy.ndarray of shape (M, n_save)
+    convergence_time : numpy.ndarray of shape (M,)
+        NaN when the error did not settle below the tolerance within the run (or failed).
+    rms_error : numpy.ndarray of shape (M,)
+        RMS of the error norm over the last 20 % of the saved times.
+    final_error, peak_error : numpy.ndarray of shape (M,)
+    """
+
+    name: str
+    xhat: np.ndarray
+    error_norm: np.ndarray
+    convergence_time: np.ndarray
+    rms_error: np.ndarray
+    final_error: np.ndarray
+    peak_error: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class MonteCarloResult:
+    """The result of :func:`montecarlo` (trajectories on the first axis, saved times on the second)."""
+
+    model: str
+    t: np.ndarray
+    x: np.ndarray
+    seeds: np.ndarray
+    status: np.ndarray
+    observers: Mapping[str, ObserverStats]
+    failures: Sequence[tuple[int, str]]
+    n_steps: int
+    info: Mapping[str, Any] = field(default_factory=dict)
+    _spec: Any = None
+    _inputs: Any = None
+
+    @property
+    def runs(self) -> int:
+        return int(self.seeds.size)
+
+    @property
+    def failed(self) -> np.ndarray:
+        """Indices of trajectories that blew up."""
+        return np.flatnonzero(self.status < self.n_steps)
+
+    def stats(self, name: str) -> dict[str, Any]:
+        """Median and 90th percentile of convergence time and RMS error, and failure counts."""
+        o = self.observers[name]
+        ok = self.status == self.n_steps
+        conv = o.convergence_time[ok]
+        rms = o.rms_error[ok]
+        settled = conv[np.isfinite(conv)]
+        return {
+            "runs": self.runs,
+            "failed": int((~ok).sum()),
+            "not_converged": int(np.isnan(conv).sum()),
+            "convergence_time_median": float(np.median(settled)) if settled.size else None,
+            "convergence_time_p90": float(np.percentile(conv, 90)) if conv.size and np.isfinite(np.percentile(conv, 90)) else None,
+            "rms_error_median": float(np.median(rms)) if rms.size else None,
+            "rms_error_p90": float(np.percentile(rms, 90)) if rms.size else None,
+        }
+
+    def summary(self) -> str:
+        head = (f"{'observer':<20} {'runs':>5} {'failed':>6} {'unsettled':>9} {'conv. median':>12} {'conv. p90':>10} "
+                f"{'RMS median':>11} {'RMS p90':>9}")
+        lines = [f"{self.model}: Monte Carlo, {self.runs} runs, t in [0, {self.t[-1]:g}]", head, "-" * len(head)]
+
+        def f(v: float | None) -> str:
+            return "—" if v is None else f"{v:.3g}"
+
+        for name in self.observers:
+            s = self.stats(name)
+            lines.append(f"{name:<20} {s['runs']:>5} {s['failed']:>6} {s['not_converged']:>9} {f(s['convergence_time_median']):>12} "
+                         f"{f(s['convergence_time_p90']):>10} {f(s['rms_error_median']):>11} {f(s['rms_error_p90']):>9}")
+        for j, reason in self.failures[:10]:
+            lines.append(f"  run {j}: {reason}")
+        if len(self.failures) > 10:
+            lines.append(f"  ... and {len(self.failures) - 10} more failed runs")
+        return "\n".join(lines)
+
+    def to_pandas(self) -> Any:
+        """One row per (run, observer): seed, status and the metrics."""
+        import pandas as pd
+
+        rows = []
+        for name, o in self.observers.items():
+            for j in range(self.runs):
+                rows.append({"run": j, "observer": name, "seed": int(self.seeds[j]), "failed": bool(self.status[j] < self.n_steps),
+                             "convergence_time": o.convergence_time[j], "rms_error": o.rms_error[j],
+                             "final_error": o.final_error[j], "peak_error": o.peak_error[j]})
+        return pd.DataFrame(rows)
+
+    def trajectory(self, j: int) -> Run:
+        """Re-run trajectory `j` alone with :func:`simulate` (full resolution, every signal)."""
+        if self._spec is None:
+            raise ValueError("this result does not keep its set-up; re-run montecarlo")
+        return self._spec.rerun(j, self._inputs)
+
+    def plot(self, path: str | None = None) -> Any:
+        """Error bands: the median and the 10-90 % band of ‖x̂ − x‖ over the runs, per observer."""
+        from matplotlib.figure import Figure
+
+        fig = Figure(figsize=(8, 3.6), layout="constrained")
+        ax = fig.subplots()
+        ok = self.status == self.n_steps
+        for i, (name, o) in enumerate(self.observers.items()):
+            e = np.maximum(o.error_norm[ok], 1e-16)
+            if e.size == 0:
+                continue
+            lo, med, hi = np.percentile(e, [10, 50, 90], axis=0)
+            ax.fill_between(self.t, lo, hi, color=f"C{i}", alpha=0.25, lw=0)
+            ax.semilogy(self.t, med, color=f"C{i}", lw=1.4, label=f"{name} (median, 10–90 %)")
+        ax.set_xlabel("t")
+        ax.set_ylabel("‖x̂ − x‖")
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize="small")
+        ax.set_title(f"{self.model}: {self.runs} runs" + (f", {len(self.failed)} failed" if len(self.failed) else ""))
+        if path is not None:
+            fig.savefig(path, dpi=110)
+        return fig
+
+
+@dataclass(frozen=True, eq=False)
+class _Spec:
+    """Everything a chunk needs (picklable: runs on Dask workers)."""
+
+    prep: Prepared
+    x0: np.ndarray            # (M, n)
+    xhat0: Mapping[str, np.ndarray]  # name -> (M, n)
+    params: np.ndarray        # (M, n_params)
+    seeds: np.ndarray         # (M,)
+    stride: int
+    bound: float
+    engine: str
+
+    def run_chunk(self, j0: int, j1: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        prep, layout = self.prep, self.prep.layout
+        S0 = np.empty((j1 - j0, layout.size))
+        S0[:, :prep.plant.n_states] = self.x0[j0:j1]
+        for name, o in prep.obs.items():
+            S0[:, layout.slices[name]] = evaluate_many(o.design.initial, self.xhat0[name][j0:j1])
+        if prep.kind.sampled:
+            S0[:, layout.held] = 0.0
+        C = np.column_stack([np.full(j1 - j0, prep.dt), self.params[j0:j1]])
+        A = prep.inputs_for(None) if not prep.seeded else np.stack([prep.inputs_for(int(s)) for s in self.seeds[j0:j1]])
+        return run_batch(layout.step, S0, A, C, prep.n_steps, stride=self.stride, bound=self.bound, backend=self.engine)
+
+    def rerun(self, j: int, inputs: Any) -> Run:
+        prep = self.prep
+        plant = prep.plant.with_params(**dict(zip(prep.plant.param_names, self.params[j])))
+        sampling = Sampling(prep.every * prep.dt) if prep.kind.sampled else None
+        return simulate(plant, prep.obs, t_final=prep.n_steps * prep.dt, dt=prep.dt, x0=self.x0[j],
+                        inputs=inputs, noise=prep.noise, process_noise=prep.process_noise, sampling=sampling,
+                        seed=int(self.seeds[j]), xhat0={k: v[j] for k, v in self.xhat0.items()}, escape_bound=self.bound)
+
+
+def _per_run(value: Any, M: int, n: int, name: str) -> np.ndarray:
+    a = np.asarray(value, dtype=float)
+    if a.ndim == 1:
+        a = np.broadcast_to(a, (M, a.size))
+    if a.shape != (M, n) or not np.all(np.isfinite(a)):
+        raise ShapeError(f"montecarlo: `{name}` must be {n} finite numbers or an array of shape ({M}, {n}), got shape {np.shape(value)}")
+    return np.ascontiguousarray(a)
+
+
+def montecarlo(
+    plant: System,
+    observers: Any,
+    *,
+    t_final: float,
+    dt: float,
+    x0: Sequence[float] | np.ndarray,
+    runs: int | None = None,
+    xhat0: Mapping[str, Any] | Sequence[float] | np.ndarray | None = None,
+    params: Mapping[str, Sequence[float] | float] | None = None,
+    inputs: Any = None,
+    noise: Noise | None = None,
+    process_noise: ProcessNoise | None = None,
+    sampling: Sampling | None = None,
+    seed: int = 0,
+    save_every: int | None = None,
+    tol: float | None = None,
+    engine: Backend = "auto",
+    scheduler: Any = None,
+    chunk: int = 64,
+    progress: bool | Callable[[float], None] | None = None,
+    escape_bound: float = 1e12,
+) -> MonteCarloResult:
+    """Run a plant and observers over many initial states, noise seeds and parameter draws.
+
+    Parameters
+    ----------
+    plant : System
+    observers : mapping of name to observer/design, or a sequence
+    t_final, dt : float
+        As in :func:`nlobs.simulate`.
+    x0 : array_like of shape (n,) or (M, n)
+        Initial plant states, the same for every run or one per run.
+    runs : int, optional
+        The number of runs M when no argument is per-run (then only the noise differs).
+    xhat0 : array_like of shape (n,) or (M, n), or a mapping of observer name to one of those
+        Initial estimates (default: each design's).
+    params : mapping of parameter name to a number or M draws, optional
+        Plant parameters per run (the observers keep their design model).
+    inputs, noise, process_noise, sampling :
+        As in :func:`nlobs.simulate`.
+
+    Other Parameters
+    ----------------
+    seed : int
+        Base seed; run j uses ``seeds[j]`` (see the result), exactly as ``simulate(seed=seeds[j])``.
+    save_every : int, optional
+        Keep every k-th step (default: about 1,000 saved times); the final time is always kept.
+    tol : float, optional
+        Convergence tolerance (default: 2 % of each run's initial error ‖x̂(0⁻) − x(0)‖).
+    engine : {"auto", "vm", "c"}
+    scheduler : str or dask.distributed.Client, optional
+        Run the chunks on a Dask cluster (its address, or a client); needs ``nlobs[dask]``.
+    chunk : int
+        Runs per compiled call (and per Dask task).
+    progress : bool or callable, optional
+    escape_bound : float
+        A run whose state leaves this bound is stopped and reported as failed (the others go on).
+
+    Returns
+    -------
+    MonteCarloResult
+    """
+    prep = prepare(plant, observers, t_final=t_final, dt=dt, inputs=inputs, params=None, noise=noise,
+                   process_noise=process_noise, sampling=sampling, caller="montecarlo")
+    plant, n = prep.plant, prep.plant.n_states
+    sizes = [np.shape(x0)[0]] if np.ndim(x0) == 2 else []
+    if isinstance(xhat0, Mapping):
+        sizes += [np.shape(v)[0] for v in xhat0.values() if np.ndim(v) == 2]
+    elif xhat0 is not None and np.ndim(xhat0) == 2:
+        sizes.append(np.shape(xhat0)[0])
+    sizes += [np.size(v) for v in (params or {}).values() if np.ndim(v) == 1]
+    if runs is not None:
+        sizes.append(int(runs))
+    if not sizes:
+        raise ShapeError("montecarlo: nothing varies between runs: give `runs`, or x0/xhat0/params with one row per run")
+    M = sizes[0]
+    if any(s != M for s in sizes):
+        raise ShapeError(f"montecarlo: the per-run arguments disagree on the number of runs: {sorted(set(sizes))}")
+    X0 = _per_run(x0, M, n, "x0")
+    XH = {}
+    for name, o in prep.obs.items():
+        given = xhat0.get(name) if isinstance(xhat0, Mapping) else xhat0
+        XH[name] = _per_run(o.design.xhat0 if given is None else given, M, n, f"xhat0[{name}]")
+    unknown = [k for k in (params or {}) if k not in plant.params]
+    if unknown:
+        raise ShapeError(f"montecarlo: `params` names {unknown[0]!r}, which is not a parameter of {plant.name!r}")
+    P = np.column_stack([np.broadcast_to(np.asarray((params or {}).get(k, v), dtype=float), (M,)) for k, v in plant.params.items()]) \
+        if plant.n_params else np.zeros((M, 0))
+    seeds = np.random.SeedSequence(seed).generate_state(M).astype(np.int64)
+    N = prep.n_steps
+    stride = max(1, N // 1000) if save_every is None else int(save_every)
+    if stride < 1:
+        raise ShapeError(f"montecarlo: `save_every` must be a positive number of steps, got {save_every}")
+    spec = _Spec(prep, X0, XH, P, seeds, stride, escape_bound, engine)
+    bounds = [(j, min(j + chunk, M)) for j in range(0, M, chunk)]
+    report = as_progress(progress, f"montecarlo {plant.name}")
+    if scheduler is None:
+        parts = []
+        for i, (j0, j1) in enumerate(bounds):
+            parts.append(spec.run_chunk(j0, j1))
+            if report is not None:
+                report((i + 1) / len(bounds))
+    else:
+        parts = _on_dask(scheduler, spec, bounds, report)
+    S = np.concatenate([p[0] for p in parts])
+    O = np.concatenate([p[1] for p in parts])
+    status = np.concatenate([p[2] for p in parts])
+    return _result(spec, S, O, status, tol, inputs, info={"dt": dt, "save_every": stride, "engine": engine,
+                                                          "dask": scheduler is not None, "chunk": chunk})
+
+
+def _on_dask(scheduler: Any, spec: _Spec, bounds: Sequence[tuple[int, int]], report: Any) -> list[Any]:
+    try:
+        from dask.distributed import Client, as_completed
+    except ImportError as e:
+        raise ImportError("montecarlo on a cluster needs dask.distributed: pip install 'nlobs[dask]'") from e
+    own = not isinstance(scheduler, Client)
+    client = Client(scheduler) if own else scheduler
+    try:
+        spec_future = client.scatter(spec, broadcast=True)
+        futures = [client.submit(_chunk_task, spec_future, j0, j1, pure=False) for j0, j1 in bounds]
+        index = {f.key: i for i, f in enumerate(futures)}
+        parts: list[Any] = [None] * len(futures)
+        for done, fut in enumerate(as_completed(futures), 1):
+            parts[index[fut.key]] = fut.result()
+            if report is not None:
+                report(done / len(futures))
+        return parts
+    finally:
+        if own:
+            client.close()
+
+
+def _chunk_task(spec: _Spec, j0: int, j1: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    return spec.run_chunk(j0, j1)
+
+
+def _result(spec: _Spec, S: np.ndarray, O: np.ndarray, status: np.ndarray, tol: float | None, inputs: Any,
+            info: dict[str, Any]) -> MonteCarloResult:
+    prep, layout = spec.prep, spec.prep.layout
+    n, N = prep.plant.n_states, prep.n_steps
+    steps = saved_steps(N, spec.stride)
+    t = steps * prep.dt
+    x = S[:, :, :n]
+    stats = {}
+    tail = t >= t[-1] - 0.2 * (t[-1] - t[0])
+    for name, o in prep.obs.items():
+        zsl, xsl = layout.out[name]
+        xhat = O[:, :, xsl] if xsl is not None else (O[:, :, zsl] if zsl is not None else S[:, :, layout.slices[name]])[:, :, :n]
+        e = np.linalg.norm(xhat - x, axis=2)
+        prior = evaluate_many(o.design.output, np.zeros((spec.x0.shape[0], 1)), evaluate_many(o.design.initial, spec.xhat0[name]),
+                              np.zeros(prep.plant.n_inputs), np.zeros(prep.plant.n_outputs))
+        tols = np.full(e.shape[0], tol) if tol is not None else 0.02 * np.linalg.norm(prior - spec.x0, axis=1)
+        conv = np.array([np.nan if not np.all(np.isfinite(row)) else (convergence_time(t, row, max(tl, 1e-300)) or np.nan)
+                         for row, tl in zip(e, tols)], dtype=float)
+        with np.errstate(invalid="ignore"):
+            stats[name] = ObserverStats(name, xhat, e, conv, np.sqrt(np.nanmean(e[:, tail] ** 2, axis=1)), e[:, -1],
+                                        np.nanmax(e, axis=1))
+    failures = []
+    for j in np.flatnonzero(status < N)[:20]:
+        try:
+            spec.rerun(int(j), inputs)
+            reason = f"left |x| <= {spec.bound:g} after t = {status[j] * prep.dt:.6g}"
+        except FiniteEscapeError as err:
+            reason = str(err).split(". Check")[0]
+        failures.append((int(j), reason))
+    failures += [(int(j), f"left |x| <= {spec.bound:g} after t = {status[j] * prep.dt:.6g}") for j in np.flatnonzero(status < N)[20:]]
+    return MonteCarloResult(prep.plant.name, t, x, spec.seeds, status, stats, failures, N, info, spec, inputs)

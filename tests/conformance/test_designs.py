@@ -1,0 +1,106 @@
+"""One conformance suite over every registered observer design (STYLE §14).
+
+Every kind in ``nlobs.design.DESIGNS`` must have a case here: a small plant the design
+applies to, with tuning. Each design then must: return the declared shapes, be deterministic,
+leave its inputs unmutated, converge on its plant, reject unknown options (from Python and
+from model files), and run on simulated and recorded data alike.
+"""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import pytest
+
+from nlobs import ModelError, Observer, Recording, StateAffine, System, estimate, simulate
+from nlobs.design import DESIGNS, design_from_config
+
+OSC = System(states=["x1", "x2"], f=["x2", "-x1 - 0.5*x2 + u"], inputs=["u"], outputs=["y"], h=["x1"], name="osc")
+PEND = System(states=["x1", "x2"], f=["x2", "-2*sin(x1) - 0.5*x2 + u"], inputs=["u"], outputs=["y"], h=["x1"], name="pend")
+WEAK = System(states=["x1", "x2"], f=["x2", "-x1 - 0.5*x2 - 0.1*sin(x1) + u"], inputs=["u"], outputs=["y"], h=["x1"], name="weak")
+TOY = System(states=["x1", "x2"], f=["x2**2", "c"], outputs=["y"], h=["x1"], params={"c": 0.5}, name="toy")
+SA = StateAffine([[0, 1], [-1, -0.5]], [0, "u"], [[1], [0]], inputs=["u"], outputs=["y"], name="sa")
+
+# kind -> (plant, tuning, x0, xhat0, simulation horizon, final-error tolerance)
+CASES = {
+    "luenberger": (OSC, dict(poles=[-2, -3]), [1.0, 0.0], [0.0, 0.0], 8.0, 1e-5),
+    "output_injection": (PEND, dict(poles=[-2, -3]), [1.0, 0.0], [0.0, 0.0], 8.0, 1e-5),
+    "ekf": (PEND, dict(Q=np.eye(2) * 1e-3, R=[[1e-4]]), [1.0, 0.0], [0.0, 0.0], 8.0, 1e-4),
+    "augmented": (TOY, dict(T=["x1", "x2", "x2**2"], A=[[0, 0, 1], [0, 0, 0], [0, "2*c", 0]], b=[0, "c", 0], C=[[1, 0, 0]],
+                            left_inverse=["w1", "w2"], poles=[-1, -2, -3]), [2.0, -2.0], [0.0, 0.0], 12.0, 1e-4),
+    "custom": (OSC, dict(states=["a", "b"], params={"k1": 4.5, "k2": 5.0},
+                         flow=["b + k1*(y - a)", "-a - 0.5*b + u + k2*(y - a)"]), [1.0, 0.0], [0.0, 0.0], 8.0, 1e-4),
+    "high_gain": (PEND, dict(theta=4.0), [1.0, 0.0], [0.0, 0.0], 6.0, 1e-4),
+    "high_gain_derivatives": (OSC, dict(xhat=["D0_y", "D1_y"], r=0.1, nominal={"y": "-D0_y - 0.5*D1_y + u"}),
+                              [1.0, 0.0], [0.0, 0.0], 8.0, 1e-4),
+    "lipschitz": (WEAK, dict(region={"x1": [-3, 3], "x2": [-3, 3], "u": [-1, 1]}), [1.0, 0.0], [0.0, 0.0], 15.0, 1e-3),
+    "kalman_bucy": (OSC, dict(Q=np.eye(2) * 0.1, R=[[0.01]]), [1.0, 0.0], [0.0, 0.0], 8.0, 1e-4),
+    "kalman_like": (SA, dict(delta=4.0, V=np.eye(2) * 0.1), [1.0, 0.0], [0.0, 0.0], 10.0, 1e-4),
+    "high_gain_kalman": (OSC, dict(lam=3.0, delta=3.0), [1.0, 0.0], [0.0, 0.0], 10.0, 1e-3),
+    "banks": (OSC, dict(P=[[-2.0], [-1.0]]), [1.0, 0.0], [0.0, 0.0], 15.0, 1e-3),
+}
+
+
+def _plant(model):
+    return model.to_system() if isinstance(model, StateAffine) else model
+
+
+def test_every_registered_design_has_a_conformance_case():
+    assert set(DESIGNS) <= set(CASES), f"add a conformance case for: {sorted(set(DESIGNS) - set(CASES))}"
+
+
+@pytest.fixture(params=sorted(CASES))
+def case(request):
+    kind = request.param
+    if kind not in DESIGNS:
+        pytest.fail(f"{kind} has a case but is not registered")
+    return (kind, *CASES[kind])
+
+
+def test_declared_shapes_and_determinism(case):
+    kind, model, tuning, x0, xhat0, *_ = case
+    d1 = DESIGNS[kind](model, **copy.deepcopy(tuning), xhat0=xhat0)
+    d2 = DESIGNS[kind](model, **copy.deepcopy(tuning), xhat0=xhat0)
+    plant = _plant(model)
+    n, nu, ny = plant.n_states, plant.n_inputs, plant.n_outputs
+    assert len(d1.z_names) == d1.n_z and d1.flow.size1_out(0) == d1.n_z and d1.output.size1_out(0) == n
+    assert d1.flow.size1_in(2) == nu and d1.flow.size1_in(3) == ny
+    if d1.update is not None:
+        assert d1.update.size1_out(0) == d1.n_z
+    obs1, obs2 = Observer(d1), Observer(d2)
+    z0 = obs1.initial_state()
+    assert z0.shape == (d1.n_z,) and np.all(np.isfinite(z0))
+    args = (0.3, z0, np.full(nu, 0.2), np.full(ny, 0.7))
+    assert np.array_equal(obs1.rhs(*args), obs2.rhs(*args))
+    assert np.array_equal(obs1.estimate(*args), obs2.estimate(*args))
+    assert str(d1.certificate) and d1.certificate.reference
+
+
+def test_inputs_are_not_mutated(case):
+    kind, model, tuning, _, xhat0, *_ = case
+    given = copy.deepcopy(tuning)
+    DESIGNS[kind](model, **given, xhat0=list(xhat0))
+    for k, v in tuning.items():
+        assert np.array_equal(np.asarray(given[k], dtype=object), np.asarray(v, dtype=object)) if not isinstance(v, dict) else given[k] == v
+
+
+def test_converges_on_its_plant_and_on_recorded_data(case):
+    kind, model, tuning, x0, xhat0, horizon, tol = case
+    d = DESIGNS[kind](model, **copy.deepcopy(tuning), xhat0=xhat0)
+    plant = _plant(model)
+    inputs = {"u": "sin(t)"} if plant.n_inputs else None
+    run = simulate(plant, {kind: d}, t_final=horizon, dt=1e-3, x0=x0, inputs=inputs)
+    assert run.metrics(kind).final_error < tol
+    rec = Recording.from_run(run, every=5)
+    offline = estimate({kind: d}, rec, max_step=1e-3, hold="linear")
+    assert offline.metrics(kind).final_error < max(tol, 1e-3) * 10
+
+
+def test_unknown_options_are_rejected(case):
+    kind, model, tuning, *_ = case
+    with pytest.raises(TypeError):
+        DESIGNS[kind](model, **copy.deepcopy(tuning), not_an_option=1)
+    if isinstance(model, System):
+        with pytest.raises(ModelError, match=f"unknown option `not_an_option` for kind '{kind}'"):
+            design_from_config(model, kind, {**copy.deepcopy(tuning), "not_an_option": 1})
