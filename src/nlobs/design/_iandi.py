@@ -63,7 +63,8 @@ def _generic_rank(J: sp.Matrix, *, samples: int = 6, seed: int = 1) -> int:
 
 
 def design_iandi(system: System, *, beta: Sequence[Any], phi: Sequence[Any], left_inverse: Sequence[Any],
-                 n_chi: int | None = None, Q: Sequence[Any] | None = None, chi0: Any = None) -> ObserverDesign:
+                 n_chi: int | None = None, Q: Sequence[Any] | None = None, chi0: Any = None,
+                 xhat0: Any = None) -> ObserverDesign:
     r"""I&I observer (004 Proposition 4, eqs. 18-19) with the pseudo-inverse of :math:`\partial\beta/\partial\chi`.
 
     Parameters
@@ -81,8 +82,12 @@ def design_iandi(system: System, *, beta: Sequence[Any], phi: Sequence[Any], lef
     Q : sequence of expressions in the outputs, ``chi1, ...`` and the inputs, optional
         The free term of (18), n_χ components (default 0).
     chi0 : array_like of shape (n_chi,), optional
-        χ(0) (default zeros: "initial values of the dynamic extensions 0", 004 §V-C). The
-        observer starts from χ(0) whatever the requested initial estimate.
+        A fixed χ(0), whatever the initial estimate asked for.
+    xhat0 : array_like of shape (n,), optional
+        Default initial estimate (zeros). Without `chi0`, when β is affine in χ with a constant
+        Jacobian J, the observer starts on the manifold of the estimate:
+        :math:`\chi(0) = J^\dagger(\phi(\hat x_0) - \beta(h(\hat x_0), 0))` (so x̂0 = 0 gives χ(0) = 0
+        when φ(0) = 0 and β(0, 0) = 0, the "dynamic extensions at 0" of 004 §V-C); otherwise χ(0) = 0.
 
     Returns
     -------
@@ -151,9 +156,18 @@ def design_iandi(system: System, *, beta: Sequence[Any], phi: Sequence[Any], lef
     checks.append(Check("A4: rank ∂β/∂χ = n_z (004)", True, f"generic rank {rank} = n_z = {nz} (random points)"))
 
     stack = StateStack(system)
-    chi_sx = stack.add("chi", nchi, init=np.zeros(nchi) if chi0 is None else np.asarray(chi0, dtype=float).reshape(-1))
-    if chi0 is not None and np.asarray(chi0).size != nchi:
-        raise ShapeError(f"{caller}: `chi0` must have {nchi} entries, got {np.asarray(chi0).size}")
+    if chi0 is not None:
+        if np.asarray(chi0).size != nchi:
+            raise ShapeError(f"{caller}: `chi0` must have {nchi} entries, got {np.asarray(chi0).size}")
+        init: Any = np.asarray(chi0, dtype=float).reshape(-1)
+    elif Jchi.free_symbols:
+        init = np.zeros(nchi)
+    else:  # start on the manifold β(h(x̂0), χ) = φ(x̂0) of the initial estimate
+        J0 = np.array(Jchi, dtype=float)
+        x0l = {s: stack.xhat0[i] for i, s in enumerate(system.x)}
+        b0 = to_casadi(list(beta_m.xreplace({**hsub, **{c: 0 for c in chi}})), x0l)
+        init = ca.DM(np.linalg.pinv(J0)) @ (to_casadi(list(phi_m), x0l) - b0)
+    chi_sx = stack.add("chi", nchi, init=init)
     lv = {**stack.leaves(), **{s: chi_sx[i] for i, s in enumerate(chi)}}
     beta_sx = to_casadi(list(beta_m), lv)
     xhat = to_casadi(list(left_m), {**lv, **{s: beta_sx[i] for i, s in enumerate(xi)}})        # (19)
@@ -174,4 +188,4 @@ def design_iandi(system: System, *, beta: Sequence[Any], phi: Sequence[Any], lef
               "A5": "not verified: the zero equilibrium of the off-the-manifold dynamics (16) must be asymptotically stable",
               "internal states": nchi}
     cert = Certificate("I&I observer with pseudo-inverse", REF, tuple(checks), values)
-    return stack.build("iandi", xhat=xhat, certificate=cert)
+    return stack.build("iandi", xhat=xhat, certificate=cert, xhat0=xhat0)

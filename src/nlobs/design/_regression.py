@@ -177,7 +177,22 @@ def lowpass(stack: StateStack, signal: Any, alpha: float, name: str) -> ca.SX:
     r"""The filter :math:`F(p) = \alpha/(p + \alpha)` applied to `signal` (004 eq. 37).
 
     Adds the state :math:`w` with :math:`\dot w = -\alpha w + \alpha s`, :math:`w(0) = 0`, and
-    returns it. `signal` may be a vector or a matrix (filtered entry-wise).
+    returns it.
+
+    Parameters
+    ----------
+    stack : StateStack
+        The observer state the filter state is added to.
+    signal : casadi.SX
+        The filtered signal, a vector or a matrix (filtered entry-wise).
+    alpha : float
+        The filter constant α > 0.
+    name : str
+        Name of the filter state.
+
+    References
+    ----------
+    004_f1e237c45ff4719e.txt eq. (37).
     """
     a = _positive(alpha, "alpha", "lowpass")
     s = ca.SX(signal)
@@ -192,6 +207,21 @@ def derivative_filter(stack: StateStack, signal: Any, alpha: float, name: str) -
     Since :math:`W = \alpha(1 - F)`, it is :math:`\alpha(s - F[s])` with one filter state;
     :math:`W[s]` is the filtered derivative: :math:`W[s] = F[\dot s] + \alpha s(0)e^{-\alpha t}`
     (the second term is the exponentially decaying :math:`\epsilon_t` of 004 §V-A).
+
+    Parameters
+    ----------
+    stack : StateStack
+        The observer state the filter state is added to.
+    signal : casadi.SX
+        The signal whose filtered derivative is wanted (vector or matrix).
+    alpha : float
+        The filter constant α > 0.
+    name : str
+        Name of the filter state.
+
+    References
+    ----------
+    004_f1e237c45ff4719e.txt eq. (37), §V-A.
     """
     a = _positive(alpha, "alpha", "derivative_filter")
     s = ca.SX(signal)
