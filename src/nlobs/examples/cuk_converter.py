@@ -262,7 +262,8 @@ def run() -> ExampleResult:
         "use the same stable filter for v4), but for i1 the linear HGO is less noise-sensitive than KKLO — its x̂1 = "
         "(C2 ẏ1 - u y2)/(1 - u) multiplies the noisy derivative by C2 = 22 µF — so 'KKLO best under noise' holds for v4 only. "
         "The HGOs have the largest RMS errors in i1 (transients after every switch); in v4 the linear HGO is worst but "
-        "the time-varying HGO is not: PEBO's open integration drifts more.",
+        "the time-varying HGO is not: PEBO's open integration drifts more. These orderings hold for each of ten noise "
+        "seeds (benchmarks/cuk_noise_seeds.py).",
     ]
     fig = _figure(noisy, e_clean, e_noisy, names, setpoint)
     evidence = [_text_table(rows), *(f"{n}:\n{ds[n]}" for n in names)]
