@@ -43,7 +43,7 @@ from ..model._translate import NUMPY, translate
 from ._base import Certificate, Check, ObserverDesign
 from ._regression import ExcitationMonitor, Gradient, Regression, StateStack, estimator_from, lowpass, sx_matrix
 
-__all__ = ["design_kkl", "design_pebo", "design_kkl_pebo", "WindowedNLS", "vanishes", "pde_residuals"]
+__all__ = ["design_kkl", "design_pebo", "design_kkl_pebo", "WindowedNLS", "vanishes"]
 
 REF_KKL = "004_f1e237c45ff4719e.txt Proposition 1: PDE (4), left inverse (5), observer (6)"
 REF_PEBO = "004_f1e237c45ff4719e.txt Proposition 2: eqs. (7)-(13); regression (11) filtered as in (37)"
@@ -77,13 +77,7 @@ def vanishes(lhs: sp.Expr, rhs: sp.Expr = sp.S.Zero, *, samples: int = 12, seed:
     return False, "does not vanish"
 
 
-def pde_residuals(system: System, phi: sp.Matrix, Lam: sp.Matrix, B_of_hx: sp.Matrix) -> sp.Matrix:
-    r""":math:`\nabla\phi^\top f - \Lambda\phi - B(h(x), u)`, component by component (004 eq. 4)."""
-    f, _ = system.substituted()
-    return phi.jacobian(sp.Matrix(system.x)) * f - Lam * phi - B_of_hx
-
-
-def _pde_hint(system: System, phi_i: sp.Expr, drift_i: sp.Expr) -> str:
+def _pde_hint(phi_i: sp.Expr, drift_i: sp.Expr) -> str:
     """Which λ would make component i satisfy its PDE, when one exists (drift = ∇φ_iᵀf - B_i)."""
     if phi_i == 0:
         return ""
@@ -131,31 +125,31 @@ def _parse_maps(system: System, phi: Any, left_inverse: Any, B: Any, Lambda: Any
     lam_allowed = {**base, **{k: symbol(k) for k in system.inputs}}
     if Lambda is None:
         Lam = sp.zeros(n_xi, n_xi)
-    elif np.ndim(np.array(Lambda, dtype=object)) == 1 or (isinstance(Lambda, (int, float, str, sp.Basic)) and n_xi == 1):
-        d = matrix_of(Lambda if np.ndim(np.array(Lambda, dtype=object)) == 1 else [Lambda], n_xi, 1, lam_allowed, name="Lambda")
-        Lam = sp.diag(*list(d))
-    else:
+    elif isinstance(Lambda, sp.MatrixBase) or np.ndim(np.array(Lambda, dtype=object)) == 2:
         Lam = matrix_of(Lambda, n_xi, n_xi, lam_allowed, name="Lambda")
+    else:  # the diagonal (a scalar for a single component)
+        Lam = sp.diag(*matrix_of(np.array(Lambda, dtype=object).reshape(-1), n_xi, 1, lam_allowed, name="Lambda"))
     return _Maps(phi_m, left_m, B_m, Lam.xreplace(params), xi)
 
 
 def _check_left_inverse(system: System, m: _Maps, caller: str) -> Check:
     _, h = system.substituted()
     subs = {**dict(zip(m.xi, m.phi)), **{symbol(k): h[i] for i, k in enumerate(system.outputs)}}
+    hows = set()
     for i, x in enumerate(system.x):
         ok, how = vanishes(m.left[i].xreplace(subs), x)
+        hows.add(how)
         if not ok:
             raise PreconditionError(
                 f"{caller}: `left_inverse` is not a left inverse of φ (004 eq. 5): φ^L(φ(x), h(x)) gives "
                 f"{sp.simplify(m.left[i].xreplace(subs))} for {system.states[i]}, not {system.states[i]}. φ must be injective "
                 "(given y) and φ^L must invert it.")
-    return Check("φ^L(φ(x), h(x)) = x (004 eq. 5)", True, "checked symbolically")
+    return Check("φ^L(φ(x), h(x)) = x (004 eq. 5)", True, "; ".join(sorted(hows)))
 
 
 def _check_pde(system: System, m: _Maps, caller: str, what: str) -> Check:
-    _, h = system.substituted()
+    f, h = system.substituted()
     B_hx = m.B.xreplace({symbol(k): h[i] for i, k in enumerate(system.outputs)})
-    f, _ = system.substituted()
     drift = m.phi.jacobian(sp.Matrix(system.x)) * f - B_hx
     diagonal = all(m.Lam[i, j] == 0 for i in range(m.Lam.shape[0]) for j in range(m.Lam.shape[1]) if i != j)
     how_all = []
@@ -168,7 +162,7 @@ def _check_pde(system: System, m: _Maps, caller: str, what: str) -> Check:
         resid = sp.simplify(drift[i] - rhs)
         states = sorted(s.name for s in resid.free_symbols if s in set(system.x))
         dep = (f"; it depends on the state(s) {', '.join(states)}, which an injection B(y, u) cannot cancel" if states else "")
-        hint = _pde_hint(system, m.phi[i], drift[i]) if diagonal else ""
+        hint = _pde_hint(m.phi[i], drift[i]) if diagonal else ""
         lam = f"λ = {m.Lam[i, i]}" if diagonal else "Λ"
         raise PreconditionError(
             f"{caller}: the {what} PDE ∇φᵀf = Λφ + B(h(x), u) (004 eq. 4) fails for component {i + 1} "
