@@ -71,3 +71,5 @@ from .design import design_high_gain_kalman as design_high_gain_kalman  # noqa: 
 from .design import design_kalman_bucy as design_kalman_bucy  # noqa: E402
 from .design import design_kalman_like as design_kalman_like  # noqa: E402
 from .design import design_banks as design_banks  # noqa: E402
+from .design import design_ukf as design_ukf  # noqa: E402
+from .design import design_mhe as design_mhe  # noqa: E402

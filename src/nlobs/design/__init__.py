@@ -21,6 +21,8 @@ from ._kalman import design_high_gain_kalman as design_high_gain_kalman
 from ._kalman import design_kalman_bucy as design_kalman_bucy
 from ._kalman import design_kalman_like as design_kalman_like
 from ._banks import design_banks as design_banks
+from ._ukf import design_ukf as design_ukf
+from ._mhe import design_mhe as design_mhe
 from ._cascade import design_kkl_pebo_cascade as design_kkl_pebo_cascade
 from ._gpebo import design_2gd as design_2gd
 from ._gpebo import design_gpebo as design_gpebo

@@ -151,6 +151,12 @@ class ObserverDesign:
         return len(self.z_names)
 
     @property
+    def needs_mx(self) -> bool:
+        """Whether a function is not plain SX (e.g. MHE's update embeds an NLP solver): callers then build
+        MX graphs around it, and it runs on CasADi's virtual machine (no C code generation)."""
+        return any(fn is not None and not fn.is_a("SXFunction") for fn in (self.flow, self.output, self.initial, self.update))
+
+    @property
     def sampled(self) -> bool:
         """Whether the observer updates at sample instants (continuous-discrete)."""
         return self.update is not None

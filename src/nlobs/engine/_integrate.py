@@ -109,7 +109,8 @@ class StepRunner:
             return out, obuf
         c = np.ascontiguousarray(np.asarray(c, dtype=float).reshape(self.nc))
         state = np.ascontiguousarray(np.asarray(s0, dtype=float).reshape(self.ns)).copy()
-        backend = resolve_backend(self.backend, work=N * self.ns)
+        # an MX step (e.g. embedding an NLP solver) cannot be generated as C: always the VM
+        backend = resolve_backend(self.backend, work=N * self.ns) if self.step.is_a("SXFunction") else "vm"
         K = min(self.chunk, N)
         k = 0
         while k < N:

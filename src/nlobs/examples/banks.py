@@ -64,7 +64,7 @@ def run() -> ExampleResult:
                              perturbation_bound=0.5 if perturbed else None)
             v = d.certificate.values
             evidence.append(f"Example {label}{' perturbed' if perturbed else ''}:\n{d.certificate}")
-            tag = f"{label}{' + f1, f2' if perturbed else ''}"
+            tag = f"{label}{'+f1,f2' if perturbed else ''}"
             clean = simulate(sysm, {"Banks": d}, t_final=T, dt=1e-3, x0=x0, xhat0=xhat0)
             e = clean.error_norm()
             g = v["guaranteed_rate"]
@@ -79,8 +79,8 @@ def run() -> ExampleResult:
             noisy = simulate(sysm, {"Banks": d}, t_final=T, dt=1e-3, x0=x0, xhat0=xhat0, noise=Noise.gaussian(NOISE), seed=4)
             runs[f"example {tag}, noise-free"] = clean
             runs[f"example {tag}, noise σ = {NOISE}"] = noisy
-            table += rows_from_run(f"{tag} noise-free", clean, guaranteed_rate=g)
-            table += rows_from_run(f"{tag} noise σ={NOISE}", noisy, guaranteed_rate=g)
+            table += rows_from_run(f"{tag}", clean, guaranteed_rate=g)
+            table += rows_from_run(f"{tag} σ={NOISE}", noisy, guaranteed_rate=g)
     x1, x2 = sp.symbols("x1 x2", real=True)
     J = (sp.Matrix([-x1 - x1**3 + x1 * x2, -x2 - x2**5 - 4 * x1 * x2]).jacobian([x1, x2])
          + sp.Matrix([-1, 4]) * sp.Matrix([[x2, x1]]))

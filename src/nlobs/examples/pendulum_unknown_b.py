@@ -23,7 +23,7 @@ __all__ = ["pendulum_unknown_b", "INPUTS", "run"]
 REFERENCE = ("002_613af42269ea26a7.txt, 'Example(s) of observer forms - Robot arm', Pb2 (x1, x2, b): "
              "x_e' = A_e(u)x_e + B_e(C_e x_e, u); Kalman-like observer ('LTV-like with I/O NL'), regular persistence")
 #: The persistently exciting input and the singular one.
-INPUTS = {"u = sin t + 0.5 sin 2.3t": "sin(t) + 0.5*sin(2.3*t)", "u = 0": "0"}
+INPUTS = {"exciting u": "sin(t) + 0.5*sin(2.3*t)", "u = 0": "0"}
 NOISE = 0.01
 
 
@@ -51,9 +51,9 @@ def run() -> ExampleResult:
         runs[f"{label}, noise-free"], runs[f"{label}, noise σ = {NOISE}"] = clean, noisy
         e = clean.error("Kalman-like")
         lam = gramian_min_eig(A, np.array([[1.0, 0.0, 0.0]]), clean.t[::10], clean.u[::10], clean.y_true[::10], window=5.0)
-        table += rows_from_run(f"{label} noise-free", clean, b_hat=float(clean.observers["Kalman-like"].xhat[-1, 2]),
+        table += rows_from_run(f"{label}", clean, b_hat=float(clean.observers["Kalman-like"].xhat[-1, 2]),
                                gramian_min_eig=lam)
-        table += rows_from_run(f"{label} noise σ={NOISE}", noisy, b_hat=float(noisy.observers["Kalman-like"].xhat[-1, 2]),
+        table += rows_from_run(f"{label} σ={NOISE}", noisy, b_hat=float(noisy.observers["Kalman-like"].xhat[-1, 2]),
                                gramian_min_eig=lam)
         if u == "0":
             claims.append(Claim("u = 0: b is not observed: b̂ stays at its initial value", abs(e[-1, 2] - e[0, 2]) < 1e-12,
@@ -63,7 +63,7 @@ def run() -> ExampleResult:
             claims.append(Claim("u = 0: the observability Gramian of (A_e(u), C_e) over 5 s is singular",
                                 lam < 1e-12, f"λmin(W) = {lam:.2e}"))
         else:
-            claims.append(Claim(f"{label}: the Kalman-like observer converges, b included",
+            claims.append(Claim(f"{label} (sin t + 0.5 sin 2.3t): the Kalman-like observer converges, b included",
                                 float(np.linalg.norm(e[-1])) < 1e-4 * float(np.linalg.norm(e[0])),
                                 f"‖e(T)‖ = {np.linalg.norm(e[-1]):.2e} from {np.linalg.norm(e[0]):.2f}; b̂(T) = "
                                 f"{clean.observers['Kalman-like'].xhat[-1, 2]:.6f}"))

@@ -60,7 +60,7 @@ def run() -> ExampleResult:
                             f"γ̂ = {g:.6f}, ω̂² = {w2:.6f} at t = {T:g}"))
         gn, wn = noisy.observers[name].xhat[-1, 2:]
         rows.append((name, gn, wn))
-    table = [*rows_from_run("noise-free", clean), *rows_from_run(f"noise σ={NOISE}", noisy)]
+    table = [*rows_from_run("noise-free", clean), *rows_from_run(f"σ={NOISE}", noisy)]
     for row in table:
         tr = (clean if row["run"] == "noise-free" else noisy).observers[row["observer"]].xhat[-1]
         row["gamma_hat"], row["omega2_hat"] = float(tr[2]), float(tr[3])

@@ -231,8 +231,9 @@ def _estimation_step(obs: Mapping[str, AbstractObserver], n_sub: int, *, linear:
     first = next(iter(obs.values())).system
     nu, ny = first.n_inputs, first.n_outputs
     ns = sum(o.n_z for o in obs.values())
-    s = ca.SX.sym("s", ns)
-    a = ca.SX.sym("a", 2 + 2 * (nu + 2 * ny))
+    X = ca.MX if any(o.design.needs_mx for o in obs.values()) else ca.SX  # MHE's update embeds an NLP: MX graph
+    s = X.sym("s", ns)
+    a = X.sym("a", 2 + 2 * (nu + 2 * ny))
     t, dt = a[0], a[1]
     u0, y0, m0 = rows(a, 2, 2 + nu), rows(a, 2 + nu, 2 + nu + ny), rows(a, 2 + nu + ny, 2 + nu + 2 * ny)
     o1 = 2 + nu + 2 * ny
@@ -261,4 +262,4 @@ def _estimation_step(obs: Mapping[str, AbstractObserver], n_sub: int, *, linear:
         if d.update is not None:
             z = d.update(t + dt, z, u1, y1, m1)
         parts.append(z)
-    return ca.Function("estimation_step", [s, a, ca.SX.sym("c", 1)], [ca.vertcat(*parts)]), fills
+    return ca.Function("estimation_step", [s, a, X.sym("c", 1)], [ca.vertcat(*parts)]), fills

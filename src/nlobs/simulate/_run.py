@@ -363,9 +363,11 @@ def _build_step(plant: System, obs: Mapping[str, AbstractObserver], kind: _Kind)
     comp = compile_system(plant)
     n, ny = plant.n_states, plant.n_outputs
     layout = _Layout(plant, obs, kind)
-    s = ca.SX.sym("s", layout.size)
-    a = ca.SX.sym("a", layout.na)
-    c = ca.SX.sym("c", 1 + plant.n_params)
+    # designs whose functions are not SX (MHE embeds an NLP solver) need an MX graph (run on the VM)
+    X = ca.MX if any(o.design.needs_mx for o in obs.values()) else ca.SX
+    s = X.sym("s", layout.size)
+    a = X.sym("a", layout.na)
+    c = X.sym("c", 1 + plant.n_params)
     dt, p = c[0], rows(c, 1, 1 + plant.n_params)
     t = a[0]
     nu = plant.n_inputs
@@ -386,7 +388,7 @@ def _build_step(plant: System, obs: Mapping[str, AbstractObserver], kind: _Kind)
         d = o.design
         if d.update is not None:
             jumped = d.update(t, z, U[0], y_s, ca.DM.ones(ny))
-            z = ca.if_else(flag, jumped, z) if kind.sampled else jumped
+            z = ca.if_else(flag, jumped, z, X is ca.MX) if kind.sampled else jumped  # MX: solve only when sampled
             outs.append(z)
         zs[name] = z
         if layout.out[name][1] is not None:
@@ -405,7 +407,7 @@ def _build_step(plant: System, obs: Mapping[str, AbstractObserver], kind: _Kind)
     joint = ca.vertcat(x, *zs.values())
     S_next = rk4_step(rhs, t, joint, dt)
     x_next = rows(S_next, 0, n) + (rows(a, layout.w.start, layout.w.stop) if kind.process else 0)
-    s_next = ca.vertcat(x_next, rows(S_next, n, joint.shape[0]), y_s if kind.sampled else ca.SX(0, 1))
+    s_next = ca.vertcat(x_next, rows(S_next, n, joint.shape[0]), y_s if kind.sampled else X(0, 1))
     o = ca.vertcat(*outs)
     layout.step = ca.Function("joint_step", [s, a, c], [s_next, o])
     layout.step_outputs = ca.Function("joint_outputs", [s, a, c], [o])

@@ -1,0 +1,126 @@
+"""Continuous-discrete unscented Kalman filter (baseline)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from ..engine import compile_system
+from ..errors import PreconditionError
+from ..model import System
+from ._base import Certificate, Check, ObserverDesign, Symbols
+from ._checks import check_matrix
+
+__all__ = ["design_ukf", "unscented_weights"]
+
+REF = ("Continuous-discrete UKF: S. Särkkä, 'On unscented Kalman filtering for state estimation of continuous-time "
+       "nonlinear systems', IEEE TAC 52(9), 2007 (prediction ODEs); scaled sigma points of Wan & van der Merwe (2000)")
+
+
+def unscented_weights(n: int, alpha: float, beta: float, kappa: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """Mean and covariance weights of the 2n + 1 scaled sigma points, and the spread c = n + λ."""
+    lam = alpha**2 * (n + kappa) - n
+    c = n + lam
+    if c <= 0:
+        raise PreconditionError(f"design_ukf: n + λ = α²(n + κ) = {c:g} must be positive; increase α or κ")
+    wm = np.full(2 * n + 1, 1.0 / (2 * c))
+    wc = wm.copy()
+    wm[0] = lam / c
+    wc[0] = lam / c + (1 - alpha**2 + beta)
+    return wm, wc, c
+
+
+def _sym(M: ca.SX) -> ca.SX:
+    return (M + M.T) / 2
+
+
+def design_ukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None, alpha: float = 1.0,
+               beta: float = 0.0, kappa: float = 0.0) -> ObserverDesign:
+    r"""Continuous-discrete unscented Kalman filter.
+
+    Sigma points :math:`\mathcal X = m + \sqrt{c}\,[0, L, -L]` with :math:`P = LL^\top` (Cholesky).
+    Between samples (Särkkä 2007):
+
+    .. math::
+
+        \dot m = \sum_i W^m_i f(\mathcal X_i), \qquad
+        \dot P = \sum_i W^c_i\big[(\mathcal X_i - m)(f_i - \bar f)^\top + (f_i - \bar f)(\mathcal X_i - m)^\top\big] + Q .
+
+    At a sample: :math:`\mathcal Y_i = h(\mathcal X_i)`, :math:`\hat y = \sum W^m_i\mathcal Y_i`,
+    :math:`S = \sum W^c_i(\mathcal Y_i - \hat y)(\cdot)^\top + R`,
+    :math:`C_{xy} = \sum W^c_i(\mathcal X_i - m)(\mathcal Y_i - \hat y)^\top`, :math:`K = C_{xy}S^{-1}`,
+    :math:`m^+ = m + K(y - \hat y)`, :math:`P^+ = P - KSK^\top`; outputs missing at a sample are
+    left out (their rows of K are zero). P is kept exactly symmetric. For a linear model the
+    unscented transform is exact and the filter coincides with the Kalman filter.
+
+    Parameters
+    ----------
+    system : System
+    Q : array_like of shape (n, n)
+        Process-noise intensity, positive semidefinite.
+    R : array_like of shape (p, p)
+        Covariance of one measurement sample, positive definite.
+    P0 : array_like of shape (n, n), optional
+        Initial covariance (identity), positive definite.
+
+    Other Parameters
+    ----------------
+    xhat0 : array_like of shape (n,), optional
+    alpha, beta, kappa : float
+        Sigma-point scaling (default α = 1, β = 0, κ = 0: all weights 1/(2n), none negative, so the
+        predicted P stays positive semidefinite).
+
+    Raises
+    ------
+    PreconditionError, ShapeError
+        For matrices of the wrong shape or definiteness, or a non-positive spread n + λ.
+
+    References
+    ----------
+    Särkkä (2007); Julier & Uhlmann (2004); the continuous-discrete EKF of this package for comparison.
+    """
+    caller = "design_ukf"
+    n, p = system.n_states, system.n_outputs
+    Qm = check_matrix(Q, n, n, "Q", caller, definite="semidefinite")
+    Rm = check_matrix(R, p, p, "R", caller, definite="positive")
+    P0m = np.eye(n) if P0 is None else check_matrix(P0, n, n, "P0", caller, definite="positive")
+    wm, wc, c = unscented_weights(n, float(alpha), float(beta), float(kappa))
+    f, h = compile_system(system).bind()
+    s = Symbols.make(system, n + n * n)
+    m = s.z[:n]
+    P = _sym(ca.reshape(s.z[n:], n, n))
+
+    def sigma(mean: ca.SX, cov: ca.SX) -> list[ca.SX]:
+        L = ca.chol(cov).T * np.sqrt(c)  # chol gives upper R with cov = RᵀR
+        return [mean] + [mean + L[:, i] for i in range(n)] + [mean - L[:, i] for i in range(n)]
+
+    X = sigma(m, P)
+    F = [f(s.t, xi, s.u) for xi in X]
+    fbar = sum((float(wm[i]) * F[i] for i in range(2 * n + 1)), ca.SX.zeros(n))
+    cross = sum((float(wc[i]) * (X[i] - m) @ (F[i] - fbar).T for i in range(2 * n + 1)), ca.SX.zeros(n, n))
+    dP = _sym(cross + cross.T + ca.DM(Qm))
+    Y = [h(s.t, xi, s.u) for xi in X]
+    yhat = sum((float(wm[i]) * Y[i] for i in range(2 * n + 1)), ca.SX.zeros(p))
+    S = sum((float(wc[i]) * (Y[i] - yhat) @ (Y[i] - yhat).T for i in range(2 * n + 1)), ca.SX.zeros(p, p)) + ca.DM(Rm)
+    Cxy = sum((float(wc[i]) * (X[i] - m) @ (Y[i] - yhat).T for i in range(2 * n + 1)), ca.SX.zeros(n, p))
+    Md = ca.diag(s.m)
+    Sm = _sym(Md @ S @ Md + ca.diag(1 - s.m))  # unmeasured outputs: decoupled unit block, zero gain
+    K = ca.solve(Sm, (Cxy @ Md).T).T
+    m_plus = m + K @ (s.m * (s.y - yhat))
+    P_plus = _sym(P - K @ Sm @ K.T)
+    x0 = ca.SX.sym("xhat0", n)
+    cert = Certificate(
+        "Unscented Kalman filter (continuous-discrete)", REF,
+        (Check("Q positive semidefinite", True, f"min eig {np.linalg.eigvalsh(Qm).min():.3g}"),
+         Check("R positive definite", True, f"min eig {np.linalg.eigvalsh(Rm).min():.3g}"),
+         Check("P0 positive definite", True, f"min eig {np.linalg.eigvalsh(P0m).min():.3g}"),
+         Check("sigma-point spread n + λ > 0", True, f"{c:g}")),
+        {"Q": Qm, "R": Rm, "P0": P0m, "alpha": float(alpha), "beta": float(beta), "kappa": float(kappa),
+         "weights_mean": wm, "weights_cov": wc})
+    names = [f"xhat_{v}" for v in system.states] + [f"P_{i}_{j}" for j in range(n) for i in range(n)]
+    return ObserverDesign.build("ukf", system, s, z_names=names, flow=ca.vertcat(fbar, ca.vec(dP)), xhat=m, xhat0_sym=x0,
+                                z0=ca.vertcat(x0, ca.DM(P0m.reshape(-1, order="F"))),
+                                xhat0=np.zeros(n) if xhat0 is None else xhat0, certificate=cert,
+                                update=ca.vertcat(m_plus, ca.vec(P_plus)))
