@@ -39,7 +39,7 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import casadi as ca
 import numpy as np
@@ -299,7 +299,9 @@ class AbstractEstimator(ABC):
     """An on-line estimator of θ in a linear regression; see the module docstring."""
 
     #: Short name used in reports and model files.
-    kind: str = ""
+    kind: ClassVar[str] = ""
+    #: The paper and equations implemented.
+    reference: ClassVar[str] = ""
 
     @abstractmethod
     def build(self, stack: StateStack, reg: Regression, theta0: Any, prefix: str = "theta") -> Estimate:
@@ -308,11 +310,6 @@ class AbstractEstimator(ABC):
     @abstractmethod
     def n_states(self, n_theta: int, q: int) -> int:
         """How many internal states the estimator adds for n_theta parameters and q rows."""
-
-    @property
-    @abstractmethod
-    def reference(self) -> str:
-        """The paper and equations implemented."""
 
     def describe(self) -> dict[str, Any]:
         """Its tuning, for certificates."""
@@ -368,14 +365,11 @@ class Gradient(AbstractEstimator):
 
     gamma: Any = 1.0
     kind = "gradient"
+    reference = REF_GRADIENT
 
     def __post_init__(self) -> None:
         _check_gain_value(self.gamma, "gamma", "Gradient")
         object.__setattr__(self, "gamma", _freeze(self.gamma))
-
-    @property
-    def reference(self) -> str:
-        return REF_GRADIENT
 
     def n_states(self, n_theta: int, q: int) -> int:
         return n_theta
@@ -420,6 +414,7 @@ class LeastSquares(AbstractEstimator):
     forgetting: float = 0.0
     p_max: float | None = None
     kind = "least_squares"
+    reference = REF_LS
 
     def __post_init__(self) -> None:
         _check_gain_value(self.P0, "P0", "LeastSquares")
@@ -428,10 +423,6 @@ class LeastSquares(AbstractEstimator):
             raise PreconditionError(f"LeastSquares: `forgetting` must be a number >= 0, got {self.forgetting!r}")
         if self.p_max is not None:
             _positive(self.p_max, "p_max", "LeastSquares")
-
-    @property
-    def reference(self) -> str:
-        return REF_LS
 
     def n_states(self, n_theta: int, q: int) -> int:
         return n_theta + n_theta * n_theta
@@ -496,6 +487,7 @@ class DREM(AbstractEstimator):
     lambdas: Sequence[float] | None = None
     kreisselmeier: float | None = None
     kind = "drem"
+    reference = REF_DREM
 
     def __post_init__(self) -> None:
         _check_gain_value(self.gamma, "gamma", "DREM")
@@ -512,10 +504,6 @@ class DREM(AbstractEstimator):
             object.__setattr__(self, "lambdas", lam)
         if self.kreisselmeier is not None:
             _positive(self.kreisselmeier, "kreisselmeier", "DREM")
-
-    @property
-    def reference(self) -> str:
-        return REF_DREM
 
     def _rows(self, n: int, q: int) -> None:
         if self.lambdas is not None and q * (1 + len(self.lambdas)) != n:
@@ -589,14 +577,11 @@ class GD(AbstractEstimator):
     gamma_g: float = 1.0
     gamma: float = 1.0
     kind = "gd"
+    reference = REF_GD
 
     def __post_init__(self) -> None:
         _positive(self.gamma_g, "gamma_g", "GD")
         _positive(self.gamma, "gamma", "GD")
-
-    @property
-    def reference(self) -> str:
-        return REF_GD
 
     def n_states(self, n_theta: int, q: int) -> int:
         return 2 * n_theta + n_theta * n_theta
