@@ -73,3 +73,9 @@ from .design import design_kalman_like as design_kalman_like  # noqa: E402
 from .design import design_banks as design_banks  # noqa: E402
 from .design import design_ukf as design_ukf  # noqa: E402
 from .design import design_mhe as design_mhe  # noqa: E402
+from .analysis import analyze as analyze  # noqa: E402
+from .observer import CExport as CExport  # noqa: E402
+from .observer import export_c as export_c  # noqa: E402
+from . import interop as interop  # noqa: E402
+from .interop import from_control as from_control  # noqa: E402
+from .interop import to_control as to_control  # noqa: E402

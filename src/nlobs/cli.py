@@ -1,4 +1,4 @@
-"""The command line: ``nlobs demo | simulate | estimate`` (and ``analyze`` when available).
+"""The command line: ``nlobs demo | analyze | simulate | estimate | export``.
 
 Errors print one line (``nlobs: error: ...``) and exit non-zero; ``--debug`` shows the traceback.
 """
@@ -26,6 +26,17 @@ def _parser() -> argparse.ArgumentParser:
     d.add_argument("--list", action="store_true", help="list the examples and exit")
     d.add_argument("--quiet", action="store_true", help="no progress lines")
 
+    a = sub.add_parser("analyze", help="structural observability of a model file (generic rank, 002)")
+    a.add_argument("model", help="model file (TOML)")
+    a.add_argument("--params", default="", metavar="NAMES",
+                   help="comma-separated parameters to treat as unknown constants (identifiability), or 'all'")
+    a.add_argument("--inputs", default="generic", metavar="CLASS",
+                   help="'generic' (default: the observation space of 002), 'constant', or a polynomial degree")
+    a.add_argument("--function", action="append", default=[], metavar="EXPR",
+                   help="a function of the states to test for observability (repeatable), e.g. 'x1**2 + x2**2'")
+    a.add_argument("--seed", type=int, default=0, help="seed of the random point and prime (default 0)")
+    a.add_argument("--json", action="store_true", help="print one JSON object")
+
     s = sub.add_parser("simulate", help="simulate a model file's plant with its observers")
     s.add_argument("model", help="model file (TOML)")
     s.add_argument("--observer", action="append", metavar="NAME", help="observer configured in the file (repeatable; default: all)")
@@ -47,13 +58,21 @@ def _parser() -> argparse.ArgumentParser:
     e.add_argument("--engine", choices=("auto", "vm", "c"), default="auto", help="numeric backend")
     e.add_argument("--output", metavar="FILE", help="write t and the estimates to this CSV")
     e.add_argument("--json", action="store_true", help="print one JSON object")
+
+    x = sub.add_parser("export", help="write an observer's sample-to-sample step as dependency-free C")
+    x.add_argument("model", help="model file (TOML)")
+    x.add_argument("--observer", required=True, metavar="NAME", help="observer configured in the file")
+    x.add_argument("--c", required=True, metavar="DIR", dest="c_dir", help="folder for NAME.c, NAME.h and an example main.c")
+    x.add_argument("--name", help="C prefix and file name (default: MODEL_KIND)")
+    x.add_argument("--max-step", type=float, help="largest RK4 step between samples (default: one step per interval)")
     return p
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
-        return {"demo": _demo, "simulate": _simulate, "estimate": _estimate}[args.command](args)
+        return {"demo": _demo, "analyze": _analyze, "simulate": _simulate, "estimate": _estimate,
+                "export": _export}[args.command](args)
     except KeyboardInterrupt:
         print("nlobs: interrupted", file=sys.stderr)
         return 130
@@ -73,6 +92,19 @@ def _demo(args: argparse.Namespace) -> int:
             print(f"{ex.key:<16} {ex.title}")
         return 0
     return run_demo(args.out, only=args.only, progress=not args.quiet).exit_code
+
+
+def _analyze(args: argparse.Namespace) -> int:
+    from .analysis import analyze
+    from .model import load_model
+
+    mf = load_model(args.model)
+    params = args.params.strip()
+    unknown: Any = "all" if params == "all" else [p.strip() for p in params.split(",") if p.strip()]
+    inputs: Any = int(args.inputs) if args.inputs.strip().isdigit() else args.inputs.strip()
+    report = analyze(mf.system, unknown_params=unknown, inputs=inputs, functions=args.function, seed=args.seed)
+    print(json.dumps(_clean(report.to_dict())) if args.json else report)
+    return 0
 
 
 def _designs(model_file: Any, names: Sequence[str] | None) -> dict[str, Any]:
@@ -147,6 +179,16 @@ def _estimate(args: argparse.Namespace) -> int:
         print(run.summary())
         for name, tr in run.observers.items():
             print(f"{name}: final estimate " + ", ".join(f"{s}={v:.6g}" for s, v in zip(run.state_names, tr.xhat[-1])))
+    return 0
+
+
+def _export(args: argparse.Namespace) -> int:
+    from .model import load_model
+    from .observer import export_c
+
+    mf = load_model(args.model)
+    design = _designs(mf, [args.observer])[args.observer]
+    print(export_c(design, args.c_dir, name=args.name, max_step=args.max_step))
     return 0
 
 

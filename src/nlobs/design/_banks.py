@@ -1,8 +1,8 @@
 """Banks' exponential observer (003): x̂' = f(x̂) + P·(B(x̂) - y), conditions checked with the matrix measure.
 
-The generic Banks-condition checks (matrix measure, maximum slope over a box) belong in
-``nlobs.analysis`` (another issue); until they land there, the minimal checks this design needs
-live here (:func:`matrix_measure`, :func:`banks_conditions`).
+The matrix measure and the supremum over a box come from ``nlobs.analysis``
+(:func:`~nlobs.analysis.matrix_measure`, :func:`~nlobs.analysis.banks_condition` for the stand-alone
+check); :func:`banks_conditions` evaluates them for this design's model and gain.
 """
 
 from __future__ import annotations
@@ -21,19 +21,14 @@ from ..model import TIME, System, symbol
 from ..model._system import ExprLike, exact, to_expr
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import check_matrix
+from ..analysis import matrix_measure
 from ._common import batch, box_of, sup_over_box
 
-__all__ = ["design_banks", "matrix_measure", "banks_conditions", "BanksConditions"]
+__all__ = ["design_banks", "banks_conditions", "BanksConditions"]
 
 REF = ("003_a2c72ccb4281ea3f.txt: Lemma 2.3 (λ(A + PB) <= -ε, f1 dissipative), Lemma 2.4 (μ_f1 <= δ < ε), "
        "Theorem 2.6 (λ(Df1(x) + P·DB(x)) <= -ε on convex Ω, f2 Lipschitz K < ε: rate ε - K); "
        "observer x̂' = f(x̂) + P·(ŷ - y) (the example's 'P(x1 + x2)' is a typo, see Lemma 2.3's proof)")
-
-
-def matrix_measure(M: np.ndarray) -> np.ndarray:
-    r"""Banks' :math:`\lambda(M) = \max \operatorname{eig}((M + M^\top)/2)` (003 §1), for one matrix or a stack (N, n, n)."""
-    M = np.asarray(M, dtype=float)
-    return np.linalg.eigvalsh((M + np.swapaxes(M, -1, -2)) / 2)[..., -1]
 
 
 @dataclass(frozen=True)
@@ -84,7 +79,7 @@ def banks_conditions(system: System, P: np.ndarray, perturbation: Sequence[sp.Ex
     :math:`\varepsilon = -\sup_\Omega \lambda(Df_1(x) + P\,DB(x))` with :math:`f_1 = f - f_2`
     (the perturbation f2), and the Lipschitz constant K of f2. The sup is exact when the
     matrix does not depend on the state; otherwise it is taken over `region` (grid + local
-    polish, see :func:`nlobs.design._common.sup_over_box`), and only the variables the
+    polish, see :func:`nlobs.analysis.box_sup`), and only the variables the
     matrices depend on need bounds.
     """
     f, h = system.substituted()

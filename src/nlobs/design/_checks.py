@@ -10,8 +10,6 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-import scipy.linalg
-import scipy.signal
 
 from ..analysis import kalman_rank, pbh_test
 from ..errors import PreconditionError, ShapeError
@@ -114,6 +112,8 @@ def observer_gain(A: np.ndarray, C: np.ndarray, *, poles: Any = None, L: Any = N
             raise PreconditionError(f"{caller}: {obs}. Choose another output or check the model.")
         checks.append(Check("(A, C) observable (Kalman rank)", True, f"rank O = {obs.rank} = n"))
         wanted = _poles(poles, n, caller)
+        import scipy.signal  # deferred: importing scipy.signal costs ~0.6 s, and `nlobs analyze` must start fast
+
         try:
             res = scipy.signal.place_poles(A.T, C.T, wanted)
         except (ValueError, np.linalg.LinAlgError) as e:
@@ -133,6 +133,8 @@ def observer_gain(A: np.ndarray, C: np.ndarray, *, poles: Any = None, L: Any = N
             raise PreconditionError(f"{caller}: (A, C) is not detectable: {pbh}. No stable observer exists for this output.")
         checks.append(Check("(A, C) detectable (PBH)", True, str(pbh)))
         try:
+            import scipy.linalg  # deferred: keeps `import nlobs` fast
+
             P = scipy.linalg.solve_continuous_are(A.T, C.T, Qm, Rm)
         except (ValueError, np.linalg.LinAlgError) as e:
             raise PreconditionError(f"{caller}: the filter Riccati equation has no stabilising solution ({e}); "

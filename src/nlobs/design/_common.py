@@ -13,11 +13,11 @@ from typing import Any
 
 import casadi as ca
 import numpy as np
-import scipy.optimize
 import sympy as sp
 
 from ..engine import to_casadi
-from ..errors import PreconditionError, ShapeError
+from ..analysis._conditions import box_sup
+from ..errors import ModelError, PreconditionError, ShapeError
 from ..model import TIME, System
 from ._base import Symbols
 
@@ -90,44 +90,22 @@ def box_of(system: System, region: Mapping[str, Sequence[float]] | None, names: 
     return np.array(lo), np.array(hi)
 
 
-def sup_over_box(fn: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.ndarray, *,
-                 points_per_dim: int | None = None, polish: int = 5) -> tuple[float, np.ndarray]:
-    """The supremum of a scalar function over a box: a full grid, then local polishing.
+def sup_over_box(fn: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.ndarray) -> tuple[float, np.ndarray]:
+    """The supremum of a scalar function over the box [lo, hi], estimated from below by
+    :func:`nlobs.analysis.box_sup` (samples with the corners and the centre, then L-BFGS-B).
 
-    `fn` maps an (N, d) array of points to N values. The grid (corners and centre included)
-    has ``points_per_dim`` points per free dimension (default: 41 in 1-D down to 5 in 6-D and
-    beyond, never more than ~20 000 points); the `polish` best points are refined with
-    L-BFGS-B inside the box. This is an estimate from below of the true supremum (exact
-    when the maximum is at a grid point, e.g. a corner or the centre).
+    `fn` maps an (N, d) array of points to N values. A non-finite value inside the box is a
+    :class:`~nlobs.errors.PreconditionError` (the design's region is too large).
 
     Returns
     -------
     value : float
     argmax : numpy.ndarray of shape (d,)
     """
-    d = lo.size
-    free = hi > lo
-    nf = int(free.sum())
-    if points_per_dim is None:
-        points_per_dim = max(5, min(41, int(20_000 ** (1 / max(nf, 1)))))
-        if points_per_dim % 2 == 0:
-            points_per_dim += 1  # odd: the centre is on the grid
-    axes = [np.linspace(lo[i], hi[i], points_per_dim) if free[i] else np.array([lo[i]]) for i in range(d)]
-    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, d)
-    vals = np.asarray(fn(grid), dtype=float).reshape(-1)
-    if not np.all(np.isfinite(vals)):
-        bad = grid[np.flatnonzero(~np.isfinite(vals))[0]]
-        raise PreconditionError(f"the function is not finite at {bad} inside the box; shrink the box")
-    order = np.argsort(vals)[::-1][:polish]
-    best_v, best_x = float(vals[order[0]]), grid[order[0]].copy()
-    if nf:
-        bounds = list(zip(lo, hi))
-        for idx in order:
-            res = scipy.optimize.minimize(lambda p: -float(np.asarray(fn(p[None, :])).reshape(-1)[0]), grid[idx],
-                                          method="L-BFGS-B", bounds=bounds)
-            if np.isfinite(res.fun) and -res.fun > best_v:
-                best_v, best_x = float(-res.fun), np.clip(res.x, lo, hi)
-    return best_v, best_x
+    try:
+        return box_sup(fn, np.column_stack([lo, hi]))
+    except ModelError as e:
+        raise PreconditionError(str(e)) from e
 
 
 def saturate(x: ca.SX, bounds: np.ndarray) -> ca.SX:

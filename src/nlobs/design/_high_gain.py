@@ -9,7 +9,6 @@ from typing import Any
 
 import casadi as ca
 import numpy as np
-import scipy.linalg
 import sympy as sp
 
 from ..engine import compile_system
@@ -331,6 +330,8 @@ def design_high_gain(system: System, *, theta: float | None = None, r: float | N
             gam = float(lipschitz)
             if not (np.isfinite(gam) and gam >= 0):
                 raise PreconditionError(f"{caller}: `lipschitz` must be a non-negative number, got {lipschitz}")
+            import scipy.linalg  # deferred: keeps `import nlobs` fast
+
             Abar = scipy.linalg.block_diag(*blocks)
             P0 = scipy.linalg.solve_continuous_lyapunov(Abar.T, -np.eye(n))
             lmax = float(np.linalg.eigvalsh((P0 + P0.T) / 2).max())

@@ -8,7 +8,6 @@ from typing import Any
 
 import casadi as ca
 import numpy as np
-import scipy.linalg
 import sympy as sp
 
 from ..analysis import kalman_rank
@@ -42,6 +41,8 @@ def thau_margin(A: np.ndarray, C: np.ndarray, K: np.ndarray) -> tuple[float, np.
     Acl = A - K @ C
     if np.max(np.linalg.eigvals(Acl).real) >= 0:
         return 0.0, np.full(A.shape, np.nan)
+    import scipy.linalg  # deferred: keeps `import nlobs` fast
+
     P = scipy.linalg.solve_continuous_lyapunov(Acl.T, -np.eye(A.shape[0]))
     P = (P + P.T) / 2
     return float(1.0 / (2.0 * np.linalg.eigvalsh(P).max())), P
@@ -142,7 +143,7 @@ def lipschitz_constant(system: System, phi: Sequence[sp.Expr], region: Mapping[s
     def norms(P: np.ndarray) -> np.ndarray:
         return np.linalg.norm(batch(Jf, P), 2, axis=(1, 2))
 
-    val, arg = sup_over_box(norms, lo, hi, points_per_dim=None)
+    val, arg = sup_over_box(norms, lo, hi)
     return val, dict(zip(names, map(float, arg)))
 
 

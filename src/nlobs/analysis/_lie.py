@@ -1,0 +1,556 @@
+r"""Structural observability: the generic rank of the observation space (002), computed fast.
+
+The observation space :math:`\mathcal O(h)` of 002 is the smallest vector space of functions that
+contains the outputs and is closed under Lie derivation along :math:`f_u = f(\cdot, u)` for
+every constant u; the observability rank condition is :math:`\dim d\mathcal O(h)|_x = n`. Its
+generic value equals the rank of the Jacobian, with respect to the unknowns, of the output's
+successive time derivatives for a generic input (the derivatives of the input enter as free
+values). That Jacobian is not built symbolically: the solution is expanded as a truncated power
+series at a random point of GF(p), with gradients carried along (Sedoglavic 2002), and the rank is
+taken over GF(p).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import sympy as sp
+
+from ..errors import ModelError
+from ..model import TIME, System, symbol
+from ..model._expr import ExpressionError, parse_expression
+from ..model._system import ExprLike, exact, to_expr
+from ._modular import RowEchelon, random_prime
+from ._reports import FunctionCheck, ObservabilityReport, Symmetry
+from ._series import FloatField, ModField, Node, Program, Resample, SeriesRun, build_program
+
+__all__ = ["analyze", "observable_function", "InputClass"]
+
+_REF = "002_613af42269ea26a7.txt (observation space, rank condition); Sedoglavic, J. Symb. Comput. 33(5), 2002"
+
+
+@dataclass(frozen=True)
+class InputClass:
+    """How a known input is taken in the structural test.
+
+    ``kind`` is ``"generic"`` (a generic analytic input: every derivative a free value, which gives
+    the rank of 002's observation space), ``"polynomial"`` (a generic polynomial of `degree`;
+    ``degree=0`` is a generic constant) or ``"signal"`` (the given expression of t, e.g. ``0``).
+    """
+
+    kind: str
+    degree: int | None = None
+    expr: sp.Expr | None = None
+
+    @classmethod
+    def generic(cls) -> InputClass:
+        return cls("generic")
+
+    @classmethod
+    def constant(cls) -> InputClass:
+        return cls("polynomial", 0)
+
+    @classmethod
+    def polynomial(cls, degree: int) -> InputClass:
+        return cls("polynomial", int(degree))
+
+    def describe(self) -> str:
+        if self.kind == "generic":
+            return "generic"
+        if self.kind == "polynomial":
+            return "generic constant" if self.degree == 0 else f"generic polynomial of degree {self.degree}"
+        return f"= {self.expr}"
+
+
+def _input_class(value: Any, name: str, params: Mapping[str, float]) -> InputClass:
+    if isinstance(value, InputClass):
+        return value
+    if isinstance(value, str) and value in ("generic", "constant"):
+        return InputClass.generic() if value == "generic" else InputClass.constant()
+    allowed = {"t": TIME, **{k: symbol(k) for k in params}}
+    try:
+        expr = to_expr(value, allowed, where=f"inputs[{name}]")
+    except ModelError as e:
+        raise ModelError(f"{e}; an input is 'generic', 'constant', InputClass.polynomial(d), or a signal: a number or "
+                         "an expression of t") from None
+    return InputClass("signal", expr=expr.xreplace({symbol(k): exact(v) for k, v in params.items()}))
+
+
+def _input_classes(system: System, inputs: Any, unknown: Mapping[str, int]) -> dict[str, InputClass]:
+    if isinstance(inputs, bool):
+        raise ModelError("`inputs` must be 'generic', 'constant', a polynomial degree, or a mapping {input: class or signal}")
+    if isinstance(inputs, int):
+        if inputs < 0:
+            raise ModelError(f"`inputs` as a polynomial degree must be >= 0, got {inputs}")
+        default = InputClass.polynomial(inputs)
+        per: Mapping[str, Any] = {}
+    elif isinstance(inputs, (str, InputClass)):
+        default = _input_class(inputs, "*", {}) if isinstance(inputs, InputClass) or inputs in ("generic", "constant") else None
+        if default is None:
+            raise ModelError(f"`inputs` = {inputs!r} is not understood; use 'generic', 'constant', an int degree, or a mapping")
+        per = {}
+    elif isinstance(inputs, Mapping):
+        default, per = InputClass.generic(), inputs
+        bad = [k for k in per if k not in system.inputs]
+        if bad:
+            raise ModelError(f"`inputs` names {', '.join(map(repr, bad))}, not an input of {system.name!r}; its inputs are: "
+                             f"{', '.join(system.inputs) or '(none)'}")
+    else:
+        raise ModelError(f"`inputs` must be a string, an int or a mapping, got {type(inputs).__name__}")
+    return {n: _input_class(per[n], n, system.params) if n in per else default for n in system.inputs if n not in unknown}
+
+
+def _unknown_params(system: System, unknown_params: Any) -> tuple[str, ...]:
+    if unknown_params is True or unknown_params == "all":
+        return system.param_names
+    if unknown_params in (False, None):
+        return ()
+    if isinstance(unknown_params, str):
+        unknown_params = [unknown_params]
+    names = tuple(unknown_params)
+    dup = sorted({k for k in names if names.count(k) > 1})
+    if dup:
+        raise ModelError(f"`unknown_params` lists {', '.join(map(repr, dup))} more than once; name each parameter once")
+    bad = [k for k in names if k not in system.params]
+    if bad:
+        raise ModelError(f"`unknown_params` names {', '.join(map(repr, bad))}, not a parameter of {system.name!r}; its "
+                         f"parameters are: {', '.join(system.param_names) or '(none)'}")
+    return names
+
+
+def _parse_functions(system: System, functions: Sequence[ExprLike]) -> list[tuple[str, sp.Expr]]:
+    allowed = {n: symbol(n) for n in (*system.states, *system.params)}
+    out = []
+    for k, e in enumerate(functions):
+        if isinstance(e, str):
+            try:
+                expr = parse_expression(e, allowed)
+            except ExpressionError as err:
+                raise ModelError(f"functions[{k}]: {e!r}: {err}") from None
+        else:
+            expr = to_expr(e, allowed, where=f"functions[{k}]")
+        out.append((str(e) if isinstance(e, str) else str(expr), expr))
+    return out
+
+
+@dataclass
+class _Setup:
+    prog: Program
+    unknowns: tuple[str, ...]
+    n: int
+    q: int
+    classes: dict[str, InputClass]
+    unknown_inputs: dict[str, int]
+    node_of: dict[str, int]
+    param_values: dict[str, float]
+
+
+def _setup(system: System, params_unknown: tuple[str, ...], classes: dict[str, InputClass],
+           unknown_inputs: dict[str, int], functions: list[tuple[str, sp.Expr]]) -> _Setup:
+    known = {symbol(k): exact(v) for k, v in system.params.items() if k not in params_unknown}
+    signals = {symbol(k): c.expr for k, c in classes.items() if c.kind == "signal"}
+    f = [e.xreplace(known).xreplace(signals) for e in system.f]
+    h = [e.xreplace(known).xreplace(signals) for e in system.h]
+    extra = [e.xreplace(known) for _, e in functions]
+    leaves: dict[sp.Symbol, Node] = {}
+    for i, s in enumerate(system.x):
+        leaves[s] = Node("x", data=i)
+    for j, k in enumerate(params_unknown):
+        leaves[symbol(k)] = Node("theta", data=j)
+    for i, k in enumerate(system.inputs):
+        if k in unknown_inputs:
+            leaves[symbol(k)] = Node("w", data=i)
+        elif classes[k].kind != "signal":
+            leaves[symbol(k)] = Node("u", data=i)
+    leaves[TIME] = Node("t")
+    prog = build_program(f, h, leaves, extra)
+    coeffs = tuple(f"{k}_{d}" for k, deg in unknown_inputs.items() for d in range(deg + 1))
+    node_of = {s.name: i for i, s in enumerate(leaves)}  # the builder pushes the leaves first, in this order
+    unknowns = (*system.states, *params_unknown, *coeffs)
+    return _Setup(prog, unknowns, system.n_states, len(params_unknown), classes, unknown_inputs, node_of,
+                  dict(system.params))
+
+
+def _leaf_coefficients(st: _Setup, system: System, field: Any, rng: np.random.Generator, N: int,
+                       values: Mapping[str, float] | None, exact_field: bool) -> tuple[list[Any], dict[int, Any]]:
+    """Initial state values and the coefficient functions of the other leaves."""
+    p = getattr(field, "p", None)
+
+    def draw(real_default: float | None = None) -> Any:
+        if exact_field:
+            return int(rng.integers(1, p))
+        return float(real_default) if real_default is not None else float(rng.uniform(0.5, 1.5))
+
+    values = values or {}
+    x0 = [draw(values.get(s)) for s in system.states]
+    coef: dict[int, Any] = {}
+    for i, s in enumerate(system.states):
+        coef[st.node_of[s]] = i
+    for j, k in enumerate(st.unknowns[st.n: st.n + st.q]):
+        pv = values.get(k, st.param_values[k] if st.param_values[k] != 0 else None)
+        val = draw(pv)
+        col = st.n + j
+        coef[st.node_of[k]] = (lambda kk, v=val, c=col: (v, c, 1) if kk == 0 else (0, -1, 0))
+    col = st.n + st.q
+    for name, deg in st.unknown_inputs.items():
+        vals = [draw() for _ in range(deg + 1)]
+        cols = list(range(col, col + deg + 1))
+        col += deg + 1
+        coef[st.node_of[name]] = (lambda kk, v=vals, c=cols: (v[kk], c[kk], 1) if kk < len(v) else (0, -1, 0))
+    for name, cls in st.classes.items():
+        if cls.kind == "signal":
+            continue
+        deg = N + 1 if cls.kind == "generic" else cls.degree
+        if exact_field:
+            vals = [int(rng.integers(1, p)) for _ in range(deg + 1)]
+        else:
+            vals = [float(rng.uniform(-1, 1)) for _ in range(deg + 1)]
+        coef[st.node_of[name]] = (lambda kk, v=vals: (v[kk], -1, 1) if kk < len(v) else (0, -1, 0))
+    t0 = int(rng.integers(1, p)) if exact_field else 0.0
+    coef[st.node_of["t"]] = lambda kk: (t0, -1, 1) if kk == 0 else ((1, -1, 0) if kk == 1 else (0, -1, 0))
+    for i, nd in enumerate(st.prog.nodes):
+        if nd.op == "const":
+            c0 = field.num(nd.data)
+            coef[i] = (lambda kk, c=c0: (c, -1, 0) if kk == 0 else (0, -1, 0))
+        elif nd.op == "cfree":
+            c0 = int(rng.integers(1, p)) if exact_field else nd.data
+            coef[i] = (lambda kk, c=c0: (c, -1, 1) if kk == 0 else (0, -1, 0))
+    return x0, coef
+
+
+@dataclass
+class _ModResult:
+    rank: int
+    ech: RowEchelon
+    pivot_rows: list[tuple[int, int]]
+    row_degrees: list[int]
+    extra_degree: int
+    prime: int
+    function_rows: list[np.ndarray]
+    max_order: int
+
+
+def _mod_run(st: _Setup, system: System, rng: np.random.Generator) -> _ModResult:
+    M = len(st.unknowns)
+    N = M  # derivative orders 0..M suffice: the jet ranks increase strictly until they stabilise
+    for _ in range(20):
+        p = random_prime(rng, st.prog.roots)
+        F = ModField(p)
+        try:
+            x0, coef = _leaf_coefficients(st, system, F, rng, N, None, True)
+            run = SeriesRun(st.prog, F, M, x0, [st.node_of[s] for s in system.states], coef, rng)
+            ech = RowEchelon(M, p)
+            pivots: list[tuple[int, int]] = []
+            degrees: list[int] = []
+            for k in range(N + 1):
+                run.step()
+                for j, hj in enumerate(st.prog.h):
+                    degrees.append(run.deg[hj][k])
+                    if ech.add(run.S[hj][k, 1:]):
+                        pivots.append((j, k))
+                if k == 0:
+                    frows = [run.S[e][0, 1:].copy() for e in st.prog.extra]
+                if ech.rank == M:
+                    break
+            return _ModResult(ech.rank, ech, pivots, degrees, run.extra_degree, p, frows, k)
+        except Resample:
+            continue
+    raise ModelError(f"{system.name!r}: the generic-rank test hit a zero denominator at 20 random points; "
+                     "the model's expressions may be undefined almost everywhere (check divisions and logarithms)")
+
+
+def _float_kernel(st: _Setup, system: System, res: _ModResult, rng: np.random.Generator,
+                  at: Mapping[str, float] | None) -> tuple[np.ndarray, np.ndarray, float, list[str]]:
+    """Kernel directions at a real point, given the exact rank (no rank tolerance needed)."""
+    M = len(st.unknowns)
+    notes: list[str] = []
+    if res.rank == M:
+        return np.zeros((0, M)), _real_point(st, system, rng, at), float("inf"), notes
+    if res.rank == 0:
+        return np.eye(M), _real_point(st, system, rng, at), float("inf"), notes
+    kmax = max(k for _, k in res.pivot_rows)
+    for attempt in range(10):
+        use_at = at if attempt == 0 else None
+        F = FloatField()
+        try:
+            x0, coef = _leaf_coefficients(st, system, F, rng, kmax, use_at, False)
+            run = SeriesRun(st.prog, F, M, x0, [st.node_of[s] for s in system.states], coef, rng)
+            for _ in range(kmax + 1):
+                run.step()
+        except Resample:
+            continue
+        J = np.array([run.S[st.prog.h[j]][k, 1:] for j, k in res.pivot_rows], dtype=float)
+        if not np.all(np.isfinite(J)):
+            continue
+        norms = np.linalg.norm(J, axis=1)
+        if np.any(norms == 0):
+            if use_at:
+                notes.append("the given point is singular (an output derivative has zero gradient there); "
+                             "directions are shown at a random point instead")
+            continue
+        J = J / norms[:, None]
+        _, s, Vt = np.linalg.svd(J)
+        gap = float(s[-1] / s[0]) if s.size else float("inf")
+        if gap < 1e-10:
+            if use_at:
+                notes.append(f"at the given point the rank drops below {res.rank} (singular point); "
+                             "directions are shown at a random point instead")
+            continue
+        point = np.array([*x0, *[coef[st.node_of[k]](0)[0] for k in st.unknowns[st.n: st.n + st.q]],
+                          *_input_coefficient_values(st, coef)], dtype=float)
+        return Vt[res.rank:], point, gap, notes
+    notes.append("could not find a regular real point for the directions")
+    return np.full((M - res.rank, M), np.nan), np.full(M, np.nan), 0.0, notes
+
+
+def _input_coefficient_values(st: _Setup, coef: Mapping[int, Any]) -> list[float]:
+    out = []
+    for name, deg in st.unknown_inputs.items():
+        out += [coef[st.node_of[name]](d)[0] for d in range(deg + 1)]
+    return out
+
+
+def _real_point(st: _Setup, system: System, rng: np.random.Generator, at: Mapping[str, float] | None) -> np.ndarray:
+    x0, coef = _leaf_coefficients(st, system, FloatField(), rng, 0, at, False)
+    return np.array([*x0, *[coef[st.node_of[k]](0)[0] for k in st.unknowns[st.n: st.n + st.q]],
+                     *_input_coefficient_values(st, coef)], dtype=float)
+
+
+def _sign_symmetries(system: System, st: _Setup, params_unknown: tuple[str, ...], rng: np.random.Generator,
+                     budget: int = 4096) -> tuple[tuple[Symmetry, ...], str]:
+    """Sign changes of unknowns that leave the model invariant: f(σz) = σ f(z), h(σz) = h(z).
+
+    Screened numerically at a random point for all sign patterns (up to `budget`), then proved
+    symbolically. Each one gives pairs of indistinguishable states (001 §IV-C: x2 -> -x2 when c = 0).
+    """
+    from ..model._translate import NUMPY, translate
+
+    known = {symbol(k): exact(v) for k, v in system.params.items() if k not in params_unknown}
+    f = [e.xreplace(known) for e in system.f]
+    h = [e.xreplace(known) for e in system.h]
+    syms = [*system.x, *[symbol(k) for k in params_unknown]]
+    m = len(syms)
+    if m <= 12 and 2**m - 1 <= budget:
+        patterns = np.array([[(1 - 2 * ((b >> i) & 1)) for i in range(m)] for b in range(1, 2**m)], dtype=float)
+        searched = f"all {2**m - 1} sign changes of the unknowns were screened"
+    else:
+        rows = []
+        for i in range(m):
+            for j in range(i, m):
+                r = np.ones(m)
+                r[i] = r[j] = -1
+                rows.append(r)
+        patterns = np.array(rows)
+        searched = f"the {len(rows)} sign changes of one or two unknowns were screened"
+    P = patterns.shape[0]
+    z = rng.uniform(0.5, 1.5, size=m)
+    leaves: dict[sp.Symbol, Any] = {s: patterns[:, i] * z[i] for i, s in enumerate(syms)}
+    base: dict[sp.Symbol, Any] = {s: np.full(P, z[i]) for i, s in enumerate(syms)}
+    for s in system.u:
+        v = rng.uniform(-1, 1)
+        leaves[s] = base[s] = np.full(P, v)
+    leaves[TIME] = base[TIME] = np.full(P, rng.uniform(0, 1))
+    ok = np.ones(P, dtype=bool)
+    with np.errstate(all="ignore"):
+        for i, e in enumerate((*f, *h)):
+            a = np.broadcast_to(np.asarray(translate(e, leaves, NUMPY), dtype=float), (P,))
+            b = np.broadcast_to(np.asarray(translate(e, base, NUMPY), dtype=float), (P,))
+            if i < len(f):
+                b = b * patterns[:, i]
+            ok &= np.isfinite(a) & np.isclose(a, b, rtol=1e-9, atol=1e-12)
+    found: list[np.ndarray] = []
+    group: set[tuple[int, ...]] = set()
+    for r in sorted(patterns[ok], key=lambda r: int(np.sum(r < 0))):
+        key = tuple(int(v) for v in r)
+        if key in group:
+            continue
+        sub = {s: -s for s, v in zip(syms, r) if v < 0}
+        proved = all(sp.simplify(e.xreplace(sub) - sgn * e) == 0 for e, sgn in zip(f, r[: len(f)])) and all(
+            sp.simplify(e.xreplace(sub) - e) == 0 for e in h)
+        if not proved:
+            continue
+        found.append(r)
+        new = {key}
+        for g in group:
+            new.add(tuple(a * b for a, b in zip(g, key)))
+        group |= new
+    names = [s.name for s in syms]
+    return tuple(Symmetry(tuple(n for n, v in zip(names, r) if v < 0)) for r in found), searched
+
+
+def analyze(system: System, *, unknown_params: Any = (), inputs: Any = "generic",
+            unknown_inputs: Mapping[str, int] | None = None, functions: Sequence[ExprLike] = (),
+            at: Mapping[str, float] | None = None, symmetries: bool = True, seed: int = 0) -> ObservabilityReport:
+    r"""Structural observability (and identifiability) of a model by the generic rank.
+
+    The rank condition of 002 asks for :math:`\dim d\mathcal O(h)|_x = n`, where the observation
+    space :math:`\mathcal O(h)` is spanned by the outputs and their repeated Lie derivatives along
+    :math:`f_u` for constant u. Its generic value is the rank of
+
+    .. math::
+
+        J = \frac{\partial\,(y, \dot y, \ddot y, \dots, y^{(N)})}{\partial (x_0, \theta, w)}
+
+    for a generic input, with N = number of unknowns (the ranks of the jets increase strictly until
+    they stop). J is evaluated at a random point of GF(p), p a random 27-bit prime, through
+    truncated power series of the solution carrying gradients (Sedoglavic 2002), and reduced over
+    GF(p): rank, observable unknowns (unit vector in the row space), kernel.
+
+    *Error.* A rank over GF(p) at one point is never above the generic rank over Q, so a full rank
+    is a proof of local observability. A smaller rank is wrong only if a nonzero minor of degree D
+    vanishes at the random point: probability at most D/p (Schwartz-Zippel); D is bounded by
+    propagating degrees through the evaluation program, and a deficient rank is confirmed at a
+    second independent point and prime, so the bound is (D/p)^2.
+
+    *Local, not global.* The rank condition proves local weak observability (002). When a sign
+    change of some unknowns leaves f and h invariant (checked for every sign pattern of up to 12
+    unknowns, proved symbolically), x and σx are indistinguishable: reported in ``symmetries``
+    (001 §IV-C: x1' = x2², x2' = 0, y = x1).
+
+    Parameters
+    ----------
+    system : System
+    unknown_params : sequence of str, "all" or bool, optional
+        Parameters taken as unknown constants (identifiability); the others keep their values.
+    inputs : "generic", "constant", int or mapping, optional
+        How known inputs are taken: ``"generic"`` (default; the observation space of 002),
+        ``"constant"`` (one generic constant), an int d (generic polynomials of degree d), or a
+        mapping ``{input: class or signal}`` where a signal is a number or an expression of t
+        (``{"u": 0}`` analyses the singular input u = 0).
+    unknown_inputs : mapping of str to int, optional
+        Inputs that are not measured, each a polynomial of the given degree with unknown coefficients.
+    functions : sequence of expressions, optional
+        Functions of the states (and unknown parameters) to test: observable iff the gradient lies
+        in the row space of J (e.g. ``"x1**2 + x2**2"``).
+
+    Other Parameters
+    ----------------
+    at : mapping of str to float, optional
+        Real point (states, unknown parameters) where the unobservable directions are computed;
+        default a random point with entries in [0.5, 1.5] (unknown parameters at their values).
+    symmetries : bool, default True
+        Search sign symmetries (global non-observability).
+    seed : int, default 0
+        Seed of the random point, prime and input coefficients.
+
+    Returns
+    -------
+    ObservabilityReport
+
+    Raises
+    ------
+    ModelError
+        On unknown names, an unsupported function, or an input specification that is not understood.
+
+    References
+    ----------
+    002_613af42269ea26a7.txt, "Observation space", "Observability rank condition", "Local weak
+    observability"; 001_1b4027b3a70d560f.txt §IV-C (local vs global); A. Sedoglavic, "A
+    probabilistic algorithm to test local algebraic observability in polynomial time", J. Symb.
+    Comput. 33(5), 2002.
+
+    Examples
+    --------
+    >>> from nlobs import System
+    >>> s = System(states=["x1", "x2"], f=["u*x2", "0"], outputs=["y"], h=["x1"], inputs=["u"])
+    >>> analyze(s).observable, analyze(s, inputs={"u": 0}).observable
+    (True, False)
+    """
+    if not isinstance(system, System):
+        raise ModelError(f"analyze: `system` must be an nlobs.System, got {type(system).__name__}")
+    t_start = time.perf_counter()
+    rng = np.random.default_rng(seed)
+    params_unknown = _unknown_params(system, unknown_params)
+    ui = dict(unknown_inputs or {})
+    bad = [k for k in ui if k not in system.inputs]
+    if bad:
+        raise ModelError(f"`unknown_inputs` names {', '.join(map(repr, bad))}, not an input of {system.name!r}")
+    for k, d in ui.items():
+        if not isinstance(d, (int, np.integer)) or d < 0:
+            raise ModelError(f"`unknown_inputs[{k!r}]` must be a polynomial degree >= 0, got {d!r}")
+    classes = _input_classes(system, inputs, ui)
+    funcs = _parse_functions(system, functions)
+    if at is not None:
+        extra_keys = [k for k in at if k not in system.states and k not in params_unknown]
+        if extra_keys:
+            raise ModelError(f"`at` names {', '.join(map(repr, extra_keys))}, which is not a state or an unknown parameter of "
+                             f"{system.name!r}")
+    st = _setup(system, params_unknown, classes, ui, funcs)
+    M = len(st.unknowns)
+    res = _mod_run(st, system, rng)
+    error = 0.0
+    runs = 1
+    if res.rank < M:  # confirm at a second independent point and prime
+        res2 = _mod_run(st, system, rng)
+        runs = 2
+        error = _error_bound(res, M) * _error_bound(res2, M)
+        if res2.rank > res.rank:
+            res = res2
+        if res.rank == M:  # a full rank at one point is a proof
+            error = 0.0
+    kernel = res.ech.kernel()
+    observable_unknowns = [name for j, name in enumerate(st.unknowns) if not np.any(kernel[:, j])]
+    checks = tuple(FunctionCheck(text, res.ech.contains(row)) for (text, _), row in zip(funcs, res.function_rows))
+    directions, point, gap, notes = _float_kernel(st, system, res, rng, at)
+    syms: tuple[Symmetry, ...] = ()
+    searched = ""
+    if symmetries:
+        syms, searched = _sign_symmetries(system, st, params_unknown, rng)
+    orders = []
+    for j in range(system.n_outputs):
+        ks = [k for jj, k in res.pivot_rows if jj == j]
+        orders.append(max(ks) if ks else -1)
+    input_desc = ", ".join(f"{k} {c.describe()}" for k, c in classes.items()) or "none"
+    if ui:
+        input_desc += "; unknown inputs: " + ", ".join(f"{k} (polynomial of degree {d})" for k, d in ui.items())
+    method = (f"generic rank of the output-jet Jacobian (orders 0..{res.max_order}) by truncated power series at a random "
+              f"point modulo the prime {res.prime} (Sedoglavic 2002); {runs} point(s); {_REF}")
+    notes = [*st.prog.notes, *notes]
+    if res.rank < M and gap < 1e-6:
+        notes.append(f"the real Jacobian at the direction point is ill-conditioned (smallest kept singular value ratio "
+                     f"{gap:.1e}); the directions may be inaccurate")
+    return ObservabilityReport(
+        model=system.name, states=system.states, unknown_params=params_unknown,
+        unknown_input_coefficients=st.unknowns[st.n + st.q:], inputs=input_desc, rank=res.rank, observable=res.rank == M,
+        observable_states=tuple(s for s in system.states if s in observable_unknowns),
+        identifiable_params=tuple(k for k in params_unknown if k in observable_unknowns),
+        unobservable_directions=directions, point=point, orders=tuple(orders), method=method, prime=res.prime,
+        error_probability=float(min(1.0, error)), symmetries=syms, symmetry_search=searched, functions=checks,
+        notes=tuple(notes), seconds=time.perf_counter() - t_start, numerical_gap=gap,
+        extra={"observable_unknowns": tuple(observable_unknowns), "degree_bound": _degree(res, M)},
+    )
+
+
+def _degree(res: _ModResult, M: int) -> int:
+    top = sorted(res.row_degrees, reverse=True)[:M]
+    return int(sum(top)) * (1 + res.extra_degree)
+
+
+def _error_bound(res: _ModResult, M: int) -> float:
+    return min(1.0, _degree(res, M) / res.prime)
+
+
+def observable_function(system: System, expr: ExprLike, **options: Any) -> FunctionCheck:
+    r"""Is the function φ(x) (or φ(x, θ) with unknown parameters) observable?
+
+    φ is locally observable iff :math:`d\varphi` lies in :math:`d\mathcal O(h)` (generically): its
+    gradient is in the row space of the output-jet Jacobian. Range-only localisation with u = 0
+    (p' = v, v' = 0, y = |p|²) observes |p|², p·v and |v|² but not p1.
+
+    Parameters
+    ----------
+    system : System
+    expr : str or SymPy expression in the states (and parameters)
+    **options
+        As for :func:`analyze`.
+
+    Returns
+    -------
+    FunctionCheck
+    """
+    rep = analyze(system, functions=[expr], symmetries=False, **options)
+    return rep.functions[0]

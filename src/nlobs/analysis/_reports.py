@@ -1,0 +1,196 @@
+"""Result objects shared by the analyses: a verdict, the evidence, a readable ``__str__``, ``to_dict()``."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+__all__ = ["clean_direction", "fmt_vec", "fmt_directions", "fmt_point", "ObservabilityReport", "FunctionCheck", "Symmetry"]
+
+
+def clean_direction(v: np.ndarray) -> np.ndarray:
+    """A unit vector with its largest entry positive and round-off zeros removed (for messages)."""
+    v = np.asarray(v, dtype=float)
+    n = np.linalg.norm(v)
+    if n == 0:
+        return v
+    v = v / n
+    v = v * np.sign(v[np.argmax(np.abs(v))])
+    v[np.abs(v) < 1e-10] = 0.0
+    return v + 0.0
+
+
+def fmt_vec(v: Any, precision: int = 4) -> str:
+    return np.array2string(np.asarray(v, dtype=float), precision=precision, separator=", ", suppress_small=True)
+
+
+def fmt_directions(rows: Any) -> str:
+    """Kernel directions for a message: each cleaned (unit, largest entry positive), separated by '; '."""
+    return "; ".join(fmt_vec(clean_direction(v)) for v in rows)
+
+
+def fmt_point(names: Any, point: Any) -> str:
+    """``x1=0.5, x2=-1`` for a worst point."""
+    return ", ".join(f"{n}={v:.4g}" for n, v in zip(names, point))
+
+
+@dataclass(frozen=True)
+class FunctionCheck:
+    """Is a function φ(x, θ) observable? Yes iff its gradient lies in the row space of the jet Jacobian."""
+
+    expr: str
+    observable: bool
+
+    def __str__(self) -> str:
+        return f"{self.expr}: {'observable' if self.observable else 'NOT observable'}"
+
+
+@dataclass(frozen=True)
+class Symmetry:
+    """A sign change σ of some unknowns with f(σx) = σ f(x) and h(σx) = h(x), proved symbolically.
+
+    Then x and σx give the same output for every input: the model is not globally observable
+    (although the rank condition, a local property, may hold).
+    """
+
+    flipped: tuple[str, ...]
+
+    def __str__(self) -> str:
+        return "(" + ", ".join(self.flipped) + ") -> -(" + ", ".join(self.flipped) + ")"
+
+
+@dataclass(frozen=True, eq=False)
+class ObservabilityReport:
+    r"""Structural (generic-rank) observability of a model; see :func:`nlobs.analysis.analyze`.
+
+    Attributes
+    ----------
+    model : str
+    states, unknown_params, unknown_input_coefficients : tuple of str
+        The unknowns, in the column order of the Jacobian and of the directions.
+    rank : int
+        Generic rank of the Jacobian of the output jets with respect to the unknowns.
+    observable : bool
+        The generic rank condition holds: rank = number of unknowns.
+    observable_states, identifiable_params : tuple of str
+        Unknowns whose unit vector lies in the row space (locally observable / identifiable).
+    unobservable_directions : numpy.ndarray of shape (n_unknowns - rank, n_unknowns)
+        An orthonormal basis of the kernel at the real point `point`.
+    point : numpy.ndarray
+        The real point where the directions were computed.
+    orders : tuple of int
+        Per output, the highest derivative order that contributed a new independent row.
+    method : str
+    prime : int
+    error_probability : float
+        Upper bound on the probability that `rank` is below the true generic rank (0 when the
+        rank is full: a full rank at one point is a proof).
+    symmetries : tuple of Symmetry
+        Sign symmetries found (each proves global non-observability of the flipped unknowns).
+    functions : tuple of FunctionCheck
+    notes : tuple of str
+    seconds : float
+    """
+
+    model: str
+    states: tuple[str, ...]
+    unknown_params: tuple[str, ...]
+    unknown_input_coefficients: tuple[str, ...]
+    inputs: str
+    rank: int
+    observable: bool
+    observable_states: tuple[str, ...]
+    identifiable_params: tuple[str, ...]
+    unobservable_directions: np.ndarray
+    point: np.ndarray
+    orders: tuple[int, ...]
+    method: str
+    prime: int
+    error_probability: float
+    symmetries: tuple[Symmetry, ...] = ()
+    symmetry_search: str = ""
+    functions: tuple[FunctionCheck, ...] = ()
+    notes: tuple[str, ...] = ()
+    seconds: float = 0.0
+    numerical_gap: float = float("inf")
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def unknowns(self) -> tuple[str, ...]:
+        return (*self.states, *self.unknown_params, *self.unknown_input_coefficients)
+
+    @property
+    def n_states(self) -> int:
+        return len(self.states)
+
+    @property
+    def globally_observable(self) -> bool | None:
+        """False when a symmetry proves two states indistinguishable; None when not decided (the test is local)."""
+        if not self.observable:
+            return False
+        return False if self.symmetries else None
+
+    def to_dict(self) -> dict[str, Any]:
+        """A JSON-ready dictionary (the ``nlobs analyze --json`` contract plus evidence)."""
+        return {
+            "model": self.model,
+            "n_states": self.n_states,
+            "rank": self.rank,
+            "observable": self.observable,
+            "observable_states": list(self.observable_states),
+            "unobservable_directions": [[float(v) for v in row] for row in self.unobservable_directions],
+            "method": self.method,
+            "unknowns": list(self.unknowns),
+            "unknown_params": list(self.unknown_params),
+            "identifiable_params": list(self.identifiable_params),
+            "inputs": self.inputs,
+            "point": [float(v) for v in self.point],
+            "orders": list(self.orders),
+            "prime": self.prime,
+            "error_probability": self.error_probability,
+            "globally_observable": self.globally_observable,
+            "symmetries": [list(s.flipped) for s in self.symmetries],
+            "functions": {c.expr: c.observable for c in self.functions},
+            "notes": list(self.notes),
+            "seconds": self.seconds,
+        }
+
+    def __str__(self) -> str:
+        M = len(self.unknowns)
+        what = "observable" if not (self.unknown_params or self.unknown_input_coefficients) else "observable and identifiable"
+        head = f"Model {self.model!r}: "
+        if self.observable:
+            head += f"locally {what} (generic rank {self.rank} = {M} unknowns)"
+        else:
+            head += f"NOT {what.replace(' and ', '/')} (generic rank {self.rank} < {M} unknowns)"
+        lines = [head, f"  inputs: {self.inputs}"]
+        lines.append(f"  observable states: {', '.join(self.observable_states) or '(none)'}")
+        bad = [s for s in self.states if s not in self.observable_states]
+        if bad:
+            lines.append(f"  unobservable states: {', '.join(bad)}")
+        if self.unknown_params:
+            lines.append(f"  identifiable parameters: {', '.join(self.identifiable_params) or '(none)'}")
+            badp = [p for p in self.unknown_params if p not in self.identifiable_params]
+            if badp:
+                lines.append(f"  unidentifiable parameters: {', '.join(badp)}")
+        if len(self.unobservable_directions):
+            lines.append(f"  unobservable directions at {fmt_vec(self.point, 3)} (columns {', '.join(self.unknowns)}):")
+            for v in self.unobservable_directions:
+                lines.append(f"    {fmt_vec(clean_direction(v))}")
+        for c in self.functions:
+            lines.append(f"  {c}")
+        if self.symmetries:
+            lines.append("  NOT globally observable: the output is invariant under " + "; ".join(str(s) for s in self.symmetries)
+                         + " (proved symbolically: f(σx) = σf(x), h(σx) = h(x)); these are known only up to sign")
+        elif self.observable:
+            lines.append("  the rank condition is local (002): it proves local weak observability, not global; "
+                         + (self.symmetry_search or "no symmetry search was run"))
+        lines.append(f"  method: {self.method}")
+        if self.error_probability > 0:
+            lines.append(f"  probability that the rank is underestimated: <= {self.error_probability:.2g}")
+        for n in self.notes:
+            lines.append(f"  note: {n}")
+        lines.append(f"  ({self.seconds * 1e3:.1f} ms)")
+        return "\n".join(lines)

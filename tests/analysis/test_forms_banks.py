@@ -1,0 +1,85 @@
+"""Observer forms (002) and Banks' conditions (003)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from nlobs import DataError, ShapeError, System, load_model
+from nlobs.analysis import (banks_condition, lipschitz_bound, lipschitz_constant, matrix_measure, max_slope,
+                            recognise_forms, state_affine_form, triangular_form)
+
+MODELS = __import__("pathlib").Path(__file__).resolve().parents[2] / "src" / "nlobs" / "models"
+KOU_F1 = ["x1", "x1 - 2*x2 + exp(-x2)"]  # 003 example 3.1 (Kou et al.): y = x1 + x2
+EX32_F1 = ["-x1 - x1**3 + x1*x2", "-x2 - x2**5 - 4*x1*x2"]  # 003 example 3.2: y = x1 x2
+
+
+class TestForms:
+    def test_002_pendulum_forms(self):
+        # 002 robot arm: output-injection form in (x1, x2); with unknown b, state-affine
+        # ẋe = Ae(u)xe + Be(y) but no longer output injection (b u multiplies an unmeasured state)
+        pend = load_model(MODELS / "pendulum.toml").system
+        rep = recognise_forms(pend)
+        assert rep.holds("output injection") and rep.holds("state-affine") and rep.holds("triangular")
+        rep_b = recognise_forms(pend, unknown_params=["b"])
+        assert not rep_b.holds("output injection") and rep_b.holds("state-affine")
+        assert "[0, 0, 1]" in str(rep_b)
+
+    def test_002_van_der_pol_state_affine_coordinates(self):
+        # 002 Van der Pol with unknown γ, ω²: in z = (x, ẋ - γ(x - x³/3), γ, ω²) the model is
+        # ż = A(y) z with A(y) = [[0, 1, y - y³/3, 0], [0, 0, 0, -y], 0, 0] (re-derived)
+        z = System(states=["z1", "z2", "g", "w"], f=["z2 + (z1 - z1**3/3)*g", "-z1*w", "0", "0"], outputs=["y"], h=["z1"])
+        chk = state_affine_form(z)
+        assert chk.holds
+        y = z.y[0]
+        assert (chk.details["A"][0, 2] - (y - y**3 / 3)).simplify() == 0 and chk.details["A"][1, 3] == -y
+        tri = triangular_form(z)
+        assert not tri.holds and "depends on g" in tri.reason
+
+    def test_not_state_affine_names_the_entry(self):
+        s = System(states=["x1", "x2"], f=["x2", "-x2**2"], outputs=["y"], h=["x1"])
+        chk = state_affine_form(s)
+        assert not chk.holds and "x2'" in chk.reason
+
+    def test_lipschitz_constant_of_the_pendulum(self):
+        # φ = f - A x with A the Jacobian at 0: ∂φ2/∂x1 = a1 (1 - cos x1), largest at |x1| = 3 on the box
+        pend = load_model(MODELS / "pendulum.toml").system
+        est = lipschitz_constant(pend, [[-3, 3], [-5, 5]])
+        assert est.gamma == pytest.approx(9.81 * (1 - np.cos(3.0)), rel=1e-9)
+        assert abs(est.worst_point[0]) == pytest.approx(3.0)
+
+
+class TestBanks:
+    def test_matrix_measure_example_31(self):
+        # 003 example 3.1: λ([[-1, -2], [2, -1]]) = λ(diag(-1, -1)) = -1 (A + P·C with P = (-2, 1)ᵀ)
+        A, C, P = np.array([[1.0, 0.0], [1.0, -2.0]]), np.array([[1.0, 1.0]]), np.array([[-2.0], [1.0]])
+        assert matrix_measure(A + P @ C) == pytest.approx(-1.0)
+        assert max_slope(["0", "exp(-x2)"], ["x1", "x2"], [[-4, 4], [-4, 4]]).dissipative  # f1 of Lemma 2.3
+
+    def test_example_31_theorem_26(self):
+        chk = banks_condition(KOU_F1, ["x1 + x2"], [[-2], [1]], ["x1", "x2"], [[-5, 5], [-5, 5]], epsilon=1.0)
+        assert chk.holds and chk.lam_max == pytest.approx(-1.0, abs=1e-9)
+
+    def test_example_32_gains(self):
+        # 003 example 3.2 with gains (-1, 4): Df1 + P DB = diag(-1 - 3x1², -1 - 5x2⁴) (the text prints
+        # -1 - 2x1² and -1 - 5x2²; re-derived), so λ ≤ -1 with equality on the axes (worst point on them)
+        chk = banks_condition(EX32_F1, ["x1*x2"], [-1, 4], ["x1", "x2"], [[-2, 2], [-2, 2]], epsilon=1.0)
+        assert chk.holds and chk.lam_max == pytest.approx(-1.0, abs=1e-9)
+        assert min(abs(chk.worst_point)) < 1e-6
+        bad = banks_condition(EX32_F1, ["x1*x2"], [0, 0], ["x1", "x2"], [[-2, 2], [-2, 2]])
+        assert not bad.holds and bad.lam_max > 0 and "FAILS" in str(bad)
+
+    def test_perturbation_slope_and_lipschitz(self):
+        # f(x) = 0.5 sin x: slope and Lipschitz constant 0.5 (at x = 0), both < ε = 1 of example 3.1
+        assert max_slope(["0.5*sin(x)"], ["x"], [[-1, 1]]).mu == pytest.approx(0.5)
+        assert lipschitz_bound(["0.5*sin(x)"], ["x"], [[-1, 1]]).gamma == pytest.approx(0.5)
+
+    def test_bad_regions(self):
+        with pytest.raises(DataError, match="NaN or infinite"):
+            banks_condition(KOU_F1, ["x1 + x2"], [-2, 1], ["x1", "x2"], [[-1, np.nan], [-1, 1]])
+        with pytest.raises(DataError, match="low > high"):
+            max_slope(["x"], ["x"], [[1, -1]])
+        with pytest.raises(ShapeError, match="`P`"):
+            banks_condition(KOU_F1, ["x1 + x2"], [-2, 1, 3], ["x1", "x2"], [[-1, 1], [-1, 1]])
+        with pytest.raises(ShapeError, match="square"):
+            matrix_measure([[1, 2, 3]])
