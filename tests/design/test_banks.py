@@ -6,7 +6,7 @@ import sympy as sp
 
 import nlobs
 from nlobs.design import design_banks
-from nlobs.design._banks import matrix_measure
+from nlobs.analysis import matrix_measure
 from nlobs.errors import PreconditionError
 
 # 003 example 3.1 (Kou et al.), here without perturbation: x1' = x1, x2' = x1 - 2x2 + e^{-x2}, y = x1 + x2

@@ -8,7 +8,7 @@ from pathlib import Path
 import nlobs
 
 ORDER = ["model", "engine", "analysis", "design", "observer", "simulate", "report"]
-TOP = {"examples": 6, "cli": 7}  # examples sit beside report; the CLI on top of everything
+TOP = {"examples": 6, "interop": 7, "cli": 8}  # examples beside report; interop above; the CLI on top of everything
 ROOT = Path(nlobs.__file__).parent
 
 
