@@ -43,6 +43,25 @@ from .simulate import Sampling as Sampling
 from .simulate import estimate as estimate
 from .simulate import montecarlo as montecarlo
 from .simulate import simulate as simulate
+from .design import DREM as DREM
+from .design import GD as GD
+from .design import Gradient as Gradient
+from .design import LeastSquares as LeastSquares
+from .design import LinearRegression as LinearRegression
+from .design import WindowedNLS as WindowedNLS
+from .design import design_2gd as design_2gd
+from .design import design_drem as design_drem
+from .design import design_gd as design_gd
+from .design import design_gpebo as design_gpebo
+from .design import design_gradient as design_gradient
+from .design import design_iandi as design_iandi
+from .design import design_kkl as design_kkl
+from .design import design_kkl_learned as design_kkl_learned
+from .design import design_kkl_pebo as design_kkl_pebo
+from .design import design_kkl_pebo_cascade as design_kkl_pebo_cascade
+from .design import design_least_squares as design_least_squares
+from .design import design_pebo as design_pebo
+from .design import excitation_report as excitation_report
 
 __version__ = "0.1.0"
 from .design import design_high_gain as design_high_gain  # noqa: E402

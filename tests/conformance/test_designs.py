@@ -44,6 +44,39 @@ CASES = {
     "mhe": (OSC, dict(horizon=5, R=[[1e-4]], P_arrival=np.eye(2) * 1e-3), [1.0, 0.0], [0.0, 0.0], 2.0, 1e-3),
 }
 
+# Parameter-estimation based designs (issue 4; 000 and 004). Regression plant: θ' = 0, Y = ψ(t)ᵀθ with a regressor
+# of time (estimate() holds inputs by zero-order hold while it interpolates y, so ψ built from an input would not
+# satisfy the regression between samples of a recording)
+REG = System(states=["th1", "th2"], f=["0", "0"], outputs=["y"], h=["sin(t)*th1 + cos(t)*th2"], name="regression")
+PEB = System(states=["x1", "x2"], f=["x2", "-x1 + u"], outputs=["y"], h=["x1"], inputs=["u"], name="pebo_plant")
+MIX = System(states=["x1", "x2", "x3"], f=["-x1 + x2 + x3", "-x2 + x1", "u"], outputs=["y"], h=["x1"], inputs=["u"], name="mix")
+CASC = System(states=["y1s", "a", "b", "c"], f=["-y1s + a + b + (1 + 0.5*cos(u))*c", "-2*a + sin(y1s)", "-b + a*y1s + u", "-y1s"],
+              outputs=["y"], h=["y1s"], inputs=["u"], name="cascade")
+DAMPED = System(states=["x1", "x2"], f=["x2", "-x1 - 0.5*x2"], outputs=["y"], h=["x1"], name="damped")
+# KKL for OSC with Λ = diag(-1, -2): rows t_i = C(A - λ_i I)⁻¹ = (1/3, -2/3), (3/8, -1/4); B_i = y + t_i b u
+OSC_KKL = dict(phi=["x1/3 - 2*x2/3", "3*x1/8 - x2/4"], left_inverse=["-1.5*xi1 + 4*xi2", "-2.25*xi1 + 2*xi2"],
+               B=["y - 2*u/3", "y - u/4"], Lambda=[-1, -2])
+CASES.update({
+    "gradient": (REG, dict(gamma=1.0), [1.5, -0.7], [0.0, 0.0], 25.0, 1e-4),
+    "least_squares": (REG, dict(P0=10.0, forgetting=1.0), [1.5, -0.7], [0.0, 0.0], 20.0, 1e-4),
+    "drem": (REG, dict(gamma=10.0, lambdas=[2.0]), [1.5, -0.7], [0.0, 0.0], 20.0, 1e-4),
+    "gd": (REG, dict(gamma_g=5.0, gamma=50.0), [1.5, -0.7], [0.0, 0.0], 20.0, 1e-4),
+    # ψ = Φ_Aᵀ C decays with the stable A of SA (interval, not persistent, excitation): G+D, not a gradient
+    "gpebo": (SA, dict(estimator={"kind": "gd", "gamma_g": 2.0, "gamma": 20.0}), [1.0, 0.0], [0.0, 0.0], 20.0, 1e-4),
+    "gpebo_2gd": (SA, dict(gamma_g=1.0, gamma=10.0), [1.0, 0.0], [0.0, 0.0], 20.0, 1e-4),
+    "kkl": (OSC, OSC_KKL, [1.0, 0.0], [0.0, 0.0], 12.0, 1e-4),
+    "pebo": (PEB, dict(phi=["x2"], left_inverse=["y", "xi1"], B=["-y + u"], alpha=2.0,
+                       estimator={"kind": "gradient", "gamma": 5.0}), [0.3, -0.8], [0.0, 0.0], 15.0, 1e-4),
+    "kkl_pebo": (MIX, dict(phi=["x2", "x3"], left_inverse=["y", "xi1", "xi2"], B=["y", "u"], Lambda=[-1, 0],
+                           estimator={"kind": "gd", "gamma_g": 5.0, "gamma": 50.0}), [0.2, 1.0, -0.5], [0.0, 0.0, 0.0],
+                 20.0, 1e-4),
+    "kkl_pebo_cascade": (CASC, dict(x2=["a"], x3=["b"], x4=["c"], k="y1s", alpha=2.0,
+                                    estimator={"kind": "gradient", "gamma": 20.0}), [0.3, 1.0, -1.0, 0.5], [0.0] * 4, 20.0, 1e-4),
+    "iandi": (OSC, dict(beta=["chi1 + 3*y"], phi=["x2"], left_inverse=["y", "xi1"]), [1.0, 0.0], [0.0, 0.0], 8.0, 1e-4),
+    "kkl_learned": (DAMPED, dict(region=[[-1.0, 1.0], [-1.0, 1.0]], eigenvalues=[-2, -3, -4], degree=1, n_trajectories=8,
+                                 t_final=12.0, dt=0.02), [1.0, 0.0], [0.0, 0.0], 10.0, 1e-4),
+})
+
 
 def _plant(model):
     return model.to_system() if isinstance(model, StateAffine) else model

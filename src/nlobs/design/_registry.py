@@ -72,3 +72,26 @@ def design_from_config(system: System, kind: str, options: Mapping[str, Any], *,
         return fn(system, **options)
     except (ValueError, TypeError) as e:
         raise type(e)(f"{prefix}{e}") from e
+
+# Parameter-estimation based observers and estimators (000, 004)
+from ._cascade import design_kkl_pebo_cascade  # noqa: E402
+from ._gpebo import design_2gd, design_gpebo  # noqa: E402
+from ._iandi import design_iandi  # noqa: E402
+from ._kkl import design_kkl_learned  # noqa: E402
+from ._pebo import design_kkl, design_kkl_pebo, design_pebo  # noqa: E402
+from ._regression import design_drem, design_gd, design_gradient, design_least_squares  # noqa: E402
+
+DESIGNS.update({
+    "gradient": design_gradient,
+    "least_squares": design_least_squares,
+    "drem": design_drem,
+    "gd": design_gd,
+    "gpebo": design_gpebo,
+    "gpebo_2gd": design_2gd,
+    "kkl": design_kkl,
+    "kkl_learned": design_kkl_learned,
+    "pebo": design_pebo,
+    "kkl_pebo": design_kkl_pebo,
+    "kkl_pebo_cascade": design_kkl_pebo_cascade,
+    "iandi": design_iandi,
+})

@@ -11,3 +11,6 @@ from . import banks as banks  # noqa: E402
 from . import van_der_pol_unknown as van_der_pol_unknown  # noqa: E402
 from . import pendulum_unknown_b as pendulum_unknown_b  # noqa: E402
 from . import range_localisation as range_localisation  # noqa: E402
+from . import gpebo_not_uco as gpebo_not_uco  # noqa: E402  (000, M8 #7)
+from . import kkl_pebo_academic as kkl_pebo_academic  # noqa: E402  (004 §V-A, M8 #8)
+from . import cuk_converter as cuk_converter  # noqa: E402  (004 §V-C, M8 #9)

@@ -1,0 +1,75 @@
+"""GPEBO and the 2G+D observer (000_6cd8bea7ca1db43b.txt Lemma 1, eqs. 8-13, Proposition 1)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from nlobs import PreconditionError, StateAffine, System, design_2gd, design_gpebo, simulate
+from nlobs.design import DREM, Gradient, LeastSquares
+
+OSC = StateAffine([[0, 1], [-1, 0]], [0, "u"], [[1], [0]], inputs=["u"], name="oscillator")   # uniformly stable, UCO
+
+
+def test_lemma_1_relation_holds_along_a_run():
+    # x = ξ + Φ_A θ with θ = x(0) - ξ(0) (000 eqs. 8, 13), whatever the estimator does
+    sa = StateAffine([[0, "u"], [0, "-0.3"]], [0, "sin(t)"], [[1], [0]], inputs=["u"])
+    d = design_2gd(sa, gamma_g=1.0, gamma=1.0)
+    x0, xh0 = np.array([0.7, -1.2]), np.array([0.2, 0.4])
+    run = simulate(sa.to_system(), {"o": d}, t_final=5.0, dt=1e-3, x0=x0, inputs={"u": "cos(t)"}, xhat0=xh0)
+    z, names = run.observers["o"].z, d.z_names
+    xi = z[:, [names.index(f"xi[{i}]") for i in range(2)]]
+    Phi = z[:, [names.index(f"Phi[{i},{j}]") for j in range(2) for i in range(2)]].reshape(-1, 2, 2, order="F")
+    theta = x0 - xh0
+    assert np.allclose(xi + Phi @ theta, run.x, atol=1e-9)
+    # and the regression: Y = y - Cᵀξ = ψᵀθ with ψ = Φᵀ C
+    assert np.allclose(run.y[:, 0] - xi[:, 0], Phi[:, 0, :] @ theta, atol=1e-9)
+
+
+@pytest.mark.parametrize("n", [1, 2, 3])
+def test_2gd_order_is_3_plus_2n_times_n(n):
+    A = np.diag(-np.arange(1.0, n + 1))
+    d = design_2gd(StateAffine(A, [0] * n, np.eye(n)[:, :1]))
+    assert d.n_z == (3 + 2 * n) * n
+    check = [c for c in d.certificate.checks if "(3 + 2n)n" in c.condition][0]
+    assert check.holds
+
+
+# gains below the rotation rate of ψ (1 rad/s): with γ ≫ ω the gradient error stays orthogonal to ψ and decays
+# only like ω²/γ
+@pytest.mark.parametrize("est", [Gradient(1.0), LeastSquares(1.0, forgetting=1.0), DREM(50.0), None])
+def test_gpebo_with_every_estimator_converges_on_an_oscillator(est):
+    d = design_gpebo(OSC, estimator=est)
+    run = simulate(OSC.to_system(), {"o": d}, t_final=30.0, dt=1e-3, x0=[1.0, -0.5], inputs={"u": "sin(0.5*t)"})
+    assert run.error_norm("o")[-1] < 1e-3
+
+
+def test_unstable_homogeneous_part_is_refused_and_injection_fixes_it():
+    sa = StateAffine([[0, 1], [2, 0]], [0, 0], [[1], [0]])         # eigenvalues ±√2: assumption (5) fails
+    with pytest.raises(PreconditionError, match=r"assumption 5.*1\.414.*output injection `L`"):
+        design_2gd(sa)
+    d = design_2gd(sa, gamma_g=5.0, gamma=50.0, L=[[3], [4]])     # A - LCᵀ = [[-3, 1], [-2, 0]]: eigenvalues -1, -2
+    assert any("A - LCᵀ" in c.condition and c.holds for c in d.certificate.checks)
+    run = simulate(sa.to_system(), {"o": d}, t_final=10.0, dt=1e-3, x0=[1.0, 1.0])
+    assert run.error_norm("o")[-1] < 1e-6
+    with pytest.raises(PreconditionError, match="Jordan block"):
+        design_2gd(StateAffine([[0, 1], [0, 0]], [0, 0], [[1], [0]]))   # double integrator: Φ grows like t
+
+
+def test_state_affine_recognised_from_a_system_and_refused_otherwise():
+    s = System(states=["x1", "x2"], f=["u*x2", "-x2 + u"], outputs=["y"], h=["x1"], inputs=["u"])
+    d = design_2gd(s)
+    assert d.system.states == ("x1", "x2")
+    bad = System(states=["x1", "x2"], f=["x2**2", "0"], outputs=["y"], h=["x1"])
+    with pytest.raises(PreconditionError, match=r"not state-affine.*x2"):
+        design_2gd(bad)
+
+
+def test_a_depending_on_the_output_uses_the_measurement():
+    # Van der Pol-like A(y) = [[0, 1], [-1, 1 - y²]]: the certificate says (5) is not decidable symbolically
+    sa = StateAffine([[0, 1], [-1, "-(y**2)"]], [0, 0], [[1], [0]], outputs=["y"])
+    d = design_2gd(sa)
+    assert "not decidable" in d.certificate.values["assumption (5)"]
+    flow = np.asarray(d.flow(0.0, np.arange(d.n_z, dtype=float) * 0.1, [], [2.0])).ravel()
+    # ξ' = A(y)ξ with ξ = (0, 0.1) and y = 2: (0.1, -4·0.1)
+    assert np.allclose(flow[:2], [0.1, -0.4])

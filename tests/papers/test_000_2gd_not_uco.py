@@ -1,0 +1,49 @@
+"""Acceptance, M8 #7: 000_6cd8bea7ca1db43b.txt — observability suffices for the 2G+D observer.
+
+ẋ = [[0, u], [0, 0]]x, y = x1, u = e^{-t}: observable on [0, T] (rank W(0, T) = 2, eq. 3) but not UCO
+(eq. 4 fails); the 2G+D observer (Prop. 1, eqs. 12-17) with γ_g = 5, γ = 50 converges below 1e-6 by
+t = 20, a Kalman-like observer (002) stalls.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from nlobs import design_2gd, simulate
+from nlobs.examples import gpebo_not_uco as ex
+
+
+def test_gramian_closed_form_observable_not_uco():
+    # independent of the observer: Φ(τ, t0) = [[1, e^{-t0} - e^{-τ}], [0, 1]], so with C = e1 the Gramian is
+    # W(t0, t0 + T) = ∫ [1, s; s, s²] dτ with s = e^{-t0} - e^{-τ}; its λmin → 0 as t0 grows
+    def lam_min(t0, T=5.0):
+        tau = np.linspace(t0, t0 + T, 20001)
+        s = np.exp(-t0) - np.exp(-tau)
+        W = np.array([[np.trapezoid(np.ones_like(s), tau), np.trapezoid(s, tau)],
+                      [np.trapezoid(s, tau), np.trapezoid(s * s, tau)]])
+        return np.linalg.eigvalsh(W)[0]
+    assert lam_min(0.0) > 0.1          # rank W(0, 5) = 2: observable
+    assert lam_min(10.0) < 1e-9        # not UCO: no δ > 0 works for every t0
+
+
+def test_2gd_error_below_1e_minus_6_by_t_20():
+    sa = ex.model()
+    d = design_2gd(sa, gamma_g=5.0, gamma=50.0)
+    assert d.n_z == (3 + 2 * 2) * 2
+    run = simulate(sa.to_system(), {"2gd": d}, t_final=20.0, dt=1e-3, x0=ex.X0, inputs={"u": "exp(-t)"})
+    assert run.error_norm("2gd")[-1] < 1e-6
+
+
+def test_kalman_like_stalls():
+    sa = ex.model()
+    run = simulate(sa.to_system(), {"kl": ex.kalman_like(sa)}, t_final=20.0, dt=1e-3, x0=ex.X0,
+                   inputs={"u": "exp(-t)"})
+    e = run.error_norm("kl")
+    assert e[-1] > 0.1 and e[-1] == pytest.approx(e[10000], rel=0.01)
+
+
+def test_example_claims_hold():
+    result = ex.run()
+    assert result.ok, [str(c) for c in result.claims if not c.holds]
+    assert {r["observer"] for r in result.table} == {"2G+D", "Kalman-like"}
