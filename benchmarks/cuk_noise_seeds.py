@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import sys
 
+import nlobs
 from nlobs import simulate
 from nlobs.examples import cuk_converter as ex
 from nlobs.model import Sampled
@@ -23,7 +24,7 @@ def main(n_seeds: int = 10) -> None:
     duty = Sampled(loop.t, loop.y_true[:, 0], "linear")
     clean = simulate(system, ds, t_final=ex.T_FINAL, dt=ex.DT, x0=x0, inputs={"u": duty})
     e_clean = ex._errors(clean)
-    noise = ex.HeldNoise("uniform", ex.NOISE, every=int(round(ex.NOISE_PERIOD / ex.DT)))
+    noise = nlobs.Noise.uniform(ex.NOISE, hold=ex.NOISE_PERIOD)
     names = list(ds)
     print("seed  " + "  ".join(f"{n[:10]:>21}" for n in names) + "   KKLO best v4  KKLO best i1")
     for seed in range(1, n_seeds + 1):

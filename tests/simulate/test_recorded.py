@@ -149,3 +149,20 @@ def test_noise_gain(recorded):
     assert "noise_gain" in noisy.summary_dict()["observers"]["oi"]
     with pytest.raises(ValueError, match="no measurement noise"):
         simulate(PEND, {"oi": d}, t_final=1.0, dt=1e-3, x0=[1.0, 0.0]).noise_gain("oi")
+
+
+def test_linear_hold_interpolates_the_input_too():
+    """A pure integrator x' = u observed exactly through an 'observer' that integrates u: with a linear
+    hold the offline estimate integrates the piecewise-linear input exactly (trapezoid)."""
+    integ = System(states=["x"], f=["u"], inputs=["u"], outputs=["y"], h=["x"], name="integrator")
+    from nlobs import design_custom
+
+    d = design_custom(integ, states=["xi"], flow=["u"])  # open-loop copy of the model
+    t = np.linspace(0.0, 1.0, 11)
+    u = t**2
+    rec = Recording.from_arrays(integ, t, np.zeros_like(t), u)
+    lin = estimate(d, rec, hold="linear").observers["custom"].xhat[:, 0]
+    zoh = estimate(d, rec, hold="zoh").observers["custom"].xhat[:, 0]
+    trapezoid = np.r_[0.0, np.cumsum((u[1:] + u[:-1]) / 2 * np.diff(t))]
+    left = np.r_[0.0, np.cumsum(u[:-1] * np.diff(t))]
+    assert np.allclose(lin, trapezoid, atol=1e-14) and np.allclose(zoh, left, atol=1e-14)

@@ -146,3 +146,38 @@ def test_metrics_on_a_known_error_signal():
     tail = e[t >= 8]
     assert m.rms_error == pytest.approx(np.sqrt(np.mean(tail**2)), rel=1e-12)
     assert convergence_time(t, np.ones_like(t), 0.5) is None
+
+
+@pytest.mark.parametrize("engine", ["vm", "c"])
+@pytest.mark.parametrize("t_final", [1.001, 1.2])
+def test_escape_reports_the_last_good_state_even_on_the_final_step(engine, t_final):
+    """x' = x², x(0) = 1 escapes at t = 1; the RK4 solution with dt = 1e-3 jumps from 8.2e3 at
+    t = 1.000 to 1e14 at t = 1.001, so with t_final = 1.001 the bound 1e6 is crossed on the very
+    last step (a case the runner once could not tell from success)."""
+    blow = System(states=["x"], f=["x**2"], outputs=["y"], h=["x"])
+    bound = 1e6
+    ref = simulate(blow, t_final=0.99, dt=1e-3, x0=[1.0])  # all below the bound
+    assert ref.x.max() < bound
+    first_bad = None
+    for tf in (t_final,):
+        try:
+            simulate(blow, t_final=tf, dt=1e-3, x0=[1.0], escape_bound=bound, engine=engine)
+        except FiniteEscapeError as err:
+            first_bad = err
+    assert first_bad is not None, "the escape was not detected"
+    assert abs(first_bad.x[0]) <= bound and np.isfinite(first_bad.x[0])
+    assert first_bad.partial.x[-1, 0] == first_bad.x[0] and first_bad.partial.t[-1] == pytest.approx(first_bad.t)
+    # the next RK4 step from the reported state does leave the bound
+    nxt = simulate(blow, t_final=1e-3, dt=1e-3, x0=first_bad.x, escape_bound=np.inf).x[-1, 0]
+    assert not abs(nxt) <= bound
+
+
+def test_noise_with_its_own_hold_period():
+    run = simulate(PEND, t_final=0.1, dt=1e-4, x0=[1.0, 0.0], noise=Noise.uniform(0.02, hold=1e-3), seed=2)
+    n = (run.y - run.y_true)[:, 0]
+    blocks = n[:1000].reshape(100, 10)
+    # (y - y_true recovers the noise up to round-off) a new value every 1e-3 s, held in between
+    assert np.allclose(blocks, blocks[:, :1], atol=1e-12, rtol=0) and np.all(np.abs(np.diff(blocks[:, 0])) > 1e-9)
+    assert np.all(np.abs(n) <= 0.02)
+    with pytest.raises(ValueError, match="whole multiple of dt"):
+        simulate(PEND, t_final=0.1, dt=1e-4, x0=[1.0, 0.0], noise=Noise.gaussian(0.1, hold=1.5e-4), seed=2)

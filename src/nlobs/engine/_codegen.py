@@ -218,8 +218,8 @@ class CompiledLoop:
 
     def __call__(self, s0: np.ndarray, a: np.ndarray, c: np.ndarray, out: np.ndarray, obuf: np.ndarray | None = None,
                  bound: float = np.inf) -> int:
-        """Run; returns the number of steps completed (fewer than asked when a state left `bound`
-        or became non-finite: the offending state is the last row written)."""
+        """Run; returns the number of good steps: n, or k when the state after step k left `bound`
+        or became non-finite (that state is row k of `out`)."""
         n = out.shape[0]
         ptr = ctypes.POINTER(ctypes.c_double)
         o = obuf if obuf is not None else out
@@ -227,7 +227,7 @@ class CompiledLoop:
                        o.ctypes.data_as(ptr), n, bound)
         if rc > 0:
             raise EngineError(f"the compiled step failed at step {rc - 1}")
-        return n if rc == 0 else int(-rc - 1)
+        return n if rc == 0 else int(-rc - 2)
 
 
 class CompiledBatch:

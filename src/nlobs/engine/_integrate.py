@@ -91,10 +91,10 @@ class StepRunner:
             out: np.ndarray | None = None, obuf: np.ndarray | None = None,
             bound: float = np.inf) -> tuple[np.ndarray, np.ndarray, int]:
         """States after each step, shape (N, ns), per-step outputs, shape (N, no), for per-step
-        inputs `a` of shape (N, na), and the number of steps completed.
+        inputs `a` of shape (N, na), and the number of good steps.
 
-        The run stops early, after the first step whose state is non-finite or exceeds `bound`
-        in magnitude (that state is the last row written); the count says where.
+        The run stops at the first step k whose resulting state is non-finite or exceeds `bound`
+        in magnitude; it then returns k (that state is row k of the states), else N.
         `out` and `obuf` may be given (C-contiguous, of those shapes) to write into existing
         arrays. `on_chunk(states_so_far, k_end)` is called after each chunk, for progress.
         """
@@ -127,8 +127,8 @@ class StepRunner:
                 if self.no:
                     buf.set_res(1, memoryview(oblock))
                 ev()
-                bad = ~(np.abs(block) <= bound)  # NaN counts as bad
-                done = int(np.argmax(bad.any(axis=1))) + 1 if bad.any() else n
+                bad = (~(np.abs(block) <= bound)).any(axis=1)  # NaN counts as bad
+                done = int(np.argmax(bad)) if bad.any() else n
             if done < n:
                 return out, obuf, k + done
             state = block[-1].copy()
@@ -203,10 +203,10 @@ def run_batch(step: ca.Function, S0: np.ndarray, A: np.ndarray, C: np.ndarray, n
             full = np.vstack([S0[j], states])
             last = np.asarray(outputs(full[-1], a[n_steps], c), dtype=float).reshape(1, -1)
             o_full = np.vstack([outs, last])
-        else:  # the state after step done - 1 left the bound: keep the good states 0 .. done - 1
-            status[j] = done - 1
-            full = np.vstack([S0[j], states[:done - 1]])
-            o_full = outs[:done]
+        else:  # the state after step `done` left the bound: keep the good states 0 .. done
+            status[j] = done
+            full = np.vstack([S0[j], states[:done]])
+            o_full = outs[:done + 1]
         keep = steps[steps < full.shape[0]]
         S[j, :keep.size] = full[keep]
         O[j, :keep.size] = o_full[keep]

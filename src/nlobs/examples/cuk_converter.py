@@ -24,7 +24,7 @@ from ..simulate import Noise, Run, convergence_time, simulate
 from ._base import Claim, ExampleResult, register
 from ._util import bundled
 
-__all__ = ["run", "model", "designs", "equilibrium", "closed_loop", "HeldNoise", "SETPOINTS", "LAMBDA", "LABELS"]
+__all__ = ["run", "model", "designs", "equilibrium", "closed_loop", "SETPOINTS", "LAMBDA", "LABELS"]
 
 REF = "004_f1e237c45ff4719e.txt §V-C: eq. (50), Table I, the state-feedback law of ref. [2], Fig. 2 and its remarks"
 #: |V_d| (volts) on [0.2k, 0.2(k+1)): the paper switches at t = 0.2k but gives no values (ours; v4 = -|V_d|).
@@ -82,18 +82,6 @@ def closed_loop(system: System, lam: float = LAMBDA) -> System:
     f = [e.xreplace({symbol("u"): u}) for e in system.f]
     return System(states=system.states, f=f, outputs=["duty"], h=[u], inputs=["Vd"],
                   params={**system.params, "lam": lam}, name="cuk_closed_loop")
-
-
-@dataclass(frozen=True)
-class HeldNoise(Noise):
-    """Noise drawn once every `every` integration steps and held in between (Simulink's random block
-    with its own sample time, over a continuously measured output, as in 004 §V-C)."""
-
-    every: int = 1
-
-    def draw(self, rng: np.random.Generator, n_rows: int, names: Any) -> np.ndarray:
-        k = -(-n_rows // self.every)
-        return np.repeat(super().draw(rng, k, names), self.every, axis=0)[:n_rows]
 
 
 @dataclass(frozen=True)
@@ -181,7 +169,7 @@ def run() -> ExampleResult:
     vd = Sampled.piecewise([0.2 * k for k in range(len(SETPOINTS))], SETPOINTS, name="Vd")
     loop = simulate(closed_loop(system), {}, t_final=T_FINAL, dt=DT, x0=x0, inputs={"Vd": vd})
     duty = Sampled(loop.t, loop.y_true[:, 0], "linear", name="u")
-    noise = HeldNoise("uniform", NOISE, every=int(round(NOISE_PERIOD / DT)))
+    noise = Noise.uniform(NOISE, hold=NOISE_PERIOD)
     clean = simulate(system, ds, t_final=T_FINAL, dt=DT, x0=x0, inputs={"u": duty})
     noisy = simulate(system, ds, t_final=T_FINAL, dt=DT, x0=x0, inputs={"u": duty}, noise=noise, seed=1)
     e_clean, e_noisy = _errors(clean), _errors(noisy)

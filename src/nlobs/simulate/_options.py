@@ -60,34 +60,49 @@ class Noise:
     Build with :meth:`gaussian` (standard deviation) or :meth:`uniform` (bound b, uniform in
     [-b, b], as in 004 §V), or combine per output with :meth:`per_output`.
     Scales are a scalar (every output), a sequence (one per output) or a mapping by name.
+    With `hold` (seconds, a whole multiple of the integration step) a new noise sample is
+    drawn only every `hold` seconds and held in between — a noise source with its own sample
+    time over a continuously measured output (004 §V-C: noise "sampled every 10⁻⁴ s").
     """
 
     kinds: Mapping[str, Kind] | Kind
     scale: float | Sequence[float] | Mapping[str, float]
+    hold: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.hold is not None and not (np.isfinite(self.hold) and self.hold > 0):
+            raise ValueError(f"Noise: `hold` must be a positive number of seconds, got {self.hold!r}")
 
     @classmethod
-    def gaussian(cls, std: float | Sequence[float] | Mapping[str, float]) -> Noise:
-        return cls("gaussian", std)
+    def gaussian(cls, std: float | Sequence[float] | Mapping[str, float], *, hold: float | None = None) -> Noise:
+        return cls("gaussian", std, hold)
 
     @classmethod
-    def uniform(cls, bound: float | Sequence[float] | Mapping[str, float]) -> Noise:
-        return cls("uniform", bound)
+    def uniform(cls, bound: float | Sequence[float] | Mapping[str, float], *, hold: float | None = None) -> Noise:
+        return cls("uniform", bound, hold)
 
     @classmethod
-    def per_output(cls, gaussian: Mapping[str, float] | None = None, uniform: Mapping[str, float] | None = None) -> Noise:
+    def per_output(cls, gaussian: Mapping[str, float] | None = None, uniform: Mapping[str, float] | None = None, *,
+                   hold: float | None = None) -> Noise:
         """Gaussian noise on some outputs and uniform noise on others (by name)."""
         gaussian, uniform = dict(gaussian or {}), dict(uniform or {})
         both = set(gaussian) & set(uniform)
         if both:
             raise ValueError(f"Noise.per_output: output {sorted(both)[0]!r} has both Gaussian and uniform noise")
         kinds = {**{k: "gaussian" for k in gaussian}, **{k: "uniform" for k in uniform}}
-        return cls(kinds, {**gaussian, **uniform})
+        return cls(kinds, {**gaussian, **uniform}, hold)
 
     def scales(self, names: Sequence[str]) -> np.ndarray:
         return _per_channel(self.scale, names, "Noise")
 
-    def draw(self, rng: np.random.Generator, n_rows: int, names: Sequence[str]) -> np.ndarray:
-        """Samples of shape (n_rows, len(names))."""
+    def draw(self, rng: np.random.Generator, n_rows: int, names: Sequence[str], dt: float | None = None) -> np.ndarray:
+        """Samples of shape (n_rows, len(names)), one per step of size `dt` (needed with `hold`)."""
+        if self.hold is not None:
+            if dt is None:
+                raise ValueError("Noise with `hold` needs the step `dt` to draw")
+            every = Sampling(self.hold).every(dt)
+            fresh = Noise(self.kinds, self.scale).draw(rng, -(-n_rows // every), names)
+            return np.repeat(fresh, every, axis=0)[:n_rows]
         s = self.scales(names)
         out = np.zeros((n_rows, len(names)))
         for j, name in enumerate(names):

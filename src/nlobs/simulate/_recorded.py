@@ -168,9 +168,9 @@ def estimate(
         With ``"skip"``, NaN output samples are left out of the update (the prediction carries
         on; a continuous observer sees its own predicted output for the missing component).
     hold : {"zoh", "linear"}
-        How the measurement is held between samples: zero-order hold (causal, as in a real
-        loop) or linear interpolation to the next sample (offline only; more accurate when
-        the output changes fast between samples).
+        How the measurement and the input are held between samples: zero-order hold (causal,
+        as in a real loop) or linear interpolation to the next sample (offline only; more
+        accurate when the signals change fast between samples).
     engine : {"auto", "vm", "c"}
         Numeric backend (see :func:`nlobs.simulate`).
 
@@ -250,11 +250,12 @@ def _estimation_step(obs: Mapping[str, AbstractObserver], n_sub: int, *, linear:
         fill = ca.Function(f"{d.method}_fill", [tt, zz, uu, yy, mm], [mm * yy + (1 - mm) * yhat])
         fills[name] = fill
         y_use = fill(t, z, u0, y0, m0)
-        # first-order hold where both ends were measured, else the held (or predicted) value
+        # first-order hold (y where both ends were measured, and u), else the held (or predicted) value
         slope = (m0 * m1) * (y1 - y_use) / dt if linear else ca.DM.zeros(ny)
+        u_slope = (u1 - u0) / dt if linear else ca.DM.zeros(nu)
 
-        def rhs(t_: ca.SX, z_: ca.SX, _k: int, d=d, y_use=y_use, slope=slope) -> ca.SX:
-            return d.flow(t_, z_, u0, y_use + (t_ - t) * slope)
+        def rhs(t_: ca.SX, z_: ca.SX, _k: int, d=d, y_use=y_use, slope=slope, u_slope=u_slope) -> ca.SX:
+            return d.flow(t_, z_, u0 + (t_ - t) * u_slope, y_use + (t_ - t) * slope)
 
         h_ = dt / n_sub
         for i in range(n_sub):

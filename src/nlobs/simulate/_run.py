@@ -164,7 +164,7 @@ def simulate(
     S[0] = s0
     _, _, done = runner.run(s0, A[:N], c, out=S[1:], obuf=O[:N], bound=escape_bound,
                             on_chunk=None if report is None else (lambda states, k: report(k / N)))
-    if done < N:  # the state after step `done - 1` left the bound: report the last good one
+    if done < N:  # the state after step `done` (row done + 1) left the bound: report the last good one, row done
         r = done
         col = int(np.flatnonzero(~(np.abs(S[r + 1]) <= escape_bound))[0])
         where, sl, names = layout.owner(col)
@@ -212,7 +212,7 @@ class Prepared:
         columns = [self.base]
         rng = np.random.default_rng(seed)
         if self.noise is not None:
-            columns.append(self.noise.draw(rng, N + 1, plant.outputs))
+            columns.append(self.noise.draw(rng, N + 1, plant.outputs, self.dt))
         if self.process_noise is not None:
             columns.append(np.vstack([self.process_noise.draw(rng, N, plant.states, self.dt), np.zeros((1, plant.n_states))]))
         if self.kind.sampled:
