@@ -1,7 +1,7 @@
 """Fixed-step integration: an RK4 step builder and a runner for s_{k+1} = step(s_k, a_k, c).
 
-The runner evaluates the step N times with :meth:`casadi.Function.mapaccum`, in chunks
-(for progress and early blow-up detection), writing each chunk straight into a
+The runner evaluates the step N times — in a generated C loop, or with
+:meth:`casadi.Function.mapaccum` on the VM (in chunks of bounded size) — writing straight into a
 preallocated NumPy array through :meth:`casadi.Function.buffer` (no intermediate DM).
 """
 
@@ -15,6 +15,7 @@ import casadi as ca
 import numpy as np
 
 from ._codegen import Backend, CompiledBatch, CompiledLoop, resolve_backend
+from ._simd import CompiledSimdBatch, simd_supported
 
 __all__ = ["rk4_step", "StepRunner", "DEFAULT_CHUNK", "run_batch", "saved_steps"]
 
@@ -33,7 +34,7 @@ def rk4_step(rhs: Callable[[Any, Any, int], Any], t: Any, s: Any, dt: Any) -> An
 
 _VM: dict[tuple[Any, ...], ca.Function] = {}
 _LOOPS: dict[str, CompiledLoop] = {}
-_BATCHES: dict[str, CompiledBatch] = {}
+_BATCHES: dict[str, CompiledBatch | CompiledSimdBatch] = {}
 
 
 def _signature(fn: ca.Function) -> str:
@@ -52,7 +53,8 @@ class StepRunner:
     backend : {"auto", "vm", "c"}
         Where to run; see :func:`nlobs.engine.resolve_backend`.
     chunk : int
-        Steps per compiled call (progress and blow-up checks happen between chunks).
+        Steps per call when progress is reported (and per VM map); without progress the
+        compiled C loop runs the whole horizon in one call.
     """
 
     def __init__(self, step: ca.Function, *, backend: Backend = "auto", chunk: int = DEFAULT_CHUNK):
@@ -111,7 +113,7 @@ class StepRunner:
         state = np.ascontiguousarray(np.asarray(s0, dtype=float).reshape(self.ns)).copy()
         # an MX step (e.g. embedding an NLP solver) cannot be generated as C: always the VM
         backend = resolve_backend(self.backend, work=N * self.ns) if self.step.is_a("SXFunction") else "vm"
-        K = min(self.chunk, N)
+        K = min(self.chunk, N) if (backend != "c" or on_chunk is not None) else N
         k = 0
         while k < N:
             n = min(K, N - k)
@@ -187,8 +189,8 @@ def run_batch(step: ca.Function, S0: np.ndarray, A: np.ndarray, C: np.ndarray, n
     if resolve_backend(backend, work=work) == "c":
         sig = _signature(step)
         batch = _BATCHES.get(sig)
-        if batch is None:
-            batch = _BATCHES[sig] = CompiledBatch(step)
+        if batch is None:  # lane-parallel (SIMD across trajectories) when every operation allows it
+            batch = _BATCHES[sig] = CompiledSimdBatch(step) if simd_supported(step) else CompiledBatch(step)
         batch(S0, A, 0 if shared_a else A.shape[1] * A.shape[2], C, 0 if shared_c else C.shape[1], S, O, n_steps, stride,
               bound, status)
         return S, O, status
