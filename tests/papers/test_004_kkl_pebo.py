@@ -40,3 +40,16 @@ def test_kkl_pebo_is_the_papers_observer_and_converges():
 def test_example_claims_hold():
     result = ex.run()
     assert result.ok, [str(c) for c in result.claims if not c.holds]
+
+
+def test_example_31_is_detectable_but_not_observable():
+    """x2 in 004 (31) never reaches y = x1 (x2' = -x2 + x1² + sin x1 is driven by x1 alone): the
+    observation space misses x2, yet x2 is recovered asymptotically because its dynamics are stable."""
+    from nlobs.analysis import analyze
+    from nlobs.examples.kkl_pebo_academic import model
+
+    report = analyze(model()).to_dict()
+    assert not report["observable"] and report["rank"] == 2
+    assert set(report["observable_states"]) == {"x1", "x3"}
+    direction = np.abs(np.asarray(report["unobservable_directions"][0]))
+    assert np.allclose(direction, [0, 1, 0], atol=1e-9)

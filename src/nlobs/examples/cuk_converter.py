@@ -256,6 +256,7 @@ def run() -> ExampleResult:
     fig = _figure(noisy, e_clean, e_noisy, names, setpoint)
     evidence = [_text_table(rows), *(f"{n}:\n{ds[n]}" for n in names)]
     return ExampleResult(
+        systems={"Ćuk converter (50)": model()},
         key="004-cuk", title="004 §V-C: Ćuk converter, six observers under bounded noise", reference=REF,
         summary=(f"Six observers of 004 Table I on the Ćuk converter (50) under state feedback and bounded noise. KKLO: "
                  f"noise part of the error {kkl.noise_rms[0]:.2g} A / {kkl.noise_rms[1]:.2g} V; the worst RMS errors under "

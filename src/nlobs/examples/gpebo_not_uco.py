@@ -111,6 +111,7 @@ def run() -> ExampleResult:
         "proof of 000 Prop. 2 says.",
     ]
     return ExampleResult(
+        systems={"ẋ = [[0, u], [0, 0]]x, y = x1": model().to_system()},
         key="000-2gd-not-uco", title="000: 2G+D on an observable, non-UCO LTV system", reference=REF,
         summary=(f"With u(t) = e^(-t) the system ẋ = [[0, u], [0, 0]]x, y = x1 is observable on [0, T] but not UCO. The 2G+D "
                  f"observer (order 14) reaches |x̂ - x| = {e_gd[-1]:.2g} at t = 20; the Kalman-like observer stalls at "

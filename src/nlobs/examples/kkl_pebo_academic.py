@@ -93,8 +93,12 @@ def run() -> ExampleResult:
         f"|x̂3 - x3| = {err_nls[-1, 2]:.2g} at t = 30; the residual error is that of Simpson's rule on the 0.1 s spacing.",
     ]
     return ExampleResult(
+        systems={"example (31)": model()},
         key="004-kkl-pebo", title="004 §V-A: KKL+PEBO where KKL and PEBO fail", reference=REF,
         summary=(f"The KKL and PEBO checks fail and say which component needs which λ; KKL+PEBO (32)-(37) reaches "
                  f"|x̂2 - x2| = {err[-1, 1]:.2g}, |x̂3 - x3| = {err[-1, 2]:.2g} at t = {T_FINAL:g}."),
         model=str(system), evidence=[f"KKL check: {kkl_msg}", f"PEBO check: {pebo_msg}", str(d), str(rep)],
-        runs={"noise-free": clean, "uniform noise": noisy}, table=table, claims=claims, notes=notes)
+        runs={"noise-free": clean, "uniform noise": noisy}, table=table, claims=claims,
+        notes=(*notes, "x2 never influences y (ẋ2 = −x2 + x1² + sin x1 is driven by y = x1 alone), so (31) is not observable "
+               "— the structural analysis above finds x2 outside the observation space. x2 is only detectable: its "
+               "unobservable dynamics are stable, and the KKL part of the observer (λ = −1) recovers it asymptotically."))
