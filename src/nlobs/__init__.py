@@ -34,6 +34,7 @@ from .model import load_model as load_model
 from .model import loads_model as loads_model
 from .observer import Observer as Observer
 from .observer import OnlineObserver as OnlineObserver
+from .simulate import Adaptive as Adaptive
 from .simulate import MonteCarloResult as MonteCarloResult
 from .simulate import Noise as Noise
 from .simulate import ProcessNoise as ProcessNoise

@@ -181,3 +181,24 @@ def test_noise_with_its_own_hold_period():
     assert np.all(np.abs(n) <= 0.02)
     with pytest.raises(ValueError, match="whole multiple of dt"):
         simulate(PEND, t_final=0.1, dt=1e-4, x0=[1.0, 0.0], noise=Noise.gaussian(0.1, hold=1.5e-4), seed=2)
+
+
+def test_adaptive_cvodes_matches_a_tight_scipy_reference():
+    from nlobs import Adaptive, design_ekf
+
+    ekf = design_ekf(VDP, Q=np.eye(2) * 1e-3, R=[[1e-4]])
+    tight = Adaptive(rtol=1e-12, atol=1e-13)  # local per-step tolerances: the global error accumulates over 400 steps
+    # autonomous: only the integrator's tolerance matters
+    run = simulate(VDP, {"ekf": ekf}, t_final=8.0, dt=0.02, x0=[2.0, 0.0], params={"mu": 1.3}, integrator=tight)
+    ref = solve_ivp(lambda t, x: [x[1], 1.3 * (1 - x[0] ** 2) * x[1] - x[0]], (0, 8), [2.0, 0.0],
+                    t_eval=run.t, rtol=1e-12, atol=1e-13, method="DOP853")
+    assert np.max(np.abs(run.x - ref.y.T)) < 1e-8 and run.info["integrator"].startswith("cvodes")
+    # a smooth input is interpolated quadratically through its stage values within each step: error O(dt^3)
+    run = simulate(VDP, t_final=8.0, dt=0.02, x0=[2.0, 0.0], inputs={"u": "0.5*sin(t)"}, params={"mu": 1.3}, integrator=tight)
+    ref = solve_ivp(lambda t, x: [x[1], 1.3 * (1 - x[0] ** 2) * x[1] - x[0] + 0.5 * np.sin(t)], (0, 8), [2.0, 0.0],
+                    t_eval=run.t, rtol=1e-12, atol=1e-13, method="DOP853")
+    assert np.max(np.abs(run.x - ref.y.T)) < 1e-6
+    with pytest.raises(ValueError, match="`rtol` must be a positive number"):
+        Adaptive(rtol=0)
+    with pytest.raises(TypeError, match="must be an nlobs.Adaptive"):
+        simulate(VDP, t_final=1.0, dt=0.1, x0=[1.0, 0.0], integrator="cvodes")  # type: ignore[arg-type]

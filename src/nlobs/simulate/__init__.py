@@ -3,6 +3,7 @@
 from ._metrics import Metrics as Metrics
 from ._metrics import convergence_time as convergence_time
 from ._metrics import error_metrics as error_metrics
+from ._options import Adaptive as Adaptive
 from ._options import Noise as Noise
 from ._options import ProcessNoise as ProcessNoise
 from ._options import Sampling as Sampling

@@ -26,7 +26,7 @@ from ..engine import Backend, StepRunner, compile_system, evaluate_many, rk4_ste
 from ..errors import FiniteEscapeError, ModelError, ShapeError
 from ..model import System, input_signals
 from ..observer import AbstractObserver, Observer, as_observer
-from ._options import Noise, ProcessNoise, Sampling
+from ._options import Adaptive, Noise, ProcessNoise, Sampling
 from ._results import ObserverTrace, Run
 
 __all__ = ["simulate", "prepare", "Prepared", "named_observers", "check_compatible", "stage_inputs"]
@@ -98,8 +98,9 @@ def simulate(
     engine: Backend = "auto",
     progress: bool | Callable[[float], None] | None = None,
     escape_bound: float = 1e12,
+    integrator: Adaptive | None = None,
 ) -> Run:
-    """Simulate a plant and observers on the same measurements, with fixed-step RK4.
+    """Simulate a plant and observers on the same measurements, with fixed-step RK4 (or CVODES).
 
     Parameters
     ----------
@@ -136,6 +137,9 @@ def simulate(
         Show progress on stderr (True) or call ``progress(fraction)``.
     escape_bound : float
         A state larger than this in magnitude counts as a blow-up.
+    integrator : Adaptive, optional
+        Integrate each step adaptively with CVODES instead of one RK4 step (see
+        :class:`nlobs.Adaptive`); measurements, noise and sample-time updates are unchanged.
 
     Returns
     -------
@@ -150,13 +154,14 @@ def simulate(
         For inconsistent arguments (wrong sizes, unknown names, incompatible observers).
     """
     prep = prepare(plant, observers, t_final=t_final, dt=dt, inputs=inputs, params=params, noise=noise,
-                   process_noise=process_noise, sampling=sampling, caller="simulate")
+                   process_noise=process_noise, sampling=sampling, caller="simulate", integrator=integrator)
     plant, obs, layout, N, t = prep.plant, prep.obs, prep.layout, prep.n_steps, prep.t
     s0 = prep.initial_state(x0, xhat0)
     A = prep.inputs_for(seed)
     c = prep.constants()
     report = as_progress(progress, f"simulate {plant.name}")
-    info = {"dt": dt, "sampling": None if sampling is None else sampling.period, "seed": seed, "engine": engine}
+    info = {"dt": dt, "sampling": None if sampling is None else sampling.period, "seed": seed, "engine": engine,
+            "integrator": "rk4" if integrator is None else f"cvodes ({integrator.method}, rtol={integrator.rtol:g}, atol={integrator.atol:g})"}
 
     runner = layout.runner(engine)
     S = np.empty((N + 1, layout.size))
@@ -226,7 +231,8 @@ class Prepared:
 
 
 def prepare(plant: System, observers: Any, *, t_final: float, dt: float, inputs: Any, params: Mapping[str, float] | None,
-            noise: Noise | None, process_noise: ProcessNoise | None, sampling: Sampling | None, caller: str) -> Prepared:
+            noise: Noise | None, process_noise: ProcessNoise | None, sampling: Sampling | None, caller: str,
+            integrator: Adaptive | None = None) -> Prepared:
     """Validate the arguments shared by simulate and montecarlo and build the compiled joint step."""
     if not isinstance(plant, System):
         raise TypeError(f"{caller}: `plant` must be an nlobs.System, got {type(plant).__name__}")
@@ -242,7 +248,9 @@ def prepare(plant: System, observers: Any, *, t_final: float, dt: float, inputs:
         raise ModelError(f"{caller}: the plant {plant.name!r} has no outputs; an observer needs a measurement")
     for name, o in obs.items():
         check_compatible(plant, name, o)
-    kind = _Kind(sampled=sampling is not None, noisy=noise is not None, process=process_noise is not None)
+    if integrator is not None and not isinstance(integrator, Adaptive):
+        raise TypeError(f"{caller}: `integrator` must be an nlobs.Adaptive (or None for fixed-step RK4), got {integrator!r}")
+    kind = _Kind(sampled=sampling is not None, noisy=noise is not None, process=process_noise is not None, adaptive=integrator)
     _, layout = _joint_step(plant, obs, kind)
     t = np.arange(N + 1) * dt
     base = t[:, None]
@@ -269,6 +277,7 @@ class _Kind:
     sampled: bool
     noisy: bool
     process: bool
+    adaptive: Adaptive | None = None
 
 
 class _Layout:
@@ -364,7 +373,7 @@ def _build_step(plant: System, obs: Mapping[str, AbstractObserver], kind: _Kind)
     n, ny = plant.n_states, plant.n_outputs
     layout = _Layout(plant, obs, kind)
     # designs whose functions are not SX (MHE embeds an NLP solver) need an MX graph (run on the VM)
-    X = ca.MX if any(o.design.needs_mx for o in obs.values()) else ca.SX
+    X = ca.MX if kind.adaptive is not None or any(o.design.needs_mx for o in obs.values()) else ca.SX
     s = X.sym("s", layout.size)
     a = X.sym("a", layout.na)
     c = X.sym("c", 1 + plant.n_params)
@@ -405,13 +414,41 @@ def _build_step(plant: System, obs: Mapping[str, AbstractObserver], kind: _Kind)
         return ca.vertcat(*parts)
 
     joint = ca.vertcat(x, *zs.values())
-    S_next = rk4_step(rhs, t, joint, dt)
+    if kind.adaptive is None:
+        S_next = rk4_step(rhs, t, joint, dt)
+    else:
+        S_next = _adaptive_flow(plant, obs, layout, kind)(joint, a, c, y_s if kind.sampled else ca.DM.zeros(ny))
     x_next = rows(S_next, 0, n) + (rows(a, layout.w.start, layout.w.stop) if kind.process else 0)
     s_next = ca.vertcat(x_next, rows(S_next, n, joint.shape[0]), y_s if kind.sampled else X(0, 1))
     o = ca.vertcat(*outs)
     layout.step = ca.Function("joint_step", [s, a, c], [s_next, o])
     layout.step_outputs = ca.Function("joint_outputs", [s, a, c], [o])
     return layout
+
+
+def _adaptive_flow(plant: System, obs: Mapping[str, AbstractObserver], layout: _Layout, kind: _Kind) -> ca.Function:
+    """``(S, a, c, y_held) -> S(t + dt)``: the joint flow over one step, by CVODES in τ = (t - t_k)/dt ∈ [0, 1]."""
+    comp = compile_system(plant)
+    n, nu, ny = plant.n_states, plant.n_inputs, plant.n_outputs
+    S = ca.SX.sym("S", layout.n + sum(o.n_z for o in obs.values()))
+    a, c, yh, tau = ca.SX.sym("a", layout.na), ca.SX.sym("c", 1 + plant.n_params), ca.SX.sym("yh", ny), ca.SX.sym("tau")
+    dt, p = c[0], rows(c, 1, 1 + plant.n_params)
+    t = a[0] + tau * dt
+    stages = [rows(a, layout.u.start + k * nu, layout.u.start + (k + 1) * nu) for k in range(3)]
+    # quadratic through u(t_k), u(t_k + dt/2), u(t_k + dt): exact for held and linear inputs
+    u = (2 * (tau - 0.5) * (tau - 1)) * stages[0] - (4 * tau * (tau - 1)) * stages[1] + (2 * tau * (tau - 0.5)) * stages[2]
+    noise = rows(a, layout.noise.start, layout.noise.stop) if kind.noisy else ca.DM.zeros(ny)
+    xx = rows(S, 0, n)
+    y = yh if kind.sampled else comp.h(t, xx, u, p) + noise
+    parts, off = [comp.f(t, xx, u, p)], n
+    for o in obs.values():
+        parts.append(o.design.flow(t, rows(S, off, off + o.n_z), u, y))
+        off += o.n_z
+    opts = {"abstol": kind.adaptive.atol, "reltol": kind.adaptive.rtol, "linear_multistep_method": kind.adaptive.method}
+    F = ca.integrator("joint_flow", "cvodes", {"x": S, "t": tau, "p": ca.vertcat(a, c, yh), "ode": dt * ca.vertcat(*parts)},
+                      0.0, 1.0, opts)
+    Sm, am, cm, ym = ca.MX.sym("S", S.shape[0]), ca.MX.sym("a", layout.na), ca.MX.sym("c", c.shape[0]), ca.MX.sym("y", ny)
+    return ca.Function("adaptive_step", [Sm, am, cm, ym], [F(x0=Sm, p=ca.vertcat(am, cm, ym))["xf"]])
 
 
 def _selects_state(design: ObserverDesign, n: int) -> bool:
