@@ -34,7 +34,7 @@ def test_export_errors_are_one_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "`name` must be a C identifier" in err
     assert main(["export", PEND, "--observer", "ekf", "--c", str(tmp_path), "--max-step", "0"]) == 1
-    assert "`max_step` must be positive" in capsys.readouterr().err
+    assert "`max_step` must be a positive number" in capsys.readouterr().err
     assert not any(tmp_path.iterdir())  # nothing half-written
 
 

@@ -255,7 +255,7 @@ def test_to_control_refuses_what_it_cannot_do():
         nlobs.to_control(design, max_step=0.01)
     with pytest.raises(ShapeError, match="plant 'two' has 2 output"):
         nlobs.to_control(design, plant=ct.ss(A, B, np.eye(2), 0, name="two"))
-    with pytest.raises(ValueError, match="`dt` must be positive and finite"):
+    with pytest.raises(ValueError, match="`dt` must be a positive number"):
         nlobs.to_control(design, dt=0.0)
     with pytest.raises(ValueError, match=r"format with '\{i\}'"):
         nlobs.to_control(design, outputs="xhat")

@@ -216,7 +216,7 @@ def test_bad_arguments_are_named():
         export_c(d, "/nonexistent-never-written", name="9lives")
     with pytest.raises(ValueError, match=r"`name` must be a C identifier.*'double'"):
         export_c(d, "/nonexistent-never-written", name="double")
-    with pytest.raises(ValueError, match=r"`max_step` must be positive and finite, got -0.1"):
+    with pytest.raises(ValueError, match=r"`max_step` must be a positive number \(finite and > 0\), got -0.1"):
         export_c(d, "/nonexistent-never-written", max_step=-0.1)
     with pytest.raises(TypeError, match="expected an observer or an ObserverDesign"):
         export_c(PEND.system, "/nonexistent-never-written")

@@ -6,6 +6,7 @@ from ._base import Check as Check
 from ._base import ObserverDesign as ObserverDesign
 from ._base import Symbols as Symbols
 from ._checks import check_matrix as check_matrix
+from ._checks import check_positive as check_positive
 from ._custom import design_custom as design_custom
 from ._checks import observer_gain as observer_gain
 from ._ekf import design_ekf as design_ekf

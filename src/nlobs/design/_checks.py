@@ -15,7 +15,7 @@ from ..analysis import kalman_rank, pbh_test
 from ..errors import PreconditionError, ShapeError
 from ._base import Check
 
-__all__ = ["check_matrix", "observer_gain"]
+__all__ = ["check_matrix", "check_positive", "observer_gain"]
 
 
 def check_matrix(M: Any, rows: int, cols: int, name: str, caller: str, *,
@@ -60,6 +60,18 @@ def check_matrix(M: Any, rows: int, cols: int, name: str, caller: str, *,
         if definite == "semidefinite" and lam < -1e-12 * max(1.0, np.abs(a).max()):
             raise PreconditionError(f"{caller}: `{name}` must be positive semidefinite; its smallest eigenvalue is {lam:.3g}")
     return a
+
+
+def check_positive(value: Any, name: str, caller: str) -> float:
+    """`value` as a float, or a PreconditionError (a ValueError) naming `name` and `caller` unless it
+    is a finite number > 0."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        v = float("nan")
+    if not (np.isfinite(v) and v > 0):
+        raise PreconditionError(f"{caller}: `{name}` must be a positive number (finite and > 0), got {value!r}")
+    return v
 
 
 def _poles(poles: Any, n: int, caller: str) -> np.ndarray:

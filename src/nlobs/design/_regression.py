@@ -50,7 +50,7 @@ from ..errors import FormError, PreconditionError, ShapeError
 from ..model import TIME, System, symbol
 from ..model._forms import matrix_of
 from ._base import Certificate, Check, ObserverDesign, Symbols
-from ._checks import check_matrix
+from ._checks import check_matrix, check_positive
 from ._common import leaves_of
 
 __all__ = [
@@ -163,16 +163,6 @@ class StateStack:
                                     xhat0_sym=self.xhat0, z0=z0, xhat0=x0, certificate=certificate, update=update)
 
 
-def _positive(value: Any, name: str, caller: str) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise PreconditionError(f"{caller}: `{name}` must be a positive number, got {value!r}") from None
-    if not (np.isfinite(v) and v > 0):
-        raise PreconditionError(f"{caller}: `{name}` must be a positive number, got {value!r}")
-    return v
-
-
 def lowpass(stack: StateStack, signal: Any, alpha: float, name: str) -> ca.SX:
     r"""The filter :math:`F(p) = \alpha/(p + \alpha)` applied to `signal` (004 eq. 37).
 
@@ -194,7 +184,7 @@ def lowpass(stack: StateStack, signal: Any, alpha: float, name: str) -> ca.SX:
     ----------
     004_f1e237c45ff4719e.txt eq. (37).
     """
-    a = _positive(alpha, "alpha", "lowpass")
+    a = check_positive(alpha, "alpha", "lowpass")
     s = ca.SX(signal)
     w = stack.add(name, s.shape[0], s.shape[1])
     stack.set_flow(w, -a * w + a * s)
@@ -223,7 +213,7 @@ def derivative_filter(stack: StateStack, signal: Any, alpha: float, name: str) -
     ----------
     004_f1e237c45ff4719e.txt eq. (37), §V-A.
     """
-    a = _positive(alpha, "alpha", "derivative_filter")
+    a = check_positive(alpha, "alpha", "derivative_filter")
     s = ca.SX(signal)
     return a * (s - lowpass(stack, s, a, name))
 
@@ -422,7 +412,7 @@ class LeastSquares(AbstractEstimator):
         if not (np.isfinite(self.forgetting) and self.forgetting >= 0):
             raise PreconditionError(f"LeastSquares: `forgetting` must be a number >= 0, got {self.forgetting!r}")
         if self.p_max is not None:
-            _positive(self.p_max, "p_max", "LeastSquares")
+            check_positive(self.p_max, "p_max", "LeastSquares")
 
     def n_states(self, n_theta: int, q: int) -> int:
         return n_theta + n_theta * n_theta
@@ -503,7 +493,7 @@ class DREM(AbstractEstimator):
                 raise PreconditionError(f"DREM: the filter poles {lam} must be distinct, or the extended regressor is singular")
             object.__setattr__(self, "lambdas", lam)
         if self.kreisselmeier is not None:
-            _positive(self.kreisselmeier, "kreisselmeier", "DREM")
+            check_positive(self.kreisselmeier, "kreisselmeier", "DREM")
 
     def _rows(self, n: int, q: int) -> None:
         if self.lambdas is not None and q * (1 + len(self.lambdas)) != n:
@@ -580,8 +570,8 @@ class GD(AbstractEstimator):
     reference = REF_GD
 
     def __post_init__(self) -> None:
-        _positive(self.gamma_g, "gamma_g", "GD")
-        _positive(self.gamma, "gamma", "GD")
+        check_positive(self.gamma_g, "gamma_g", "GD")
+        check_positive(self.gamma, "gamma", "GD")
 
     def n_states(self, n_theta: int, q: int) -> int:
         return 2 * n_theta + n_theta * n_theta
@@ -741,7 +731,7 @@ def excitation_report(design: ObserverDesign, t: Any, z: Any, u: Any = None, y: 
     ie = np.linalg.eigvalsh(cum)[:, 0]
     pe = None
     if window is not None:
-        _positive(window, "window", "excitation_report")
+        check_positive(window, "window", "excitation_report")
         if window > t[-1] - t[0]:
             raise PreconditionError(f"excitation_report: `window` = {window:g} is longer than the run ({t[-1] - t[0]:g})")
         j = np.searchsorted(t, t + window - 1e-12 * max(1.0, window))

@@ -19,7 +19,7 @@ import subprocess
 import tempfile
 import warnings
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import casadi as ca
 import numpy as np
@@ -241,20 +241,31 @@ class CompiledBatch:
             raise ValueError("CompiledBatch needs step(s, a, c) -> (s_next, o)")
         self.ns, self.na, self.nc, self.no = step.size1_in(0), step.size1_in(1), step.size1_in(2), step.size1_out(1)
         self.path, lib = _compile_driver(step, _BATCH, "batch", self.no)
-        dbl, ll = ctypes.POINTER(ctypes.c_double), ctypes.c_longlong
         self._run = lib.nlobs_batch
-        self._run.argtypes = [dbl, dbl, ll, dbl, ll, dbl, dbl, ll, ll, ll, ll, ctypes.c_double, ctypes.POINTER(ll)]
-        self._run.restype = ll
+        self._run.argtypes = BATCH_ARGTYPES
+        self._run.restype = ctypes.c_longlong
         self._lib = lib
 
     def __call__(self, S0: np.ndarray, A: np.ndarray, a_stride: int, C: np.ndarray, c_stride: int, Sout: np.ndarray,
                  Oout: np.ndarray, n_steps: int, stride: int, bound: float, status: np.ndarray) -> None:
-        dbl = ctypes.POINTER(ctypes.c_double)
-        rc = self._run(S0.ctypes.data_as(dbl), A.ctypes.data_as(dbl), a_stride, C.ctypes.data_as(dbl), c_stride,
-                       Sout.ctypes.data_as(dbl), Oout.ctypes.data_as(dbl), Sout.shape[1], S0.shape[0], n_steps, stride,
-                       bound, status.ctypes.data_as(ctypes.POINTER(ctypes.c_longlong)))
-        if rc != 0:
-            raise EngineError(f"the compiled step failed in trajectory {rc - 1}")
+        call_batch(self._run, S0, A, a_stride, C, c_stride, Sout, Oout, n_steps, stride, bound, status)
+
+
+BATCH_ARGTYPES = [ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_double), ctypes.c_longlong,
+                  ctypes.POINTER(ctypes.c_double), ctypes.c_longlong, ctypes.POINTER(ctypes.c_double),
+                  ctypes.POINTER(ctypes.c_double), ctypes.c_longlong, ctypes.c_longlong, ctypes.c_longlong, ctypes.c_longlong,
+                  ctypes.c_double, ctypes.POINTER(ctypes.c_longlong)]
+
+
+def call_batch(run: Any, S0: np.ndarray, A: np.ndarray, a_stride: int, C: np.ndarray, c_stride: int, Sout: np.ndarray,
+               Oout: np.ndarray, n_steps: int, stride: int, bound: float, status: np.ndarray) -> None:
+    """Call a compiled ``nlobs_batch`` driver (scalar or lane-parallel) on NumPy buffers."""
+    dbl = ctypes.POINTER(ctypes.c_double)
+    rc = run(S0.ctypes.data_as(dbl), A.ctypes.data_as(dbl), a_stride, C.ctypes.data_as(dbl), c_stride,
+             Sout.ctypes.data_as(dbl), Oout.ctypes.data_as(dbl), Sout.shape[1], S0.shape[0], n_steps, stride, bound,
+             status.ctypes.data_as(ctypes.POINTER(ctypes.c_longlong)))
+    if rc != 0:
+        raise EngineError(f"the compiled batch failed in trajectory {rc - 1}")
 
 
 def _compile_driver(step: ca.Function, template: str, tag: str, no: int) -> tuple[Path, ctypes.CDLL]:

@@ -16,7 +16,7 @@ import casadi as ca
 import numpy as np
 
 from ..errors import EngineError
-from ._codegen import _build
+from ._codegen import BATCH_ARGTYPES, _build, call_batch
 
 __all__ = ["simd_supported", "CompiledSimdBatch", "LANES"]
 
@@ -153,17 +153,11 @@ class CompiledSimdBatch:
         code = "#include <math.h>\n" + "".join(f"#define {k} {v}\n" for k, v in sizes.items()) + _kernel(step, lanes) + _DRIVER
         self.path = _build(code, "simd")
         lib = ctypes.CDLL(str(self.path))
-        dbl, ll = ctypes.POINTER(ctypes.c_double), ctypes.c_longlong
         self._run = lib.nlobs_batch
-        self._run.argtypes = [dbl, dbl, ll, dbl, ll, dbl, dbl, ll, ll, ll, ll, ctypes.c_double, ctypes.POINTER(ll)]
-        self._run.restype = ll
+        self._run.argtypes = BATCH_ARGTYPES
+        self._run.restype = ctypes.c_longlong
         self._lib = lib
 
     def __call__(self, S0: np.ndarray, A: np.ndarray, a_stride: int, C: np.ndarray, c_stride: int, Sout: np.ndarray,
                  Oout: np.ndarray, n_steps: int, stride: int, bound: float, status: np.ndarray) -> None:
-        dbl = ctypes.POINTER(ctypes.c_double)
-        rc = self._run(S0.ctypes.data_as(dbl), A.ctypes.data_as(dbl), a_stride, C.ctypes.data_as(dbl), c_stride,
-                       Sout.ctypes.data_as(dbl), Oout.ctypes.data_as(dbl), Sout.shape[1], S0.shape[0], n_steps, stride,
-                       bound, status.ctypes.data_as(ctypes.POINTER(ctypes.c_longlong)))
-        if rc != 0:
-            raise EngineError(f"the lane-parallel batch failed ({rc})")
+        call_batch(self._run, S0, A, a_stride, C, c_stride, Sout, Oout, n_steps, stride, bound, status)

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from ..design import check_positive
 from ..engine import compile_system
 from ..errors import ModelError, PreconditionError, ShapeError
 from ..model import LTI, System
@@ -342,8 +343,8 @@ def to_control(observer: Any, *, plant: Any = None, dt: float | None = None, max
 
         return ct.nlsys(updfcn, outfcn, inputs=in_labels, outputs=out_labels, states=st_labels, dt=0, name=label)
 
-    T = _positive(dt, "dt")
-    n_sub = 1 if max_step is None else max(1, math.ceil(T / _positive(max_step, "max_step") - 1e-9))
+    T = check_positive(dt, "dt", "to_control")
+    n_sub = 1 if max_step is None else max(1, math.ceil(T / check_positive(max_step, "max_step", "to_control") - 1e-9))
     last: dict[str, Any] = {}
 
     def posterior(t: float, z: Any, v: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -363,13 +364,3 @@ def to_control(observer: Any, *, plant: Any = None, dt: float | None = None, max
         return obs.estimate(t, zp, u, y)
 
     return ct.nlsys(dupdfcn, doutfcn, inputs=in_labels, outputs=out_labels, states=st_labels, dt=T, name=label)
-
-
-def _positive(value: Any, what: str) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"to_control: `{what}` must be a positive number, got {value!r}") from None
-    if not (math.isfinite(v) and v > 0):
-        raise ValueError(f"to_control: `{what}` must be positive and finite, got {value!r}")
-    return v

@@ -23,7 +23,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from ..design import ObserverDesign
+from ..design import ObserverDesign, check_positive
 from ..engine import compile_system, rk4_step
 from ..errors import PreconditionError
 from ._base import AbstractObserver, Observer, as_observer
@@ -447,12 +447,7 @@ def export_c(observer: AbstractObserver | ObserverDesign, directory: str | os.Pa
     design = obs.design
     name = _check_name(_default_name(design) if name is None else name)
     if max_step is not None:
-        try:
-            max_step = float(max_step)
-        except (TypeError, ValueError):
-            raise ValueError(f"export_c: `max_step` must be a positive number, got {max_step!r}") from None
-        if not (np.isfinite(max_step) and max_step > 0):
-            raise ValueError(f"export_c: `max_step` must be positive and finite, got {max_step}")
+        max_step = check_positive(max_step, "max_step", "export_c")
     out = Path(directory)
     fns = list(_functions(design, name))
     body = _generate(fns, name, design.method)  # before writing anything: it may refuse
