@@ -240,11 +240,8 @@ class CompiledBatch:
         if step.n_in() != 3 or step.n_out() != 2:
             raise ValueError("CompiledBatch needs step(s, a, c) -> (s_next, o)")
         self.ns, self.na, self.nc, self.no = step.size1_in(0), step.size1_in(1), step.size1_in(2), step.size1_out(1)
-        self.path, lib = _compile_driver(step, _BATCH, "batch", self.no)
-        self._run = lib.nlobs_batch
-        self._run.argtypes = BATCH_ARGTYPES
-        self._run.restype = ctypes.c_longlong
-        self._lib = lib
+        self.path, self._lib = _compile_driver(step, _BATCH, "batch", self.no)
+        self._run = bind_batch(self._lib)
 
     def __call__(self, S0: np.ndarray, A: np.ndarray, a_stride: int, C: np.ndarray, c_stride: int, Sout: np.ndarray,
                  Oout: np.ndarray, n_steps: int, stride: int, bound: float, status: np.ndarray) -> None:
@@ -255,6 +252,14 @@ BATCH_ARGTYPES = [ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_doubl
                   ctypes.POINTER(ctypes.c_double), ctypes.c_longlong, ctypes.POINTER(ctypes.c_double),
                   ctypes.POINTER(ctypes.c_double), ctypes.c_longlong, ctypes.c_longlong, ctypes.c_longlong, ctypes.c_longlong,
                   ctypes.c_double, ctypes.POINTER(ctypes.c_longlong)]
+
+
+def bind_batch(lib: ctypes.CDLL) -> Any:
+    """The ``nlobs_batch`` entry point of a compiled driver, with its argument types set."""
+    run = lib.nlobs_batch
+    run.argtypes = BATCH_ARGTYPES
+    run.restype = ctypes.c_longlong
+    return run
 
 
 def call_batch(run: Any, S0: np.ndarray, A: np.ndarray, a_stride: int, C: np.ndarray, c_stride: int, Sout: np.ndarray,

@@ -16,7 +16,7 @@ import casadi as ca
 import numpy as np
 
 from ..errors import EngineError
-from ._codegen import BATCH_ARGTYPES, _build, call_batch
+from ._codegen import _build, bind_batch, call_batch
 
 __all__ = ["simd_supported", "CompiledSimdBatch", "LANES"]
 
@@ -152,11 +152,8 @@ class CompiledSimdBatch:
         sizes = {"NS": self.ns, "NA": self.na, "NC": self.nc, "NO": self.no, "W": lanes}
         code = "#include <math.h>\n" + "".join(f"#define {k} {v}\n" for k, v in sizes.items()) + _kernel(step, lanes) + _DRIVER
         self.path = _build(code, "simd")
-        lib = ctypes.CDLL(str(self.path))
-        self._run = lib.nlobs_batch
-        self._run.argtypes = BATCH_ARGTYPES
-        self._run.restype = ctypes.c_longlong
-        self._lib = lib
+        self._lib = ctypes.CDLL(str(self.path))
+        self._run = bind_batch(self._lib)
 
     def __call__(self, S0: np.ndarray, A: np.ndarray, a_stride: int, C: np.ndarray, c_stride: int, Sout: np.ndarray,
                  Oout: np.ndarray, n_steps: int, stride: int, bound: float, status: np.ndarray) -> None:
