@@ -133,3 +133,14 @@ def test_lqe_scipy_residual_independent_check():
     assert np.allclose(v["P"], [[np.sqrt(3), 1], [1, np.sqrt(3)]])
     assert np.allclose(L.ravel(), [np.sqrt(3), 1])
     assert np.allclose(scipy.linalg.solve_continuous_are(A.T, C.T, np.eye(2), np.eye(1)), v["P"])
+
+
+def test_check_has_three_states_and_never_prints_an_assumption_as_ok():
+    from nlobs.design import Check
+
+    ok, assumed, bad = Check("a", True, "1 < 2"), Check.assumed("b", "depends on the data"), Check("c", False)
+    assert (ok.status, assumed.status, bad.status) == ("holds", "assumed", "fails")
+    assert ok.holds and not assumed.holds and not bad.holds and bad.fails and not assumed.fails
+    assert str(ok).startswith("[ok]") and str(assumed).startswith("[assumed]") and str(bad).startswith("[FAILED]")
+    with pytest.raises(ValueError, match="status"):
+        Check("d", "maybe")

@@ -202,7 +202,7 @@ def design_banks(system: System, *, P: Any, region: Mapping[str, Sequence[float]
                     f"K = {cond.K:.4g}" + (" (given)" if perturbation_bound is not None else " (sup ‖Df2‖₂ over Ω)")
                     + f", slope μ = {cond.slope:.4g}")]
     if region is not None:
-        checks.append(Check("x and x̂ stay in the convex region Ω", True, "assumed (003 Theorem 2.6): " +
+        checks.append(Check.assumed("x and x̂ stay in the convex region Ω", "003 Theorem 2.6: " +
                             ", ".join(f"{k} in [{v[0]:g}, {v[1]:g}]" for k, v in region.items())))
     values = {"P": Pm, "epsilon": cond.epsilon, "K": cond.K, "slope": cond.slope, "guaranteed_rate": cond.rate,
               "jacobian": str(J.tolist()), "perturbation": [str(e) for e in f2]}

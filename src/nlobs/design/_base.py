@@ -28,16 +28,63 @@ from ..model import System
 __all__ = ["Check", "Certificate", "ObserverDesign", "Symbols"]
 
 
+_STATUS = ("holds", "assumed", "fails")
+_MARK = {"holds": "ok", "assumed": "assumed", "fails": "FAILED"}
+
+
 @dataclass(frozen=True)
 class Check:
-    """One precondition or guarantee: what was checked, whether it holds, and the numbers."""
+    """One precondition or guarantee: what was checked, its status, and the numbers.
+
+    Attributes
+    ----------
+    condition : str
+        The condition, in words.
+    status : {"holds", "assumed", "fails"}
+        ``"holds"``: verified, with the numbers in `detail`; ``"assumed"``: stated by the
+        design (a paper's hypothesis, a property of data not seen at design time) but **not**
+        verified; ``"fails"``: verified to be false. ``True`` and ``False`` are accepted for
+        ``"holds"`` and ``"fails"``.
+    detail : str
+        The numbers behind the status, or why the condition could not be verified.
+    evidence : str
+        What kind of evidence decided a ``"holds"``/``"fails"`` (e.g. ``"symbolic"``,
+        ``"exact arithmetic"``, ``"floating point"``, ``"sampled over the region (a lower bound
+        of the supremum)"``, ``"heuristic threshold"``); empty when obvious from `detail`.
+    """
 
     condition: str
-    holds: bool
+    status: str | bool
     detail: str = ""
+    evidence: str = ""
+
+    def __post_init__(self) -> None:
+        status = {True: "holds", False: "fails"}.get(self.status, self.status) if isinstance(self.status, bool) else self.status
+        if status not in _STATUS:
+            raise ValueError(f"Check: `status` must be one of {', '.join(_STATUS)} (or True/False), got {self.status!r}")
+        object.__setattr__(self, "status", status)
+
+    @classmethod
+    def assumed(cls, condition: str, detail: str = "") -> Check:
+        """A condition the design relies on but does not verify."""
+        return cls(condition, "assumed", detail)
+
+    @property
+    def holds(self) -> bool:
+        """True only when the condition was verified (never for an assumed one)."""
+        return self.status == "holds"
+
+    @property
+    def fails(self) -> bool:
+        return self.status == "fails"
 
     def __str__(self) -> str:
-        return f"[{'ok' if self.holds else 'FAILED'}] {self.condition}" + (f": {self.detail}" if self.detail else "")
+        text = f"[{_MARK[self.status]}] {self.condition}"
+        if self.detail:
+            text += f": {self.detail}"
+        if self.evidence:
+            text += f" ({self.evidence})"
+        return text
 
 
 def _fmt(value: Any) -> str:

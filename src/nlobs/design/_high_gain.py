@@ -318,9 +318,9 @@ def design_high_gain(system: System, *, theta: float | None = None, r: float | N
             eigs.append(ev[np.lexsort((ev.imag, ev.real))])
             blocks.append(M)
         else:
-            checks.append(Check(f"coupling(s) of the chain of {system.outputs[c.output]} bounded away from 0 with a fixed sign "
-                                "(002 extension)", True,
-                                "assumed, not checked: " + ", ".join(str(a) for a in c.couplings if a.free_symbols)))
+            checks.append(Check.assumed(f"coupling(s) of the chain of {system.outputs[c.output]} bounded away from 0 with a "
+                                        "fixed sign (002 extension)",
+                                        "depends on the trajectory: " + ", ".join(str(a) for a in c.couplings if a.free_symbols)))
     values: dict[str, Any] = {"theta": th, "K0": gains}
     if len(blocks) == len(chs):
         checks.append(Check("A_c - K0 C0 Hurwitz (every chain)", True, f"max Re eig = {max(e.real.max() for e in eigs):.4g}"))

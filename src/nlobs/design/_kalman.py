@@ -149,8 +149,8 @@ def _riccati_design(method: str, title: str, ref: str, parts: StateAffineParts, 
     # stiffness of the Riccati ODE at t = 0: the correction term MCᵀW⁻¹CM acts at rate ~ λmax(M0)‖C‖²/λmin(W);
     # explicit RK4 needs dt·rate below ~2.8 (reported so a blow-up can be traced to the step size)
     values["riccati_rate0"] = float(np.linalg.eigvalsh(M0m).max() / np.linalg.eigvalsh(Wm).min()) * (lam or 1.0)
-    checks.append(Check("input regularly persistent / (A, C) uniformly completely observable (002)", True,
-                        "assumed, not checked at design time: it depends on the input and output trajectory"))
+    checks.append(Check.assumed("input regularly persistent / (A, C) uniformly completely observable (002)",
+                                "not checked at design time: it depends on the input and output trajectory"))
     s = Symbols.make(system, n + n * n)
     xh = s.z[:n]
     M = ca.reshape(s.z[n:], n, n)

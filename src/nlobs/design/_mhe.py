@@ -160,8 +160,8 @@ def design_mhe(system: System, *, horizon: int = 20, R: Any = None, P_arrival: A
         f"Moving-horizon estimator (window of {N} samples, IPOPT)", REF,
         (Check("R and the arrival covariance positive definite", True,
                f"min eig R = {np.linalg.eigvalsh(Rm).min():.3g}, P_arrival = {np.linalg.eigvalsh(Pa).min():.3g}"),
-         Check("the model is observable over the window for the data", True,
-               "assumed, not checked: an unobservable window leaves the arrival cost in charge")),
+         Check.assumed("the model is observable over the window for the data",
+                       "not checked at design time: an unobservable window leaves the arrival cost in charge")),
         {"horizon": N, "R": Rm, "P_arrival": Pa, "substeps": int(substeps), "max_iter": int(max_iter), "tol": float(tol)})
     z_names = ([f"xhat_{v}" for v in system.states] + [f"xstart_{v}" for v in system.states] + [f"t_{i}" for i in range(N)]
                + [f"u{j}_{i}" for i in range(N) for j in range(nu)] + [f"y{j}_{i}" for i in range(N) for j in range(p)]
