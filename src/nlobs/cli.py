@@ -11,6 +11,7 @@ import math
 import sys
 from collections.abc import Sequence
 from typing import Any
+from .references import cite
 
 __all__ = ["main"]
 
@@ -26,12 +27,12 @@ def _parser() -> argparse.ArgumentParser:
     d.add_argument("--list", action="store_true", help="list the examples and exit")
     d.add_argument("--quiet", action="store_true", help="no progress lines")
 
-    a = sub.add_parser("analyze", help="structural observability of a model file (generic rank, 002)")
+    a = sub.add_parser("analyze", help=f"structural observability of a model file (generic rank, {cite('002')})")
     a.add_argument("model", help="model file (TOML)")
     a.add_argument("--params", default="", metavar="NAMES",
                    help="comma-separated parameters to treat as unknown constants (identifiability), or 'all'")
     a.add_argument("--inputs", default="generic", metavar="CLASS",
-                   help="'generic' (default: the observation space of 002), 'constant', or a polynomial degree")
+                   help=f"'generic' (default: the observation space of {cite('002')}), 'constant', or a polynomial degree")
     a.add_argument("--function", action="append", default=[], metavar="EXPR",
                    help="a function of the states to test for observability (repeatable), e.g. 'x1**2 + x2**2'")
     a.add_argument("--seed", type=int, default=0, help="seed of the random point and prime (default 0)")

@@ -36,11 +36,12 @@ from ..model._forms import matrix_of
 from ..model._system import ExprLike
 from ._gramian import GramianResult, ltv_gramian
 from ._reports import clean_direction, fmt_vec
+from ..references import cite
 
 __all__ = ["Augmentation", "MimickingCheck", "check_mimicking", "propose_augmentation", "InjectivityCheck",
            "injectivity", "LeftInverseBounds", "left_inverse_bounds", "AugmentedObservability", "augmented_observability"]
 
-REF = "001_1b4027b3a70d560f.txt"
+REF = f"{cite('001')}"
 
 
 def _known(system: System) -> dict[str, sp.Symbol]:
@@ -74,7 +75,7 @@ class Augmentation:
         return len(self.T)
 
     def __str__(self) -> str:
-        lines = [f"augmentation of {self.system.name!r} to {self.n_w} states (001 Def. 5):"]
+        lines = [f"augmentation of {self.system.name!r} to {self.n_w} states ({cite('001')} Def. 5):"]
         for i, e in enumerate(self.T):
             lines.append(f"  w{i + 1} = {e}")
         lines.append(f"  A(u, y, t) = {self.A.tolist()}")
@@ -93,7 +94,7 @@ class MimickingCheck:
     residuals: tuple[sp.Expr, ...] = ()
 
     def __str__(self) -> str:
-        return ("mimics the model: dT/dt = A T + b along f and C T = h, identically (001 Def. 3)" if self.holds
+        return (f"mimics the model: dT/dt = A T + b along f and C T = h, identically ({cite('001')} Def. 3)" if self.holds
                 else f"does NOT mimic the model: {self.reason}")
 
 
@@ -371,14 +372,14 @@ def injectivity(system: System, T: Sequence[ExprLike] | Augmentation, *, left_in
     pos = [next((i for i, e in enumerate(Tm) if e == s), None) for s in x]
     if all(p is not None for p in pos):
         return InjectivityCheck(True, "every state is a component of T (w" + ", w".join(str(p + 1) for p in pos)
-                                + "), so T'(w) = [I 0] w is a left inverse (001 Def. 5)")
+                                + f"), so T'(w) = [I 0] w is a left inverse ({cite('001')} Def. 5)")
     if left_inverse is not None:
         ws = [symbol(f"w{i + 1}") for i in range(len(T))]
         inv = matrix_of(list(left_inverse), system.n_states, 1, {**allowed, **{w.name: w for w in ws}}, name="left_inverse")
         back = inv.xreplace(dict(zip(ws, Tm)))
         bad = [i for i in range(system.n_states) if not _zero(back[i] - x[i])]
         if not bad:
-            return InjectivityCheck(True, "the given left inverse satisfies T'(T(x)) = x identically (001 Def. 4)")
+            return InjectivityCheck(True, f"the given left inverse satisfies T'(T(x)) = x identically ({cite('001')} Def. 4)")
         return InjectivityCheck(None, f"the given left inverse does not recover {system.states[bad[0]]}: T'(T(x)) = {back[bad[0]]}")
     J = Tm.jacobian(x)
     rng = np.random.default_rng(seed)
@@ -412,7 +413,7 @@ class LeftInverseBounds:
         return self.lower > 0 and self.lemma1
 
     def __str__(self) -> str:
-        s = f"‖T'(wa) − T'(wb)‖ ≤ {self.upper:.4g}‖wa − wb‖ (001 Lemma 1 holds: exponential convergence of x̂ = T'(ŵ))"
+        s = f"‖T'(wa) − T'(wb)‖ ≤ {self.upper:.4g}‖wa − wb‖ ({cite('001')} Lemma 1 holds: exponential convergence of x̂ = T'(ŵ))"
         if self.lemma2:
             return s + f"; and ≥ {self.lower:.4g}‖wa − wb‖ (Lemma 2: global exponential convergence)"
         return s + "; no positive lower bound (Lemma 2 does not apply: T' maps a larger space onto x)"

@@ -26,11 +26,12 @@ from ..model import parse_expression, symbol
 from ..model._expr import ExpressionError
 from ..model._system import to_expr
 from ._reports import fmt_point, fmt_vec
+from ..references import cite
 
 __all__ = ["check_box", "matrix_measure", "box_sup", "SlopeResult", "max_slope", "BanksCheck", "banks_condition", "LipschitzEstimate",
            "lipschitz_bound"]
 
-REF = "003_a2c72ccb4281ea3f.txt"
+REF = f"{cite('003')}"
 
 
 def check_box(box: Any, n: int, name: str, caller: str) -> np.ndarray:
@@ -183,7 +184,7 @@ class SlopeResult:
     def __str__(self) -> str:
         where = fmt_point(self.variables, self.worst_point)
         verdict = "dissipative (Lemma 2.3)" if self.dissipative else "NOT dissipative"
-        return f"maximum slope μ_N ≈ {self.mu:.4g} over the box, at ({where}): {verdict} (003)"
+        return f"maximum slope μ_N ≈ {self.mu:.4g} over the box, at ({where}): {verdict} ({cite('003')})"
 
 
 def max_slope(exprs: Any, variables: Sequence[str], box: Any, *, samples: int = 2000, seed: int = 0,
@@ -250,9 +251,9 @@ class BanksCheck:
         if self.holds:
             return (f"Banks' condition holds: max over the region of λ(Df1 + P·DB) = {self.lam_max:.4g} {bound} "
                     f"(worst point {where}); any Lipschitz perturbation with K < {self.margin:.4g} keeps an exponential "
-                    f"observer (003 Thm 2.6)")
+                    f"observer ({cite('003')} Thm 2.6)")
         return (f"Banks' condition FAILS: λ(Df1 + P·DB) reaches {self.lam_max:.4g}, not {bound}, at {where}; "
-                "choose another injection gain P or a smaller region (003 Thm 2.6)")
+                f"choose another injection gain P or a smaller region ({cite('003')} Thm 2.6)")
 
 
 def banks_condition(f1: Any, B: Any, P: Any, variables: Sequence[str], region: Any, *, epsilon: float | None = None,

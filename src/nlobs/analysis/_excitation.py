@@ -22,6 +22,7 @@ from ..errors import DataError, ShapeError
 from ..model import StateAffine
 from ._gramian import UCOResult, _integrate, _matrix_path, check_timepts, state_affine_ltv, uco_test
 from ._reports import fmt_directions
+from ..references import cite
 
 __all__ = ["ExcitationResult", "interval_excitation", "persistent_excitation", "IdentifiabilityResult",
            "identifiability_rank", "regular_persistence", "LocalRegularity", "local_regularity"]
@@ -87,7 +88,7 @@ class ExcitationResult:
     def __str__(self) -> str:
         if self.kind == "IE":
             if self.excited:
-                return (f"interval exciting (000 eq. 15): λ_min ∫_0^t ψψᵀ reaches {self.threshold:.3g} at t_d = "
+                return (f"interval exciting ({cite('000')} eq. 15): λ_min ∫_0^t ψψᵀ reaches {self.threshold:.3g} at t_d = "
                         f"{self.t_excited:g}; C_d = {self.level:.3g} at the end")
             return (f"NOT interval exciting on [{self.times[0]:g}, {self.times[-1]:g}]: λ_min ∫ψψᵀ = {self.level:.3g} "
                     f"< {self.threshold:.3g}; the regression is not identifiable from these data")
@@ -187,7 +188,7 @@ class IdentifiabilityResult:
     def __str__(self) -> str:
         if self.identifiable:
             ts = ", ".join(f"{v:g}" for v in self.times)
-            return f"identifiable: rank [ψ(t1) … ψ(tq)] = {self.q} at t = {ts} (000 S2)"
+            return f"identifiable: rank [ψ(t1) … ψ(tq)] = {self.q} at t = {ts} ({cite('000')} S2)"
         dirs = fmt_directions(self.unidentifiable_directions)
         return (f"NOT identifiable: rank [ψ(t1) … ψ(tN)] = {self.rank} < {self.q} over all samples; θ is unknown along "
                 f"{dirs}")
@@ -274,7 +275,7 @@ class LocalRegularity:
         verdict = "locally regular" if self.regular else "NOT locally regular"
         return (f"{verdict}: α(t, T) = T·λ_min(Λ_T⁻¹ W(t, t+T) Λ_T⁻¹), Λ_T = diag(T, …, T^n), ranges over "
                 f"[{self.alpha_min:.3g}, {self.alpha.max():.3g}] for T in [{self.windows.min():g}, {self.windows.max():g}] "
-                f"(threshold {self.threshold:.3g}; 002 'Locally regular inputs')")
+                f"(threshold {self.threshold:.3g}; {cite('002')} 'Locally regular inputs')")
 
 
 def local_regularity(model: StateAffine, timepts: Any, windows: Any, *, u: Any = None, y: Any = None,

@@ -26,6 +26,7 @@ import sympy as sp
 from ..errors import DataError, ModelError, ShapeError
 from ..model import StateAffine, System
 from ._reports import fmt_directions, fmt_vec
+from ..references import cite
 
 __all__ = ["GramianResult", "ltv_gramian", "UCOResult", "uco_test", "state_affine_ltv", "EmpiricalGramian",
            "empirical_gramian", "Indistinguishability", "indistinguishable", "check_timepts"]
@@ -166,7 +167,7 @@ class GramianResult:
         t0, t1 = self.timepts[0], self.timepts[-1]
         if self.observable:
             return (f"observable on [{t0:g}, {t1:g}]: rank W = {n}; λ_min(W) = {self.eigenvalues[0]:.4g}, "
-                    f"λ_max(W) = {self.eigenvalues[-1]:.4g}; full rank from t = {self.t_full_rank:g} (000 eq. 3)")
+                    f"λ_max(W) = {self.eigenvalues[-1]:.4g}; full rank from t = {self.t_full_rank:g} ({cite('000')} eq. 3)")
         dirs = fmt_directions(self.unobservable_directions)
         return (f"NOT observable on [{t0:g}, {t1:g}]: rank W = {self.rank} < {n} (eigenvalues of the Jacobi-scaled W below "
                 f"{self.rtol:g}·λ_max count as zero); unobservable direction(s) {dirs}")
@@ -277,10 +278,10 @@ class UCOResult:
                 f"{self.starts[-1]:g}: δ(t) = λ_min W(t, t+T) ranges over [{self.delta.min():.3g}, {self.delta.max():.3g}]")
         how = f"δ = {self.threshold:.3g}" if self.given_threshold else f"{self.threshold:.3g} (1e-3 of its maximum)"
         if self.uniform:
-            return head + f"; W(t, t+T) ≥ {how}·I on every window: uniformly observable on this horizon (000 eq. 4)"
+            return head + f"; W(t, t+T) ≥ {how}·I on every window: uniformly observable on this horizon ({cite('000')} eq. 4)"
         first = float(self.starts[np.argmax(self.delta < self.threshold)])
         return (head + f"; NOT uniformly observable: δ(t) falls below {how} from t = {first:g} on "
-                f"(smallest at t = {self.worst_start:g}): excitation is lost (000 eq. 4)")
+                f"(smallest at t = {self.worst_start:g}): excitation is lost ({cite('000')} eq. 4)")
 
 
 def uco_test(A: Any, C: Any, timepts: Any, window: float, *, delta: float | None = None, stride: int = 1,

@@ -27,10 +27,11 @@ from ..model._system import ExprLike, exact, to_expr
 from ._modular import RowEchelon, random_prime
 from ._reports import FunctionCheck, ObservabilityReport, Symmetry
 from ._series import FloatField, ModField, Node, Program, Resample, SeriesRun, build_program
+from ..references import cite
 
 __all__ = ["analyze", "observable_function", "InputClass"]
 
-_REF = "002_613af42269ea26a7.txt (observation space, rank condition); Sedoglavic, J. Symb. Comput. 33(5), 2002"
+_REF = f"{cite('002')} (observation space, rank condition); Sedoglavic, J. Symb. Comput. 33(5), 2002"
 
 
 @dataclass(frozen=True)

@@ -24,6 +24,7 @@ from ..errors import FormError, ModelError, ShapeError
 from ..model import OutputInjectionForm, System
 from ._conditions import LipschitzEstimate, check_box, lipschitz_bound
 from ._reports import fmt_vec
+from ..references import cite
 
 __all__ = ["FormCheck", "FormsReport", "with_params_as_states", "state_affine_form", "lipschitz_constant",
            "triangular_form", "recognise_forms"]
@@ -83,7 +84,7 @@ def state_affine_form(system: System) -> FormCheck:
     ----------
     000_6cd8bea7ca1db43b.txt eq. (1); 002_613af42269ea26a7.txt "state affine systems".
     """
-    form = "state-affine (000 eq. 1)"
+    form = f"state-affine ({cite('000')} eq. 1)"
     f, h = system.substituted()
     x = sp.Matrix(system.x)
     Cm, why = _output_matrix(system, f, h)
@@ -183,7 +184,7 @@ def triangular_form(system: System) -> FormCheck:
     ----------
     002_613af42269ea26a7.txt "LTI + structured NL", "High Gain Observer" and its extension.
     """
-    form = "triangular / high-gain (002)"
+    form = f"triangular / high-gain ({cite('002')})"
     f, h = system.substituted()
     x = system.x
     if system.n_outputs != 1 or sp.expand(h[0] - x[0]) != 0:
@@ -254,21 +255,21 @@ def recognise_forms(system: System, *, unknown_params: Sequence[str] | str = (),
     checks = []
     try:
         oi = OutputInjectionForm.from_system(s)
-        checks.append(FormCheck("output injection (002)", True, "ẋ = Ax + B(u, y), y = Cx", {"A": oi.A, "C": oi.C, "B": oi.B}))
+        checks.append(FormCheck(f"output injection ({cite('002')})", True, "ẋ = Ax + B(u, y), y = Cx", {"A": oi.A, "C": oi.C, "B": oi.B}))
     except FormError as e:
-        checks.append(FormCheck("output injection (002)", False, str(e)))
+        checks.append(FormCheck(f"output injection ({cite('002')})", False, str(e)))
     checks.append(state_affine_form(s))
     checks.append(triangular_form(s))
     lip = None
     f, h = s.substituted()
     Cm, why = _output_matrix(s, f, h)
     if Cm is None:
-        checks.append(FormCheck("Lipschitz (002)", False, why))
+        checks.append(FormCheck(f"Lipschitz ({cite('002')})", False, why))
     elif box is not None:
         lip = lipschitz_constant(s, box, input_box=input_box)
-        checks.append(FormCheck("Lipschitz (002)", True, f"y = Cx; φ = f - Ax has γ ≈ {lip.gamma:.4g} on the box "
+        checks.append(FormCheck(f"Lipschitz ({cite('002')})", True, f"y = Cx; φ = f - Ax has γ ≈ {lip.gamma:.4g} on the box "
                                 "(global Lipschitz is not checked: only the box)", {"gamma": lip.gamma}))
     else:
-        checks.append(FormCheck("Lipschitz (002)", True, "y = Cx; give `box` to estimate the Lipschitz constant of φ = f - Ax"))
+        checks.append(FormCheck(f"Lipschitz ({cite('002')})", True, "y = Cx; give `box` to estimate the Lipschitz constant of φ = f - Ax"))
     return FormsReport(system.name, tuple(checks), lip)
 

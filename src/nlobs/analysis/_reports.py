@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from ..references import cite
 
 __all__ = ["clean_direction", "fmt_vec", "fmt_directions", "fmt_point", "ObservabilityReport", "FunctionCheck", "Symmetry"]
 
@@ -185,7 +186,7 @@ class ObservabilityReport:
             lines.append("  NOT globally observable: the output is invariant under " + "; ".join(str(s) for s in self.symmetries)
                          + " (proved symbolically: f(σx) = σf(x), h(σx) = h(x)); these are known only up to sign")
         elif self.observable:
-            lines.append("  the rank condition is local (002): it proves local weak observability, not global; "
+            lines.append(f"  the rank condition is local ({cite('002')}): it proves local weak observability, not global; "
                          + (self.symmetry_search or "no symmetry search was run"))
         lines.append(f"  method: {self.method}")
         if self.error_probability > 0:

@@ -17,10 +17,11 @@ from ..model._system import ExprLike, exact
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import observer_gain
 from ._kalman import StateAffineParts, _riccati_design
+from ..references import cite
 
 __all__ = ["design_augmented"]
 
-REF = ("001_1b4027b3a70d560f.txt: mimicking systems (2), Def. 3, Theorem 1 (observable iff T injective), "
+REF = (f"{cite('001')}: mimicking systems (2), Def. 3, Theorem 1 (observable iff T injective), "
        "Lemma 1 (observer through a left inverse); §IV-A eqs. (15)-(16), §IV-B (17)-(18), §IV-C (20)-(22)")
 
 
@@ -104,8 +105,8 @@ def design_augmented(system: System, *, T: Sequence[ExprLike], A: Any, C: Any, l
     for i in range(nw):
         if residual[i] != 0:
             raise PreconditionError(f"{caller}: the augmented system does not mimic the model: row {i} of dT/dt - (A T + b) is "
-                                    f"{residual[i]}, not 0 (001 eq. 2). Check T, A and b.")
-    checks.append(Check("mimicking: dT/dt = A(u, h(x), t) T(x) + b along f (001 eq. 2, Def. 3)", True, "residual simplifies to 0"))
+                                    f"{residual[i]}, not 0 ({cite('001')} eq. 2). Check T, A and b.")
+    checks.append(Check(f"mimicking: dT/dt = A(u, h(x), t) T(x) + b along f ({cite('001')} eq. 2, Def. 3)", True, "residual simplifies to 0"))
     out_res = (Cm * Tm - h).applyfunc(sp.simplify)
     for i in range(system.n_outputs):
         if out_res[i] != 0:
@@ -117,11 +118,11 @@ def design_augmented(system: System, *, T: Sequence[ExprLike], A: Any, C: Any, l
     for i in range(n):
         if inv_res[i] != 0:
             raise PreconditionError(f"{caller}: the given left inverse does not recover {system.states[i]}: T⁺(T(x)) - x = "
-                                    f"{inv_res[i]}; T must be injective with T⁺(T(x)) = x (001 Theorem 1)")
-    checks.append(Check("left inverse: T⁺(T(x)) = x, so T is injective (001 Theorem 1)", True))
+                                    f"{inv_res[i]}; T must be injective with T⁺(T(x)) = x ({cite('001')} Theorem 1)")
+    checks.append(Check(f"left inverse: T⁺(T(x)) = x, so T is injective ({cite('001')} Theorem 1)", True))
     lin = inv.jacobian(sp.Matrix(wsyms))
     if not lin.free_symbols:
-        checks.append(Check("left inverse globally Lipschitz (001 Lemma 1, eq. 3)", True,
+        checks.append(Check(f"left inverse globally Lipschitz ({cite('001')} Lemma 1, eq. 3)", True,
                             f"linear, α = ‖∂T⁺/∂w‖ = {np.linalg.norm(np.array(lin, dtype=float), 2):.4g}"))
 
     def estimate(zw: ca.SX) -> ca.SX:

@@ -23,10 +23,11 @@ from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import check_matrix
 from ..analysis import matrix_measure
 from ._common import batch, box_of, sup_over_box
+from ..references import cite
 
 __all__ = ["design_banks", "banks_conditions", "BanksConditions"]
 
-REF = ("003_a2c72ccb4281ea3f.txt: Lemma 2.3 (λ(A + PB) <= -ε, f1 dissipative), Lemma 2.4 (μ_f1 <= δ < ε), "
+REF = (f"{cite('003')}: Lemma 2.3 (λ(A + PB) <= -ε, f1 dissipative), Lemma 2.4 (μ_f1 <= δ < ε), "
        "Theorem 2.6 (λ(Df1(x) + P·DB(x)) <= -ε on convex Ω, f2 Lipschitz K < ε: rate ε - K); "
        "observer x̂' = f(x̂) + P·(ŷ - y) (the example's 'P(x1 + x2)' is a typo, see Lemma 2.3's proof)")
 
@@ -190,19 +191,19 @@ def design_banks(system: System, *, P: Any, region: Mapping[str, Sequence[float]
     at = f" at {cond.where}" if cond.where else ""
     if cond.epsilon <= 0:
         raise PreconditionError(f"{caller}: λ(Df1 + P·DB) = {-cond.epsilon:.4g} >= 0{at}: the condition λ(Df1(x) + P·DB(x)) <= -ε < 0 "
-                                "of 003 Theorem 2.6 fails on the region; choose another P or a smaller region")
+                                f"of {cite('003')} Theorem 2.6 fails on the region; choose another P or a smaller region")
     if cond.K >= cond.epsilon:
         raise PreconditionError(f"{caller}: the perturbation's Lipschitz constant K = {cond.K:.4g} is not below ε = {cond.epsilon:.4g} "
-                                "(003 Theorem 2.6 needs K < ε); reduce the perturbation or find a P with larger ε")
+                                f"({cite('003')} Theorem 2.6 needs K < ε); reduce the perturbation or find a P with larger ε")
     f, h = system.substituted()
     J = ((f - sp.Matrix(f2)).jacobian(sp.Matrix(system.x)) + _exact(Pm) * h.jacobian(sp.Matrix(system.x))).applyfunc(sp.simplify)
     how = "exact (constant matrix)" if cond.exact else "sup over the region (grid + local polish)"
-    checks = [Check("λ(Df1(x) + P·DB(x)) <= -ε < 0 on Ω (003 Lemma 2.3 / Theorem 2.6)", True, f"ε = {cond.epsilon:.6g}, {how}{at}"),
-              Check("perturbation Lipschitz K < ε (003 Theorem 2.6; Lemma 2.4 with slope μ <= K)", True,
+    checks = [Check(f"λ(Df1(x) + P·DB(x)) <= -ε < 0 on Ω ({cite('003')} Lemma 2.3 / Theorem 2.6)", True, f"ε = {cond.epsilon:.6g}, {how}{at}"),
+              Check(f"perturbation Lipschitz K < ε ({cite('003')} Theorem 2.6; Lemma 2.4 with slope μ <= K)", True,
                     f"K = {cond.K:.4g}" + (" (given)" if perturbation_bound is not None else " (sup ‖Df2‖₂ over Ω)")
                     + f", slope μ = {cond.slope:.4g}")]
     if region is not None:
-        checks.append(Check.assumed("x and x̂ stay in the convex region Ω", "003 Theorem 2.6: " +
+        checks.append(Check.assumed("x and x̂ stay in the convex region Ω", f"{cite('003')} Theorem 2.6: " +
                             ", ".join(f"{k} in [{v[0]:g}, {v[1]:g}]" for k, v in region.items())))
     values = {"P": Pm, "epsilon": cond.epsilon, "K": cond.K, "slope": cond.slope, "guaranteed_rate": cond.rate,
               "jacobian": str(J.tolist()), "perturbation": [str(e) for e in f2]}

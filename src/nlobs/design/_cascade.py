@@ -38,10 +38,11 @@ from ..errors import PreconditionError
 from ..model import System
 from ._base import Certificate, Check, ObserverDesign
 from ._regression import ExcitationMonitor, Gradient, Regression, StateStack, estimator_from, lowpass
+from ..references import cite
 
 __all__ = ["design_kkl_pebo_cascade"]
 
-REF = "004_f1e237c45ff4719e.txt Proposition 7: class (40)-(42), observer (43)-(47)"
+REF = f"{cite('004')} Proposition 7: class (40)-(42), observer (43)-(47)"
 
 
 def design_kkl_pebo_cascade(system: System, *, x2: Sequence[str], x3: Sequence[str], x4: Sequence[str], k: str,
@@ -115,7 +116,7 @@ def design_kkl_pebo_cascade(system: System, *, x2: Sequence[str], x3: Sequence[s
         F = sp.Matrix([fx[s.name] for s in blk])
         A = F.jacobian(sp.Matrix(blk))
         if A.free_symbols:
-            raise PreconditionError(f"{caller}: {lab}' must be A{lab[1]}·{lab} + f{lab[1]}(...) with A{lab[1]} constant (004 eq. 40); "
+            raise PreconditionError(f"{caller}: {lab}' must be A{lab[1]}·{lab} + f{lab[1]}(...) with A{lab[1]} constant ({cite('004')} eq. 40); "
                                     f"∂f/∂{lab} = {A.tolist()} is not constant")
         rest = sp.expand(F - A * sp.Matrix(blk))
         forbidden = [v for lab2 in ("x2", "x3", "x4") if lab2 != "x2" or lab == "x2" for v in X[lab2]
@@ -124,29 +125,29 @@ def design_kkl_pebo_cascade(system: System, *, x2: Sequence[str], x3: Sequence[s
             bad = depends(e, forbidden)
             if bad:
                 raise PreconditionError(f"{caller}: {blk[i]}' = {fx[blk[i].name]}: f{lab[1]} may depend only on x1"
-                                        + (", x2" if lab == "x3" else "") + f" and u (004 eq. 40), it depends on {', '.join(bad)}")
+                                        + (", x2" if lab == "x3" else "") + f" and u ({cite('004')} eq. 40), it depends on {', '.join(bad)}")
         An = np.array(A, dtype=float)
         eig = np.linalg.eigvals(An)
         if eig.real.max() >= 0:
             worst = eig[np.argmax(eig.real)]
-            raise PreconditionError(f"{caller}: A{lab[1]} is not Hurwitz (004 Prop. 7 (ii)): eigenvalue {complex(worst):.4g}")
-        checks.append(Check(f"A{lab[1]} Hurwitz (004 Prop. 7 (ii))", True, f"max Re eig = {eig.real.max():.4g}"))
+            raise PreconditionError(f"{caller}: A{lab[1]} is not Hurwitz ({cite('004')} Prop. 7 (ii)): eigenvalue {complex(worst):.4g}")
+        checks.append(Check(f"A{lab[1]} Hurwitz ({cite('004')} Prop. 7 (ii))", True, f"max Re eig = {eig.real.max():.4g}"))
         mats[lab] = (An, rest)
     for s in X["x4"]:
         bad = depends(fx[s.name], X["x4"])
         if bad:
-            raise PreconditionError(f"{caller}: {s}' = {fx[s.name]}: f4 must not depend on x4 (004 eq. 40); it depends on {', '.join(bad)}")
+            raise PreconditionError(f"{caller}: {s}' = {fx[s.name]}: f4 must not depend on x4 ({cite('004')} eq. 40); it depends on {', '.join(bad)}")
     fk = fx[k]
     b = sp.Matrix([fk]).jacobian(sp.Matrix(X["x4"]))
     if depends(sum(b, sp.S.Zero), X["x4"]) or any(depends(e, X["x4"]) for e in b):
-        raise PreconditionError(f"{caller}: {k}' = {fk} is not affine in x4 = {X['x4']} (004 eq. 41: S_k = bᵀ(x1, x2, x3, u)x4)")
+        raise PreconditionError(f"{caller}: {k}' = {fk} is not affine in x4 = {X['x4']} ({cite('004')} eq. 41: S_k = bᵀ(x1, x2, x3, u)x4)")
     f1k = sp.expand(fk - (b * sp.Matrix(X["x4"]))[0])
     checks.append(Check("model in the class (40)-(41)", True,
                         f"x1 = {x1}, x2 = {list(x2)}, x3 = {list(x3)}, x4 = {list(x4)}, k = {k}, b = {list(b)}"))
     est = estimator_from(estimator, default=Gradient(1.0), caller=caller)
     alpha = float(alpha)
     if not (np.isfinite(alpha) and alpha > 0):
-        raise PreconditionError(f"{caller}: `alpha` must be positive (004 eq. 37), got {alpha!r}")
+        raise PreconditionError(f"{caller}: `alpha` must be positive ({cite('004')} eq. 37), got {alpha!r}")
 
     stack = StateStack(system)
     idx = {s: i for i, s in enumerate(names)}

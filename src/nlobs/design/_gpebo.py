@@ -33,10 +33,11 @@ from ..model._forms import matrix_of
 from ._base import Certificate, Check, ObserverDesign
 from ._kalman import state_affine_parts
 from ._regression import GD, AbstractEstimator, ExcitationMonitor, Regression, StateStack, estimator_from, sx_matrix
+from ..references import cite
 
 __all__ = ["design_gpebo", "design_2gd"]
 
-REF = ("000_6cd8bea7ca1db43b.txt Lemma 1 (eqs. 8-10, 13), eq. (12); G+D estimator eqs. (16)-(17); "
+REF = (f"{cite('000')} Lemma 1 (eqs. 8-10, 13), eq. (12); G+D estimator eqs. (16)-(17); "
        "order (3 + 2n)n, §6")
 
 
@@ -49,21 +50,21 @@ def _uniform_stability(A: sp.Matrix, caller: str, injected: bool) -> Check | Non
     eig = np.linalg.eigvals(An)
     worst = eig[np.argmax(eig.real)] if eig.size else 0.0
     what = "A - LCᵀ" if injected else "A"
-    hint = ("choose an output injection `L` with A - LCᵀ Hurwitz (000, remark after eq. 5)" if not injected
+    hint = (f"choose an output injection `L` with A - LCᵀ Hurwitz ({cite('000')}, remark after eq. 5)" if not injected
             else "choose another `L`")
     tol = 1e-9 * max(1.0, float(np.abs(An).max(initial=0.0)))
     if eig.size and worst.real > tol:
-        raise PreconditionError(f"{caller}: the homogeneous part is not uniformly stable (000 assumption 5): {what} has the "
+        raise PreconditionError(f"{caller}: the homogeneous part is not uniformly stable ({cite('000')} assumption 5): {what} has the "
                                 f"eigenvalue {complex(worst):.4g} with positive real part, so Φ_A grows without bound; {hint}")
     axis = eig[np.abs(eig.real) <= tol]
     for lam in np.unique(np.round(axis, 9)):
         alg = int(np.sum(np.abs(eig - lam) <= 1e-6))
         geo = An.shape[0] - np.linalg.matrix_rank(An - lam * np.eye(An.shape[0]), tol=1e-8)
         if geo < alg:
-            raise PreconditionError(f"{caller}: the homogeneous part is not uniformly stable (000 assumption 5): {what} has the "
+            raise PreconditionError(f"{caller}: the homogeneous part is not uniformly stable ({cite('000')} assumption 5): {what} has the "
                                     f"eigenvalue {complex(lam):.3g} on the imaginary axis with a Jordan block (algebraic "
                                     f"multiplicity {alg} > geometric {geo}), so Φ_A grows polynomially; {hint}")
-    return Check(f"uniform stability of the homogeneous part (000 assumption 5), {what} constant", True,
+    return Check(f"uniform stability of the homogeneous part ({cite('000')} assumption 5), {what} constant", True,
                  f"max Re eig = {eig.real.max():.4g}")
 
 
@@ -121,7 +122,7 @@ def design_gpebo(system: StateAffine | System, *, estimator: AbstractEstimator |
         parts = state_affine_parts(system, caller)
     except FormError as e:
         raise PreconditionError(f"{e}. Write the model as a StateAffine, with A(u, y, t) using the measured output y where "
-                                "the equation needs it (000 eq. 1).") from e
+                                f"the equation needs it ({cite('000')} eq. 1).") from e
     est = estimator_from(estimator, default=GD(1.0, 1.0), caller=caller)
     plant = parts.system
     n, p = plant.n_states, plant.n_outputs
@@ -145,12 +146,12 @@ def design_gpebo(system: StateAffine | System, *, estimator: AbstractEstimator |
     xhat = xi + Phi @ out.theta                     # (12)
 
     order = stack.n_z
-    checks = [Check("model is state-affine: x' = A(u, y, t)x + b(u, y, t), y = C(u, t)ᵀx (000 eq. 1)", True, f"n = {n}, p = {p}")]
+    checks = [Check(f"model is state-affine: x' = A(u, y, t)x + b(u, y, t), y = C(u, t)ᵀx ({cite('000')} eq. 1)", True, f"n = {n}, p = {p}")]
     if stab is not None:
         checks.append(stab)
     if isinstance(est, GD):
         paper = (3 + 2 * n) * n
-        checks.append(Check("observer order n_χ = (3 + 2n)n as stated in 000 §6", order == paper,
+        checks.append(Check(f"observer order n_χ = (3 + 2n)n as stated in {cite('000')} §6", order == paper,
                             f"{order} internal states = n (ξ) + n² (Φ_A) + n (θ̂_g) + n² (Ω) + n (θ̂); (3 + 2n)n = {paper}"))
     values: dict[str, Any] = {
         "A": str(A.tolist()), "b": str(list(b)), "C": str(C.tolist()), **({"L": str(Lm.tolist())} if L is not None else {}),

@@ -17,13 +17,14 @@ from ..model import TIME, System, symbol
 from ..model._system import ExprLike, exact, to_expr
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._common import chain_gain, leaves_of, measured_states, saturate, saturation_bounds, to_sx
+from ..references import cite
 
 __all__ = ["design_high_gain", "design_high_gain_derivatives", "triangular_chains", "Chain"]
 
-REF_GHK = ("002_613af42269ea26a7.txt, 'Result [High Gain Observer]' (Gauthier-Hammouri-Kupka): "
+REF_GHK = (f"{cite('002')}, 'Result [High Gain Observer]' (Gauthier-Hammouri-Kupka): "
            "x̂' = A0x̂ + B(u, x̂) - diag(λ, ..., λⁿ)K0(C0x̂ - y), ∂B_i/∂x_j = 0 for j ≥ i+1; "
            "and its extension ∂f_i/∂x_j = 0 for j > i+1, ∂f_i/∂x_{i+1} ≥ α_i > 0")
-REF_KE = ("004_f1e237c45ff4719e.txt §V-C and Table I, 'HGO (linear dynamics)': output derivatives estimated by "
+REF_KE = (f"{cite('004')} §V-C and Table I, 'HGO (linear dynamics)': output derivatives estimated by "
           "integrator chains with injections α_i r^(-i)(y - ξ_1) (Khalil-Esfandiari), x̂ from the estimated derivatives")
 
 
@@ -291,7 +292,7 @@ def design_high_gain(system: System, *, theta: float | None = None, r: float | N
         c, i, a = nonconst[0]
         raise PreconditionError(
             f"{caller}: the coupling ∂{system.states[c.states[i]]}'/∂{system.states[c.states[i + 1]]} = {a} is not constant, so "
-            "no K0 can be computed from poles; give `K0` explicitly (the extension of 002 needs the coupling bounded away "
+            f"no K0 can be computed from poles; give `K0` explicitly (the extension of {cite('002')} needs the coupling bounded away "
             "from 0 with a fixed sign), or use design_high_gain_kalman for couplings a(u, y)")
     if K0 is not None:
         gains = _per_chain(K0, sizes, "K0", caller)
@@ -319,7 +320,7 @@ def design_high_gain(system: System, *, theta: float | None = None, r: float | N
             blocks.append(M)
         else:
             checks.append(Check.assumed(f"coupling(s) of the chain of {system.outputs[c.output]} bounded away from 0 with a "
-                                        "fixed sign (002 extension)",
+                                        f"fixed sign ({cite('002')} extension)",
                                         "depends on the trajectory: " + ", ".join(str(a) for a in c.couplings if a.free_symbols)))
     values: dict[str, Any] = {"theta": th, "K0": gains}
     if len(blocks) == len(chs):

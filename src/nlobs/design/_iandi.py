@@ -39,10 +39,11 @@ from ..model._translate import NUMPY, translate
 from ._base import Certificate, Check, ObserverDesign
 from ._pebo import vanishes
 from ._regression import StateStack
+from ..references import cite
 
 __all__ = ["design_iandi"]
 
-REF = "004_f1e237c45ff4719e.txt Proposition 4: A4, A5, eqs. (16)-(19); remarks R7-R8"
+REF = f"{cite('004')} Proposition 4: A4, A5, eqs. (16)-(19); remarks R7-R8"
 
 
 def _generic_rank(J: sp.Matrix, *, samples: int = 6, seed: int = 1) -> int:
@@ -138,7 +139,7 @@ def design_iandi(system: System, *, beta: Sequence[Any], phi: Sequence[Any], lef
                      name="Q").xreplace(params))
     f, h = system.substituted()
     if any(s in (*system.u, TIME) for e in h for s in e.free_symbols):
-        raise PreconditionError(f"{caller}: the outputs must be functions of the state only, y = h(x) (004 eq. 1)")
+        raise PreconditionError(f"{caller}: the outputs must be functions of the state only, y = h(x) ({cite('004')} eq. 1)")
     checks = []
     hsub = {symbol(k): h[i] for i, k in enumerate(system.outputs)}
     for i, x in enumerate(system.x):
@@ -150,10 +151,10 @@ def design_iandi(system: System, *, beta: Sequence[Any], phi: Sequence[Any], lef
     Jchi = beta_m.jacobian(sp.Matrix(chi))
     rank = _generic_rank(Jchi)
     if rank < nz:
-        raise PreconditionError(f"{caller}: A4 fails: ∂β/∂χ = {Jchi.tolist()} has generic rank {rank} < n_z = {nz} (004 A4); "
+        raise PreconditionError(f"{caller}: A4 fails: ∂β/∂χ = {Jchi.tolist()} has generic rank {rank} < n_z = {nz} ({cite('004')} A4); "
                                 "the pseudo-inverse in (18) cannot keep β(y, χ) = φ(x) invariant. Make β depend on χ in "
                                 "n_z independent directions.")
-    checks.append(Check("A4: rank ∂β/∂χ = n_z (004)", True, f"generic rank {rank} = n_z = {nz} (random points)"))
+    checks.append(Check(f"A4: rank ∂β/∂χ = n_z ({cite('004')})", True, f"generic rank {rank} = n_z = {nz} (random points)"))
 
     stack = StateStack(system)
     if chi0 is not None:

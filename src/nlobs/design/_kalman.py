@@ -19,14 +19,15 @@ from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import check_matrix
 from ._common import box_of, leaves_of, measured_states, sup_over_box, to_sx
 from ._high_gain import _theta, triangular_chains
+from ..references import cite
 
 __all__ = ["design_kalman_like", "design_kalman_bucy", "design_high_gain_kalman", "StateAffineParts", "state_affine_parts"]
 
-REF_KALMAN = ("002_613af42269ea26a7.txt, \"'Non uniformly observable' systems - LTV\" (Result [Kalman]): "
+REF_KALMAN = (f"{cite('002')}, \"'Non uniformly observable' systems - LTV\" (Result [Kalman]): "
               "Ṁ = AM + MAᵀ - MCᵀW⁻¹CM + V + δM, K = MCᵀW⁻¹, δ > 2‖A(t)‖ or V > 0")
-REF_LIKE = ("002_613af42269ea26a7.txt, \"'Non uniformly observable' systems - LTV-like with I/O NL\": "
+REF_LIKE = (f"{cite('002')}, \"'Non uniformly observable' systems - LTV-like with I/O NL\": "
             "x̂' = A(u, y)x̂ + B(u, y) - K(t)(Cx̂ - y), K(t) as in the Kalman observer; u regularly persistent")
-REF_HGK = ("002_613af42269ea26a7.txt, \"LTV-like with structured NL\": x̂' = A0(u, y)x̂ + φ(x̂, u) - diag(λ..λⁿ)K0(t)(C0x̂ - y), "
+REF_HGK = (f"{cite('002')}, \"LTV-like with structured NL\": x̂' = A0(u, y)x̂ + φ(x̂, u) - diag(λ..λⁿ)K0(t)(C0x̂ - y), "
            "Ṁ = λ[MAᵀ + AM - MCᵀW⁻¹CM + δM], K0 = MCᵀW⁻¹, δ > 2‖A(u, y)‖, λ large enough")
 
 
@@ -135,21 +136,21 @@ def _riccati_design(method: str, title: str, ref: str, parts: StateAffineParts, 
     vmin = float(np.linalg.eigvalsh(Vm).min())
     values: dict[str, Any] = {"V": Vm, "W": Wm, "delta": d, "M0": M0m, **(extra_values or {})}
     if vmin > 0:
-        checks.append(Check("V positive definite (002: δ > 2‖A‖ or V > 0)", True, f"min eig V = {vmin:.3g}"))
+        checks.append(Check(f"V positive definite ({cite('002')}: δ > 2‖A‖ or V > 0)", True, f"min eig V = {vmin:.3g}"))
     elif d > 0:
         normA, where = _sup_norm(parts, region, caller)
         if d <= 2 * normA:
             raise PreconditionError(f"{caller}: the forgetting factor δ = {d:g} is not above 2 sup‖A‖ = {2 * normA:.4g} ({where}); "
-                                    f"take δ > {2 * normA:.4g}, or give V positive definite (002: δ > 2‖A(t)‖ or V > 0)")
-        checks.append(Check("δ > 2 sup‖A‖ (002)", True, f"{d:g} > {2 * normA:.4g}, {where}"))
+                                    f"take δ > {2 * normA:.4g}, or give V positive definite ({cite('002')}: δ > 2‖A(t)‖ or V > 0)")
+        checks.append(Check(f"δ > 2 sup‖A‖ ({cite('002')})", True, f"{d:g} > {2 * normA:.4g}, {where}"))
         values["sup_norm_A"] = normA
     else:
         raise PreconditionError(f"{caller}: neither forgetting nor noise: give δ > 2‖A‖ (`delta`) or V positive definite "
-                                "(`V`); with δ = 0 and V singular the gain may vanish (002, Kalman observer)")
+                                f"(`V`); with δ = 0 and V singular the gain may vanish ({cite('002')}, Kalman observer)")
     # stiffness of the Riccati ODE at t = 0: the correction term MCᵀW⁻¹CM acts at rate ~ λmax(M0)‖C‖²/λmin(W);
     # explicit RK4 needs dt·rate below ~2.8 (reported so a blow-up can be traced to the step size)
     values["riccati_rate0"] = float(np.linalg.eigvalsh(M0m).max() / np.linalg.eigvalsh(Wm).min()) * (lam or 1.0)
-    checks.append(Check.assumed("input regularly persistent / (A, C) uniformly completely observable (002)",
+    checks.append(Check.assumed(f"input regularly persistent / (A, C) uniformly completely observable ({cite('002')})",
                                 "not checked at design time: it depends on the input and output trajectory"))
     s = Symbols.make(system, n + n * n)
     xh = s.z[:n]
@@ -337,7 +338,7 @@ def design_high_gain_kalman(system: System, *, lam: float, delta: float, W: Any 
     """
     caller = "design_high_gain_kalman"
     if system.n_outputs != 1:
-        raise PreconditionError(f"{caller}: one output is required (002's form has y = x1); the model has {system.n_outputs}")
+        raise PreconditionError(f"{caller}: one output is required ({cite('002')}'s form has y = x1); the model has {system.n_outputs}")
     lam_v = _theta(lam, None, caller)
     if lam_v < 1:
         raise PreconditionError(f"{caller}: λ = {lam_v:g} must be at least 1 (the high gain)")

@@ -32,10 +32,11 @@ from ..errors import PreconditionError, ShapeError
 from ..model import System
 from ._base import Certificate, Check, ObserverDesign
 from ._regression import StateStack
+from ..references import cite
 
 __all__ = ["design_kkl_learned"]
 
-REF = ("004_f1e237c45ff4719e.txt Proposition 1 (KKL observer), ref. [1] Andrieu & Praly 2006 (n_ξ = (n+1)p, existence "
+REF = (f"{cite('004')} Proposition 1 (KKL observer), ref. [1] Andrieu & Praly 2006 (n_ξ = (n+1)p, existence "
        "and injectivity of φ); φ^L learned by polynomial ridge regression on simulated (ξ, y) → x pairs")
 
 

@@ -12,11 +12,12 @@ from ..errors import FormError, PreconditionError
 from ..model import LTI, TIME, OutputInjectionForm, System
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import observer_gain
+from ..references import cite
 
 __all__ = ["design_luenberger", "design_output_injection"]
 
-REF_LUENBERGER = "002_613af42269ea26a7.txt, 'Result [Luenberger]': x̂' = Ax̂ + Bu - K(Cx̂ - y), A - KC stable"
-REF_INJECTION = "002_613af42269ea26a7.txt, 'Result [Error linearization]': x̂' = Ax̂ + B(u, y) - K(Cx̂ - y)"
+REF_LUENBERGER = f"{cite('002')}, 'Result [Luenberger]': x̂' = Ax̂ + Bu - K(Cx̂ - y), A - KC stable"
+REF_INJECTION = f"{cite('002')}, 'Result [Error linearization]': x̂' = Ax̂ + B(u, y) - K(Cx̂ - y)"
 
 
 def _dm(M: np.ndarray) -> ca.DM:

@@ -17,10 +17,11 @@ from ..model import TIME, System
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import check_matrix
 from ._common import batch, box_of, sup_over_box
+from ..references import cite
 
 __all__ = ["design_lipschitz", "lipschitz_constant", "thau_margin"]
 
-REF = ("002_613af42269ea26a7.txt, \"'Uniformly observable' systems - LTI + Lipschitz NL\": if K, P, Q > 0 with "
+REF = (f"{cite('002')}, \"'Uniformly observable' systems - LTI + Lipschitz NL\": if K, P, Q > 0 with "
        "P(A - KC) + (A - KC)ᵀP = -Q and eigmin(Q)/(2 eigmax(P)) > γ, then x̂' = Ax̂ + B(u, x̂) - K(Cx̂ - y) is an observer (Thau)")
 
 

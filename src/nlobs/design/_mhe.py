@@ -19,10 +19,11 @@ from ..errors import PreconditionError
 from ..model import System
 from ._base import Certificate, Check, ObserverDesign, check_vector
 from ._checks import check_matrix
+from ..references import cite
 
 __all__ = ["design_mhe"]
 
-REF = ("002_613af42269ea26a7.txt, 'I. \"Corrected trajectory-based\" approach': min over z_(t-T) of "
+REF = (f"{cite('002')}, 'I. \"Corrected trajectory-based\" approach': min over z_(t-T) of "
        "∫_(t-T)^t ‖h(χ_u(τ, z_(t-T))) - y(τ)‖² dτ; discretised on the samples of the window, with an arrival cost "
        "(Rao, Rawlings & Mayne 2003) and warm start from the previous solution")
 

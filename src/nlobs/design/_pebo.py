@@ -42,12 +42,13 @@ from ..model._system import exact
 from ..model._translate import NUMPY, translate
 from ._base import Certificate, Check, ObserverDesign
 from ._regression import ExcitationMonitor, Gradient, Regression, StateStack, estimator_from, lowpass, sx_matrix
+from ..references import cite
 
 __all__ = ["design_kkl", "design_pebo", "design_kkl_pebo", "WindowedNLS", "vanishes"]
 
-REF_KKL = "004_f1e237c45ff4719e.txt Proposition 1: PDE (4), left inverse (5), observer (6)"
-REF_PEBO = "004_f1e237c45ff4719e.txt Proposition 2: eqs. (7)-(13); regression (11) filtered as in (37)"
-REF_KKLPEBO = "004_f1e237c45ff4719e.txt Proposition 3: eqs. (14)-(15), remarks R4-R5; regression (11) filtered as in (37)"
+REF_KKL = f"{cite('004')} Proposition 1: PDE (4), left inverse (5), observer (6)"
+REF_PEBO = f"{cite('004')} Proposition 2: eqs. (7)-(13); regression (11) filtered as in (37)"
+REF_KKLPEBO = f"{cite('004')} Proposition 3: eqs. (14)-(15), remarks R4-R5; regression (11) filtered as in (37)"
 
 
 # ---------------------------------------------------------------------------------------------
@@ -86,11 +87,11 @@ def _pde_hint(phi_i: sp.Expr, drift_i: sp.Expr) -> str:
         return ""
     mu_f = float(mu)
     if mu_f == 0:
-        return (f" This component obeys d/dt φ = B(y, u) (λ = 0): it is a PEBO component (004 Prop. 2), not a KKL one; "
-                "put it in the PEBO part with design_kkl_pebo (004 Prop. 3).")
+        return (f" This component obeys d/dt φ = B(y, u) (λ = 0): it is a PEBO component ({cite('004')} Prop. 2), not a KKL one; "
+                f"put it in the PEBO part with design_kkl_pebo ({cite('004')} Prop. 3).")
     if mu_f < 0:
-        return (f" This component obeys d/dt φ = {mu}·φ + B(y, u): it is a KKL component with λ = {mu} (004 Prop. 1), not a "
-                "PEBO one; put it in the KKL part with design_kkl_pebo (004 Prop. 3).")
+        return (f" This component obeys d/dt φ = {mu}·φ + B(y, u): it is a KKL component with λ = {mu} ({cite('004')} Prop. 1), not a "
+                f"PEBO one; put it in the KKL part with design_kkl_pebo ({cite('004')} Prop. 3).")
     return f" This component obeys d/dt φ = {mu}·φ + B(y, u) with {mu} > 0: an unstable mode, neither KKL nor PEBO applies."
 
 
@@ -141,10 +142,10 @@ def _check_left_inverse(system: System, m: _Maps, caller: str) -> Check:
         hows.add(how)
         if not ok:
             raise PreconditionError(
-                f"{caller}: `left_inverse` is not a left inverse of φ (004 eq. 5): φ^L(φ(x), h(x)) gives "
+                f"{caller}: `left_inverse` is not a left inverse of φ ({cite('004')} eq. 5): φ^L(φ(x), h(x)) gives "
                 f"{sp.simplify(m.left[i].xreplace(subs))} for {system.states[i]}, not {system.states[i]}. φ must be injective "
                 "(given y) and φ^L must invert it.")
-    return Check("φ^L(φ(x), h(x)) = x (004 eq. 5)", True, "; ".join(sorted(hows)))
+    return Check(f"φ^L(φ(x), h(x)) = x ({cite('004')} eq. 5)", True, "; ".join(sorted(hows)))
 
 
 def _check_pde(system: System, m: _Maps, caller: str, what: str) -> Check:
@@ -165,10 +166,10 @@ def _check_pde(system: System, m: _Maps, caller: str, what: str) -> Check:
         hint = _pde_hint(m.phi[i], drift[i]) if diagonal else ""
         lam = f"λ = {m.Lam[i, i]}" if diagonal else "Λ"
         raise PreconditionError(
-            f"{caller}: the {what} PDE ∇φᵀf = Λφ + B(h(x), u) (004 eq. 4) fails for component {i + 1} "
+            f"{caller}: the {what} PDE ∇φᵀf = Λφ + B(h(x), u) ({cite('004')} eq. 4) fails for component {i + 1} "
             f"(φ_{i + 1} = {m.phi[i]}, {lam}): the residual is {resid}, not 0{dep}.{hint}")
     note = "simplify" if all(h_ == "simplifies to 0" for h_ in how_all) else "simplify and random-point evaluation"
-    return Check(f"{what} PDE ∇φᵀf = Λφ + B(h(x), u) (004 eq. 4)", True, f"all {m.phi.shape[0]} components ({note})")
+    return Check(f"{what} PDE ∇φᵀf = Λφ + B(h(x), u) ({cite('004')} eq. 4)", True, f"all {m.phi.shape[0]} components ({note})")
 
 
 def _partition(Lam: sp.Matrix, caller: str) -> tuple[sp.Matrix, sp.Matrix, list[sp.Expr], list[int], list[int], list[Check]]:
@@ -181,7 +182,7 @@ def _partition(Lam: sp.Matrix, caller: str) -> tuple[sp.Matrix, sp.Matrix, list[
         lam = [Lam[i, i] for i in range(n)]
     else:
         if Lam.free_symbols:
-            raise PreconditionError(f"{caller}: a non-diagonal Λ must be constant (004 R5: Λ = P⁻¹ diag(Λ_L, 0) P); it contains "
+            raise PreconditionError(f"{caller}: a non-diagonal Λ must be constant ({cite('004')} R5: Λ = P⁻¹ diag(Λ_L, 0) P); it contains "
                                     f"{', '.join(sorted(s.name for s in Lam.free_symbols))}")
         Lr = Lam.applyfunc(lambda e: sp.nsimplify(e, rational=True))
         try:
@@ -190,14 +191,14 @@ def _partition(Lam: sp.Matrix, caller: str) -> tuple[sp.Matrix, sp.Matrix, list[
             raise PreconditionError(f"{caller}: Λ must be square") from e
         except sp.matrices.exceptions.MatrixError as e:
             raise PreconditionError(f"{caller}: Λ = {Lam.tolist()} is not diagonalisable, so it is not similar to the form (14) "
-                                    "(004 R5): a Jordan block makes ξ grow; choose another Λ") from e
+                                    f"({cite('004')} R5): a Jordan block makes ξ grow; choose another Λ") from e
         lam = [sp.nsimplify(D[i, i]) for i in range(n)]
         bad = [v for v in lam if not v.is_real]
         if bad:
-            raise PreconditionError(f"{caller}: Λ has the complex eigenvalue {bad[0]}; 004 R5 needs Λ similar to the real "
-                                    "diagonal form (14) (footnote 3 of 004 covers imaginary eigenvalues, which nlobs does not)")
+            raise PreconditionError(f"{caller}: Λ has the complex eigenvalue {bad[0]}; {cite('004')} R5 needs Λ similar to the real "
+                                    f"diagonal form (14) (footnote 3 of {cite('004')} covers imaginary eigenvalues, which nlobs does not)")
         Pinv, P = V, V.inv()
-        checks.append(Check("Λ similar to the form (14): Λ = P⁻¹ diag(λ) P (004 R5)", True, f"eigenvalues {lam}"))
+        checks.append(Check(f"Λ similar to the form (14): Λ = P⁻¹ diag(λ) P ({cite('004')} R5)", True, f"eigenvalues {lam}"))
     kkl, pebo = [], []
     for i, v in enumerate(lam):
         if v == 0:
@@ -205,7 +206,7 @@ def _partition(Lam: sp.Matrix, caller: str) -> tuple[sp.Matrix, sp.Matrix, list[
             continue
         if not v.free_symbols:
             if float(v) > 0:
-                raise PreconditionError(f"{caller}: λ_{i + 1} = {v} > 0; a KKL component needs λ < 0 (004 A1) and a PEBO "
+                raise PreconditionError(f"{caller}: λ_{i + 1} = {v} > 0; a KKL component needs λ < 0 ({cite('004')} A1) and a PEBO "
                                         "component λ = 0. Change Λ.")
         kkl.append(i)
     return P, Pinv, lam, kkl, pebo, checks
@@ -331,19 +332,19 @@ def _kkl_pebo(system: System, *, phi: Any, left_inverse: Any, B: Any, Lambda: An
     n, n_xi, p = system.n_states, maps.phi.shape[0], system.n_outputs
     if n_xi < n - p:
         raise PreconditionError(f"{caller}: φ has {n_xi} components but n - p = {n} - {p} = {n - p}: ξ is too small to "
-                                "reconstruct the unmeasured states (004 A1 needs n_ξ ≥ n - p)")
+                                f"reconstruct the unmeasured states ({cite('004')} A1 needs n_ξ ≥ n - p)")
     P, Pinv, lam, kkl, pebo, checks = _partition(maps.Lam, caller)
     if require == "kkl" and pebo:
         raise PreconditionError(f"{caller}: Λ has zero eigenvalue(s) (component(s) {[i + 1 for i in pebo]}); a KKL observer "
-                                "needs λ < 0 for every component (004 A1): use design_pebo or design_kkl_pebo for λ = 0")
+                                f"needs λ < 0 for every component ({cite('004')} A1): use design_pebo or design_kkl_pebo for λ = 0")
     if require == "pebo" and kkl:
-        raise PreconditionError(f"{caller}: PEBO needs Λ = 0 (004 Prop. 2); use design_kkl_pebo for λ ≠ 0")
+        raise PreconditionError(f"{caller}: PEBO needs Λ = 0 ({cite('004')} Prop. 2); use design_kkl_pebo for λ ≠ 0")
     what = {"kkl": "KKL", "pebo": "PEBO", "kkl_pebo": "KKL+PEBO"}[require]
     checks.append(_check_pde(system, maps, caller, what))
     checks.append(_check_left_inverse(system, maps, caller))
     _, h = system.substituted()
     if any(s in (*system.u, TIME) for e in h for s in e.free_symbols):
-        raise PreconditionError(f"{caller}: the outputs must be functions of the state only, y = h(x) (004 eq. 1)")
+        raise PreconditionError(f"{caller}: the outputs must be functions of the state only, y = h(x) ({cite('004')} eq. 1)")
 
     stack = StateStack(system)
     leaves = stack.leaves()
@@ -363,7 +364,7 @@ def _kkl_pebo(system: System, *, phi: Any, left_inverse: Any, B: Any, Lambda: An
                                 "not decidable symbolically")
     for i in kkl:
         if not lam[i].free_symbols:
-            checks.append(Check(f"KKL component {i + 1}: λ = {lam[i]} < 0 (004 A1)", True))
+            checks.append(Check(f"KKL component {i + 1}: λ = {lam[i]} < 0 ({cite('004')} A1)", True))
 
     theta_hat = ca.SX(0, 1)
     n_th = len(pebo)
@@ -428,7 +429,7 @@ def _theta_estimator(system: System, maps: _Maps, stack: StateStack, xi: ca.SX, 
     est = estimator_from(estimator, default=Gradient(1.0), caller=caller)
     alpha = float(alpha)
     if not (np.isfinite(alpha) and alpha > 0):
-        raise PreconditionError(f"{caller}: the filter constant `alpha` must be positive (004 eq. 37), got {alpha!r}")
+        raise PreconditionError(f"{caller}: the filter constant `alpha` must be positive ({cite('004')} eq. 37), got {alpha!r}")
     # reparametrisation Θ = Θ(θ), θ = θ(Θ)
     Th = [symbol(f"Theta{k + 1}") for k in range(n_th)]
     if (Theta is None) != (theta_from_Theta is None):
@@ -455,7 +456,7 @@ def _theta_estimator(system: System, maps: _Maps, stack: StateStack, xi: ca.SX, 
                 raise PreconditionError(
                     f"{caller}: the regression (11) is not linear in θ: {kind}_{k + 1} = {sp.simplify(exprs[k])} with "
                     f"x = φ^L(ξ + θ, y). Give a reparametrisation Θ(θ) in which it is linear (`Theta`, `theta_from_Theta`, "
-                    "as 004 §V-A does with Θ = exp(θ)), or use estimator=WindowedNLS(window=...)")
+                    f"as {cite('004')} §V-A does with Θ = exp(θ)), or use estimator=WindowedNLS(window=...)")
             a_rows.append(sp.expand(g - (J * sp.Matrix(Th))[0]))
             b_rows.append(J)
     nd = len(der_rows)
@@ -485,7 +486,7 @@ def _theta_estimator(system: System, maps: _Maps, stack: StateStack, xi: ca.SX, 
     values.update({"regression Y": f"W[y_k] - F[a_k] = αy_k - F[αy_k + a_k], a = {[e.xreplace(shown) for e in a_rows]}",
                    "regressor psi": f"F[b_k], b = {[list(b.xreplace(shown)) for b in b_rows]}",
                    "alpha": alpha, **est.describe(), "excitation monitor": ExcitationMonitor.of(stack, out, est)})
-    checks.append(Check("regression (11) linear in " + ("Θ" if Theta is not None else "θ") + "; filtered with F, W (004 eq. 37)",
+    checks.append(Check("regression (11) linear in " + ("Θ" if Theta is not None else "θ") + f"; filtered with F, W ({cite('004')} eq. 37)",
                         True, f"{len(a_rows)} row(s), {n_th} parameter(s); {est.reference}"))
     return theta_hat, values, checks
 

@@ -52,6 +52,7 @@ from ..model._forms import matrix_of
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import check_matrix, check_positive
 from ._common import leaves_of
+from ..references import cite
 
 __all__ = [
     "StateStack", "Regression", "sx_matrix", "lowpass", "derivative_filter", "adjugate",
@@ -60,9 +61,9 @@ __all__ = [
     "ExcitationMonitor", "ExcitationReport", "excitation_report",
 ]
 
-REF_GD = "000_6cd8bea7ca1db43b.txt eqs. (16)-(17), Lemma 2 (G+D interlaced estimator)"
-REF_DREM = "DREM: 000_6cd8bea7ca1db43b.txt ref. [1] (Aranovskiy et al., IEEE TAC 2017); mixing as in 000 eqs. (17c)-(19)"
-REF_GRADIENT = "gradient estimator: 004_f1e237c45ff4719e.txt eqs. (34), (47); 000_6cd8bea7ca1db43b.txt eq. (16a)"
+REF_GD = f"{cite('000')} eqs. (16)-(17), Lemma 2 (G+D interlaced estimator)"
+REF_DREM = f"DREM: {cite('000')} ref. [1] (Aranovskiy et al., IEEE TAC 2017); mixing as in {cite('000')} eqs. (17c)-(19)"
+REF_GRADIENT = f"gradient estimator: {cite('004')} eqs. (34), (47); {cite('000')} eq. (16a)"
 REF_LS = "least squares with forgetting (Ioannou & Sun 1996, §4.3.6)"
 
 

@@ -17,10 +17,11 @@ from ..design import design_banks
 from ..model import System
 from ..simulate import Noise, simulate
 from ._base import Claim, ExampleResult, register, rows_from_run
+from ..references import cite
 
 __all__ = ["example_31", "example_32", "bound_ratio", "run"]
 
-REFERENCE = ("003_a2c72ccb4281ea3f.txt §3, examples 3.1 (eq. 3.1, P = (-2, 1)ᵀ) and 3.2 (eq. 3.2, gains (-1, 4)); "
+REFERENCE = (f"{cite('003')} §3, examples 3.1 (eq. 3.1, P = (-2, 1)ᵀ) and 3.2 (eq. 3.2, gains (-1, 4)); "
              "Lemma 2.3, Lemma 2.4, Theorem 2.6")
 NOISE = 0.01
 
@@ -49,7 +50,7 @@ def fitted_rate(t: np.ndarray, e: np.ndarray, t1: float, t2: float) -> float:
     return float(-np.polyfit(t[sel], np.log(e[sel]), 1)[0])
 
 
-@register("003-banks", "003 — Banks' exponential observers, examples 3.1 and 3.2", 40)
+@register("003-banks", f"{cite('003')} — Banks' exponential observers, examples 3.1 and 3.2", 40)
 def run() -> ExampleResult:
     claims, evidence, runs, table = [], [], {}, []
     cases = (
@@ -71,7 +72,7 @@ def run() -> ExampleResult:
             ratio = bound_ratio(clean.t, e, g)
             inside = all(np.all((tr[:, i] >= lo) & (tr[:, i] <= hi)) for tr in (clean.x, clean.observers["Banks"].xhat)
                          for i, nm in enumerate(sysm.states) for (lo, hi) in [region.get(nm, (-np.inf, np.inf))])
-            claims.append(Claim(f"{tag}: ε = 1 (003: λ = -1)", abs(v["epsilon"] - 1.0) < 1e-9, f"ε = {v['epsilon']:.6g}"))
+            claims.append(Claim(f"{tag}: ε = 1 ({cite('003')}: λ = -1)", abs(v["epsilon"] - 1.0) < 1e-9, f"ε = {v['epsilon']:.6g}"))
             claims.append(Claim(f"{tag}: measured decay at least the guaranteed rate ε - K = {g:g} from t = 0",
                                 ratio <= 1 + 1e-6, f"max ‖e(t)‖e^(ε-K)t/‖e(0)‖ = {ratio:.4f}, fitted rate "
                                 f"{fitted_rate(clean.t, e, 1.0, 0.8 * T):.3f}"))
@@ -89,7 +90,7 @@ def run() -> ExampleResult:
     return ExampleResult(
         systems={"example 3.1": example_31(False), "example 3.2": example_32(False)},
         key="003-banks",
-        title="003 — Banks' exponential observers, examples 3.1 and 3.2",
+        title=f"{cite('003')} — Banks' exponential observers, examples 3.1 and 3.2",
         reference=REFERENCE,
         summary=("Both examples satisfy Banks' conditions with ε = 1 (λ(A + PB) = -1 for 3.1; λ(Df + P·DB) <= -1 for 3.2). "
                  "With perturbations of slope/Lipschitz constant 0.5 the guaranteed rate is ε - K = 0.5; in every run the "

@@ -23,10 +23,11 @@ from ..model import Sampled, System, symbol
 from ..simulate import Noise, Run, convergence_time, simulate
 from ._base import Claim, ExampleResult, register
 from ._util import bundled
+from ..references import cite
 
 __all__ = ["run", "model", "designs", "equilibrium", "closed_loop", "SETPOINTS", "LAMBDA", "LABELS"]
 
-REF = "004_f1e237c45ff4719e.txt §V-C: eq. (50), Table I, the state-feedback law of ref. [2], Fig. 2 and its remarks"
+REF = f"{cite('004')} §V-C: eq. (50), Table I, the state-feedback law of ref. [2], Fig. 2 and its remarks"
 #: |V_d| (volts) on [0.2k, 0.2(k+1)): the paper switches at t = 0.2k but gives no values (ours; v4 = -|V_d|).
 SETPOINTS = (20.0, 30.0, 25.0, 15.0, 30.0, 20.0)
 #: Gain λ of the feedback law (not given in 004; ours).
@@ -124,7 +125,7 @@ def _fmt_t(v: float | None) -> str:
 def _text_table(rows: list[_Row]) -> str:
     head = (f"{'observer':<20}{'order':>6}{'t_conv i1':>11}{'t_conv v4':>11}{'RMS i1 [A]':>12}{'RMS v4 [V]':>12}"
             f"{'noise i1 [A]':>14}{'noise v4 [V]':>14}")
-    lines = ["Ćuk converter, 004 Table I observers. t_conv: error within 2 % of |x(0)| (0.03 A, 0.4 V) before the first "
+    lines = [f"Ćuk converter, {cite('004')} Table I observers. t_conv: error within 2 % of |x(0)| (0.03 A, 0.4 V) before the first "
              "switch; RMS: error under noise over [0.2, 1.2] s; noise: RMS of x̂(noisy) - x̂(noise-free) over the same window",
              head, "-" * len(head)]
     for r in rows:
@@ -156,11 +157,11 @@ def _figure(noisy: Run, e_clean: Mapping[str, np.ndarray], e_noisy: Mapping[str,
             ax.legend(fontsize="x-small", loc="upper right")
     for ax in axes[-1]:
         ax.set_xlabel("t [s]")
-    fig.suptitle("004 Fig. 2 reproduced: states and estimation errors (y-range scaled to the errors after 0.2 s)")
+    fig.suptitle(f"{cite('004')} Fig. 2 reproduced: states and estimation errors (y-range scaled to the errors after 0.2 s)")
     return fig
 
 
-@register("004-cuk", "004: Ćuk converter, six observers under bounded noise (Table I)", 90)
+@register("004-cuk", f"{cite('004')}: Ćuk converter, six observers under bounded noise (Table I)", 90)
 def run() -> ExampleResult:
     system = model()
     ds = designs(system)
@@ -228,10 +229,10 @@ def run() -> ExampleResult:
                           "rms_noise_free": float(r.rms_clean[j]), "noise_induced_rms": float(r.noise_rms[j]), "order": r.order})
     notes = [
         f"Set points |V_d| = {', '.join(f'{v:g}' for v in SETPOINTS)} V on successive 0.2 s intervals and λ = {LAMBDA:g}: "
-        "004 gives neither (|V_d| from 15 to 30 V from E = 12 V keeps the duty cycle in [0.55, 0.72]).",
-        "L3 = 10 mH: 004 §V-C lists L1, C2, C4, G, E but not L3 (lost in the conversion); 10 mH as L1 (and 004 ref. [15]).",
+        f"{cite('004')} gives neither (|V_d| from 15 to 30 V from E = 12 V keeps the duty cycle in [0.55, 0.72]).",
+        f"L3 = 10 mH: {cite('004')} §V-C lists L1, C2, C4, G, E but not L3 (lost in the conversion); 10 mH as L1 (and {cite('004')} ref. [15]).",
         f"The plant starts at the equilibrium of |V_d| = {SETPOINTS[0]:g} V, (i1, v4, v2, i3) = {np.round(x0, 3).tolist()}; every "
-        "observer's dynamic extension starts at 0 (004 §V-C), so the initial errors are the equilibrium values.",
+        f"observer's dynamic extension starts at 0 ({cite('004')} §V-C), so the initial errors are the equilibrium values.",
         "The feedback uses the true state (the paper's 'ideal' feedback). It is simulated first; its duty cycle is then "
         f"replayed (linear interpolation on the {DT:g} s grid) to the converter and observers, which deviate from the "
         f"closed loop by at most {replay[0]:.2g} A (i1) and {replay[1]:.2g} V (v4).",
@@ -257,9 +258,9 @@ def run() -> ExampleResult:
     evidence = [_text_table(rows), *(f"{n}:\n{ds[n]}" for n in names)]
     return ExampleResult(
         systems={"Ćuk converter (50)": model()},
-        key="004-cuk", title="004 §V-C: Ćuk converter, six observers under bounded noise", reference=REF,
-        summary=(f"Six observers of 004 Table I on the Ćuk converter (50) under state feedback and bounded noise. KKLO: "
+        key="004-cuk", title=f"{cite('004')} §V-C: Ćuk converter, six observers under bounded noise", reference=REF,
+        summary=(f"Six observers of {cite('004')} Table I on the Ćuk converter (50) under state feedback and bounded noise. KKLO: "
                  f"noise part of the error {kkl.noise_rms[0]:.2g} A / {kkl.noise_rms[1]:.2g} V; the worst RMS errors under "
                  f"noise are the high-gain observers' in i1; the paper's 'KKLO least noise-sensitive' holds for v4, not for i1."),
         model=str(system), evidence=evidence, table=table, claims=claims,
-        figures={"states and estimation errors (cf. 004 Fig. 2)": fig}, notes=notes)
+        figures={f"states and estimation errors (cf. {cite('004')} Fig. 2)": fig}, notes=notes)

@@ -17,10 +17,11 @@ from ..errors import FiniteEscapeError
 from ..model import StateAffine
 from ..simulate import Noise, Sampling, simulate
 from ._base import Claim, ExampleResult, register, rows_from_run
+from ..references import cite
 
 __all__ = ["run", "model", "kalman_like", "KL_DELTA", "KL_V"]
 
-REF = "000_6cd8bea7ca1db43b.txt Proposition 1, Lemmas 1-2, eqs. (3)-(4), (12)-(17); 002_613af42269ea26a7.txt Kalman-like observer"
+REF = f"{cite('000')} Proposition 1, Lemmas 1-2, eqs. (3)-(4), (12)-(17); {cite('002')} Kalman-like observer"
 GAMMA_G, GAMMA = 5.0, 50.0          # the tuning (000 gives none)
 X0 = (1.0, -1.0)                     # not in the paper: any x(0) with x2(0) != 0 shows the effect
 T_FINAL, DT = 20.0, 1e-3
@@ -38,7 +39,7 @@ def model() -> StateAffine:
     return StateAffine([[0, "u"], [0, 0]], [0, 0], [[1], [0]], inputs=["u"], outputs=["y"], name="ltv_vanishing_input")
 
 
-@register("000-2gd-not-uco", "000: 2G+D converges where the system is observable but not UCO", 70)
+@register("000-2gd-not-uco", f"{cite('000')}: 2G+D converges where the system is observable but not UCO", 70)
 def run() -> ExampleResult:
     sa = model()
     system = sa.to_system()
@@ -65,19 +66,19 @@ def run() -> ExampleResult:
     uco = uco_test(A_t, C_t, clean.t[grid], UCO_WINDOW, stride=50)
     order = gd.n_z
     claims = [
-        Claim("observable on [0, 20]: the Gramian W(0, 20) (000 eq. 3) has full rank (000 Prop. 1 hypothesis)",
+        Claim(f"observable on [0, 20]: the Gramian W(0, 20) ({cite('000')} eq. 3) has full rank ({cite('000')} Prop. 1 hypothesis)",
               gram.observable, str(gram)),
-        Claim(f"not UCO: λmin W(t0, t0 + {UCO_WINDOW:g}) → 0 (000 eq. 4 fails)", not uco.uniform, str(uco)),
-        Claim("the regression of the 2G+D observer is interval exciting with the Gramian's level (000 Prop. 2: ∫ψψᵀ = W(0, t))",
+        Claim(f"not UCO: λmin W(t0, t0 + {UCO_WINDOW:g}) → 0 ({cite('000')} eq. 4 fails)", not uco.uniform, str(uco)),
+        Claim(f"the regression of the 2G+D observer is interval exciting with the Gramian's level ({cite('000')} Prop. 2: ∫ψψᵀ = W(0, t))",
               abs(rep.ie_level[-1] - gram.eigenvalues[0]) < 1e-3 * gram.eigenvalues[0],
               f"λmin ∫ψψᵀ = {rep.ie_level[-1]:.5g}, λmin W(0, 20) = {gram.eigenvalues[0]:.5g}"),
-        Claim("2G+D order n_χ = (3 + 2n)n = 14 (000 §6)", order == 14, f"{order} internal states"),
-        Claim("G+D mixed regressor Δ becomes non-zero (000 Lemma 2)", rep.delta_time is not None,
+        Claim(f"2G+D order n_χ = (3 + 2n)n = 14 ({cite('000')} §6)", order == 14, f"{order} internal states"),
+        Claim(f"G+D mixed regressor Δ becomes non-zero ({cite('000')} Lemma 2)", rep.delta_time is not None,
               f"|Δ| > 1e-6 from t = {rep.delta_time}, final Δ = {rep.delta[-1]:.4g}"),
         Claim("2G+D error < 1e-6 by t = 20 (γ_g = 5, γ = 50, noise-free)", e_gd[-1] < 1e-6, f"|x̂ - x|(20) = {e_gd[-1]:.3g}"),
         Claim("Kalman-like error stalls at a non-zero value", e_kl[-1] > 0.1 and abs(e_kl[-1] - e_kl[k10]) < 0.01 * e_kl[k10],
               f"|x̂ - x|(10) = {e_kl[k10]:.4g}, |x̂ - x|(20) = {e_kl[-1]:.4g}"),
-        Claim("2G+D error stays bounded under measurement noise (000 §6, BIBS robustness)",
+        Claim(f"2G+D error stays bounded under measurement noise ({cite('000')} §6, BIBS robustness)",
               bool(np.all(np.isfinite(noisy.error_norm("2G+D")))) and noisy.metrics("2G+D").rms_error < 0.2,
               f"RMS error over the last 20 % = {noisy.metrics('2G+D').rms_error:.3g} (σ = 0.01, sampled every 0.01 s)"),
     ]
@@ -97,22 +98,22 @@ def run() -> ExampleResult:
         ax.grid(alpha=0.3, which="both")
     ax2.legend(fontsize="small")
     ax3.legend(fontsize="small")
-    fig.suptitle("000: observable, not UCO — 2G+D vs Kalman-like")
+    fig.suptitle(f"{cite('000')}: observable, not UCO — 2G+D vs Kalman-like")
     table = rows_from_run("noise-free", clean) + rows_from_run("noise σ = 0.01", noisy)
     notes = [
-        f"x(0) = {X0}, x̂(0) = (0, 0), t in [0, {T_FINAL:g}], RK4 with dt = {DT:g}: 000 gives no initial state or step.",
-        "G+D starts at θ̂_g(0) = 0, Ω(0) = I, θ̂(0) = 0 and ξ(0) = x̂(0), Φ_A(0) = I (000 eq. 13b).",
-        f"The Kalman-like observer is nlobs.design.design_kalman_like (002) with δ = {KL_DELTA:g}, V = {KL_V:g}·I, W = 1, "
-        "M(0) = I (002 gives no tuning).",
-        f"With V = 0 the Kalman-like design requires δ > 2 sup‖A‖ = 2 (002); with δ = 2.5 {escape}: the forgetting "
+        f"x(0) = {X0}, x̂(0) = (0, 0), t in [0, {T_FINAL:g}], RK4 with dt = {DT:g}: {cite('000')} gives no initial state or step.",
+        f"G+D starts at θ̂_g(0) = 0, Ω(0) = I, θ̂(0) = 0 and ξ(0) = x̂(0), Φ_A(0) = I ({cite('000')} eq. 13b).",
+        f"The Kalman-like observer is nlobs.design.design_kalman_like ({cite('002')}) with δ = {KL_DELTA:g}, V = {KL_V:g}·I, W = 1, "
+        f"M(0) = I ({cite('002')} gives no tuning).",
+        f"With V = 0 the Kalman-like design requires δ > 2 sup‖A‖ = 2 ({cite('002')}); with δ = 2.5 {escape}: the forgetting "
         "inflates M in the direction the vanishing input no longer excites.",
         "Observability and the UCO level come from nlobs.analysis (ltv_gramian, uco_test) on the model frozen along the "
         "input (state_affine_ltv), on a 0.01 s grid; the 2G+D regressor's excitation integral equals the Gramian, as the "
-        "proof of 000 Prop. 2 says.",
+        f"proof of {cite('000')} Prop. 2 says.",
     ]
     return ExampleResult(
         systems={"ẋ = [[0, u], [0, 0]]x, y = x1": model().to_system()},
-        key="000-2gd-not-uco", title="000: 2G+D on an observable, non-UCO LTV system", reference=REF,
+        key="000-2gd-not-uco", title=f"{cite('000')}: 2G+D on an observable, non-UCO LTV system", reference=REF,
         summary=(f"With u(t) = e^(-t) the system ẋ = [[0, u], [0, 0]]x, y = x1 is observable on [0, T] but not UCO. The 2G+D "
                  f"observer (order 14) reaches |x̂ - x| = {e_gd[-1]:.2g} at t = 20; the Kalman-like observer stalls at "
                  f"{e_kl[-1]:.3g}."),

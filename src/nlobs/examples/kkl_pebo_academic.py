@@ -15,10 +15,11 @@ from ..errors import PreconditionError
 from ..model import System
 from ..simulate import Noise, Sampling, simulate
 from ._base import Claim, ExampleResult, register, rows_from_run
+from ..references import cite
 
 __all__ = ["run", "model", "observer"]
 
-REF = "004_f1e237c45ff4719e.txt §V-A, Proposition 6: eq. (31), F3-F4, observer (32)-(37)"
+REF = f"{cite('004')} §V-A, Proposition 6: eq. (31), F3-F4, observer (32)-(37)"
 U = "-0.5 + 0.2*sin(t)"      # not in the paper; keeps x bounded (equilibrium x1 = 1, x3 = 0 for u = -0.5) and varies
 X0 = (0.5, 1.0, 0.5)
 ALPHA, GAMMA = 1.0, 10.0     # not in the paper (α > 0, γ > 0 free)
@@ -49,7 +50,7 @@ def _failure(fn, **kw) -> str:  # noqa: ANN001
     return ""
 
 
-@register("004-kkl-pebo", "004: neither KKL nor PEBO, but KKL+PEBO (example 31)", 80)
+@register("004-kkl-pebo", f"{cite('004')}: neither KKL nor PEBO, but KKL+PEBO (example 31)", 80)
 def run() -> ExampleResult:
     system = model()
     kkl_msg = _failure(design_kkl, Lambda=[-1, -1])
@@ -94,7 +95,7 @@ def run() -> ExampleResult:
     ]
     return ExampleResult(
         systems={"example (31)": model()},
-        key="004-kkl-pebo", title="004 §V-A: KKL+PEBO where KKL and PEBO fail", reference=REF,
+        key="004-kkl-pebo", title=f"{cite('004')} §V-A: KKL+PEBO where KKL and PEBO fail", reference=REF,
         summary=(f"The KKL and PEBO checks fail and say which component needs which λ; KKL+PEBO (32)-(37) reaches "
                  f"|x̂2 - x2| = {err[-1, 1]:.2g}, |x̂3 - x3| = {err[-1, 2]:.2g} at t = {T_FINAL:g}."),
         model=str(system), evidence=[f"KKL check: {kkl_msg}", f"PEBO check: {pebo_msg}", str(d), str(rep)],

@@ -14,12 +14,13 @@ from ..model import OutputInjectionForm, System
 from ..simulate import Noise, Sampling, simulate
 from ._base import Claim, ExampleResult, register, rows_from_run
 from ._util import bundled, decay_rate, linear_error_deviation
+from ..references import cite
 
 __all_util__ = (decay_rate, linear_error_deviation)
 
 __all__ = ["pendulum", "POLES", "run"]
 
-REFERENCE = "002_613af42269ea26a7.txt, 'Result [Error linearization]' and 'Example(s) of observer forms — Robot arm'"
+REFERENCE = f"{cite('002')}, 'Result [Error linearization]' and 'Example(s) of observer forms — Robot arm'"
 #: Our choice of observer poles (the slides give none).
 POLES = (-2.0, -3.0)
 
@@ -29,7 +30,7 @@ def pendulum() -> System:
     return bundled("pendulum").system
 
 
-@register("002-pendulum", "002 — robot arm / pendulum with an output-injection observer", 50)
+@register("002-pendulum", f"{cite('002')} — robot arm / pendulum with an output-injection observer", 50)
 def run() -> ExampleResult:
     system = pendulum()
     form = OutputInjectionForm.from_system(system)
@@ -54,7 +55,7 @@ def run() -> ExampleResult:
     return ExampleResult(
         systems={"robot arm / pendulum": system},
         key="002-pendulum",
-        title="002 — robot arm / pendulum with an output-injection observer",
+        title=f"{cite('002')} — robot arm / pendulum with an output-injection observer",
         reference=REFERENCE,
         summary=("The pendulum is recognised in output-injection form; the observer's error dynamics are linear, so "
                  "convergence is global and exponential with the chosen poles −2, −3. Under sampled noisy "

@@ -17,10 +17,11 @@ from ..simulate import Noise, simulate
 from ._base import Claim, ExampleResult, register, rows_from_run
 from ._classical_util import a_matrix, gramian_min_eig
 from ._util import bundled
+from ..references import cite
 
 __all__ = ["pendulum_unknown_b", "INPUTS", "run"]
 
-REFERENCE = ("002_613af42269ea26a7.txt, 'Example(s) of observer forms - Robot arm', Pb2 (x1, x2, b): "
+REFERENCE = (f"{cite('002')}, 'Example(s) of observer forms - Robot arm', Pb2 (x1, x2, b): "
              "x_e' = A_e(u)x_e + B_e(C_e x_e, u); Kalman-like observer ('LTV-like with I/O NL'), regular persistence")
 #: The persistently exciting input and the singular one.
 INPUTS = {"exciting u": "sin(t) + 0.5*sin(2.3*t)", "u = 0": "0"}
@@ -32,7 +33,7 @@ def pendulum_unknown_b() -> System:
     return bundled("pendulum_unknown_b").system
 
 
-@register("002-pendulum-b", "002 — robot arm with unknown b: Kalman-like observer, exciting vs zero input", 51)
+@register("002-pendulum-b", f"{cite('002')} — robot arm with unknown b: Kalman-like observer, exciting vs zero input", 51)
 def run() -> ExampleResult:
     mf = bundled("pendulum_unknown_b")
     system = mf.system
@@ -72,11 +73,11 @@ def run() -> ExampleResult:
     return ExampleResult(
         systems={"pendulum with b as a state": pendulum_unknown_b()},
         key="002-pendulum-b",
-        title="002 — robot arm with unknown b: Kalman-like observer, exciting vs zero input",
+        title=f"{cite('002')} — robot arm with unknown b: Kalman-like observer, exciting vs zero input",
         reference=REFERENCE,
         summary=("With b unknown the pendulum is state-affine in (x1, x2, b) with A_e(u). Under a persistently exciting "
                  "input the Kalman-like observer (V > 0) estimates b; under u = 0 the Gramian is singular, b̂ never moves, "
-                 "and only x1, x2 converge: observability here depends on the input (002, regular persistence)."),
+                 f"and only x1, x2 converge: observability here depends on the input ({cite('002')}, regular persistence)."),
         model=str(system), evidence=(str(d.certificate),), runs=runs, table=tuple(table), claims=tuple(claims),
         notes=("b = 1, x(0) = (1, 0), x̂(0) = 0, V, W and the inputs are our choices; the slides give the form only.",
                "The noise-type design (V > 0, δ = 0) is used because with forgetting δ > 0 and u = 0 the covariance of b "

@@ -23,6 +23,7 @@ from ..model._forms import matrix_of
 from ..simulate import Noise, simulate
 from ._base import Claim, ExampleResult, register, rows_from_run
 from ._classical_util import gramian
+from ..references import cite
 
 __all__ = ["velocity_model", "velocity_augmentation", "acceleration_model", "acceleration_augmentation", "run_velocity",
            "run_acceleration", "augmented_matrix", "scaled_min_eig", "WINDOW"]
@@ -145,31 +146,31 @@ def _gramian(aug: dict, system: System, run, window: float) -> np.ndarray:  # no
     return gramian(augmented_matrix(aug, system), np.array(aug["C"], dtype=float), run.t[:k], run.u[:k], run.y_true[:k])
 
 
-@register("001-range-velocity", "001 §IV-A — range-only localisation with velocity input (9-state augmentation)", 20)
+@register("001-range-velocity", f"{cite('001')} §IV-A — range-only localisation with velocity input (9-state augmentation)", 20)
 def run_velocity() -> ExampleResult:
-    return _run("001-range-velocity", "001 §IV-A — range-only localisation with velocity input (9-state augmentation)",
+    return _run("001-range-velocity", f"{cite('001')} §IV-A — range-only localisation with velocity input (9-state augmentation)",
                 velocity_model(), velocity_augmentation(), x0=[8.0, -5.0, 3.0, 0.2, -0.1, 0.05], xhat0=[1.0, 1.0, 1.0, 0, 0, 0],
                 rich={"u1": "2*cos(t)", "u2": "2*sin(0.7*t)", "u3": "cos(0.4*t)"},
                 straight={"u1": 1.0, "u2": 0.5, "u3": 0.0}, T=100.0, dt=5e-3,
                 P0=np.diag([10.0] * 6 + [0.1, 10.0, 10.0]), Q=1e-2,
-                reference="001_1b4027b3a70d560f.txt §IV-A, eqs. (15)-(16), Lemma 1, estimate [I6 0]ŵ",
+                reference=f"{cite('001')} §IV-A, eqs. (15)-(16), Lemma 1, estimate [I6 0]ŵ",
                 notes=("A of (16) is garbled in the text conversion; it is re-derived from d/dt T(x) (module docstring) and "
                        "checked symbolically by design_augmented.",
                        "Trajectory, current, input, Q = 0.01 I, R = 0.01, P0 (small on the measured range) and the noise are "
                        "our choices; the paper gives no simulation for §IV-A."))
 
 
-@register("001-range-acceleration", "001 §IV-B — range-only localisation with acceleration input (14-state augmentation)", 30)
+@register("001-range-acceleration", f"{cite('001')} §IV-B — range-only localisation with acceleration input (14-state augmentation)", 30)
 def run_acceleration() -> ExampleResult:
     g = (0.1, -0.2, -1.0)
     return _run("001-range-acceleration",
-                "001 §IV-B — range-only localisation with acceleration input (14-state augmentation)",
+                f"{cite('001')} §IV-B — range-only localisation with acceleration input (14-state augmentation)",
                 acceleration_model(), acceleration_augmentation(), x0=[8.0, -5.0, 3.0, 0.1, 0.0, 0.05, *g],
                 xhat0=[1.0, 1.0, 1.0, 0, 0, 0, 0, 0, 0],
                 rich={"u1": f"{-g[0]} + 2*cos(1.3*t)", "u2": f"{-g[1]} + 2*cos(0.9*t)", "u3": f"{-g[2]} + cos(0.6*t)"},
                 straight={"u1": -g[0], "u2": -g[1], "u3": -g[2]}, T=100.0, dt=5e-3,
                 P0=np.diag([10.0] * 9 + [0.1] + [10.0] * 4), Q=1e-2,
-                reference="001_1b4027b3a70d560f.txt §IV-B, eqs. (17)-(18), Lemma 1, estimate [I9 0]ŵ",
+                reference=f"{cite('001')} §IV-B, eqs. (17)-(18), Lemma 1, estimate [I9 0]ŵ",
                 notes=("The measured acceleration cancels the constant bias g on average (u = -g + cosines, whose double "
                        "integrals are bounded), so the vehicle stays at a bounded distance; the straight-line case uses "
                        "u = -g (constant velocity).",

@@ -18,10 +18,11 @@ from ..model import System
 from ..simulate import Noise, simulate
 from ._base import Claim, ExampleResult, register, rows_from_run
 from ._util import bundled, decay_rate
+from ..references import cite
 
 __all__ = ["toy_system", "augmented_matrices", "L_PAPER", "EIG_PAPER", "paper_observer", "run"]
 
-REFERENCE = "001_1b4027b3a70d560f.txt §IV-C, eqs. (20)-(22)"
+REFERENCE = f"{cite('001')} §IV-C, eqs. (20)-(22)"
 SQ2 = np.sqrt(2.0)
 #: The paper's output-injection gain (001 §IV-C).
 L_PAPER = np.array([[1 + SQ2], [1.0], [1 + SQ2]])
@@ -47,7 +48,7 @@ def paper_observer(system: System, L: np.ndarray = L_PAPER) -> ObserverDesign:
                             C=[[1, 0, 0]], left_inverse=["w1", "w2"], L=L)
 
 
-@register("001-IV-C", "001 §IV-C — a toy system observed through state augmentation", 10)
+@register("001-IV-C", f"{cite('001')} §IV-C — a toy system observed through state augmentation", 10)
 def run() -> ExampleResult:
     c = 0.5
     system = toy_system(c)
@@ -73,7 +74,7 @@ def run() -> ExampleResult:
     return ExampleResult(
         systems={"the toy system (20), c = 0.5": system, "the toy system (20), c = 0": toy_system(0.0)},
         key="001-IV-C",
-        title="001 §IV-C — a toy system observed through state augmentation",
+        title=f"{cite('001')} §IV-C — a toy system observed through state augmentation",
         reference=REFERENCE,
         summary=("The nonlinear system x1' = x2², x2' = c, y = x1 is mimicked by an LTI system in w = (x1, x2, x2²). "
                  "A Luenberger observer on the augmented system with the paper's gain, recovered through the left "

@@ -18,10 +18,11 @@ from ..model import System
 from ..simulate import Noise, simulate
 from ._base import Claim, ExampleResult, register, rows_from_run
 from ._util import bundled
+from ..references import cite
 
 __all__ = ["van_der_pol_unknown", "TRUE", "run"]
 
-REFERENCE = ("002_613af42269ea26a7.txt, 'Van der Pol oscillator ... with y = x and ẋ, γ, ω to be estimated' and "
+REFERENCE = (f"{cite('002')}, 'Van der Pol oscillator ... with y = x and ẋ, γ, ω to be estimated' and "
              "'LTV-like with I/O NL' (Kalman-like observer, δ > 2‖A‖ or V > 0)")
 #: True γ and ω² (our choice; the slides give none).
 TRUE = {"gamma": 1.5, "omega2": 2.0}
@@ -33,7 +34,7 @@ def van_der_pol_unknown() -> System:
     return bundled("van_der_pol_unknown").system
 
 
-@register("002-vdp", "002 — Van der Pol with unknown γ, ω²: Kalman-like observer on ż = A(y)z", 60)
+@register("002-vdp", f"{cite('002')} — Van der Pol with unknown γ, ω²: Kalman-like observer on ż = A(y)z", 60)
 def run() -> ExampleResult:
     mf = bundled("van_der_pol_unknown")
     system = mf.system
@@ -67,7 +68,7 @@ def run() -> ExampleResult:
     return ExampleResult(
         systems={"Van der Pol with γ, ω² as states": van_der_pol_unknown()},
         key="002-vdp",
-        title="002 — Van der Pol with unknown γ, ω²: Kalman-like observer on ż = A(y)z",
+        title=f"{cite('002')} — Van der Pol with unknown γ, ω²: Kalman-like observer on ż = A(y)z",
         reference=REFERENCE,
         summary=("In Liénard coordinates the Van der Pol oscillator with unknown γ and ω² is state-affine in the measured "
                  "output. On the limit cycle the Kalman-like observer (with forgetting δ = 6 > 2 sup‖A‖, or with V > 0) "

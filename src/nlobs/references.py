@@ -1,0 +1,154 @@
+"""The one table of the works nlobs implements or relies on.
+
+Everything a user reads (certificates, the report, the CLI, the README, the docs) cites a work
+through :func:`cite` (short form, "Yi, Ortega & Zhang (2019), Proposition 1") and lists it
+through :func:`full_citation`; code comments and tests may cite the papers' text files by name
+and equation number (the ``file`` field links the two).
+
+Bibliographic data comes from the texts themselves where they give it. Where a text gives no
+venue or year, the entry says where the data comes from (``source``).
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from types import MappingProxyType
+
+__all__ = ["Reference", "REFERENCES", "cite", "full_citation", "cited_keys", "bibliography"]
+
+
+@dataclass(frozen=True)
+class Reference:
+    """One work: who, what, where, when.
+
+    Attributes
+    ----------
+    key : str
+        Short key used in the code (``"004"`` for a paper of the catalogue, ``"sedoglavic2002"``...).
+    authors : str
+        Authors as printed ("B. Yi, R. Ortega, W. Zhang").
+    short : str
+        Surnames for the short citation ("Yi, Ortega & Zhang").
+    title : str
+    venue : str
+        Journal, proceedings or report series, with volume and pages when known.
+    year : int
+    file : str
+        The text file in the papers folder (only for the five papers of the catalogue).
+    doi : str
+    source : str
+        Where the venue/year come from when the text itself does not give them.
+    """
+
+    key: str
+    authors: str
+    short: str
+    title: str
+    venue: str
+    year: int
+    file: str = ""
+    doi: str = ""
+    source: str = ""
+
+    @property
+    def label(self) -> str:
+        """The short citation, "Surname, Surname & Surname (year)"."""
+        return f"{self.short} ({self.year})"
+
+    def __str__(self) -> str:
+        return full_citation(self.key)
+
+
+_ALL = (
+    # -- the five papers of the catalogue --------------------------------------------------------
+    Reference("000", "L. Wang, R. Ortega, A. Bobtsov", "Wang, Ortega & Bobtsov",
+              "Observability is sufficient for the design of globally exponentially convergent state observers "
+              "for state-affine nonlinear systems", "arXiv:2108.09406", 2021, file="000_6cd8bea7ca1db43b.txt",
+              source="the text gives no venue or year; arXiv record 2108.09406"),
+    Reference("001", "D. Viegas, P. Batista, P. Oliveira, C. Silvestre", "Viegas, Batista, Oliveira & Silvestre",
+              "Nonlinear observability and observer design through state augmentation",
+              "Proc. 54th IEEE Conference on Decision and Control (CDC)", 2015, file="001_1b4027b3a70d560f.txt",
+              source="the text gives no venue or year (its newest reference is from 2014); CDC 2015 proceedings"),
+    Reference("002", "G. Besançon", "Besançon", "On observability & observer forms",
+              "lecture slides, Mines ParisTech / GIPSA-lab, 1 March 2010 (see also G. Besançon, "
+              "Nonlinear observers and applications, Springer, 2007)", 2010, file="002_613af42269ea26a7.txt"),
+    Reference("003", "S. P. Banks", "Banks", "A note on nonlinear observers",
+              "Research Report ACSE 126, Dept. of Control Engineering, University of Sheffield", 1980,
+              file="003_a2c72ccb4281ea3f.txt"),
+    Reference("004", "B. Yi, R. Ortega, W. Zhang", "Yi, Ortega & Zhang",
+              "On state observers for nonlinear systems: a new design and a unifying framework",
+              "IEEE Transactions on Automatic Control 64(3):1193–1200", 2019, file="004_f1e237c45ff4719e.txt",
+              doi="10.1109/TAC.2018.2839526"),
+    # -- works the papers point to, and the algorithms nlobs uses beyond them ----------------------
+    Reference("sedoglavic2002", "A. Sedoglavic", "Sedoglavic",
+              "A probabilistic algorithm to test local algebraic observability in polynomial time",
+              "Journal of Symbolic Computation 33(5):735–755", 2002),
+    Reference("aranovskiy2017", "S. Aranovskiy, A. Bobtsov, R. Ortega, A. Pyrkin", "Aranovskiy, Bobtsov, Ortega & Pyrkin",
+              "Performance enhancement of parameter estimators via dynamic regressor extension and mixing",
+              "IEEE Transactions on Automatic Control 62(7):3546–3550", 2017),
+    Reference("andrieu2006", "V. Andrieu, L. Praly", "Andrieu & Praly",
+              "On the existence of a Kazantzis–Kravaris/Luenberger observer",
+              "SIAM Journal on Control and Optimization 45(2):432–456", 2006),
+    Reference("kalman1961", "R. E. Kalman, R. S. Bucy", "Kalman & Bucy", "New results in linear filtering and prediction theory",
+              "Journal of Basic Engineering 83(1):95–108", 1961),
+    Reference("julier2004", "S. J. Julier, J. K. Uhlmann", "Julier & Uhlmann", "Unscented filtering and nonlinear estimation",
+              "Proceedings of the IEEE 92(3):401–422", 2004),
+    Reference("thau1973", "F. E. Thau", "Thau", "Observing the state of non-linear dynamic systems",
+              "International Journal of Control 17(3):471–479", 1973),
+    Reference("gauthier1992", "J.-P. Gauthier, H. Hammouri, S. Othman", "Gauthier, Hammouri & Othman",
+              "A simple observer for nonlinear systems: applications to bioreactors",
+              "IEEE Transactions on Automatic Control 37(6):875–880", 1992),
+    Reference("hong2019", "H. Hong, A. Ovchinnikov, G. Pogudin, C. Yap", "Hong, Ovchinnikov, Pogudin & Yap",
+              "SIAN: software for structural identifiability analysis of ODE models", "Bioinformatics 35(16):2873–2874", 2019),
+    Reference("schoukens2016", "M. Schoukens, P. Mattsson, T. Wigren, J.-P. Noël", "Schoukens, Mattsson, Wigren & Noël",
+              "Cascaded tanks benchmark combining soft and hard nonlinearities",
+              "Workshop on Nonlinear System Identification Benchmarks, Brussels", 2016),
+)
+
+#: Every work nlobs cites, by key.
+REFERENCES = MappingProxyType({r.key: r for r in _ALL})
+
+
+def _get(key: str) -> Reference:
+    try:
+        return REFERENCES[key]
+    except KeyError:
+        raise KeyError(f"no reference {key!r}; known: {', '.join(REFERENCES)}") from None
+
+
+def cite(key: str, where: str = "") -> str:
+    """The short citation of `key`, optionally followed by a place in the work.
+
+    >>> cite("004", "Proposition 1")
+    'Yi, Ortega & Zhang (2019), Proposition 1'
+    """
+    label = _get(key).label
+    return f"{label}, {where}" if where else label
+
+
+def full_citation(key: str) -> str:
+    """The full reference: authors, "title", venue, year (and DOI).
+
+    >>> full_citation("003")
+    'S. P. Banks, "A note on nonlinear observers", Research Report ACSE 126, Dept. of Control Engineering, University of Sheffield, 1980.'
+    """
+    r = _get(key)
+    text = f'{r.authors}, "{r.title}", {r.venue}, {r.year}'
+    return text + (f", doi:{r.doi}." if r.doi else ".")
+
+
+def cited_keys(text: str) -> list[str]:
+    """The keys of the works a text cites through :func:`cite`, in order of first appearance."""
+    found = []
+    for r in _ALL:
+        m = re.search(re.escape(r.label), text)
+        if m:
+            found.append((m.start(), r.key))
+    return [k for _, k in sorted(found)]
+
+
+def bibliography(*texts: str) -> list[str]:
+    """Full citations of every work cited in `texts`, in order of first appearance."""
+    joined = "\n".join(texts)
+    return [full_citation(k) for k in cited_keys(joined)]
