@@ -99,3 +99,11 @@ def test_demo_only_writes_the_report(tmp_path, capsys):
 def test_console_script_entry_point():
     out = subprocess.run([sys.executable, "-m", "nlobs.cli", "demo", "--list"], capture_output=True, text=True)
     assert out.returncode == 0 and "001-IV-C" in out.stdout
+
+
+def test_errors_under_json_are_one_json_object(capsys):
+    assert main(["simulate", PEND, "--json", "--observer", "nope"]) == 1
+    captured = capsys.readouterr()
+    err = json.loads(captured.err)
+    assert captured.out == "" and err["error"]["type"] == "KeyError"
+    assert "no observer 'nope'" in err["error"]["message"]
