@@ -101,3 +101,18 @@ def test_pickle_round_trip():
     s = vdp()
     back = pickle.loads(pickle.dumps(s))
     assert back == s and back.f == s.f and dict(back.params) == dict(s.params)
+
+
+def test_augmented_appends_parameters_as_constant_states():
+    import pickle
+
+    s = System(states=["x"], f=["-k*x + c*u"], inputs=["u"], outputs=["y"], h=["x"], params={"k": 0.3, "c": 2.0})
+    a = s.augmented(["k"])
+    assert a.states == ("x", "k") and a.estimated_params == ("k",) and dict(a.params) == {"c": 2.0}
+    assert str(a.f[0]) == str(s.f[0]) and a.f[1] == 0
+    assert pickle.loads(pickle.dumps(a)) == a and a != s.augmented(["c"])
+    assert a.with_params(c=1.0).estimated_params == ("k",)
+    with pytest.raises(ModelError, match="`z` is not a parameter"):
+        s.augmented(["z"])
+    with pytest.raises(ModelError, match="must be constant"):
+        System(states=["x"], f=["-x"], outputs=["y"], h=["x"], estimated_params=["x"])

@@ -87,6 +87,9 @@ class System:
         Parameter names and their values.
     name : str, optional
         A name used in reports.
+    estimated_params : sequence of str, optional
+        States that are unknown constant parameters appended to the state (their derivative
+        is 0); set by :meth:`augmented`, so that results can report them as parameters.
 
     Raises
     ------
@@ -102,7 +105,7 @@ class System:
     (2, 2.0)
     """
 
-    __slots__ = ("_name", "_states", "_inputs", "_outputs", "_params", "_f", "_h", "_key")
+    __slots__ = ("_name", "_states", "_inputs", "_outputs", "_params", "_f", "_h", "_key", "_estimated")
 
     def __init__(
         self,
@@ -114,6 +117,7 @@ class System:
         inputs: Sequence[str] = (),
         params: Mapping[str, float] | None = None,
         name: str = "system",
+        estimated_params: Sequence[str] = (),
     ):
         states_ = _check_names("states", states)
         inputs_ = _check_names("inputs", inputs)
@@ -147,6 +151,14 @@ class System:
         object.__setattr__(self, "_params", MappingProxyType(values))
         object.__setattr__(self, "_f", _equations("f", f, states_, allowed))
         object.__setattr__(self, "_h", _equations("h", h, outputs_, allowed))
+        estimated = tuple(estimated_params)
+        for n in estimated:
+            if n not in states_:
+                raise ModelError(f"estimated parameter `{n}` is not a state of this system; states: {', '.join(states_)}")
+            if self._f[states_.index(n)] != 0:
+                raise ModelError(f"estimated parameter `{n}` must be constant (its derivative 0), "
+                                 f"got {n}' = {self._f[states_.index(n)]}")
+        object.__setattr__(self, "_estimated", estimated)
         key = hashlib.sha256(
             repr((states_, inputs_, outputs_, params_, [sp.srepr(e) for e in (*self._f, *self._h)])).encode()
         ).hexdigest()
@@ -156,7 +168,8 @@ class System:
         raise AttributeError("System is immutable; use with_params() or build a new System")
 
     def __reduce__(self) -> tuple[Any, ...]:  # pickling (Monte Carlo on other processes)
-        return (_rebuild, (self._states, self._f, self._outputs, self._h, self._inputs, dict(self._params), self._name))
+        return (_rebuild, (self._states, self._f, self._outputs, self._h, self._inputs, dict(self._params), self._name,
+                           self._estimated))
 
     # -- names and sizes ---------------------------------------------------------------
     name = property(lambda self: self._name, doc="The system's name.")
@@ -167,6 +180,8 @@ class System:
     f = property(lambda self: self._f, doc="The time derivatives, one SymPy expression per state.")
     h = property(lambda self: self._h, doc="The outputs, one SymPy expression per output.")
     key = property(lambda self: self._key, doc="A hash of the structure (names and expressions, not parameter values).")
+    estimated_params = property(lambda self: self._estimated,
+                                doc="States that are unknown constant parameters (see :meth:`augmented`).")
 
     @property
     def n_states(self) -> int:
@@ -238,14 +253,49 @@ class System:
             )
         return System(
             states=self._states, f=self._f, outputs=self._outputs, h=self._h,
-            inputs=self._inputs, params={**self._params, **values}, name=self._name,
+            inputs=self._inputs, params={**self._params, **values}, name=self._name, estimated_params=self._estimated,
+        )
+
+    def augmented(self, params: Sequence[str]) -> System:
+        """The system with the parameters `params` appended to the state as unknown constants.
+
+        Each named parameter becomes a state of the same name with derivative 0 (so an
+        observer of the augmented system estimates it jointly with the states); the other
+        parameters keep their values. The new states are listed in :attr:`estimated_params`.
+
+        Raises
+        ------
+        ModelError
+            If a name is not a parameter of this system.
+
+        Examples
+        --------
+        >>> s = System(states=["x"], f=["-k*x + u"], inputs=["u"], outputs=["y"], h=["x"], params={"k": 0.3})
+        >>> a = s.augmented(["k"])
+        >>> a.states, a.estimated_params, dict(a.params)
+        (('x', 'k'), ('k',), {})
+        """
+        if isinstance(params, str):
+            params = [params]
+        names = tuple(params)
+        unknown = [k for k in names if k not in self._params]
+        if unknown or len(set(names)) != len(names):
+            bad = unknown[0] if unknown else next(k for k in names if names.count(k) > 1)
+            raise ModelError(f"augmented: `{bad}` is not a parameter of {self._name!r} (or is named twice); "
+                             f"its parameters are: {', '.join(self._params) or '(none)'}")
+        if not names:
+            return self
+        return System(
+            states=(*self._states, *names), f=(*self._f, *([0] * len(names))), outputs=self._outputs, h=self._h,
+            inputs=self._inputs, params={k: v for k, v in self._params.items() if k not in names}, name=self._name,
+            estimated_params=(*self._estimated, *names),
         )
 
     def with_name(self, name: str) -> System:
         """Return a copy with another name."""
         return System(
             states=self._states, f=self._f, outputs=self._outputs, h=self._h,
-            inputs=self._inputs, params=self._params, name=name,
+            inputs=self._inputs, params=self._params, name=name, estimated_params=self._estimated,
         )
 
     def substituted(self) -> tuple[sp.Matrix, sp.Matrix]:
@@ -255,10 +305,11 @@ class System:
 
     # -- dunder ------------------------------------------------------------------------
     def __eq__(self, other: object) -> bool:
-        return isinstance(other, System) and self._key == other._key and dict(self._params) == dict(other._params) and self._name == other._name
+        return (isinstance(other, System) and self._key == other._key and dict(self._params) == dict(other._params)
+                and self._name == other._name and self._estimated == other._estimated)
 
     def __hash__(self) -> int:
-        return hash((self._key, tuple(self._params.items()), self._name))
+        return hash((self._key, tuple(self._params.items()), self._name, self._estimated))
 
     def __repr__(self) -> str:
         return f"System({self._name!r}, states={list(self._states)}, inputs={list(self._inputs)}, outputs={list(self._outputs)}, params={dict(self._params)})"
@@ -298,8 +349,9 @@ class System:
         return StateAffine(A, b, C, **names).to_system()
 
 
-def _rebuild(states: Any, f: Any, outputs: Any, h: Any, inputs: Any, params: Any, name: str) -> System:
-    return System(states=states, f=f, outputs=outputs, h=h, inputs=inputs, params=params, name=name)
+def _rebuild(states: Any, f: Any, outputs: Any, h: Any, inputs: Any, params: Any, name: str,
+             estimated: Any = ()) -> System:
+    return System(states=states, f=f, outputs=outputs, h=h, inputs=inputs, params=params, name=name, estimated_params=estimated)
 
 
 def _equations(
