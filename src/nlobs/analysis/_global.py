@@ -539,6 +539,7 @@ class _System:
     value: dict[str, int]  # the true value of every variable of `names` at the random point
     unknown_var: dict[str, str]  # model unknown -> variable name in `names`
     p: int
+    weight: dict[str, int] = field(default_factory=dict)  # variable -> w: the system is in V with v = V^w
 
 
 def _hat_system(sian: _Sian, pt: _Point, eqs: list[tuple[str, int, int]], have: set[int],
@@ -606,6 +607,56 @@ def _hat_system(sian: _Sian, pt: _Point, eqs: list[tuple[str, int, int]], have: 
         F.append({k: c for k, c in eq.items() if c})
     unknown_var = {rm.names[x]: f"{x}_0" for x in rm.states} | {rm.names[v]: v for v in rm.params}
     return _System(names, F, value, unknown_var, p)
+
+
+def _weights(rm: _Rational, identifiable: set[str]) -> dict[str, int]:
+    """SIAN-Julia's weighted ordering (``get_weights``), by levels of the state dependency graph.
+
+    A state seen first in the outputs' k-th derivatives (k steps from an output in the graph
+    "x_j appears in f_i") gets weight k + 1 on all its jets; locally identifiable parameters first
+    seen at the deepest level get that weight too; the saturation variable min(3, deepest level).
+    Substituting v -> v^w keeps the verdicts (v = V^w) and makes the Gröbner basis much cheaper on
+    models with long dependency chains.
+    """
+    def syms(pair: tuple[sp.Expr, sp.Expr]) -> set[str]:
+        return {a.name for a in (pair[0].free_symbols | pair[1].free_symbols)}
+
+    states = {x: i for i, x in enumerate(rm.states)}
+    seen: set[str] = set()
+    level_of: dict[str, int] = {}
+    frontier: set[str] = set().union(*(syms(h) for h in rm.h)) if rm.h else set()
+    level = 0
+    while frontier:
+        for v in frontier:
+            level_of[v] = level
+        seen |= frontier
+        new: set[str] = set()
+        for v in frontier:
+            if v in states:
+                new |= syms(rm.f[states[v]])
+        frontier = new - seen
+        level += 1
+    max_level = max(level_of.values(), default=0)
+    w: dict[str, int] = {}
+    for v, lv in level_of.items():
+        if v in states:
+            w[v] = lv + 1
+        elif v in rm.params and lv == max_level and rm.names[v] in identifiable and lv > 0:
+            w[v] = lv + 1
+    w["z_sat"] = max(1, min(3, max_level))
+    return {k: v for k, v in w.items() if v > 1}
+
+
+def _apply_weights(hs: _System, w: Mapping[str, int]) -> None:
+    """Replace every variable v of weight w by V^w (jets of a state take the state's weight)."""
+    ws = []
+    for v in hs.names:
+        base = v.rpartition("_")[0] if v.rpartition("_")[2].isdigit() and v[0] == "x" else v
+        ws.append(int(w.get(base, 1)))
+    if all(x == 1 for x in ws):
+        return
+    hs.F = [{tuple(e * k for e, k in zip(m, ws)): c for m, c in f.items()} for f in hs.F]
+    hs.weight = {v: k for v, k in zip(hs.names, ws) if k > 1}
 
 
 def _slice(hs: _System, free: Sequence[str], d: int, rng: np.random.Generator) -> None:
@@ -811,7 +862,7 @@ class _Prepared:
 
 def _prepare(system: System, *, unknown_params: Any = (), inputs: Any = "generic",
              unknown_inputs: Mapping[str, int] | None = None, functions: Sequence[ExprLike] = (), local: Any = None,
-             seed: int = 0) -> _Prepared:
+             seed: int = 0, weighted: bool = True) -> _Prepared:
     from ._lie import _input_classes, _parse_functions, _unknown_params, analyze, observable_function
 
     if not isinstance(system, System):
@@ -854,6 +905,8 @@ def _prepare(system: System, *, unknown_params: Any = (), inputs: Any = "generic
         raise ModelError(f"{system.name!r}: the global check hit a zero denominator at 8 random points; the model's "
                          "expressions may be undefined almost everywhere (check the divisions)")
     _slice(hs, [hs.unknown_var[u] for u in unknown_names if u not in local_ok], len(unknown_names) - local.rank, rng)
+    if weighted:
+        _apply_weights(hs, _weights(rm, local_ok))
     checks = [(u, hs.unknown_var[u]) for u in unknown_names if u in local_ok]
     checks += [(text, f"phi{k}") for k, (text, _) in enumerate(funcs) if fn_locals[k]]
     notes = []
@@ -867,7 +920,8 @@ def _decide(prep: _Prepared, eng: GroebnerEngine, max_solutions: int) -> dict[st
     """Step 4: normal forms of the unknowns; minimal polynomials of those not globally identifiable."""
     hs, p, checks = prep.hs, prep.p, prep.checks
     zero = tuple([0] * len(hs.names))
-    G: list[Poly] = [{zero: 1}] + [_var_power(hs.names, var, 1) for _, var in checks]
+    w = hs.weight
+    G: list[Poly] = [{zero: 1}] + [_var_power(hs.names, var, w.get(var, 1)) for _, var in checks]
     nfs = eng.normal_forms(hs.names, p, hs.F, G)
     if not nfs[0]:
         raise EngineError(f"{prep.system.name!r}: the polynomial system at the random point has no solution (1 is in "
@@ -884,7 +938,8 @@ def _decide(prep: _Prepared, eng: GroebnerEngine, max_solutions: int) -> dict[st
     counts: dict[str, int | None] = {}
     if unresolved:
         step = max_solutions - 1
-        powers = [_var_power(hs.names, var, k) for _, var, _ in unresolved for k in range(2, max_solutions + 1)]
+        powers = [_var_power(hs.names, var, k * w.get(var, 1)) for _, var, _ in unresolved
+                  for k in range(2, max_solutions + 1)]
         more = eng.normal_forms(hs.names, p, hs.F, powers)
         for idx, (name, var, nf1) in enumerate(unresolved):
             mp = _minimal_polynomial([{zero: 1}, nf1, *more[idx * step:(idx + 1) * step]], p)
@@ -931,3 +986,202 @@ def _function_polys(sian: _Sian, funcs: Sequence[tuple[str, sp.Expr]], params_un
         num, den = sp.fraction(sp.cancel(sp.together(e)))
         out.append((f"phi{k}", J._poly(sp.expand(num)), J._poly(sp.expand(den))))
     return out
+
+
+# ----------------------------------------------------------------------------------------------
+# multiple experiments
+# ----------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class MultiExperiment:
+    r"""Identifiability of the parameters from several experiments (own initial states and inputs, shared parameters).
+
+    Attributes
+    ----------
+    experiments : int
+        The number of experiments analysed (``analyze(..., experiments=N)``).
+    needed : int
+        The number of experiments after which more experiments identify no further parameter
+        direction: the smallest r with :math:`\rho(r) = \rho(r + 1)`, where :math:`\rho(r)` is the
+        number of parameter directions identifiable from r experiments (the same count as
+        StructuralIdentifiability.jl's multi-experiment bound).
+    parameter_ranks : tuple of int
+        :math:`\rho(0), \rho(1), \dots, \rho(\text{needed} + 1)`.
+    parameters : tuple of str
+        The unknown parameters.
+    locally_identifiable : tuple of str
+        Parameters locally identifiable from `experiments` experiments.
+    global_check : GlobalResult or None
+        Global verdicts of the parameters from `experiments` experiments (states left out).
+    seconds : float
+    """
+
+    experiments: int
+    needed: int
+    parameter_ranks: tuple[int, ...]
+    parameters: tuple[str, ...]
+    locally_identifiable: tuple[str, ...]
+    global_check: GlobalResult | None = None
+    seconds: float = 0.0
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``"experiments"`` object of ``nlobs analyze --experiments N --json``."""
+        out: dict[str, Any] = {"analysed": self.experiments, "needed": self.needed,
+                               "parameter_ranks": list(self.parameter_ranks),
+                               "locally_identifiable": list(self.locally_identifiable),
+                               "non_identifiable": [p for p in self.parameters if p not in self.locally_identifiable]}
+        if self.global_check is not None:
+            out["global"] = self.global_check.to_dict()
+        out["seconds"] = self.seconds
+        return out
+
+    def describe(self) -> list[str]:
+        """The result in words."""
+        q = len(self.parameters)
+        lines = [f"multiple experiments: {self.needed} experiment(s) identify every parameter direction that any "
+                 f"number of experiments can ({self.parameter_ranks[-1]} of {q}; directions per number of experiments: "
+                 f"{', '.join(map(str, self.parameter_ranks))})"]
+        non = [p for p in self.parameters if p not in self.locally_identifiable]
+        lines.append(f"  with {self.experiments} experiment(s): locally identifiable {', '.join(self.locally_identifiable) or '(none)'}"
+                     + (f"; not identifiable {', '.join(non)}" if non else ""))
+        if self.global_check is not None:
+            lines += [f"  {t}" for t in self.global_check.describe("identifiable")]
+        return lines
+
+
+def replicate(system: System, r: int) -> System:
+    """`r` copies of `system` with their own states, inputs and outputs (suffix ``_e1``, ``_e2``, ...), shared parameters.
+
+    Parameters
+    ----------
+    system : System
+    r : int
+        Number of experiments (>= 1).
+
+    Returns
+    -------
+    System
+    """
+    if r < 1:
+        raise ModelError(f"the number of experiments must be >= 1, got {r}")
+    taken = {*system.states, *system.inputs, *system.outputs, *system.params}
+    sep = "_e"
+    while any(f"{n}{sep}1" in taken for n in (*system.states, *system.inputs, *system.outputs)):
+        sep = "_" + sep
+    states, f, outputs, h, inputs = [], [], [], [], []
+    for k in range(1, r + 1):
+        sub = {symbol(n): symbol(f"{n}{sep}{k}") for n in (*system.states, *system.inputs)}
+        states += [f"{n}{sep}{k}" for n in system.states]
+        inputs += [f"{n}{sep}{k}" for n in system.inputs]
+        outputs += [f"{n}{sep}{k}" for n in system.outputs]
+        f += [e.xreplace(sub) for e in system.f]
+        h += [e.xreplace(sub) for e in system.h]
+    return System(states=states, f=f, outputs=outputs, h=h, inputs=inputs, params=dict(system.params),
+                  name=f"{system.name} x{r}")
+
+
+def multi_experiment(system: System, experiments: int = 1, *, unknown_params: Any = "all", inputs: Any = "generic",
+                     global_check: bool = True, engine: str | GroebnerEngine = "auto", seed: int = 0) -> MultiExperiment:
+    r"""How many experiments make the parameters identifiable, and what `experiments` experiments identify.
+
+    Each experiment has its own unknown initial state and its own generic inputs; the parameters
+    are shared (SIAN's replicas; Ovchinnikov, Pillay, Pogudin & Scanlon 2022). The number of
+    identifiable parameter directions from r experiments is
+    :math:`\rho(r) = \operatorname{rank} J_r - \operatorname{rank} J_r^{x}`, the generic rank of the
+    output-jet Jacobian of the r-fold model minus that of its state columns; r grows until
+    :math:`\rho` stops growing.
+
+    Parameters
+    ----------
+    system : System
+    experiments : int, default 1
+        Number of experiments for the per-parameter verdicts.
+    unknown_params : sequence of str or "all", default "all"
+        The shared unknown parameters.
+    inputs : "generic", "constant" or int, optional
+        Input class of every experiment (as for :func:`analyze`).
+    global_check : bool, default True
+        Also give global verdicts for the parameters from `experiments` experiments.
+    engine : str, default "auto"
+        Gröbner engine of the global check.
+    seed : int, default 0
+
+    Returns
+    -------
+    MultiExperiment
+
+    Examples
+    --------
+    >>> from nlobs import System
+    >>> s = System(states=["x0", "x1"], f=["0", "x0*x1 + mu1*x0 + mu2"], outputs=["y"], h=["x1"],
+    ...            params={"mu1": 1.0, "mu2": 1.0})
+    >>> multi_experiment(s, 2, global_check=False).needed   # Example 7.7 of Ovchinnikov et al.: two are needed
+    2
+    """
+    from ._lie import _unknown_params, analyze
+
+    t0 = time.perf_counter()
+    if not isinstance(experiments, (int, np.integer)) or isinstance(experiments, bool) or experiments < 1:
+        raise ModelError(f"`experiments` must be a whole number >= 1, got {experiments!r}")
+    params = _unknown_params(system, unknown_params)
+    if not params:
+        raise ModelError("multi-experiment identifiability concerns unknown parameters, and none is unknown; "
+                         "name them with unknown_params (or --params on the command line)")
+    rng = np.random.default_rng([seed, 7])
+    ranks = [0]
+    reports = {}
+
+    def rho(r: int) -> int:
+        rep = analyze(replicate(system, r), unknown_params=params, inputs=inputs, symmetries=False, seed=seed)
+        reports[r] = rep
+        generic = {k: float(rng.uniform(0.5, 1.5)) for k in params}
+        rep_x = analyze(replicate(system, r).with_params(**generic), unknown_params=(), inputs=inputs,
+                        symmetries=False, seed=seed + 1)
+        return rep.rank - rep_x.rank
+
+    r = 0
+    while True:
+        r += 1
+        ranks.append(rho(r))
+        if ranks[-1] == ranks[-2] or r > len(params) + 1:
+            break
+    needed = r - 1
+    if experiments not in reports:
+        rho(experiments)
+    rep = reports[experiments]
+    glob = None
+    if global_check:
+        g = global_identifiability(replicate(system, experiments), unknown_params=params, inputs=inputs, local=rep,
+                                   engine=engine, seed=seed)
+        if g.ok:
+            keep = set(params)
+            g = GlobalResult(**{**g.__dict__, "globally": tuple(n for n in g.globally if n in keep),
+                                "locally_only": tuple(lo for lo in g.locally_only if lo.name in keep),
+                                "non_identifiable": tuple(n for n in g.non_identifiable if n in keep)})
+        glob = g
+    return MultiExperiment(experiments=int(experiments), needed=needed, parameter_ranks=tuple(ranks),
+                           parameters=tuple(params), locally_identifiable=tuple(rep.identifiable_params),
+                           global_check=glob, seconds=time.perf_counter() - t0)
+
+
+def extend_report(report: Any, system: System, *, unknown_params: Any, inputs: Any, unknown_inputs: Any,
+                  functions: Sequence[ExprLike], seed: int, global_check: bool, identifiable_functions: bool,
+                  experiments: int | None, engine: str) -> Any:
+    """The local report with the global parts requested from :func:`nlobs.analysis.analyze` filled in."""
+    import dataclasses
+
+    changes: dict[str, Any] = {}
+    eng = get_engine(engine) if engine != "sympy" else get_engine("sympy")
+    if global_check:
+        changes["global_check"] = global_identifiability(
+            system, unknown_params=unknown_params, inputs=inputs, unknown_inputs=unknown_inputs, functions=functions,
+            local=report, engine=eng if eng is not None else engine, seed=seed)
+    if identifiable_functions:
+        from ._identifiable import find_identifiable_functions
+
+        changes["identifiable_functions"] = find_identifiable_functions(
+            system, unknown_params=unknown_params, inputs=inputs, local=report,
+            engine=eng if eng is not None else engine, seed=seed)
+    if experiments is not None:
+        changes["experiments"] = multi_experiment(system, experiments, unknown_params=unknown_params or "all",
+                                                  inputs=inputs, engine=eng if eng is not None else engine, seed=seed)
+    return dataclasses.replace(report, **changes)

@@ -23,6 +23,7 @@ from __future__ import annotations
 import importlib.util
 import os
 import re
+import resource
 import shutil
 import subprocess
 import sys
@@ -96,7 +97,10 @@ class GroebnerEngine:
     path : str
         The executable (empty for SymPy).
     seconds : float
-        Time spent inside the engine by this object so far (subprocess wall time, or SymPy's).
+        Wall time spent inside the engine by this object so far.
+    cpu_seconds : float
+        CPU time of the engine so far (the subprocess's user + system time, or this process's for
+        SymPy): on a shared machine the fair measure of its work.
     calls : int
         Number of engine calls so far.
     """
@@ -104,6 +108,7 @@ class GroebnerEngine:
     name: str
     path: str = ""
     seconds: float = 0.0
+    cpu_seconds: float = 0.0
     calls: int = 0
     threads: int = 1
     _version: str = field(default="", repr=False)
@@ -117,6 +122,7 @@ class GroebnerEngine:
         if not G:
             return []
         t0 = time.perf_counter()
+        c0 = _cpu(self.name)
         try:
             if self.name == "msolve":
                 out = self._msolve(names, p, F, G)
@@ -126,6 +132,7 @@ class GroebnerEngine:
                 out = self._sympy(names, p, F, G)
         finally:
             self.seconds += time.perf_counter() - t0
+            self.cpu_seconds += _cpu(self.name) - c0
             self.calls += 1
         return out
 
@@ -238,6 +245,13 @@ class GroebnerEngine:
             v = "?"
         self._version = v
         return v
+
+
+def _cpu(engine: str) -> float:
+    """CPU seconds used so far by finished child processes (subprocess engines) or by this process (SymPy)."""
+    who = resource.RUSAGE_SELF if engine == "sympy" else resource.RUSAGE_CHILDREN
+    r = resource.getrusage(who)
+    return r.ru_utime + r.ru_stime
 
 
 def _wheel_binary(name: str) -> str:

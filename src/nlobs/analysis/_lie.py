@@ -385,7 +385,9 @@ def _sign_symmetries(system: System, st: _Setup, params_unknown: tuple[str, ...]
 
 def analyze(system: System, *, unknown_params: Any = (), inputs: Any = "generic",
             unknown_inputs: Mapping[str, int] | None = None, functions: Sequence[ExprLike] = (),
-            at: Mapping[str, float] | None = None, symmetries: bool = True, seed: int = 0) -> ObservabilityReport:
+            at: Mapping[str, float] | None = None, symmetries: bool = True, seed: int = 0,
+            global_check: bool = False, identifiable_functions: bool = False, experiments: int | None = None,
+            engine: str = "auto") -> ObservabilityReport:
     r"""Structural observability (and identifiability) of a model by the generic rank.
 
     The rank condition of 002 asks for :math:`\dim d\mathcal O(h)|_x = n`, where the observation
@@ -437,6 +439,17 @@ def analyze(system: System, *, unknown_params: Any = (), inputs: Any = "generic"
         Search sign symmetries (global non-observability).
     seed : int, default 0
         Seed of the random point, prime and input coefficients.
+    global_check : bool, default False
+        Also decide global identifiability/observability (SIAN, :func:`global_identifiability`):
+        fills ``report.global_check``.
+    identifiable_functions : bool, default False
+        Also find generators of the identifiable functions (:func:`find_identifiable_functions`):
+        fills ``report.identifiable_functions``.
+    experiments : int, optional
+        Also analyse this many independent experiments sharing the parameters
+        (:func:`multi_experiment`): fills ``report.experiments``.
+    engine : str, default "auto"
+        Gröbner engine of the global parts ("auto", "msolve", "singular", "sympy").
 
     Returns
     -------
@@ -514,7 +527,7 @@ def analyze(system: System, *, unknown_params: Any = (), inputs: Any = "generic"
     if res.rank < M and gap < 1e-6:
         notes.append(f"the real Jacobian at the direction point is ill-conditioned (smallest kept singular value ratio "
                      f"{gap:.1e}); the directions may be inaccurate")
-    return ObservabilityReport(
+    report = ObservabilityReport(
         model=system.name, states=system.states, unknown_params=params_unknown,
         unknown_input_coefficients=st.unknowns[st.n + st.q:], inputs=input_desc, rank=res.rank, observable=res.rank == M,
         observable_states=tuple(s for s in system.states if s in observable_unknowns),
@@ -524,6 +537,13 @@ def analyze(system: System, *, unknown_params: Any = (), inputs: Any = "generic"
         notes=tuple(notes), seconds=time.perf_counter() - t_start, numerical_gap=gap,
         extra={"observable_unknowns": tuple(observable_unknowns), "degree_bound": _degree(res, M)},
     )
+    if global_check or identifiable_functions or experiments is not None:  # the global parts (_global.py)
+        from ._global import extend_report
+
+        report = extend_report(report, system, unknown_params=params_unknown, inputs=inputs, unknown_inputs=ui,
+                               functions=functions, seed=seed, global_check=global_check,
+                               identifiable_functions=identifiable_functions, experiments=experiments, engine=engine)
+    return report
 
 
 def _degree(res: _ModResult, M: int) -> int:
