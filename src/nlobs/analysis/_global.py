@@ -540,6 +540,7 @@ class _System:
     unknown_var: dict[str, str]  # model unknown -> variable name in `names`
     p: int
     weight: dict[str, int] = field(default_factory=dict)  # variable -> w: the system is in V with v = V^w
+    slices: list[Poly] = field(default_factory=list)  # the cutting hyperplanes (unweighted variables)
 
 
 def _hat_system(sian: _Sian, pt: _Point, eqs: list[tuple[str, int, int]], have: set[int],
@@ -659,7 +660,7 @@ def _apply_weights(hs: _System, w: Mapping[str, int]) -> None:
     hs.weight = {v: k for v, k in zip(hs.names, ws) if k > 1}
 
 
-def _slice(hs: _System, free: Sequence[str], d: int, rng: np.random.Generator) -> None:
+def _slice(hs: _System, free: Sequence[str], d: int, rng: np.random.Generator) -> list[Poly]:
     """Cut the solution set by d random affine hyperplanes in the non-identifiable unknowns `free`.
 
     When d unknown directions are not identifiable, the solutions form a d-dimensional variety and
@@ -671,8 +672,9 @@ def _slice(hs: _System, free: Sequence[str], d: int, rng: np.random.Generator) -
     fibre, and the ideal becomes zero-dimensional.
     """
     if d <= 0 or not free:
-        return
+        return []
     p = hs.p
+    out: list[Poly] = []
     nv = len(hs.names)
     zero = tuple([0] * nv)
     for _ in range(d):
@@ -686,6 +688,8 @@ def _slice(hs: _System, free: Sequence[str], d: int, rng: np.random.Generator) -
             acc += c * int(rng.integers(1, p))  # the cut passes through a random point of the `free` space
         eq[zero] = (-acc) % p
         hs.F.append(eq)
+        out.append(dict(eq))
+    return out
 
 
 def _sort_key(name: str) -> tuple:
@@ -858,6 +862,31 @@ class _Prepared:
     fn_locals: list[bool]
     orders: tuple[int, ...]
     notes: list[str]
+    sian: Any = None
+    eqs: Any = None
+    have: Any = None
+    extra: Any = None
+    free: list[str] = field(default_factory=list)
+    d: int = 0
+    weights: dict[str, int] = field(default_factory=dict)
+    rng: Any = None
+    local: Any = None
+
+    def point(self, weighted: bool = True) -> _System:
+        """The system at a fresh random point (same prime, same truncation), sliced and weighted like `hs`."""
+        for _ in range(8):
+            try:
+                pt = self.sian.point()
+                hs = _hat_system(self.sian, pt, self.eqs, self.have, self.extra)
+                break
+            except ZeroDivisionError:
+                continue
+        else:
+            raise ModelError(f"{self.system.name!r}: zero denominators at 8 random points")
+        hs.slices = _slice(hs, [hs.unknown_var[u] for u in self.free], self.d, self.rng)
+        if weighted:
+            _apply_weights(hs, self.weights)
+        return hs
 
 
 def _prepare(system: System, *, unknown_params: Any = (), inputs: Any = "generic",
@@ -904,16 +933,20 @@ def _prepare(system: System, *, unknown_params: Any = (), inputs: Any = "generic
     else:
         raise ModelError(f"{system.name!r}: the global check hit a zero denominator at 8 random points; the model's "
                          "expressions may be undefined almost everywhere (check the divisions)")
-    _slice(hs, [hs.unknown_var[u] for u in unknown_names if u not in local_ok], len(unknown_names) - local.rank, rng)
-    if weighted:
-        _apply_weights(hs, _weights(rm, local_ok))
+    free = [u for u in unknown_names if u not in local_ok]
+    d = len(unknown_names) - local.rank
+    hs.slices = _slice(hs, [hs.unknown_var[u] for u in free], d, rng)
+    weights = _weights(rm, local_ok) if weighted else {}
+    _apply_weights(hs, weights)
     checks = [(u, hs.unknown_var[u]) for u in unknown_names if u in local_ok]
     checks += [(text, f"phi{k}") for k, (text, _) in enumerate(funcs) if fn_locals[k]]
     notes = []
     if rm.chain_scale:
         notes.append("unknown-input coefficients w_k are the k-th derivatives at t = 0 divided by k! (Taylor coefficients)")
     return _Prepared(system, hs, p, checks, unknown_names, local_ok, funcs, fn_locals,
-                     tuple(b - 1 for b in beta), notes)
+                     tuple(b - 1 for b in beta), notes, sian=sian, eqs=eqs, have=have,
+                     extra=_function_polys(sian, funcs, params_unknown, system), free=free, d=d, weights=weights,
+                     rng=rng, local=local)
 
 
 def _decide(prep: _Prepared, eng: GroebnerEngine, max_solutions: int) -> dict[str, Any]:
