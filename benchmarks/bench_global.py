@@ -38,7 +38,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 sys.path.insert(0, str(ROOT / "tests" / "analysis"))
 
-from published_models import MODELS  # noqa: E402
+from published_models import MODELS, linear_compartment  # noqa: E402
+
+ALL = MODELS + [linear_compartment(k, n) for k in ("cycle", "catenary", "mammillary") for n in (3, 4)]
 
 from nlobs.analysis import analyze  # noqa: E402
 from nlobs.analysis._global import _prepare, _var_power  # noqa: E402
@@ -107,15 +109,125 @@ def _fmt_engine_row(row, names):
     return "| " + " | ".join(cells) + " |"
 
 
+def run_one(m, engine: str) -> dict:
+    """Global check, identifiable functions and multi-experiment count of one model, against its published results."""
+    from nlobs.analysis import find_identifiable_functions, global_identifiability, multi_experiment
+    from nlobs.analysis._groebner import get_engine
+
+    system = m.system()
+    row: dict = {"model": m.name, "source": m.source, "case": m.case, "checks": []}
+    c0 = time.process_time()
+    if m.verdicts or m.ident is not None:
+        eng = get_engine(engine)
+        fn = [k for k in m.verdicts if k not in m.states and k not in m.params]
+        fn += [f for f in (m.ident or ()) if f not in m.states and f not in m.params and f not in fn]
+        t0 = time.perf_counter()
+        res = global_identifiability(system, unknown_params="all", functions=fn, engine=eng)
+        row["global_seconds"] = time.perf_counter() - t0
+        row["global_engine_seconds"] = res.engine_seconds
+        row["global_engine_cpu"] = eng.cpu_seconds
+        row["global_cpu"] = time.process_time() - c0 + eng.cpu_seconds
+        row["size"] = f"{res.n_equations}x{res.n_variables}"
+        if not res.ok:
+            row["refused"] = res.refused
+        else:
+            row["global"] = res.to_dict()
+            word = {"globally": "globally", "locally": "locally", "non-identifiable": "non"}
+            for k, v in m.verdicts.items():
+                ours = word[res.verdict(k)]
+                row["checks"].append({"what": k, "published": v, "ours": ours, "agree": ours == v})
+            for f in m.ident or ():  # every published generator must be globally identifiable
+                ours = word[res.verdict(f)]
+                row["checks"].append({"what": f"{f} (published generator)", "published": "globally", "ours": ours,
+                                      "agree": ours == "globally"})
+    if m.ident is not None:
+        eng = get_engine(engine)
+        t0 = time.perf_counter()
+        idf = find_identifiable_functions(system, with_states=m.with_states, engine=eng)
+        row["functions_seconds"] = time.perf_counter() - t0
+        row["functions_engine_seconds"] = idf.engine_seconds
+        row["functions"] = list(idf.functions)
+        row["functions_complete"] = idf.complete
+        names = [*(m.states if m.with_states else ()), *m.params]
+        same = _same_field_engine(list(idf.functions), list(m.ident), names, eng) if idf.functions or not m.ident else False
+        row["checks"].append({"what": "identifiable functions (field)", "published": list(m.ident),
+                              "ours": list(idf.functions), "agree": bool(same)})
+    if m.me is not None:
+        t0 = time.perf_counter()
+        me = multi_experiment(system, max(1, m.me), global_check=False)
+        row["me_seconds"] = time.perf_counter() - t0
+        row["checks"].append({"what": "experiments needed", "published": m.me, "ours": me.needed,
+                              "agree": me.needed == m.me})
+        for k, v in m.me_identifiable.items():
+            ours = k in me.locally_identifiable
+            row["checks"].append({"what": f"{k} with {max(1, m.me)} experiments", "published": v, "ours": ours,
+                                  "agree": ours == v})
+    return row
+
+
+def _same_field_engine(a, b, names, eng) -> bool:
+    """Q(a) == Q(b): each side constant on the other's fibre (normal forms over GF(p), msolve)."""
+    import numpy as np
+    import sympy as sp
+
+    from nlobs.analysis._identifiable import _fibre_system, _relation
+
+    syms = {n: sp.Symbol(n, real=True) for n in names}
+    A = [sp.sympify(e, locals=syms) for e in a]
+    B = [sp.sympify(e, locals=syms) for e in b]
+    p = 2147483629
+    rng = np.random.default_rng(5)
+    for X, Y in ((A, B), (B, A)):
+        vn, F, xhat = _fibre_system(Y, names, p, rng)
+        rels = [_relation(g, names, xhat, p) for g in X]
+        if not rels:
+            continue
+        if any(eng.normal_forms(vn, p, F, rels)):
+            return False
+    return True
+
+
+def run_verdicts(models, engine: str, timeout: float) -> dict:
+    import subprocess
+
+    rows = []
+    print("| model | source | size | global s (CPU s, engine CPU s) | functions s | checks agree |")
+    print("|---|---|---|---|---|---|")
+    for m in models:
+        t0 = time.perf_counter()
+        try:
+            res = subprocess.run([sys.executable, __file__, "one", "--models", m.name, "--engine", engine],
+                                 capture_output=True, text=True, timeout=timeout)
+            line = [x for x in res.stdout.splitlines() if x.startswith("RESULT ")]
+            row = json.loads(line[0][7:]) if line else {"model": m.name, "error": res.stderr[-500:]}
+        except subprocess.TimeoutExpired:
+            row = {"model": m.name, "timeout": timeout}
+        row["wall"] = time.perf_counter() - t0
+        rows.append(row)
+        checks = row.get("checks", [])
+        ok = sum(c["agree"] for c in checks)
+        g = row.get("global_seconds")
+        gtxt = (f'{g:.2f} ({row["global_cpu"]:.2f}, {row["global_engine_cpu"]:.2f})' if g is not None
+                else ("timeout" if "timeout" in row else row.get("refused", row.get("error", "-"))[:40]))
+        ftxt = f'{row["functions_seconds"]:.2f}' if "functions_seconds" in row else "-"
+        print(f'| {m.name} | {m.source.split("@")[0]} {m.source.split(" ", 1)[1]} | {row.get("size", "-")} | {gtxt} | '
+              f'{ftxt} | {ok}/{len(checks)}{"" if ok == len(checks) else " DISAGREE: " + "; ".join(c["what"] for c in checks if not c["agree"])} |',
+              flush=True)
+    total = sum(len(r.get("checks", [])) for r in rows)
+    agree = sum(sum(c["agree"] for c in r.get("checks", [])) for r in rows)
+    print(f"checks agreeing: {agree}/{total} over {len(rows)} models")
+    return {"rows": rows, "agree": agree, "total": total}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("mode", choices=["engines", "verdicts"])
+    ap.add_argument("mode", choices=["engines", "verdicts", "one"])
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--timeout", type=float, default=60.0)
     ap.add_argument("--models", default="")
     ap.add_argument("--engine", default="auto")
     args = ap.parse_args()
-    models = [m for m in MODELS if not args.models or m.name in args.models.split(",")]
+    models = [m for m in ALL if not args.models or m.name in args.models.split(",")]
     meta = {"python": sys.version.split()[0], "machine": platform.machine(), "cpus": os.cpu_count(),
             "engines": {n: GroebnerEngine(n, p).version() for n, p in available_engines().items()},
             "date": time.strftime("%Y-%m-%d %H:%M")}
@@ -128,10 +240,11 @@ def main() -> None:
         tot = {n: sum(r[n]["min"] for r in rows) for n in names}
         print("total of minima (s): " + ", ".join(f"{n} {v:.2f}" for n, v in tot.items()))
         out = {"meta": meta, "rows": rows, "total_min_seconds": tot}
+    elif args.mode == "one":
+        print("RESULT " + json.dumps(run_one(models[0], args.engine), default=str))
+        return
     else:
-        from bench_global_verdicts import run_verdicts  # noqa: E402
-
-        out = {"meta": meta, **run_verdicts(models, args.engine)}
+        out = {"meta": meta, **run_verdicts(models, args.engine, args.timeout)}
     path = ROOT / "benchmarks" / "results" / f"global_{args.mode}.json"
     path.write_text(json.dumps(out, indent=1, default=str))
     print(f"written {path.relative_to(ROOT)}")
