@@ -272,8 +272,8 @@ def _to_rational(system: System, params_unknown: Sequence[str], classes: Mapping
                (isinstance(a, sp.Pow) and not a.exp.is_Integer)]
         stray = e.free_symbols - allowed
         if bad or stray:
-            what = ", ".join(sorted({str(a.func) if isinstance(a, sp.Function) else str(a) for a in bad})) or \
-                ", ".join(sorted(map(str, stray)))
+            back = {v: sp.Symbol(names.get(v.name, v.name)) for v in e.free_symbols}
+            what = ", ".join(sorted({str(a.xreplace(back)) for a in bad})) or ", ".join(sorted(map(str, stray)))
             raise NotRational(
                 f"{where}: not a rational function ({what}); the global algorithm ({cite('hong2019')}) works on "
                 "rational right-hand sides and outputs. Rewrite the model in rational form (e.g. an auxiliary state "
