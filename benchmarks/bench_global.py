@@ -66,6 +66,7 @@ def bench_engines(models, rounds: int, timeout: float) -> list[dict]:
         zero = tuple([0] * len(hs.names))
         G = [{zero: 1}] + [_var_power(hs.names, v, 1) for _, v in prep.checks]
         times = {e.name: [] for e in engines}
+        cpus = {e.name: [] for e in engines}
         answers = {}
         dead = set()
         for _ in range(rounds):
@@ -73,6 +74,7 @@ def bench_engines(models, rounds: int, timeout: float) -> list[dict]:
                 if e.name in dead:
                     continue
                 t0 = time.perf_counter()
+                c0 = e.cpu_seconds
                 try:
                     if e.name == "sympy":
                         old = signal.signal(signal.SIGALRM, _alarm)
@@ -83,17 +85,21 @@ def bench_engines(models, rounds: int, timeout: float) -> list[dict]:
                         if e.name == "sympy":
                             signal.setitimer(signal.ITIMER_REAL, 0)
                             signal.signal(signal.SIGALRM, old)
-                except _Timeout:
+                except (_Timeout, Exception) as err:  # noqa: BLE001 - a failing engine is a result
                     dead.add(e.name)
                     times[e.name].append(float("inf"))
+                    cpus[e.name].append(float("inf"))
+                    if not isinstance(err, _Timeout):
+                        print(f"  {e.name} failed on {m.name}: {str(err)[:100]}")
                     continue
                 times[e.name].append(time.perf_counter() - t0)
+                cpus[e.name].append(e.cpu_seconds - c0)
                 answers[e.name] = out
         ref = answers.get("msolve") or next(iter(answers.values()), None)
         row = {"model": m.name, "equations": len(hs.F), "variables": len(hs.names), "prime": prep.p}
         for e in engines:
             ts = times[e.name]
-            row[e.name] = {"min": min(ts), "median": statistics.median(ts),
+            row[e.name] = {"min": min(ts), "median": statistics.median(ts), "cpu_min": min(cpus[e.name]),
                            "agrees": (answers.get(e.name) == ref) if e.name in answers else None}
         rows.append(row)
         print(_fmt_engine_row(row, [e.name for e in engines]), flush=True)
@@ -104,7 +110,7 @@ def _fmt_engine_row(row, names):
     cells = [row["model"], f'{row["equations"]}x{row["variables"]}']
     for n in names:
         r = row[n]
-        t = "timeout" if r["min"] == float("inf") else f'{r["min"]*1e3:.0f} / {r["median"]*1e3:.0f}'
+        t = "timeout" if r["min"] == float("inf") else f'{r["min"]*1e3:.0f} / {r["median"]*1e3:.0f} (cpu {r["cpu_min"]*1e3:.0f})'
         cells.append(t + ("" if r["agrees"] in (True, None) else " (DIFFERS)"))
     return "| " + " | ".join(cells) + " |"
 
