@@ -110,3 +110,17 @@ def test_bounds_option_is_checked():
         design_ukf(TANKS, **TUNING, bounds=LEVELS)  # xhat0 defaults to zeros
     with pytest.raises(PreconditionError, match=r"Jacobian is not finite at the bound x1 = 0"):
         design_ekf(TANKS, **TUNING, xhat0=[1.0, 1.0], bounds={"x1": (0, None)})
+
+
+def test_mhe_on_a_hard_overflow_switch_stops_with_the_window_named(tank_data):
+    # the same tanks with the overflow written with sign(): the window NLP is nonsmooth where the level crosses 10;
+    # the certificate says so before the run, and the run stops with a SolverError naming the window, not with NaN
+    net = "(k4*u - k1*sqrt(x1))"
+    over = f"((1 + sign(x1 - xmax))/2*({net} + abs({net}))/2)"
+    hard = nlobs.System(states=["x1", "x2"], inputs=["u"], outputs=["y"], f=[f"{net} - {over}", f"k2*sqrt(x1) - k3*sqrt(x2) + k5*{over}"],
+                        h=["(x2 + ymax - abs(x2 - ymax))/2"], params=K, name="cascaded_tanks_hard")
+    d = design_mhe(hard, horizon=20, **TUNING, xhat0=_x0(tank_data), bounds=LEVELS)
+    assert "[FAILED] the model is differentiable" in str(d.certificate) and "abs(), sign()" in str(d.certificate)
+    rec = nlobs.Recording.from_arrays(hard, tank_data.t, tank_data.y, u=tank_data.u, x=tank_data.x)
+    with pytest.raises(nlobs.SolverError, match=r"window t in \[[0-9.]+, [0-9.]+\].*IPOPT.*uses abs and sign.*smooth steps"):
+        nlobs.estimate(d, rec, max_step=0.5)

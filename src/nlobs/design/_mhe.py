@@ -27,6 +27,7 @@ from typing import Any, Literal
 
 import casadi as ca
 import numpy as np
+import sympy as sp
 
 from ..engine import compile_c, compile_system, compiled_nlpsol, defer_error, find_compiler, rk4_step
 from ..errors import EngineError, PreconditionError, SolverError
@@ -239,7 +240,8 @@ def design_mhe(system: System, *, horizon: int = 20, R: Any = None, Q: Any = Non
     lay = _Layout(n, nu, p, N, r)
     solvers = _solvers(system, N, r, int(substeps), int(max_iter), float(tol), lay)
     name = f"mhe_update_{next(_NAMES)}"
-    update = _MHEUpdate(name, lay, (n, nu, p, N), solvers, consts, solver, max(float(tol), 1e-6), system.states)
+    kink_fns = sorted({nm for e in (*system.f, *system.h) for fn, nm in ((sp.sign, "sign"), (sp.Abs, "abs")) if e.has(fn)})
+    update = _MHEUpdate(name, lay, (n, nu, p, N), solvers, consts, solver, max(float(tol), 1e-6), kink_fns)
 
     # flow between samples: predict the estimate (model evaluated inside the bounds), keep the rest
     f, _ = compile_system(system).bind()
@@ -255,6 +257,12 @@ def design_mhe(system: System, *, horizon: int = 20, R: Any = None, Q: Any = Non
     bc = bounds_check(box, evidence)
     if bc is not None:
         checks.append(bc)
+    kinks = [f"{nm}()" for nm in kink_fns]
+    if kinks:
+        checks.append(Check("the model is differentiable (the SQP and IPOPT take Newton steps)", False,
+                            f"it uses {', '.join(kinks)}: a window whose trajectory crosses such a switch is a nonsmooth NLP, "
+                            "which may not converge (SolverError); a steep smooth step, e.g. (1 + tanh(s/w))/2 for "
+                            "(1 + sign(s))/2, avoids it", "symbolic"))
     checks.append(Check.assumed("the model is observable over the window for the data",
                                 "not checked at design time (it depends on the input and the trajectory): an unobservable "
                                 "window leaves the arrival cost in charge"))
@@ -451,9 +459,9 @@ class _MHEUpdate(ca.Callback):
     (raised by the caller after the evaluation, see :mod:`nlobs.engine`) and NaN returned."""
 
     def __init__(self, name: str, lay: _Layout, dims: tuple[int, int, int, int], solvers: _Solvers, consts: np.ndarray,
-                 solver: str, accept: float, states: tuple[str, ...]):
+                 solver: str, accept: float, kinks: list[str]):
         ca.Callback.__init__(self)
-        self.lay, self.solvers, self.consts, self.solver, self.accept, self.states = lay, solvers, consts, solver, accept, states
+        self.lay, self.solvers, self.consts, self.solver, self.accept, self.kinks = lay, solvers, consts, solver, accept, kinks
         self.n, self.nu, self.p, self.N = dims
         self._lock = threading.Lock()
         # the fast function through a preallocated buffer (no per-call allocation of CasADi arguments), set up on first use
@@ -543,8 +551,10 @@ class _MHEUpdate(ca.Callback):
         T1 = np.asarray(carry, dtype=float).reshape(-1)[:self.N + 1]
         ipopt_status = f"IPOPT: {stats.get('return_status', 'unknown')} after {stats.get('iter_count', '?')} iterations"
         status_text = "; ".join(s_ for s_ in (sqp_status, ipopt_status) if s_)
+        hint = (f"the model uses {' and '.join(self.kinks)}, whose switches make the window problem nonsmooth: write them "
+                "as steep smooth steps; otherwise " if self.kinks else "")
         raise SolverError(
             f"MHE: the window t in [{T1[0]:g}, {T1[-1]:g}] ({self.N} intervals) could not be solved: {status_text}. "
-            "Check the model and the data in that window (a NaN in the model, an output the window cannot explain); "
+            f"Check the model and the data in that window (a NaN in the model, an output the window cannot explain); {hint}"
             "more process noise (Q), a larger R, bounds on the states, or a larger `max_iter` may help",
             window=(T1[0], T1[-1]), status=status_text)
