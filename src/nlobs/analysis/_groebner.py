@@ -103,6 +103,8 @@ class GroebnerEngine:
         SymPy): on a shared machine the fair measure of its work.
     calls : int
         Number of engine calls so far.
+    threads : int
+        Threads msolve may use.
     """
 
     name: str
@@ -289,7 +291,7 @@ def available_engines() -> dict[str, str]:
     return out
 
 
-def get_engine(name: str = "auto", *, threads: int = 1) -> GroebnerEngine | None:
+def get_engine(name: str = "auto", *, threads: int | None = None) -> GroebnerEngine | None:
     """The engine `name` (``"auto"``: msolve, then Singular), or None when it is not installed.
 
     ``"auto"`` never falls back to SymPy: it is too slow for all but tiny systems, so a missing
@@ -298,9 +300,11 @@ def get_engine(name: str = "auto", *, threads: int = 1) -> GroebnerEngine | None
     Parameters
     ----------
     name : {"auto", "msolve", "singular", "sympy"}
-    threads : int, default 1
-        Threads msolve may use.
+    threads : int, optional
+        Threads msolve may use (default 1: on a shared machine more threads were slower).
     """
+    if threads is None:
+        threads = 1
     if name not in ("auto", *ENGINES):
         raise EngineError(f"unknown Gröbner engine {name!r}; choose one of auto, {', '.join(ENGINES)}")
     found = available_engines()

@@ -117,12 +117,19 @@ def _monomials(n: int, deg: int) -> list[tuple[int, ...]]:
     return out
 
 
-def _ratrec(a: int, p: int) -> tuple[int, int] | None:
-    """Rational reconstruction: n/d = a mod p with |n|, d <= sqrt(p/2), or None."""
+#: Largest numerator and denominator accepted for a coefficient recovered from GF(p): identifiable
+#: combinations of published models have small coefficients; a large one means a vector that only
+#: happens to fit the points drawn (it is dropped, and the completeness check tells if anything is missing).
+COEFF_BOUND = 10**4
+
+
+def _ratrec(a: int, p: int, bound: int = COEFF_BOUND) -> tuple[int, int] | None:
+    """Rational reconstruction: n/d = a mod p with |n|, d <= bound (< sqrt(p/2)), or None."""
     a %= p
-    bound = int((p // 2) ** 0.5)
     r0, r1, s0, s1 = p, a, 0, 1
     while r1 > bound:
+        if r1 == 0:
+            break
         q = r0 // r1
         r0, r1 = r1, r0 - q * r1
         s0, s1 = s1, s0 - q * s1
@@ -221,15 +228,15 @@ class _Search:
         p, k = self.p, len(self.monos)
         rows: list[np.ndarray] = []
         dims = []
-        for _ in range(max_points):  # local constraints until the space stops shrinking
+        for _ in range(k + 3):  # local constraints until the space stops shrinking (twice in a row)
             rows += self.local_rows(Q)
             K = _kernel(rows, k, p)
             dims.append(K.shape[0])
-            if len(dims) >= 2 and dims[-1] == dims[-2]:
+            if len(dims) >= 3 and dims[-1] == dims[-2] == dims[-3]:
                 break
         base = list(rows)
         gpoints: list[tuple[list[Poly], Poly]] = []
-        prev = None
+        prev: list[int] = []
         Kc = K
         for j in range(max_points):
             hs = self.prep.hs if j == 0 else self.prep.point()
@@ -251,9 +258,9 @@ class _Search:
                 allrows += [r for r in M if np.any(r)]
             K = _kernel(allrows, width, p)
             Kc = _row_space(K[:, :k], p)
-            if prev is not None and Kc.shape[0] == prev and j >= 1:
+            if len(prev) >= 2 and Kc.shape[0] == prev[-1] == prev[-2]:
                 break
-            prev = Kc.shape[0]
+            prev.append(Kc.shape[0])
         return Kc
 
     def functions(self, Kc: np.ndarray, Q: tuple[int, ...]) -> list[sp.Expr]:
@@ -455,6 +462,33 @@ def _complete(prep: Any, eng: GroebnerEngine, chosen: list[sp.Expr], U: list[str
     return n_sian == n_fun
 
 
+def _verified(prep: Any, eng: GroebnerEngine, cands: list[sp.Expr], U: list[str], rounds: int = 2) -> list[sp.Expr]:
+    """Keep the candidates that are constant on the solutions at fresh random points (normal forms)."""
+    for _ in range(rounds):
+        if not cands:
+            break
+        hs = prep.point()
+        p = prep.p
+        var = [hs.unknown_var[u] for u in U]
+        xhat = {u: hs.value[v] for u, v in zip(U, var)}
+        idx = [hs.names.index(v) for v in var]
+        ws = [hs.weight.get(v, 1) for v in var]
+        rels = []
+        for g in cands:
+            rel = _relation(g, U, xhat, p)
+            out: Poly = {}
+            for m, c in rel.items():
+                mm = [0] * len(hs.names)
+                for i, e in enumerate(m[:-1]):
+                    if e:
+                        mm[idx[i]] += e * ws[i]
+                out[tuple(mm)] = (out.get(tuple(mm), 0) + c) % p
+            rels.append({k: v for k, v in out.items() if v})
+        nfs = eng.normal_forms(hs.names, p, hs.F, rels)
+        cands = [g for g, nf in zip(cands, nfs) if not nf]
+    return cands
+
+
 def find_identifiable_functions(system: System, *, unknown_params: Any = "all", inputs: Any = "generic",
                                 with_states: bool = True, max_degree: int | None = None, local: Any = None,
                                 engine: str | GroebnerEngine = "auto", seed: int = 0) -> IdentifiableFunctions:
@@ -523,6 +557,7 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
         cands += search.functions(Kc, Q)
     singles = [symbol(u) for u in single]
     pool = sorted({c for c in cands if c not in singles}, key=_complexity)
+    pool = _verified(prep, eng, pool, U)
     chosen = _select([*singles, *pool], U, eng, prep.p, rng)
     texts = tuple(_text(f) for f in chosen)
     checks = tuple(observable_function(system, t, unknown_params=prep.local.unknown_params, inputs=inputs,
