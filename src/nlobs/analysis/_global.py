@@ -20,7 +20,7 @@ alternative is unique, and if not, how many there are, following SIAN:
    of distinct roots of its minimal polynomial modulo :math:`\langle \hat E \rangle`, found as the
    first linear relation among the normal forms of :math:`1, v, v^2, \dots`.
 
-The computation is over GF(p) for a random 31-bit prime p (as SIAN.jl does with ``p_mod``): a
+The computation is over GF(p) for a random 27-bit prime p (as SIAN.jl does with ``p_mod``): a
 wrong verdict needs the random point or the prime to hit a proper algebraic subset, which has
 probability of order D/p for the degrees D of the system. States are judged by their initial value
 x(0), as in SIAN; for a time-invariant model that is the same as x(t) at a generic time.
@@ -43,12 +43,13 @@ from ..model import TIME, System, symbol
 from ..model._system import ExprLike, exact
 from ..references import cite
 from ._groebner import GroebnerEngine, Poly, get_engine
-from ._modular import RowEchelon, inv
+from ._modular import PRIME_BITS, RowEchelon, inv
 
 __all__ = ["GlobalResult", "LocallyOnly", "global_identifiability", "NotRational"]
 
-#: Primes for the Gröbner step are drawn from [2^30, 2^31) (msolve's prime fields are below 2^31).
-_PRIME_RANGE = (2**30, 2**31)
+#: Primes for the Gröbner step are drawn from [2^26, 2^27): msolve takes primes below 2^31, and the
+#: linear algebra over GF(p) (``RowEchelon``) is exact in int64 for primes below 2^27 (``MAX_TERMS``).
+_PRIME_RANGE = (1 << (PRIME_BITS - 1), 1 << PRIME_BITS)
 
 
 class NotRational(ModelError):
