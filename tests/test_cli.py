@@ -245,3 +245,25 @@ def test_help_texts_explain_engine_and_hold_and_cite_no_paper_numbers(capsys):
             assert "(default: auto)" in text and "virtual machine" in text and "compiles" in text
         if cmd != "simulate":
             assert "(default: zoh)" in text and "interpolates" in text
+
+
+def test_vector_and_matrix_options():
+    from nlobs.cli._common import parse_columns, parse_matrix, parse_vector
+
+    names = ("x1", "x2")
+    assert parse_vector("1, -2", names, "--x0").tolist() == [1.0, -2.0]
+    assert parse_vector("x2=3", names, "--xhat0", [0.5, 0.0]).tolist() == [0.5, 3.0]
+    for text, message in (("1", "1 value\\(s\\) for 2 state"), ("x1=1", "no value for x2"), ("x1=1,2", "mix of named"),
+                          ("x3=1,x1=0,x2=0", "'x3' is not one of x1, x2"), ("1,nan", "not a finite number"),
+                          ("x1=1,x1=2,x2=0", "'x1' is given twice"), ("a,b", "'a' is not a number")):
+        with pytest.raises(ValueError, match=message):
+            parse_vector(text, names, "--x0")
+    assert np.array_equal(parse_matrix("2", 2, "--P0"), 2 * np.eye(2))
+    assert np.array_equal(parse_matrix("1,4", 2, "--P0"), np.diag([1.0, 4.0]))
+    assert np.array_equal(parse_matrix("[[1, 0.5], [0.5, 2]]", 2, "--P0"), [[1, 0.5], [0.5, 2]])
+    for text, message in (("1,2,3", "got 3 numbers"), ("[[1]]", "expected 2×2"), ("[[1, 2], [3", "not a JSON list")):
+        with pytest.raises(ValueError, match=message):
+            parse_matrix(text, 2, "--P0")
+    assert parse_columns(["time=t,level=y", "force=u"]) == {"time": "t", "level": "y", "force": "u"}
+    with pytest.raises(ValueError, match="expected CSV_NAME=MODEL_NAME"):
+        parse_columns(["time"])

@@ -98,22 +98,29 @@ def parse_vector(text: str, names: Sequence[str], what: str, default: Sequence[f
     return v
 
 
-def parse_assignments(items: Sequence[str], names: Sequence[str], what: str) -> dict[str, float]:
-    """``["a=1", "b=2,c=3"]`` -> ``{"a": 1.0, ...}``, each name one of `names`."""
-    out: dict[str, float] = {}
-    for item in items:
+def _pairs(items: Sequence[str] | None, what: str, form: str) -> dict[str, str]:
+    """``["a=1", "b=2,c=3"]`` -> ``{"a": "1", "b": "2", "c": "3"}``: repeatable and comma-separated NAME=VALUE pairs."""
+    out: dict[str, str] = {}
+    for item in items or ():
         for part in (p.strip() for p in item.split(",")):
             if not part:
                 continue
             if "=" not in part:
-                raise ValueError(f"{what}: expected NAME=VALUE, got {part!r}")
+                raise ValueError(f"{what}: expected {form}, got {part!r}")
             k, v = (s.strip() for s in part.split("=", 1))
-            if k not in names:
-                raise ValueError(f"{what}: {k!r} is not one of {', '.join(names) or '(none)'}")
             if k in out:
                 raise ValueError(f"{what}: {k!r} is given twice")
-            out[k] = _number(v, f"{what} {k}")
+            out[k] = v
     return out
+
+
+def parse_assignments(items: Sequence[str], names: Sequence[str], what: str) -> dict[str, float]:
+    """``["a=1", "b=2,c=3"]`` -> ``{"a": 1.0, ...}``, each name one of `names`."""
+    out = _pairs(items, what, "NAME=VALUE")
+    for k in out:
+        if k not in names:
+            raise ValueError(f"{what}: {k!r} is not one of {', '.join(names) or '(none)'}")
+    return {k: _number(v, f"{what} {k}") for k, v in out.items()}
 
 
 def parse_matrix(text: str, n: int, what: str) -> np.ndarray:
@@ -142,18 +149,7 @@ def parse_matrix(text: str, n: int, what: str) -> np.ndarray:
 
 def parse_columns(items: Sequence[str] | None) -> dict[str, str]:
     """``["time=t", "h2=y"]`` (CSV name = model name) -> ``{"time": "t", "h2": "y"}``."""
-    out: dict[str, str] = {}
-    for item in items or ():
-        for part in (p.strip() for p in item.split(",")):
-            if not part:
-                continue
-            if "=" not in part:
-                raise ValueError(f"--column: expected CSV_NAME=MODEL_NAME, got {part!r}")
-            k, v = (s.strip() for s in part.split("=", 1))
-            if k in out:
-                raise ValueError(f"--column: {k!r} is mapped twice")
-            out[k] = v
-    return out
+    return _pairs(items, "--column", "CSV_NAME=MODEL_NAME")
 
 
 def clean(value: Any) -> Any:
