@@ -58,8 +58,9 @@ class ExampleResult:
         The example's models; the demo reports the observability verdict of each
         (:func:`nlobs.analysis.analyze`).
     convergence_rule : str
-        What the table's ``convergence_time`` means when the example measures it its own way
-        (default "": the rule of :meth:`nlobs.Run.metrics`, :data:`nlobs.simulate.CONVERGENCE_RULE`).
+        What the table's ``convergence_time`` and errors mean when the example measures them its own
+        way (default "": the rule of :meth:`nlobs.Run.metrics`, :data:`nlobs.simulate.CONVERGENCE_RULE`,
+        and RMS over the last 20 % of the run).
     """
 
     key: str

@@ -91,8 +91,9 @@ def _print_summary(results: Sequence[ExampleResult], failed: Sequence[tuple[str,
 
 def _convergence_note(r: ExampleResult) -> str:
     """What the convergence-time column of an example means (its own rule, or the rule of nlobs.simulate)."""
-    rule = r.convergence_rule or (CONVERGENCE_RULE[0].upper() + CONVERGENCE_RULE[1:])
-    return f"{rule} (— : not within the run). RMS over the last 20 % of the run."
+    if r.convergence_rule:
+        return r.convergence_rule
+    return f"{CONVERGENCE_RULE[0].upper() + CONVERGENCE_RULE[1:]} (— : not within the run). RMS over the last 20 % of the run."
 
 
 def _section(r: ExampleResult, seconds: float) -> str:
