@@ -238,12 +238,17 @@ def estimate(
     Returns
     -------
     Run
-        With the recording's true states when it has them (then errors and metrics work).
+        With the recording's true states when it has them (then errors and metrics work), and
+        each observer's innovations y_k − h(x̂_k⁻) (:meth:`Run.innovations`, :meth:`Run.whiteness`):
+        what recorded data without states can tell about an observer.
 
     Raises
     ------
     DataError
         For NaN/inf in the data (with the row and column) unless skipped, or non-increasing time.
+    FiniteEscapeError
+        When an observer's state becomes non-finite: with the observer, the two samples and
+        the step where it happened (never NaN estimates in a result).
     """
     if hold not in ("zoh", "linear"):
         raise ValueError(f"estimate: `hold` must be 'zoh' or 'linear', got {hold!r}")
