@@ -111,3 +111,10 @@ def test_the_definition_travels_with_the_results(runs):
     text = run.summary()
     assert "band" in text and "2 × steady-state error" in text
     assert "stays within `tol`" in run.summary_dict(tol=0.1)["convergence_rule"]
+
+
+def test_the_convergence_time_is_counted_from_the_start_of_a_recording():
+    t = np.linspace(0, 10, 1001)
+    e = np.exp(-t)
+    assert error_metrics(t + 1000.0, e).convergence_time == pytest.approx(error_metrics(t, e).convergence_time, abs=1e-9)
+    assert convergence_time(t + 1000.0, e, 0.02) == pytest.approx(1000.0 + np.log(50), abs=0.01)  # the time itself

@@ -112,7 +112,8 @@ class Metrics:
     peak_error : float
         Largest error norm over the run.
     convergence_time : float or None
-        First time after which the error stays within the band `tol` (None: not within the run).
+        How long after the start of the run (the initial estimate, before the first update) the
+        error enters the band `tol` for good (None: not within the run).
     rms_after_convergence : float or None
         RMS of the error norm from `convergence_time` on.
     tol : float
@@ -162,5 +163,6 @@ def error_metrics(t: np.ndarray, e: np.ndarray, *, tol: float | None = None, e0:
     if tc is not None:
         sel = e[t >= tc]
         after = float(np.sqrt(np.mean(sel**2)))
+        tc = float(tc - t[0])  # a duration from the initial estimate (recordings need not start at t = 0)
     return Metrics(float(e[-1]), float(np.sqrt(np.mean(e[start:] ** 2))), float(np.max(e)), tc, after, band.tol,
                    band.basis, band.initial_error, band.steady_error)
