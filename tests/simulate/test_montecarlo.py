@@ -91,3 +91,8 @@ def test_dask_cluster_gives_the_same_numbers():
     assert np.array_equal(local.x, remote.x)
     for name in ("inj", "ekf"):
         assert np.array_equal(local.observers[name].xhat, remote.observers[name].xhat)
+
+
+def test_a_tolerance_must_be_positive():
+    with pytest.raises(ValueError, match="`tol` must be a positive number"):
+        montecarlo(PEND, {"ekf": EKF}, t_final=0.1, dt=1e-2, x0=X0[:2], tol=-1.0)

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from .._progress import as_progress
+from ..design import check_positive
 from ..engine import Backend, evaluate_many, run_batch, saved_steps
 from ..errors import FiniteEscapeError, ShapeError
 from ..model import System
@@ -261,6 +262,8 @@ def montecarlo(
     -------
     MonteCarloResult
     """
+    if tol is not None:
+        tol = check_positive(tol, "tol", "montecarlo")
     prep = prepare(plant, observers, t_final=t_final, dt=dt, inputs=inputs, params=None, noise=noise,
                    process_noise=process_noise, sampling=sampling, caller="montecarlo")
     plant, n = prep.plant, prep.plant.n_states
