@@ -49,7 +49,8 @@ def designs_of(model_file: Any, names: Sequence[str] | None, *, overrides: Mappi
         for key, value in (overrides or {}).items():
             if kind in DESIGNS and key not in options_of(DESIGNS[kind]):
                 takes = sorted(k for k, fn in DESIGNS.items() if key in options_of(fn))
-                raise ValueError(f"--{key}: observer {n!r} (kind {kind!r}) has no option {key}; kinds that take it: {', '.join(takes)}")
+                raise ValueError(f"--{key}: observer {n!r} (kind {kind!r}) has no option {key}; "
+                                 f"kinds that take it: {', '.join(takes)}")
             options[key] = value
         out[n] = design_from_config(model_file.system, kind, options, where=f"{model_file.path}: observers.{n}")
     return out

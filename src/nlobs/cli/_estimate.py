@@ -18,7 +18,8 @@ def add_parser(sub: Any) -> None:
     e.add_argument("model", help="model file (TOML)")
     e.add_argument("data", help="CSV whose header names t, the outputs and the inputs (and optionally the states); "
                                 "other columns are ignored")
-    e.add_argument("--observer", action="append", metavar="NAME", required=True, help="observer configured in the file (repeatable)")
+    e.add_argument("--observer", action="append", metavar="NAME", required=True,
+                   help="observer configured in the file (repeatable)")
     e.add_argument("--column", action="append", metavar="CSV=MODEL",
                    help="map a CSV column to a model name, e.g. 'time=t' or 'level_2=y' (repeatable, or comma-separated)")
     e.add_argument("--xhat0", metavar="VALUES",

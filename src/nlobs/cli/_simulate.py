@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from ._common import HELP_ENGINE, HELP_HOLD, clean, designs_of, parse_assignments, parse_columns, parse_vector, positive_float
+from ._common import HELP_ENGINE, clean, designs_of, parse_assignments, parse_columns, parse_vector, positive_float
 
 
 def add_parser(sub: Any) -> None:

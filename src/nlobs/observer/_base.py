@@ -219,8 +219,10 @@ class OnlineObserver:
         z = obs.update(t, z_pred, u, y, mask.astype(float))
         if not np.all(np.isfinite(z)):
             bad = int(np.flatnonzero(~np.isfinite(z))[0])
-            raise FiniteEscapeError(f"observer {getattr(obs, 'name', obs.design.method)!r}", t, self.z, obs.design.z_names, np.inf,
-                                    message=f"OnlineObserver.update: the observer's state {obs.design.z_names[bad]} became {z[bad]} "
+            label = f"observer {getattr(obs, 'name', obs.design.method)!r}"
+            raise FiniteEscapeError(label, t, self.z, obs.design.z_names, np.inf,
+                                    message=f"OnlineObserver.update: the observer's state {obs.design.z_names[bad]} became "
+                                            f"{z[bad]} "
                                             f"at t = {t:g} (y = {y}, u = {u}); the state before this sample is kept. Check the "
                                             "sample (units, outliers, a long gap) or give a smaller max_step")
         self.z = z

@@ -120,7 +120,8 @@ class FitResult:
         w = max(8, *(len(n) for n in self.names))
         head = f"{'unknown':<{w}} {'initial':>12} {'estimate':>12} {'std':>10} {'±2σ (rel.)':>11}"
         lines = [f"simulation-error least squares on {self.info.get('source', 'the recording')}: {self.t.size} samples, "
-                 f"{self.nfev} simulations, {'converged' if self.success else 'NOT converged'} ({self.message})", head, "-" * len(head)]
+                 f"{self.nfev} simulations, {'converged' if self.success else 'NOT converged'} ({self.message})",
+                 head, "-" * len(head)]
         for n, v0, v, s in zip(self.names, self.initial, self.estimate, self.std):
             rel = f"{200 * s / abs(v):.2g} %" if np.isfinite(s) and v != 0 else "—"
             lines.append(f"{n:<{w}} {v0:>12.6g} {v:>12.6g} {s:>10.3g} {rel:>11}")
@@ -204,14 +205,16 @@ def fit_parameters(
         raise TypeError(f"fit_parameters: `recording` must be an nlobs.Recording, got {type(recording).__name__}")
     if tuple(recording.output_names) != tuple(system.outputs) or tuple(recording.input_names) != tuple(system.inputs):
         raise ModelError(f"fit_parameters: the model {system.name!r} has outputs {list(system.outputs)} and inputs "
-                         f"{list(system.inputs)}; the recording has {list(recording.output_names)} and {list(recording.input_names)}")
+                         f"{list(system.inputs)}; the recording has {list(recording.output_names)} and "
+                         f"{list(recording.input_names)}")
     if hold not in ("zoh", "linear"):
         raise ValueError(f"fit_parameters: `hold` must be 'zoh' or 'linear', got {hold!r}")
     params, fit_x0 = list(params), list(fit_x0)
     for name, pool, what in ((params, system.param_names, "parameter"), (fit_x0, system.states, "state")):
         bad = [p for p in name if p not in pool]
         if bad:
-            raise ModelError(f"fit_parameters: {bad[0]!r} is not a {what} of {system.name!r}; its {what}s: {', '.join(pool) or '(none)'}")
+            raise ModelError(f"fit_parameters: {bad[0]!r} is not a {what} of {system.name!r}; "
+                             f"its {what}s: {', '.join(pool) or '(none)'}")
         if len(set(name)) != len(name):
             raise ModelError(f"fit_parameters: a {what} is named twice in {name}")
     if not params and not fit_x0:
@@ -247,7 +250,8 @@ def fit_parameters(
         hi[names.index(k)] = np.inf if b is None else float(b)
     if np.any(lo >= hi) or np.any(theta0 < lo) or np.any(theta0 > hi):
         k = int(np.flatnonzero((lo >= hi) | (theta0 < lo) | (theta0 > hi))[0])
-        raise ModelError(f"fit_parameters: the initial guess {names[k]} = {theta0[k]:g} is not inside its bounds [{lo[k]:g}, {hi[k]:g}]")
+        raise ModelError(f"fit_parameters: the initial guess {names[k]} = {theta0[k]:g} is not inside its bounds "
+                         f"[{lo[k]:g}, {hi[k]:g}]")
 
     t, u, y = recording.t, recording.u, recording.y
     dts = np.diff(t)

@@ -73,7 +73,7 @@ class Band:
     """The convergence band of one error signal and how it was set."""
 
     tol: float
-    basis: str  # "tol" (given), "initial" (2 % of the initial error), "steady" (2 x steady-state error), "cap" (20 % of the initial error)
+    basis: str  # "tol" (given), "initial" (2 % of e0), "steady" (2 x steady-state error), "cap" (20 % of e0)
     initial_error: float
     steady_error: float | None
 

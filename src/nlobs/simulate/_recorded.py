@@ -108,7 +108,8 @@ class Recording:
         if missing:
             raise DataError(f"{p}: the header lacks column(s) {', '.join(missing)}; it must name t, the outputs "
                             f"({', '.join(system.outputs)}) and the inputs ({', '.join(system.inputs) or 'none'}); found "
-                            f"{_shown(header)}" + ("" if columns else "; map other names with `columns` (command line: --column CSV=MODEL)"))
+                            f"{_shown(header)}"
+                            + ("" if columns else "; map other names with `columns` (command line: --column CSV=MODEL)"))
         data = np.full((len(rows) - 1, len(header)), np.nan)
         used = {h: j for h, j in seen.items() if h in need or h in system.states}
         for i, row in enumerate(rows[1:]):
@@ -347,8 +348,8 @@ def _raise_non_finite(obs: Mapping[str, AbstractObserver], rec: Recording, row: 
                 f"t = {t[row]:.6g} (row {row}; {data(row)}), a step of {t[row] - t[row - 1]:.6g} s")
     last_ = ", ".join(f"{n}={v:.6g}" for n, v in zip(names, last[off:off + o.n_z]))
     raise FiniteEscapeError(f"observer {name!r}", float(t[max(row - 1, 0)]), last[off:off + o.n_z], names, np.inf,
-                            message=(f"observer {name!r} on the recording {rec.source}: its state {z_bad} became {bad[col]} {what}; "
-                                     f"last finite state: {last_}. Check that sample (units, outliers, a gap in time) "
+                            message=(f"observer {name!r} on the recording {rec.source}: its state {z_bad} became "
+                                     f"{bad[col]} {what}; last finite state: {last_}. Check that sample (units, outliers, a gap in time) "
                                      "or pass a smaller max_step (command line: --max-step)"))
 
 

@@ -233,8 +233,8 @@ class Run:
             obs[name] = entry
         out = {"model": self.model, "t_final": float(self.t[-1]), "samples": int(self.t.size), "observers": obs}
         if self.x is not None:
-            out["convergence_rule"] = "convergence time: the first time after which ‖x̂ − x‖ stays within `tol`" if tol is not None \
-                else CONVERGENCE_RULE
+            given = "convergence time: the first time after which ‖x̂ − x‖ stays within `tol`"
+            out["convergence_rule"] = given if tol is not None else CONVERGENCE_RULE
         return out
 
     def to_csv(self, path: Any, *, every: int = 1) -> None:
