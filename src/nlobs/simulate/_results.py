@@ -99,7 +99,8 @@ class Run:
         The convergence band is `tol` when given, else the larger of 2 % of the initial error
         before any measurement, ‖x̂(0⁻) − x(0)‖ (which filters updating at t = 0 cannot game),
         and twice the steady-state error (the noise floor), at most 20 % of the initial error
-        (:data:`nlobs.simulate.CONVERGENCE_RULE`). It does not depend on the run length.
+        (:data:`nlobs.simulate.CONVERGENCE_RULE`). It does not depend on the run length, beyond
+        the slow growth of the largest noise peak with it.
         """
         trace = self._trace(name)
         e = self.error_norm(name)
@@ -163,7 +164,8 @@ class Run:
 
     def summary(self, *, tol: float | None = None) -> str:
         """A text table of every observer's metrics (with the convergence band of each); for
-        recorded data without true states, the output residuals instead (see :meth:`residuals`)."""
+        recorded data without true states, the innovations and their whiteness instead (see
+        :meth:`innovations` and :meth:`whiteness`)."""
         lines = [f"{self.model}: t in [{self.t[0]:g}, {self.t[-1]:g}], {len(self.t)} samples"]
         if self.x is None:
             return "\n".join(lines + [self.residual_table()])
