@@ -43,6 +43,7 @@ from .simulate import Recording as Recording
 from .simulate import Run as Run
 from .simulate import Sampling as Sampling
 from .simulate import estimate as estimate
+from .simulate import fit_parameters as fit_parameters
 from .simulate import montecarlo as montecarlo
 from .simulate import simulate as simulate
 from .design import DREM as DREM
