@@ -209,7 +209,12 @@ class Prepared:
         return np.concatenate([x0v, *z0s, np.zeros(ny if self.kind.sampled else 0)])
 
     def constants(self, params: Sequence[float] | None = None) -> np.ndarray:
-        return np.concatenate([[self.dt], self.plant.param_values if params is None else np.asarray(params, dtype=float)])
+        """The run-time constants of the compiled step: dt, dt/2, dt/6 (no division per step) and the
+        plant parameters (none when they are folded into the step as constants)."""
+        head = [self.dt, self.dt / 2, self.dt / 6]
+        if self.kind.folded is not None:
+            return np.array(head)
+        return np.concatenate([head, self.plant.param_values if params is None else np.asarray(params, dtype=float)])
 
     def inputs_for(self, seed: int | None) -> np.ndarray:
         """The per-step inputs with the noise of `seed` (measurement noise drawn first, then process noise)."""
@@ -232,8 +237,12 @@ class Prepared:
 
 def prepare(plant: System, observers: Any, *, t_final: float, dt: float, inputs: Any, params: Mapping[str, float] | None,
             noise: Noise | None, process_noise: ProcessNoise | None, sampling: Sampling | None, caller: str,
-            integrator: Adaptive | None = None) -> Prepared:
-    """Validate the arguments shared by simulate and montecarlo and build the compiled joint step."""
+            integrator: Adaptive | None = None, fold_params: bool = False) -> Prepared:
+    """Validate the arguments shared by simulate and montecarlo and build the compiled joint step.
+
+    With `fold_params` the plant's parameter values are compiled into the step as constants
+    (for runs that do not vary them); otherwise they are run-time inputs.
+    """
     if not isinstance(plant, System):
         raise TypeError(f"{caller}: `plant` must be an nlobs.System, got {type(plant).__name__}")
     for label, v in (("t_final", t_final), ("dt", dt)):
@@ -250,7 +259,8 @@ def prepare(plant: System, observers: Any, *, t_final: float, dt: float, inputs:
         check_compatible(plant, name, o)
     if integrator is not None and not isinstance(integrator, Adaptive):
         raise TypeError(f"{caller}: `integrator` must be an nlobs.Adaptive (or None for fixed-step RK4), got {integrator!r}")
-    kind = _Kind(sampled=sampling is not None, noisy=noise is not None, process=process_noise is not None, adaptive=integrator)
+    kind = _Kind(sampled=sampling is not None, noisy=noise is not None, process=process_noise is not None, adaptive=integrator,
+                 folded=tuple(float(v) for v in plant.param_values) if fold_params else None)
     _, layout = _joint_step(plant, obs, kind)
     t = np.arange(N + 1) * dt
     base = t[:, None]
@@ -278,6 +288,7 @@ class _Kind:
     noisy: bool
     process: bool
     adaptive: Adaptive | None = None
+    folded: tuple[float, ...] | None = None  # plant parameter values compiled in as constants
 
 
 class _Layout:
@@ -376,8 +387,9 @@ def _build_step(plant: System, obs: Mapping[str, AbstractObserver], kind: _Kind)
     X = ca.MX if kind.adaptive is not None or any(o.design.needs_mx for o in obs.values()) else ca.SX
     s = X.sym("s", layout.size)
     a = X.sym("a", layout.na)
-    c = X.sym("c", 1 + plant.n_params)
-    dt, p = c[0], rows(c, 1, 1 + plant.n_params)
+    c = X.sym("c", 3 + (0 if kind.folded is not None else plant.n_params))
+    dt, half, sixth = c[0], c[1], c[2]
+    p = ca.DM(kind.folded) if kind.folded is not None else rows(c, 3, 3 + plant.n_params)
     t = a[0]
     nu = plant.n_inputs
     U = [rows(a, layout.u.start + k * nu, layout.u.start + (k + 1) * nu) for k in range(3)]
@@ -415,7 +427,7 @@ def _build_step(plant: System, obs: Mapping[str, AbstractObserver], kind: _Kind)
 
     joint = ca.vertcat(x, *zs.values())
     if kind.adaptive is None:
-        S_next = rk4_step(rhs, t, joint, dt)
+        S_next = rk4_step(rhs, t, joint, dt, half=half, sixth=sixth)
     else:
         S_next = _adaptive_flow(plant, obs, layout, kind)(joint, a, c, y_s if kind.sampled else ca.DM.zeros(ny))
     x_next = rows(S_next, 0, n) + (rows(a, layout.w.start, layout.w.stop) if kind.process else 0)
@@ -431,8 +443,10 @@ def _adaptive_flow(plant: System, obs: Mapping[str, AbstractObserver], layout: _
     comp = compile_system(plant)
     n, nu, ny = plant.n_states, plant.n_inputs, plant.n_outputs
     S = ca.SX.sym("S", layout.n + sum(o.n_z for o in obs.values()))
-    a, c, yh, tau = ca.SX.sym("a", layout.na), ca.SX.sym("c", 1 + plant.n_params), ca.SX.sym("yh", ny), ca.SX.sym("tau")
-    dt, p = c[0], rows(c, 1, 1 + plant.n_params)
+    nc = 3 + (0 if kind.folded is not None else plant.n_params)
+    a, c, yh, tau = ca.SX.sym("a", layout.na), ca.SX.sym("c", nc), ca.SX.sym("yh", ny), ca.SX.sym("tau")
+    dt = c[0]
+    p = ca.DM(kind.folded) if kind.folded is not None else rows(c, 3, 3 + plant.n_params)
     t = a[0] + tau * dt
     stages = [rows(a, layout.u.start + k * nu, layout.u.start + (k + 1) * nu) for k in range(3)]
     # quadratic through u(t_k), u(t_k + dt/2), u(t_k + dt): exact for held and linear inputs
