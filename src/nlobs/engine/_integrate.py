@@ -7,15 +7,17 @@ preallocated NumPy array through :meth:`casadi.Function.buffer` (no intermediate
 
 from __future__ import annotations
 
-import hashlib
+import time
 from collections.abc import Callable
 from typing import Any
 
 import casadi as ca
 import numpy as np
 
-from ._codegen import Backend, CompiledBatch, CompiledLoop, resolve_backend
-from ._simd import CompiledSimdBatch, simd_supported
+from ._codegen import _DRIVER, COSTS, Backend, CompiledBatch, CompiledLoop, built_path, choose_backend, signature_of
+from ._codegen import _BATCH
+from ._simd import _DRIVER as _SIMD_DRIVER
+from ._simd import _KERNEL_VERSION, LANES, CompiledSimdBatch, simd_supported
 
 __all__ = ["rk4_step", "rk4_step_rate", "StepRunner", "DEFAULT_CHUNK", "run_batch", "saved_steps"]
 
@@ -69,7 +71,7 @@ _BATCHES: dict[str, CompiledBatch | CompiledSimdBatch] = {}
 
 
 def _signature(fn: ca.Function) -> str:
-    return hashlib.sha256(fn.serialize().encode()).hexdigest()
+    return signature_of(fn)
 
 
 class StepRunner:
@@ -82,7 +84,7 @@ class StepRunner:
         step, `c` is constant; `o` (optional) is a per-step output computed from the state
         *before* the step (measurements, estimates).
     backend : {"auto", "vm", "c"}
-        Where to run; see :func:`nlobs.engine.resolve_backend`.
+        Where to run; ``"auto"`` chooses by measured cost (see :func:`nlobs.engine.choose_backend`).
     chunk : int
         Steps per call when progress is reported (and per VM map); without progress the
         compiled C loop runs the whole horizon in one call.
@@ -116,8 +118,16 @@ class StepRunner:
     def _loop(self) -> CompiledLoop:
         loop = _LOOPS.get(self._sig)
         if loop is None:
-            loop = _LOOPS[self._sig] = CompiledLoop(self.step)
+            loop = _LOOPS[self._sig] = CompiledLoop(self.step, self._sig)
         return loop
+
+    def backend_for(self, n_steps: int) -> str:
+        """Where `n_steps` steps run (see :func:`nlobs.engine.choose_backend`)."""
+        if self.backend == "vm":
+            return "vm"
+        ready = self._sig in _LOOPS or (lambda p: p is not None and p.exists())(built_path("loop", self._sig, _DRIVER))
+        return choose_backend(self.backend, ready=ready, n_instr=self.step.n_instructions(),
+                              vm_instr=float(n_steps) * self.step.n_instructions(), signature=self._sig)
 
     def run(self, s0: np.ndarray, a: np.ndarray, c: np.ndarray, *,
             on_chunk: Callable[[np.ndarray, int], None] | None = None,
@@ -143,7 +153,7 @@ class StepRunner:
         c = np.ascontiguousarray(np.asarray(c, dtype=float).reshape(self.nc))
         state = np.ascontiguousarray(np.asarray(s0, dtype=float).reshape(self.ns)).copy()
         # an MX step (e.g. embedding an NLP solver) cannot be generated as C: always the VM
-        backend = resolve_backend(self.backend, work=N * self.ns) if self.step.is_a("SXFunction") else "vm"
+        backend = self.backend_for(N) if self.step.is_a("SXFunction") else "vm"
         K = min(self.chunk, N) if (backend != "c" or on_chunk is not None) else N
         k = 0
         while k < N:
@@ -152,6 +162,7 @@ class StepRunner:
             if backend == "c":
                 done = self._loop()(state, a[k:k + n], c, block, oblock if self.no else None, bound)
             else:
+                t_vm = time.perf_counter()
                 buf, ev = self._vm_chunk(n).buffer()
                 buf.set_arg(0, memoryview(state))
                 buf.set_arg(1, memoryview(a[k:k + n]))
@@ -160,6 +171,9 @@ class StepRunner:
                 if self.no:
                     buf.set_res(1, memoryview(oblock))
                 ev()
+                spent = time.perf_counter() - t_vm
+                COSTS.spent[self._sig] = COSTS.spent.get(self._sig, 0.0) + spent
+                COSTS.record_vm(float(n) * self.step.n_instructions(), spent)
                 bad = (~(np.abs(block) <= bound)).any(axis=1)  # NaN counts as bad
                 done = int(np.argmax(bad)) if bad.any() else n
             if done < n:
@@ -217,11 +231,15 @@ def run_batch(step: ca.Function, S0: np.ndarray, A: np.ndarray, C: np.ndarray, n
     O = np.full((B, steps.size, no), np.nan)
     status = np.full(B, n_steps, dtype=np.int64)
     work = B * n_steps * ns
-    if resolve_backend(backend, work=work) == "c":
-        sig = _signature(step)
+    sig = _signature(step) if backend != "vm" else ""
+    simd = step.is_a("SXFunction") and simd_supported(step)
+    ready = sig in _BATCHES or (lambda p: p is not None and p.exists())(
+        built_path("simd", sig + f"/{LANES}", _SIMD_DRIVER + _KERNEL_VERSION) if simd else built_path("batch", sig, _BATCH))
+    if backend != "vm" and choose_backend(backend, ready=ready, n_instr=step.n_instructions(), vm_instr=float(work) / max(ns, 1) * step.n_instructions(),
+                                          signature=sig) == "c":
         batch = _BATCHES.get(sig)
         if batch is None:  # lane-parallel (SIMD across trajectories) when every operation allows it
-            batch = _BATCHES[sig] = CompiledSimdBatch(step) if simd_supported(step) else CompiledBatch(step)
+            batch = _BATCHES[sig] = CompiledSimdBatch(step, sig=sig) if simd else CompiledBatch(step, sig)
         batch(S0, A, 0 if shared_a else A.shape[1] * A.shape[2], C, 0 if shared_c else C.shape[1], S, O, n_steps, stride,
               bound, status)
         return S, O, status

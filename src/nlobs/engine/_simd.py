@@ -16,11 +16,12 @@ import casadi as ca
 import numpy as np
 
 from ..errors import EngineError
-from ._codegen import _ERFINV, _build, bind_batch, call_batch
+from ._codegen import _ERFINV, _build, bind_batch, built_path, call_batch, signature_of
 
 __all__ = ["simd_supported", "CompiledSimdBatch", "LANES"]
 
 LANES = 8
+_KERNEL_VERSION = "fused-lanes-1"  # part of the cache key: bump when _kernel's output changes
 
 _BINARY = {
     ca.OP_ADD: "{a} + {b}", ca.OP_SUB: "{a} - {b}", ca.OP_MUL: "{a} * {b}", ca.OP_DIV: "{a} / {b}",
@@ -158,14 +159,18 @@ class CompiledSimdBatch:
     Same call as :class:`nlobs.engine._codegen.CompiledBatch`.
     """
 
-    def __init__(self, step: ca.Function, lanes: int = LANES):
+    def __init__(self, step: ca.Function, lanes: int = LANES, sig: str | None = None):
         if step.n_in() != 3 or step.n_out() != 2 or not simd_supported(step):
             raise EngineError("CompiledSimdBatch needs an SX step(s, a, c) -> (s_next, o) with supported operations")
         self.ns, self.na, self.nc, self.no = step.size1_in(0), step.size1_in(1), step.size1_in(2), step.size1_out(1)
         sizes = {"NS": self.ns, "NA": self.na, "NC": self.nc, "NO": self.no, "W": lanes}
-        code = ("#include <math.h>\n" + "".join(f"#define {k} {v}\n" for k, v in sizes.items()) + _ERFINV + _kernel(step, lanes)
-                + _DRIVER)
-        self.path = _build(code, "simd")
+
+        def code() -> str:
+            return ("#include <math.h>\n" + "".join(f"#define {k} {v}\n" for k, v in sizes.items()) + _ERFINV
+                    + _kernel(step, lanes) + _DRIVER)
+
+        so = built_path("simd", (sig or signature_of(step)) + f"/{lanes}", _DRIVER + _KERNEL_VERSION)
+        self.path = _build(code, "simd", so, n_instr=step.n_instructions())
         self._lib = ctypes.CDLL(str(self.path))
         self._run = bind_batch(self._lib)
 
