@@ -9,6 +9,7 @@ from ._options import ProcessNoise as ProcessNoise
 from ._options import Sampling as Sampling
 from ._results import ObserverTrace as ObserverTrace
 from ._results import Run as Run
+from ._run import Simulation as Simulation
 from ._run import simulate as simulate
 from ._recorded import Recording as Recording
 from ._recorded import estimate as estimate

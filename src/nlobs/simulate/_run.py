@@ -29,7 +29,7 @@ from ..observer import AbstractObserver, Observer, as_observer
 from ._options import Adaptive, Noise, ProcessNoise, Sampling
 from ._results import ObserverTrace, Run
 
-__all__ = ["simulate", "prepare", "Prepared", "named_observers", "check_compatible", "stage_inputs"]
+__all__ = ["simulate", "Simulation", "prepare", "Prepared", "named_observers", "check_compatible", "stage_inputs"]
 
 
 def named_observers(observers: Any) -> dict[str, AbstractObserver]:
@@ -153,32 +153,81 @@ def simulate(
     ModelError, ShapeError
         For inconsistent arguments (wrong sizes, unknown names, incompatible observers).
     """
-    prep = prepare(plant, observers, t_final=t_final, dt=dt, inputs=inputs, params=params, noise=noise,
-                   process_noise=process_noise, sampling=sampling, caller="simulate", integrator=integrator)
-    plant, obs, layout, N, t = prep.plant, prep.obs, prep.layout, prep.n_steps, prep.t
-    s0 = prep.initial_state(x0, xhat0)
-    A = prep.inputs_for(seed)
-    c = prep.constants()
-    report = as_progress(progress, f"simulate {plant.name}")
-    info = {"dt": dt, "sampling": None if sampling is None else sampling.period, "seed": seed, "engine": engine,
-            "integrator": "rk4" if integrator is None else f"cvodes ({integrator.method}, rtol={integrator.rtol:g}, atol={integrator.atol:g})"}
+    sim = Simulation(plant, observers, t_final=t_final, dt=dt, inputs=inputs, params=params, noise=noise,
+                     process_noise=process_noise, sampling=sampling, integrator=integrator, engine=engine, _caller="simulate")
+    return sim.run(x0, xhat0=xhat0, seed=seed, progress=progress, escape_bound=escape_bound)
 
-    runner = layout.runner(engine)
-    S = np.empty((N + 1, layout.size))
-    O = np.empty((N + 1, layout.no))
-    S[0] = s0
-    _, _, done = runner.run(s0, A[:N], c, out=S[1:], obuf=O[:N], bound=escape_bound,
-                            on_chunk=None if report is None else (lambda states, k: report(k / N)))
-    if done < N:  # the state after step `done` (row done + 1) left the bound: report the last good one, row done
-        r = done
-        col = int(np.flatnonzero(~(np.abs(S[r + 1]) <= escape_bound))[0])
-        where, sl, names = layout.owner(col)
-        err = FiniteEscapeError(where, float(t[r]), S[r, sl], names, escape_bound)
-        O[r] = runner.outputs(S[r:r + 1], A[r:r + 1], c)[0]
-        err.partial = _assemble(plant, obs, layout, S[:r + 1], O[:r + 1], t[:r + 1], A[:r + 1], info)
-        raise err
-    O[N] = runner.outputs(S[N:], A[N:], c)[0]  # measurements and estimates at t_final
-    return _assemble(plant, obs, layout, S, O, t, A, info)
+
+class Simulation:
+    """A simulation set-up prepared once and run many times (initial states, estimates, noise seeds).
+
+    Validates the arguments, evaluates the input signals on the time grid and builds the joint
+    plant + observer step once (its C code compiled when worth it and cached on disk); each
+    :meth:`run` then only draws the noise of its seed and runs. ``simulate(...)`` is
+    ``Simulation(...).run(...)``.
+
+    Parameters
+    ----------
+    plant, observers, t_final, dt, inputs, params, noise, process_noise, sampling, integrator, engine :
+        As in :func:`nlobs.simulate`.
+
+    Examples
+    --------
+    >>> sim = Simulation(plant, {"ekf": ekf}, t_final=20, dt=1e-3, noise=Noise.gaussian(0.1))  # doctest: +SKIP
+    >>> runs = [sim.run([2.0, 0.0], seed=s) for s in range(100)]                                # doctest: +SKIP
+    """
+
+    def __init__(self, plant: System, observers: Any = None, *, t_final: float, dt: float, inputs: Any = None,
+                 params: Mapping[str, float] | None = None, noise: Noise | None = None,
+                 process_noise: ProcessNoise | None = None, sampling: Sampling | None = None,
+                 integrator: Adaptive | None = None, engine: Backend = "auto", _caller: str = "Simulation"):
+        self._prep = prepare(plant, observers, t_final=t_final, dt=dt, inputs=inputs, params=params, noise=noise,
+                             process_noise=process_noise, sampling=sampling, caller=_caller, integrator=integrator)
+        self.engine = engine
+        self._info = {"dt": dt, "sampling": None if sampling is None else sampling.period, "engine": engine,
+                      "integrator": "rk4" if integrator is None else
+                      f"cvodes ({integrator.method}, rtol={integrator.rtol:g}, atol={integrator.atol:g})"}
+        self._c = self._prep.constants()
+        self._A_clean = None if self._prep.seeded else self._prep.inputs_for(None)
+        if self._A_clean is not None:
+            self._A_clean.setflags(write=False)  # shared by the runs (their `u` are read-only views of it)
+
+    @property
+    def plant(self) -> System:
+        return self._prep.plant
+
+    @property
+    def t(self) -> np.ndarray:
+        """The time grid (a copy)."""
+        return self._prep.t.copy()
+
+    def run(self, x0: Sequence[float], *, xhat0: Mapping[str, Sequence[float]] | Sequence[float] | None = None,
+            seed: int | None = None, progress: bool | Callable[[float], None] | None = None,
+            escape_bound: float = 1e12) -> Run:
+        """One run from the plant state `x0` (see :func:`nlobs.simulate` for the arguments and errors)."""
+        prep = self._prep
+        plant, obs, layout, N, t = prep.plant, prep.obs, prep.layout, prep.n_steps, prep.t
+        s0 = prep.initial_state(x0, xhat0)
+        A = self._A_clean if self._A_clean is not None else prep.inputs_for(seed)
+        c = self._c
+        report = as_progress(progress, f"simulate {plant.name}")
+        info = dict(self._info, seed=seed)
+        runner = layout.runner(self.engine)
+        S = np.empty((N + 1, layout.size))
+        O = np.empty((N + 1, layout.no))
+        S[0] = s0
+        _, _, done = runner.run(s0, A[:N], c, out=S[1:], obuf=O[:N], bound=escape_bound,
+                                on_chunk=None if report is None else (lambda states, k: report(k / N)))
+        if done < N:  # the state after step `done` (row done + 1) left the bound: report the last good one, row done
+            r = done
+            col = int(np.flatnonzero(~(np.abs(S[r + 1]) <= escape_bound))[0])
+            where, sl, names = layout.owner(col)
+            err = FiniteEscapeError(where, float(t[r]), S[r, sl], names, escape_bound)
+            O[r] = runner.outputs(S[r:r + 1], A[r:r + 1], c)[0]
+            err.partial = _assemble(plant, obs, layout, S[:r + 1], O[:r + 1], t[:r + 1], A[:r + 1], info)
+            raise err
+        O[N] = runner.outputs(S[N:], A[N:], c)[0]  # measurements and estimates at t_final
+        return _assemble(plant, obs, layout, S, O, t.copy(), A, info)
 
 
 @dataclass(frozen=True, eq=False)
