@@ -21,7 +21,7 @@ from ._codegen import _ERFINV, _build, bind_batch, built_path, call_batch, signa
 __all__ = ["simd_supported", "CompiledSimdBatch", "LANES"]
 
 LANES = 8
-_KERNEL_VERSION = "fused-lanes-1"  # part of the cache key: bump when _kernel's output changes
+_KERNEL_VERSION = "fused-lanes-2"  # part of the cache key: bump when _kernel's output changes
 
 _BINARY = {
     ca.OP_ADD: "{a} + {b}", ca.OP_SUB: "{a} - {b}", ca.OP_MUL: "{a} * {b}", ca.OP_DIV: "{a} / {b}",
@@ -102,11 +102,12 @@ _DRIVER = r"""
 long long nlobs_batch(const double* S0, const double* A, long long a_stride, const double* C, long long c_stride,
                       double* Sout, double* Oout, long long n_save, long long n_traj, long long n_steps,
                       long long stride, double bound, long long* status) {
-  double s[NS * W], nxt[NS * W], a[NA * W + 1], c[NC * W + 1], o[NO * W + 1];
+  double buf_s[NS * W], buf_n[NS * W], a[NA * W + 1], c[NC * W + 1], o[NO * W + 1], acc;
+  double *s = buf_s, *nxt = buf_n, *tmp;  /* swapped after each step: no copy */
   const double* arg[3];
   double* res[2];
   long long j0, k, isave, next_save, j;
-  int i, l, alive[W], n_alive, bad;
+  int i, l, alive[W], n_alive;
   for (j0 = 0; j0 < n_traj; j0 += W) {
     for (l = 0; l < W; ++l) {
       j = j0 + l < n_traj ? j0 + l : n_traj - 1;  /* padding lanes repeat the last trajectory */
@@ -115,13 +116,14 @@ long long nlobs_batch(const double* S0, const double* A, long long a_stride, con
       for (i = 0; i < NC; ++i) c[i * W + l] = C[j * c_stride + i];
       if (alive[l]) status[j] = n_steps;
     }
-    arg[0] = s; arg[1] = a; arg[2] = c; res[0] = nxt; res[1] = o;
+    arg[1] = a; arg[2] = c; res[1] = o;
     isave = 0; next_save = 0;
     for (k = 0; k <= n_steps; ++k) {
       for (l = 0; l < W; ++l) {
         j = j0 + l < n_traj ? j0 + l : n_traj - 1;
         for (i = 0; i < NA; ++i) a[i * W + l] = A[j * a_stride + k * NA + i];
       }
+      arg[0] = s; res[0] = nxt;
       nlobs_step_w(arg, res);
       if (k == next_save) {
         for (l = 0; l < W; ++l) {
@@ -134,9 +136,9 @@ long long nlobs_batch(const double* S0, const double* A, long long a_stride, con
         next_save = next_save + stride < n_steps ? next_save + stride : n_steps;
       }
       if (k == n_steps) break;
-      bad = 0;
-      for (i = 0; i < NS * W; ++i) bad |= !(fabs(nxt[i]) <= bound);  /* vectorised; NaN counts as bad */
-      if (bad) {
+      acc = 0;
+      for (i = 0; i < NS * W; ++i) acc += fabs(nxt[i]) <= bound ? 0.0 : 1.0;  /* compare + blend + add: SIMD; NaN is bad */
+      if (acc != 0) {
         n_alive = 0;
         for (l = 0; l < W; ++l) {
           if (!alive[l]) continue;
@@ -145,7 +147,7 @@ long long nlobs_batch(const double* S0, const double* A, long long a_stride, con
         }
         if (!n_alive) break;
       }
-      for (i = 0; i < NS * W; ++i) s[i] = nxt[i];
+      tmp = s; s = nxt; nxt = tmp;
     }
   }
   return 0;
