@@ -188,6 +188,7 @@ class Simulation:
                       "integrator": "rk4" if integrator is None else
                       f"cvodes ({integrator.method}, rtol={integrator.rtol:g}, atol={integrator.atol:g})"}
         self._c = self._prep.constants()
+        self._prep.t.setflags(write=False)  # shared by the runs' results
         self._A_clean = None if self._prep.seeded else self._prep.inputs_for(None)
         if self._A_clean is not None:
             self._A_clean.setflags(write=False)  # shared by the runs (their `u` are read-only views of it)
@@ -227,7 +228,7 @@ class Simulation:
             err.partial = _assemble(plant, obs, layout, S[:r + 1], O[:r + 1], t[:r + 1], A[:r + 1], info)
             raise err
         O[N] = runner.outputs(S[N:], A[N:], c)[0]  # measurements and estimates at t_final
-        return _assemble(plant, obs, layout, S, O, t.copy(), A, info)
+        return _assemble(plant, obs, layout, S, O, t, A, info)
 
 
 @dataclass(frozen=True, eq=False)
