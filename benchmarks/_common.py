@@ -82,6 +82,14 @@ def print_row(r: Mapping[str, Any]) -> None:
           f"target {r['target']} {mark}" + (f"  ({r['note']})" if r["note"] else ""))
 
 
+def read(name: str) -> list[dict[str, Any]]:
+    """The rows of the last run of a script (none when there is no result yet)."""
+    try:
+        return list(json.loads((RESULTS / f"{name}.json").read_text()).get("rows", []))
+    except (OSError, ValueError, AttributeError):
+        return []
+
+
 def write(name: str, rows: list[dict[str, Any]], extra: Mapping[str, Any] | None = None) -> Path:
     RESULTS.mkdir(exist_ok=True)
     path = RESULTS / f"{name}.json"

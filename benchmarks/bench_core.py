@@ -352,6 +352,9 @@ def main() -> int:
         rows += p1(args.rounds)
     if args.only in (None, "P3"):
         rows += p3(args.rounds)
+    if args.only:  # keep the other part's rows from the last run
+        ids = {"P1": {"P1"}, "P3": {"P3", "P3b"}}[args.only]
+        rows = [r for r in cm.read("bench_core") if r["id"] not in ids] + rows
     path = cm.write("bench_core", rows, {"cflags": " ".join(CFLAGS), "seconds": time.perf_counter() - t0})
     print(f"\nwrote {path}")
     return 0

@@ -62,9 +62,8 @@ def _find_compiler(forced: str | None, cc: str | None, path: str) -> str | None:
     return None
 
 
-def resolve_backend(backend: Backend, *, work: int, threshold: int = 200_000) -> Literal["vm", "c"]:
-    """Choose the backend: ``"auto"`` compiles when `work` (steps x states) exceeds `threshold`
-    and a compiler exists. ``$NLOBS_ENGINE`` (vm/c/auto) overrides ``"auto"``."""
+def _forced(backend: Backend) -> Literal["vm", "c"] | None:
+    """The backend an explicit choice (or ``$NLOBS_ENGINE``, or the lack of a compiler) fixes; None for "auto"."""
     if backend == "auto":
         backend = os.environ.get("NLOBS_ENGINE", "auto")  # type: ignore[assignment]
     if backend not in ("auto", "vm", "c"):
@@ -74,11 +73,19 @@ def resolve_backend(backend: Backend, *, work: int, threshold: int = 200_000) ->
     if find_compiler() is None:
         if backend == "c":
             warnings.warn("no C compiler found (set $CC); running on the CasADi virtual machine instead",
-                          ConvergenceWarning, stacklevel=3)
+                          ConvergenceWarning, stacklevel=4)
         return "vm"
-    if backend == "c" or work >= threshold:
-        return "c"
-    return "vm"
+    return "c" if backend == "c" else None
+
+
+def resolve_backend(backend: Backend, *, work: int, threshold: int = 200_000) -> Literal["vm", "c"]:
+    """Choose the backend by size alone: ``"auto"`` compiles when `work` (steps x states) exceeds
+    `threshold` and a compiler exists. ``$NLOBS_ENGINE`` (vm/c/auto) overrides ``"auto"``. The
+    runners use :func:`choose_backend` (by measured cost) instead."""
+    forced = _forced(backend)
+    if forced is not None:
+        return forced
+    return "c" if work >= threshold else "vm"
 
 
 class _Costs:
@@ -147,18 +154,10 @@ def choose_backend(backend: Backend, *, ready: bool, n_instr: int, vm_instr: flo
     more than twice the better choice made in hindsight; the build is then cached on disk for
     every later call and process. ``$NLOBS_ENGINE`` (vm/c/auto) overrides ``"auto"``.
     """
-    if backend == "auto":
-        backend = os.environ.get("NLOBS_ENGINE", "auto")  # type: ignore[assignment]
-    if backend not in ("auto", "vm", "c"):
-        raise ValueError(f"the engine backend must be 'auto', 'vm' or 'c', got {backend!r}")
-    if backend == "vm":
-        return "vm"
-    if find_compiler() is None:
-        if backend == "c":
-            warnings.warn("no C compiler found (set $CC); running on the CasADi virtual machine instead",
-                          ConvergenceWarning, stacklevel=3)
-        return "vm"
-    if backend == "c" or ready:
+    forced = _forced(backend)
+    if forced is not None:
+        return forced
+    if ready:
         return "c"
     spent = COSTS.spent.get(signature, 0.0)
     return "c" if spent + COSTS.vm_seconds(vm_instr) >= COSTS.compile_seconds(n_instr) else "vm"
