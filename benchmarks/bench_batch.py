@@ -84,7 +84,9 @@ def main() -> int:
 
     ap = argparse.ArgumentParser(description="P2 batch benchmark")
     ap.add_argument("--rounds", type=int, default=7)
-    rounds = ap.parse_args().rounds
+    ap.add_argument("--vm", action="store_true", help="also time CasADi's virtual machine (slow: about a minute)")
+    args = ap.parse_args()
+    rounds, with_vm = args.rounds, args.vm
     X0 = np.random.default_rng(SEED).uniform(-3, 3, (M, 2))
     rows = []
     print(f"P2: {M} initial states of Van der Pol + observer, RK4, dt = {DT:g}, t in [0, {T_FINAL:g}], final states only")
@@ -145,9 +147,10 @@ def main() -> int:
             dev = float(np.max(np.abs(out - ref))) if ref is not None else float("nan")
             rows.append((f"nlobs montecarlo (engine={key[0]}, chunk={key[1]}; first call {first[key]:.2f} s)", mn, med, dev))
             best = mn if best is None else min(best, mn)
-        fn = nl("vm", 1000)
-        mn, med, out = cm.interleaved({"vm": fn}, 1)["vm"]
-        rows.append(("nlobs montecarlo (engine=vm, chunk=1000)", mn, med, float(np.max(np.abs(out - ref))) if ref is not None else float("nan")))
+        if with_vm:
+            fn = nl("vm", 1000)
+            mn, med, out = cm.interleaved({"vm": fn}, 1)["vm"]
+            rows.append(("nlobs montecarlo (engine=vm, chunk=1000)", mn, med, float(np.max(np.abs(out - ref))) if ref is not None else float("nan")))
     print(f"  {'implementation':<66} {'min s':>8} {'median s':>9} {'max |dev|':>10}")
     for name, mn, med, dev in rows:
         print(f"  {name:<66} {mn:>8.3f} {med:>9.3f} {dev:>10.1e}")
