@@ -35,8 +35,9 @@ def main() -> int:
     for r in rows:
         ratio = f"{r['ratio_min']:.3g}× / {r['ratio_median']:.3g}×" + (" (peer/nlobs)" if r["ratio_kind"] == "peer/nlobs" else " (nlobs/peer)")
         mark = {True: " ✔", False: " ✘", None: ""}[r.get("met")]
-        print(f"| {r['id']} {r['what']} | {r['nlobs']}: {fmt_time(r['nlobs_min'])} / {fmt_time(r['nlobs_median'])}; {r['nlobs_error']} "
-              f"| {r['peer']}: {fmt_time(r['peer_min'])} / {fmt_time(r['peer_median'])}; {r['peer_error']} | {ratio} | {r['target']}{mark} |")
+        cells = [f"{r['id']} {r['what']}", f"{r['nlobs']}: {fmt_time(r['nlobs_min'])} / {fmt_time(r['nlobs_median'])}; {r['nlobs_error']}",
+                 f"{r['peer']}: {fmt_time(r['peer_min'])} / {fmt_time(r['peer_median'])}; {r['peer_error']}", ratio, f"{r['target']}{mark}"]
+        print("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")  # a | inside a cell would split it
     if machines:
         print("\nMeasured: " + "; ".join(machines))
     return 0
