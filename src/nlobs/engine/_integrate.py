@@ -14,8 +14,8 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from ._codegen import _DRIVER, COSTS, Backend, CompiledBatch, CompiledLoop, built_path, choose_backend, signature_of
-from ._codegen import _BATCH
+from ._codegen import _BATCH, _DRIVER, COSTS, Backend, CompiledBatch, CompiledLoop, built_path, choose_backend, signature_of
+from ._deferred import raise_deferred
 from ._simd import _DRIVER as _SIMD_DRIVER
 from ._simd import _KERNEL_VERSION, LANES, CompiledSimdBatch, simd_supported
 
@@ -171,6 +171,7 @@ class StepRunner:
                 if self.no:
                     buf.set_res(1, memoryview(oblock))
                 ev()
+                raise_deferred()  # an error recorded by a Python callback in the step (e.g. MHE's solver)
                 spent = time.perf_counter() - t_vm
                 COSTS.spent[self._sig] = COSTS.spent.get(self._sig, 0.0) + spent
                 COSTS.record_vm(float(n) * self.step.n_instructions(), spent)

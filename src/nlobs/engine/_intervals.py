@@ -34,6 +34,7 @@ import casadi as ca
 import numpy as np
 
 from ..errors import EngineError
+from ._deferred import raise_deferred
 from ._codegen import COSTS, Backend, _build, _generate, _renamed, built_path, choose_backend, signature_of
 
 __all__ = ["IntervalRunner", "IntervalResult", "MAX_SUBSTEPS"]
@@ -290,6 +291,7 @@ class IntervalRunner:
             buf.set_res(0, memoryview(Sk))
             buf.set_res(1, memoryview(Ok))
             ev()
+            raise_deferred()  # an error recorded by a Python callback in the jump (e.g. MHE's solver)
             Sk, Ok = Sk[:K], Ok[:K]
             rates = np.where(np.isfinite(Ok[:, 0]), Ok[:, 0], 0.0)
             np.maximum.at(rmax, idx, rates)
