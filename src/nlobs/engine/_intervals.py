@@ -196,8 +196,10 @@ class IntervalRunner:
             a, th, flag = row[:self.na], row[self.na:self.na + 2], row[self.na + 2]
             s1, r = self.sub(s, a, th)
             s2, o = self.jump(s1, a)
-            s_next = ca.if_else(flag, s2, s1, not self.compilable)
-            step = ca.Function("row", [s, row], [s_next, ca.vertcat(r, o if self.no else X(0, 1))])
+            # one conditional for the state and the output together: with short-circuiting (MX), an output taken
+            # outside the branch would evaluate the jump a second time
+            both = ca.if_else(flag, ca.vertcat(s2, o), ca.vertcat(s1, X.zeros(self.no)), not self.compilable)
+            step = ca.Function("row", [s, row], [both[:self.ns], ca.vertcat(r, both[self.ns:])])
             acc = step.mapaccum("rows", K)
             S0, R = ca.MX.sym("s0", self.ns), ca.MX.sym("rows", self.na + 3, K)
             out = acc(S0, R)
