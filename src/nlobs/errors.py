@@ -95,13 +95,19 @@ class FiniteEscapeError(NlobsError, RuntimeError):
     `message` replaces the default text when the caller knows more (the sample, the data).
     """
 
-    def __init__(self, where: str, t: float, x: np.ndarray, names: Sequence[str], bound: float, *, message: str | None = None):
+    def __init__(self, where: str, t: float, x: np.ndarray, names: Sequence[str], bound: float, *,
+                 message: str | None = None, hint: str = ""):
         shown = ", ".join(f"{n}={v:.6g}" for n, v in zip(names, np.asarray(x, dtype=float)))
-        super().__init__(message or (
-            f"{where} blew up after t = {t:.6g}: the state left |x| <= {bound:g} or became "
-            f"non-finite in the next step; last finite state: {shown}. "
-            "Check the model and the initial state, or reduce `dt`."
-        ))
+        if message:
+            text = message
+        elif hint:  # where exactly, when the "next step" is not one step (e.g. between two recorded samples)
+            text = (f"{where} blew up after t = {t:.6g}: its state became non-finite {hint}; last finite state: {shown}. "
+                    "Check the model, the initial estimate and the tuning, or pass a smaller `max_step`.")
+        else:
+            text = (f"{where} blew up after t = {t:.6g}: the state left |x| <= {bound:g} or became "
+                    f"non-finite in the next step; last finite state: {shown}. "
+                    "Check the model and the initial state, or reduce `dt`.")
+        super().__init__(text)
         self.where = where
         self.t = float(t)
         self.x = np.asarray(x, dtype=float)

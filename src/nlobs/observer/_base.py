@@ -13,7 +13,7 @@ each sample. Between samples the measurement and the input are held (zero-order 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import Any
+from typing import Any, Literal
 
 import casadi as ca
 import numpy as np
@@ -21,6 +21,7 @@ import numpy as np
 from ..design import ObserverDesign, check_positive
 from ..engine import compile_system, raise_deferred, rk4_step
 from ..errors import DataError, FiniteEscapeError, ShapeError
+from ._compiled import CompiledObserver, compiled_observer
 
 __all__ = ["AbstractObserver", "Observer", "OnlineObserver", "as_observer"]
 
@@ -138,6 +139,20 @@ class Observer(AbstractObserver):
         out = self.step_function(substeps)(_vec(z, self.n_z, "z"), float(t), float(dt),
                                             _vec(u, s.n_inputs, "u"), _vec(y, s.n_outputs, "y"))
         return np.asarray(out, dtype=float).reshape(-1)
+
+    def compiled(self, *, hold: Literal["zoh", "linear"] = "zoh") -> CompiledObserver:
+        """This observer prepared to run on sampled data many times (see :class:`CompiledObserver`).
+
+        The functions are built once per design and cached (as :func:`nlobs.estimate` does); the C
+        code is compiled once per machine when worth it and cached on disk.
+
+        Examples
+        --------
+        >>> fast = Observer(design_ekf(model, Q=Q, R=R)).compiled()        # doctest: +SKIP
+        >>> for rec in recordings:                                        # doctest: +SKIP
+        ...     traj = fast.run(rec.t, rec.y, rec.u)                      # doctest: +SKIP
+        """
+        return compiled_observer(self._design, hold)
 
     def __repr__(self) -> str:
         return f"Observer({self.name!r}, method={self._design.method!r}, system={self.system.name!r})"
