@@ -16,17 +16,11 @@ def error_message(e: BaseException) -> str:
 
 
 def designs_of(model_file: Any, names: Sequence[str] | None) -> dict[str, Any]:
-    """The designs of the observers `names` configured in `model_file` (all when `names` is empty)."""
-    from ..design import design_from_config
+    """The designs of the observers `names` configured in `model_file` (all when `names` is empty),
+    after the identifiability check of its unknown parameters (``nlobs.design.designs_from_file``)."""
+    from ..design import designs_from_file
 
-    configured = model_file.observers
-    if names:
-        unknown = [n for n in names if n not in configured]
-        if unknown:
-            raise KeyError(f"{model_file.path}: no observer {unknown[0]!r}; configured: {', '.join(configured) or '(none)'}")
-    chosen = names or list(configured)
-    return {n: design_from_config(model_file.system, configured[n].kind, configured[n].options,
-                                  where=f"{model_file.path}: observers.{n}") for n in chosen}
+    return designs_from_file(model_file, names)
 
 
 def clean(value: Any) -> Any:

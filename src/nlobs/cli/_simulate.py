@@ -25,21 +25,13 @@ def add_parser(sub: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..model import load_model
-    from ..simulate import Noise, ProcessNoise, Sampling, simulate
+    from ..simulate import simulate
 
     mf = load_model(args.model)
-    cfg = mf.simulation
-    t_final = args.t_final or cfg.t_final
-    if t_final is None:
-        raise ValueError(f"{mf.path}: no horizon: give --t-final or set [simulation] t_final")
-    dt = args.dt or cfg.dt or 1e-3
-    if cfg.x0 is None:
-        raise ValueError(f"{mf.path}: no initial state: set [simulation] x0 = [...] ({mf.system.n_states} numbers)")
-    noise = Noise.per_output(dict(cfg.noise), dict(cfg.noise_bound)) if (cfg.noise or cfg.noise_bound) else None
-    run_ = simulate(mf.system, designs_of(mf, args.observer), t_final=t_final, dt=dt, x0=cfg.x0, inputs=dict(cfg.inputs),
-                    noise=noise, process_noise=ProcessNoise(dict(cfg.process_noise)) if cfg.process_noise else None,
-                    sampling=Sampling(cfg.sample_period) if cfg.sample_period else None,
-                    seed=args.seed if args.seed is not None else cfg.seed, engine=args.engine, progress=not args.json)
+    # the file's [simulation] defaults, plant (true_parameters) and observers; unknown parameters are
+    # checked for identifiability (also with the file's inputs) before anything runs
+    run_ = simulate(mf, designs_of(mf, args.observer), t_final=args.t_final, dt=args.dt, seed=args.seed,
+                    engine=args.engine, progress=not args.json)
     if args.plot:
         run_.plot(args.plot)
     if args.json:

@@ -204,11 +204,13 @@ def check_identifiable(system: System, *, inputs: Any = "generic", where: str = 
             for v in report.unobservable_directions[:2]:
                 moved = [f"{n}" for n, c in zip(report.unknowns, v) if np.isfinite(c) and abs(c) > 1e-6]
                 if moved:
-                    dirs.append("(" + ", ".join(moved) + ")")
+                    dirs.append(" and ".join(moved) if len(moved) > 1 else f"{moved[0]} alone")
             inputs_text = "generic inputs" if inputs == "generic" else f"the inputs {report.inputs}"
             detail = (f"structural test ({cite('002')}, generic rank) with {inputs_text}: rank {report.rank} for "
                       f"{len(report.unknowns)} unknowns (the states and the unknown parameters)"
-                      + (f"; unidentifiable direction(s) move {' and '.join(dirs)} together" if dirs else ""))
+                      + (f"; the output does not change when {'; or when '.join(dirs)} "
+                         f"{'change' if len(dirs) > 1 or ' and ' in dirs[0] else 'changes'} along the unidentifiable "
+                         f"direction{'s' if len(dirs) > 1 else ''}" if dirs else ""))
         _IDENT_CACHE[key] = (bad, detail)
         if len(_IDENT_CACHE) > 64:
             _IDENT_CACHE.popitem(last=False)
@@ -216,11 +218,12 @@ def check_identifiable(system: System, *, inputs: Any = "generic", where: str = 
     if bad:
         prefix = f"{where}: " if where else ""
         which = ", ".join(f"`{k}`" for k in bad)
+        many = len(bad) > 1
         raise PreconditionError(
-            f"{prefix}the unknown parameter{'s' if len(bad) > 1 else ''} {which} "
-            f"{'are' if len(bad) > 1 else 'is'} not identifiable from the outputs {', '.join(system.outputs)} — {detail}. "
-            "No observer can estimate it; nothing was run. Fix its value (drop `unknown = true`), measure another output, "
-            "or excite the system with other inputs")
+            f"{prefix}the unknown parameter{'s' if many else ''} {which} {'are' if many else 'is'} not identifiable from "
+            f"the output{'s' if len(system.outputs) > 1 else ''} {', '.join(system.outputs)} — {detail}. No observer can "
+            f"estimate {'them' if many else 'it'}; nothing was run. Fix {'one of them' if many else 'its value'} (drop "
+            "`unknown = true`), measure another output, or excite the system with other inputs")
 
 
 # -- model files ------------------------------------------------------------------------------

@@ -13,9 +13,9 @@ import numpy as np
 
 from ..engine import Backend, StepRunner, compile_system, evaluate_many, rk4_step, rows
 from ..errors import DataError, ModelError, ShapeError
-from ..model import System
+from ..model import ModelFile, System
 from ..observer import AbstractObserver
-from ._results import ObserverTrace, Run
+from ._results import ObserverTrace, Run, estimate_std
 from ._run import _xhat0_for, named_observers
 
 __all__ = ["Recording", "estimate"]
@@ -62,11 +62,12 @@ class Recording:
         return rec
 
     @classmethod
-    def from_csv(cls, path: str | Path, system: System) -> Recording:
+    def from_csv(cls, path: str | Path, system: System | ModelFile) -> Recording:
         """Read a CSV whose header names ``t``, the model's outputs and inputs, and optionally its states.
 
-        Empty cells and ``nan`` mark missing output samples.
+        Empty cells and ``nan`` mark missing output samples. A model file stands for its system.
         """
+        system = system.system if isinstance(system, ModelFile) else system
         p = Path(path)
         try:
             with p.open(newline="", encoding="utf-8") as fh:
@@ -221,10 +222,11 @@ def estimate(
         off += o.n_z
         y_used = evaluate_many(fill[name], t[:, None], z, u, y0, mask) if (mask < 1).any() else y0
         xhat = evaluate_many(o.design.output, t[:, None], z, u, y_used)
-        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, z, xhat, priors[name])
+        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, z, xhat, priors[name], estimate_std(o.design, z))
     system = next(iter(obs.values())).system
     return Run(f"{system.name} (recorded: {recording.source})", t, system.states, recording.input_names, recording.output_names,
-               u, recording.y, traces, x=recording.x, info={"max_step": max_step, "substeps": n_sub, "on_missing": on_missing, "hold": hold})
+               u, recording.y, traces, x=recording.x, info={"max_step": max_step, "substeps": n_sub, "on_missing": on_missing, "hold": hold},
+               estimated_params=system.estimated_params)
 
 
 def _estimation_step(obs: Mapping[str, AbstractObserver], n_sub: int, *, linear: bool) -> tuple[ca.Function, dict[str, ca.Function]]:

@@ -10,7 +10,7 @@ import numpy as np
 
 from ._metrics import Metrics, error_metrics
 
-__all__ = ["ObserverTrace", "Run"]
+__all__ = ["ObserverTrace", "Run", "estimate_std"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -33,6 +33,23 @@ class ObserverTrace:
     z: np.ndarray
     xhat: np.ndarray
     xhat_prior: np.ndarray | None = None  #: the initial estimate before any measurement (sets the default tolerance)
+    std: np.ndarray | None = None  #: (N, n) standard deviation of each estimate, from the covariance the observer carries
+
+
+def estimate_std(design: Any, z: np.ndarray) -> np.ndarray | None:
+    """The standard deviation of each entry of x̂ along a trajectory of z, from the design's
+    ``covariance`` (None for observers that carry none). Negative variances (a covariance that
+    lost definiteness) give NaN, not a number that looks fine."""
+    cov = getattr(design, "covariance", None)
+    if cov is None or z.shape[0] == 0:
+        return None
+    from ..engine import evaluate_many
+
+    n = design.system.n_states
+    P = evaluate_many(cov, z)
+    var = P[:, [i * (n + 1) for i in range(n)]]  # diagonal entries of the column-major n x n blocks
+    with np.errstate(invalid="ignore"):
+        return np.where(var >= 0, np.sqrt(np.abs(var)), np.nan)
 
 
 @dataclass(frozen=True, eq=False)
@@ -40,6 +57,11 @@ class Run:
     """Time, true states (when known), inputs, measurements and every observer's estimate.
 
     All arrays have time on the first axis; signals are labelled by the model's own names.
+
+    With unknown parameters estimated jointly (:meth:`nlobs.System.augmented`), they are the
+    last entries of `state_names` and are listed in `estimated_params`; :meth:`parameters`
+    reports their estimates (with ±2σ where the observer carries a covariance). `x` may then
+    hold only the model's own states (recorded data): errors compare those.
     """
 
     model: str
@@ -53,6 +75,7 @@ class Run:
     x: np.ndarray | None = None
     y_true: np.ndarray | None = None
     info: Mapping[str, Any] = field(default_factory=dict)
+    estimated_params: tuple[str, ...] = ()
 
     # -- errors and metrics -------------------------------------------------------------
     def _trace(self, name: str | None) -> ObserverTrace:
@@ -65,10 +88,30 @@ class Run:
         return self.observers[name]
 
     def error(self, name: str | None = None) -> np.ndarray:
-        """x̂ - x, shape (N, n). Needs the true state."""
+        """x̂ - x, shape (N, n). Needs the true state (when it holds only the model's own states and
+        not the estimated parameters, the error is over those states)."""
         if self.x is None:
             raise ValueError("this run has no true state (recorded data without states): errors cannot be computed")
-        return self._trace(name).xhat - self.x
+        xhat = self._trace(name).xhat
+        return xhat[:, :self.x.shape[1]] - self.x
+
+    # -- estimated parameters ---------------------------------------------------------------
+    def parameters(self, name: str | None = None, *, at: int = -1) -> dict[str, dict[str, float | None]]:
+        """Each estimated parameter at sample `at` (default the last):
+        ``{k: {"estimate": ..., "std": ... or None, "true": ... or None}}``.
+
+        ``std`` is the standard deviation of the estimate from the covariance the observer
+        carries (EKF, UKF, Kalman filters), None otherwise; ±2σ is ``2*std``. ``true`` is the
+        value the plant had, when known (a simulation).
+        """
+        trace = self._trace(name)
+        out: dict[str, dict[str, float | None]] = {}
+        for k in self.estimated_params:
+            i = self.state_names.index(k)
+            std = None if trace.std is None or not np.isfinite(trace.std[at, i]) else float(trace.std[at, i])
+            true = float(self.x[at, i]) if self.x is not None and i < self.x.shape[1] else None
+            out[k] = {"estimate": float(trace.xhat[at, i]), "std": std, "true": true}
+        return out
 
     def error_norm(self, name: str | None = None) -> np.ndarray:
         """‖x̂(t) - x(t)‖₂ at each time."""
@@ -109,6 +152,14 @@ class Run:
             m = self.metrics(name, tol=tol)
             tc = "never" if m.convergence_time is None else f"{m.convergence_time:.3g}"
             lines.append(f"{name:<18} {m.final_error:>10.3g} {m.rms_error:>15.3g} {m.peak_error:>10.3g} {tc:>11}")
+        if self.estimated_params:
+            lines.append(f"estimated parameters at t = {self.t[-1]:g}:")
+            for name in self.observers:
+                for k, v in self.parameters(name).items():
+                    text = f"{v['estimate']:.6g}" + ("" if v["std"] is None else f" ± {2 * v['std']:.3g} (2σ)")
+                    if v["true"] is not None:
+                        text += f", true {v['true']:.6g}"
+                    lines.append(f"  {name:<16} {k} = {text}")
         return "\n".join(lines)
 
     # -- export -------------------------------------------------------------------------
@@ -133,7 +184,7 @@ class Run:
             raise ImportError("to_pandas needs pandas: pip install 'nlobs[pandas]'") from e
         cols: dict[str, np.ndarray] = {}
         if self.x is not None:
-            cols.update({n: self.x[:, i] for i, n in enumerate(self.state_names)})
+            cols.update({n: self.x[:, i] for i, n in zip(range(self.x.shape[1]), self.state_names)})
         cols.update({n: self.u[:, i] for i, n in enumerate(self.input_names)})
         cols.update({n: self.y[:, i] for i, n in enumerate(self.output_names)})
         if self.y_true is not None:
@@ -145,7 +196,8 @@ class Run:
         return pd.DataFrame(cols, index=pd.Index(self.t, name="t"))
 
     def summary_dict(self, *, tol: float | None = None) -> dict[str, Any]:
-        """``{"model": str, "observers": {NAME: {"final_error", "rms_error", "convergence_time", ...}}}``."""
+        """``{"model": str, "observers": {NAME: {"final_error", "rms_error", "convergence_time", ...}}}``; with
+        estimated parameters each observer also has ``"parameters": {k: {"estimate", "std", "true"}}``."""
         obs: dict[str, Any] = {}
         for name, tr in self.observers.items():
             entry: dict[str, Any] = {"method": tr.method, "final_estimate": tr.xhat[-1].tolist()}
@@ -153,6 +205,8 @@ class Run:
                 entry.update(self.metrics(name, tol=tol).to_dict())
                 if self.y_true is not None and not np.array_equal(self.y, self.y_true):
                     entry["noise_gain"] = self.noise_gain(name)
+            if self.estimated_params:
+                entry["parameters"] = self.parameters(name)
             obs[name] = entry
         return {"model": self.model, "t_final": float(self.t[-1]), "samples": int(self.t.size), "observers": obs}
 
