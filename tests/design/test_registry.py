@@ -153,7 +153,7 @@ def test_configs_go_straight_into_simulate_and_estimate():
     one = nlobs.simulate(mf, "ekf", t_final=4.0)
     assert list(one.observers) == ["ekf"] and one.t[-1] == 4.0
     rec = nlobs.Recording.from_arrays(mf.system, run.t[::10], run.y[::10], run.u[::10], x=run.x[::10, :1])
-    est = nlobs.estimate(mf, rec)
+    est = nlobs.estimate(mf, rec, max_step=0.01)  # the UKF covariance ODE needs steps below the 0.1 s sampling
     assert set(est.observers) == {"ekf", "ukf"}
     assert est.error("ekf").shape == (rec.t.size, 1)  # the truth has the state only: errors over it
     p = est.parameters("ekf")["k"]
