@@ -15,10 +15,13 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ._text import shorten
+
 __all__ = [
     "NlobsError",
     "ModelError",
     "ModelFileError",
+    "SymbolicBudgetError",
     "FormError",
     "ShapeError",
     "PreconditionError",
@@ -52,12 +55,20 @@ class ModelFileError(ModelError):
     """
 
     def __init__(self, message: str, *, path: str = "<string>", key: str = "", text: str = ""):
-        where = path + (f", key `{key}`" if key else "")
-        shown = f": {text!r}" if text else ""
+        # user text is quoted short (a repr, so control characters show escaped): the reason must not
+        # drown behind a 50 MB line; the attributes keep the full values
+        where = path if len(path) <= 200 and path.isprintable() else shorten(path, 200)
+        if key:
+            where += f", key `{key if len(key) <= 80 and key.isprintable() else shorten(key, 80)}`"
+        shown = f": {shorten(text)}" if text else ""
         super().__init__(f"{where}{shown}: {message}")
         self.path = path
         self.key = key
         self.text = text
+
+
+class SymbolicBudgetError(ModelError):
+    """Symbolic work on a model's expressions exceeded its size or time budget (see ``nlobs.model.symbolic_budget``)."""
 
 
 class FormError(NlobsError, ValueError):

@@ -1,6 +1,7 @@
 """Analysis: is it possible? Observability, excitation, forms, augmentation.
 
-Structural (generic rank, 002): :func:`analyze` -> :class:`ObservabilityReport`, :func:`observable_function`.
+Structural (generic rank, 002): :func:`analyze` -> :class:`ObservabilityReport`, :func:`observable_function`;
+piecewise models (abs, min, max, sat) one regime at a time: :func:`visited_regimes`.
 Linear: :func:`kalman_rank`, :func:`pbh_test`, :func:`kalman_decomposition`.
 LTV / state-affine along a trajectory (000): :func:`ltv_gramian`, :func:`uco_test`, :func:`state_affine_ltv`.
 Nonlinear along a trajectory (002): :func:`empirical_gramian`, :func:`indistinguishable`.
@@ -21,6 +22,8 @@ from ._linear import pbh_test as pbh_test
 from ._lie import InputClass as InputClass
 from ._lie import analyze as analyze
 from ._lie import observable_function as observable_function
+from ._regimes import Regime as Regime
+from ._regimes import visited_regimes as visited_regimes
 from ._reports import FunctionCheck as FunctionCheck
 from ._reports import ObservabilityReport as ObservabilityReport
 from ._reports import Symmetry as Symmetry

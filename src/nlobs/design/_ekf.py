@@ -133,4 +133,5 @@ def design_ekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
     names = [f"xhat_{v}" for v in system.states] + [f"P_{i}_{j}" for j in range(n) for i in range(n)]
     return ObserverDesign.build("ekf", system, s, z_names=names, flow=ca.vertcat(dx, ca.vec(dP)), xhat=clip_const(xh, box),
                                 xhat0_sym=x0, z0=ca.vertcat(x0, ca.DM(P0m.reshape(-1, order="F"))),
-                                xhat0=np.zeros(n) if xhat0 is None else xhat0, certificate=cert, update=update)
+                                xhat0=np.zeros(n) if xhat0 is None else xhat0, certificate=cert, update=update,
+                                covariance=P)

@@ -14,6 +14,7 @@ import sympy as sp
 
 from ..errors import FormError, PreconditionError
 from ..model import TIME, StateAffine, System, symbol
+from ..model._budget import expand
 from ..model._system import exact
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import check_matrix
@@ -63,7 +64,7 @@ def state_affine_parts(model: System | StateAffine, caller: str) -> StateAffineP
     x = sp.Matrix(system.x)
     C = h.jacobian(x)
     for i, name in enumerate(system.outputs):
-        if C.row(i).free_symbols & set(system.x) or sp.expand(h[i] - (C.row(i) * x)[0]) != 0:
+        if C.row(i).free_symbols & set(system.x) or expand(h[i] - (C.row(i) * x)[0], what=caller) != 0:
             raise FormError(f"{caller}: output {name} = {h[i]} is not linear in the state (y = C(u, t)x is required)")
     try:
         meas = measured_states(system, caller)
@@ -77,7 +78,7 @@ def state_affine_parts(model: System | StateAffine, caller: str) -> StateAffineP
 
     # keep the terms already affine in x (so an LTV/LTI model keeps its A); replace the measured
     # states by the outputs only in the others (A(u, y, t) of 002's state-affine form)
-    fy = sp.Matrix([sum((t if affine(t) else t.xreplace(ysub) for t in sp.Add.make_args(sp.expand(e))), sp.S.Zero)
+    fy = sp.Matrix([sp.Add(*(t if affine(t) else t.xreplace(ysub) for t in sp.Add.make_args(expand(e, what=caller))))
                     for e in f])
     A = fy.jacobian(x)
     for i, name in enumerate(system.states):
@@ -86,7 +87,7 @@ def state_affine_parts(model: System | StateAffine, caller: str) -> StateAffineP
             raise FormError(f"{caller}: {system.name!r} is not state-affine: {name}' = {f[i]} is not affine in the unmeasured "
                             f"state(s) (a coefficient depends on {', '.join(sorted(s.name for s in bad))}); "
                             "only the measured outputs, inputs and t may enter A(u, y, t)")
-    b = (fy - A * x).applyfunc(sp.expand)
+    b = (fy - A * x).applyfunc(lambda e: expand(e, what=caller))
     return StateAffineParts(system, A, b, C)
 
 
@@ -180,10 +181,13 @@ def _riccati_design(method: str, title: str, ref: str, parts: StateAffineParts, 
     names = first + [f"M_{i}_{j}" for j in range(n) for i in range(n)]
     values.update({"A(u, y, t)": str(parts.A.tolist()), "C": str(parts.C.tolist())})
     cert = Certificate(title, ref, tuple(checks), values)
+    # M is the error covariance (V, W the noise intensities) only for the plain Riccati equation without
+    # forgetting, on the plant's own coordinates: not with δ > 0, the high-gain λ, or an augmentation map
+    cov = M if (d == 0 and lam is None and estimate is None) else None
     return ObserverDesign.build(method, system, s, z_names=names, flow=ca.vertcat(dx, ca.vec(dM)),
                                 xhat=xh if estimate is None else estimate(xh), xhat0_sym=x0,
                                 z0=ca.vertcat(w0, ca.DM(M0m.reshape(-1, order="F"))),
-                                xhat0=np.zeros(nx) if xhat0 is None else xhat0, certificate=cert)
+                                xhat0=np.zeros(nx) if xhat0 is None else xhat0, certificate=cert, covariance=cov)
 
 
 def design_kalman_like(model: System | StateAffine, *, W: Any = None, V: Any = None, delta: float = 0.0, M0: Any = None,

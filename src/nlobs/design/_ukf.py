@@ -136,4 +136,4 @@ def design_ukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
                                 xhat0_sym=x0,
                                 z0=ca.vertcat(x0, ca.DM(P0m.reshape(-1, order="F"))),
                                 xhat0=np.zeros(n) if xhat0 is None else xhat0, certificate=cert,
-                                update=ca.vertcat(m_plus, ca.vec(P_plus)))
+                                update=ca.vertcat(m_plus, ca.vec(P_plus)), covariance=P)

@@ -18,9 +18,10 @@ from typing import Any, Literal
 import casadi as ca
 import numpy as np
 
-from ..design import ObserverDesign, check_positive
+from ..design import ObserverDesign, check_positive, design_from_config
 from ..engine import compile_system, raise_deferred, rk4_step
 from ..errors import DataError, FiniteEscapeError, ShapeError
+from ..model import ObserverConfig
 from ._compiled import CompiledObserver, compiled_observer
 
 __all__ = ["AbstractObserver", "Observer", "OnlineObserver", "as_observer"]
@@ -162,12 +163,16 @@ class Observer(AbstractObserver):
 
 
 def as_observer(obj: Any, name: str | None = None) -> AbstractObserver:
-    """An observer from an observer or a design."""
+    """An observer from an observer, a design, or a model file's observer configuration
+    (:class:`nlobs.model.ObserverConfig`, designed here by :func:`nlobs.design.design_from_config`)."""
     if isinstance(obj, AbstractObserver):
         return obj
     if isinstance(obj, ObserverDesign):
         return Observer(obj, name)
-    raise TypeError(f"expected an observer or an ObserverDesign (from a design_* function), got {type(obj).__name__}")
+    if isinstance(obj, ObserverConfig):
+        return Observer(design_from_config(obj), name or obj.name)
+    raise TypeError(f"expected an observer or an ObserverDesign (from a design_* function), or a model file's "
+                    f"ObserverConfig ([observers.NAME]), got {type(obj).__name__}")
 
 
 class OnlineObserver:

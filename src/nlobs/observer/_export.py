@@ -86,16 +86,17 @@ def _version() -> str:
 
 def _default_name(design: ObserverDesign) -> str:
     raw = f"{design.system.name}_{design.method}"
-    name = re.sub(r"[^A-Za-z0-9_]", "_", raw)
+    name = re.sub(r"_+", "_", re.sub(r"[^A-Za-z0-9_]", "_", raw)).strip("_")  # CasADi refuses "__" in names
     if not name[:1].isalpha():
         name = "obs_" + name
-    return name[:40]
+    return name[:40].rstrip("_")
 
 
 def _check_name(name: str) -> str:
-    if not isinstance(name, str) or not _C_NAME.match(name) or name in _C_KEYWORDS or keyword.iskeyword(name):
+    if (not isinstance(name, str) or not _C_NAME.fullmatch(name) or "__" in name or name in _C_KEYWORDS
+            or keyword.iskeyword(name)):
         raise ValueError(f"export_c: `name` must be a C identifier of at most 40 characters (a letter, then letters, "
-                         f"digits or underscores; not a C keyword), got {name!r}")
+                         f"digits or single underscores; not a C keyword), got {name!r}")
     return name
 
 

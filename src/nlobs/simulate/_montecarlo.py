@@ -316,6 +316,9 @@ def montecarlo(
     M = sizes[0]
     if any(s != M for s in sizes):
         raise ShapeError(f"montecarlo: the per-run arguments disagree on the number of runs: {sorted(set(sizes))}")
+    if prep.x0_tail and np.shape(x0)[-1:] == (n - len(prep.x0_tail),):  # estimated parameters: true values appended
+        x0 = np.asarray(x0, dtype=float)
+        x0 = np.concatenate([x0, np.broadcast_to(np.asarray(prep.x0_tail), x0.shape[:-1] + (len(prep.x0_tail),))], axis=-1)
     X0 = _per_run(x0, M, n, "x0")
     XH = {}
     for name, o in prep.obs.items():

@@ -13,9 +13,9 @@ import numpy as np
 from ..design import check_positive
 from ..engine import Backend, evaluate_many
 from ..errors import DataError, FiniteEscapeError, ModelError, ShapeError
-from ..model import System
+from ..model import ModelFile, System
 from ..observer import AbstractObserver, compiled_observer
-from ._results import ObserverTrace, Run
+from ._results import ObserverTrace, Run, estimate_std
 from ._run import _xhat0_for, named_observers
 
 __all__ = ["Recording", "estimate"]
@@ -62,17 +62,17 @@ class Recording:
         return rec
 
     @classmethod
-    def from_csv(cls, path: str | Path, system: System, *, columns: Mapping[str, str] | None = None,
+    def from_csv(cls, path: str | Path, system: System | ModelFile, *, columns: Mapping[str, str] | None = None,
                  require_outputs: bool = True) -> Recording:
         """Read a CSV whose header names ``t``, the model's outputs and inputs, and optionally its states.
 
         Empty cells and ``nan`` mark missing output samples. Other columns are ignored. The file
-        must be UTF-8 (a byte-order mark is accepted).
+        must be UTF-8 (a byte-order mark is accepted). A model file stands for its system.
 
         Parameters
         ----------
         path : str or Path
-        system : System
+        system : System or ModelFile
         columns : mapping of CSV column name to model name, optional
             For files whose header does not use the model's names, e.g.
             ``{"time": "t", "level_2": "y2"}``.
@@ -80,6 +80,7 @@ class Recording:
             With False, output columns may be absent (they read as missing): a recorded input
             to drive a simulation.
         """
+        system = system.system if isinstance(system, ModelFile) else system
         p = Path(path)
         try:
             with p.open(newline="", encoding="utf-8-sig") as fh:
@@ -301,13 +302,14 @@ def estimate(
                                             "internal state is finite; check the observer's output map x̂ = H(t, z, u, y)")
         innovation = np.where(mask > 0, recording.y - traj.yhat_prior, np.nan)
         traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, traj.z, traj.xhat, traj.xhat_prior,
-                                     innovation=innovation)
+                                     innovation=innovation, std=estimate_std(o.design, traj.z))
         integration[name] = traj.info()
     system = next(iter(obs.values())).system
     return Run(f"{system.name} (recorded: {recording.source})", t, system.states, recording.input_names, recording.output_names,
                u, recording.y, traces, x=recording.x,
                info={"max_step": max_step, "substeps": max(v["max_substeps"] for v in integration.values()),
-                     "integration": integration, "on_missing": on_missing, "hold": hold})
+                     "integration": integration, "on_missing": on_missing, "hold": hold},
+               estimated_params=system.estimated_params)
 
 
 def _non_finite(name: str, o: AbstractObserver, rec: Recording, err: FiniteEscapeError) -> FiniteEscapeError:

@@ -25,21 +25,25 @@ from .._progress import as_progress
 from ..design import ObserverDesign
 from ..engine import Backend, StepRunner, compile_system, evaluate_many, rk4_step, rows
 from ..errors import FiniteEscapeError, ModelError, ShapeError
-from ..model import System, input_signals
+from ..model import ModelFile, ObserverConfig, System, input_signals
 from ..observer import AbstractObserver, Observer, as_observer
+from ._file import file_arguments, observers_of
 from ._options import Adaptive, Noise, ProcessNoise, Sampling
-from ._results import ObserverTrace, Run
+from ._results import ObserverTrace, Run, estimate_std
 
-__all__ = ["simulate", "Simulation", "prepare", "Prepared", "named_observers", "check_compatible", "stage_inputs"]
+__all__ = ["simulate", "Simulation", "prepare", "Prepared", "named_observers", "check_compatible", "stage_inputs",
+           "augmented_plant"]
 
 
 def named_observers(observers: Any) -> dict[str, AbstractObserver]:
-    """Observers by name, from a mapping, a sequence, or a single observer/design."""
+    """Observers by name, from a mapping, a sequence, or a single observer/design/model-file
+    configuration (a ModelFile stands for all its configured observers)."""
+    observers = observers_of(observers)
     if observers is None:
         return {}
     if isinstance(observers, Mapping):
         return {str(k): as_observer(v, str(k)) for k, v in observers.items()}
-    if isinstance(observers, (ObserverDesign, AbstractObserver)):
+    if isinstance(observers, (ObserverDesign, AbstractObserver, ObserverConfig)):
         observers = [observers]
     out: dict[str, AbstractObserver] = {}
     for obj in observers:
@@ -87,12 +91,12 @@ def stage_inputs(plant: System, inputs: Any, params: Mapping[str, float], t: np.
 
 
 def simulate(
-    plant: System,
+    plant: System | ModelFile,
     observers: Any = None,
     *,
-    t_final: float,
-    dt: float,
-    x0: Sequence[float],
+    t_final: float | None = None,
+    dt: float | None = None,
+    x0: Sequence[float] | None = None,
     inputs: Any = None,
     params: Mapping[str, float] | None = None,
     noise: Noise | None = None,
@@ -109,14 +113,21 @@ def simulate(
 
     Parameters
     ----------
-    plant : System
-        The true system.
+    plant : System or ModelFile
+        The true system; or a model file (:func:`nlobs.load_model`): its plant with
+        ``[simulation] true_parameters``, its observers (unless `observers` is given, which may
+        then also be a list of their names) and its ``[simulation]`` defaults for every argument
+        not given here.
     observers : mapping of name to observer/design, or a sequence, optional
-        Observers (or designs, made runnable with :class:`nlobs.Observer`).
+        Observers (or designs, made runnable with :class:`nlobs.Observer`, or a model file's
+        ``ObserverConfig`` objects, designed on the way). Observers that estimate some of the
+        plant's parameters (designed on ``plant.augmented(names)``) get the augmented plant:
+        its true parameter values are appended to `x0`, and the run reports the estimates.
     t_final, dt : float
-        Horizon [0, t_final] and step; t_final must be a whole multiple of dt.
+        Horizon [0, t_final] and step; t_final must be a whole multiple of dt (required unless
+        a model file gives them).
     x0 : sequence of float
-        Initial plant state.
+        Initial plant state (required unless a model file gives it).
     inputs : mapping of input name to signal, optional
         Numbers, expressions of ``t`` (``"0.5*sin(t)"``), callables ``u(t)``, or
         :mod:`nlobs.model` signals. Inputs not given are zero.
@@ -158,6 +169,11 @@ def simulate(
     ModelError, ShapeError
         For inconsistent arguments (wrong sizes, unknown names, incompatible observers).
     """
+    if isinstance(plant, ModelFile):
+        return simulate(**file_arguments(plant, observers, t_final=t_final, dt=dt, x0=x0, inputs=inputs, params=params,
+                                         noise=noise, process_noise=process_noise, sampling=sampling, seed=seed,
+                                         xhat0=xhat0, engine=engine, progress=progress, escape_bound=escape_bound,
+                                         integrator=integrator))
     sim = Simulation(plant, observers, t_final=t_final, dt=dt, inputs=inputs, params=params, noise=noise,
                      process_noise=process_noise, sampling=sampling, integrator=integrator, engine=engine, _caller="simulate")
     return sim.run(x0, xhat0=xhat0, seed=seed, progress=progress, escape_bound=escape_bound)
@@ -279,10 +295,13 @@ class Prepared:
     process_noise: ProcessNoise | None
     every: int
     caller: str
+    x0_tail: tuple[float, ...] = ()  # true values of the estimated parameters, appended to a model-state x0
 
     def initial_state(self, x0: Sequence[float], xhat0: Any) -> np.ndarray:
         n, ny = self.plant.n_states, self.plant.n_outputs
         x0v = np.asarray(x0, dtype=float).reshape(-1)
+        if self.x0_tail and x0v.size == n - len(self.x0_tail):
+            x0v = np.concatenate([x0v, self.x0_tail])
         if x0v.size != n or not np.all(np.isfinite(x0v)):
             raise ShapeError(f"{self.caller}: `x0` must be {n} finite numbers (one per state: {', '.join(self.plant.states)}), "
                              f"got {list(x0v)}")
@@ -337,6 +356,7 @@ def prepare(plant: System, observers: Any, *, t_final: float, dt: float, inputs:
         raise ShapeError(f"{caller}: t_final = {t_final:g} must be a whole multiple of dt = {dt:g}")
     plant = plant.with_params(**params) if params else plant
     obs = named_observers(observers)
+    plant, x0_tail = augmented_plant(plant, obs)
     if obs and plant.n_outputs == 0:
         raise ModelError(f"{caller}: the plant {plant.name!r} has no outputs; an observer needs a measurement")
     for name, o in obs.items():
@@ -353,7 +373,17 @@ def prepare(plant: System, observers: Any, *, t_final: float, dt: float, inputs:
     elif inputs:
         input_signals(plant, inputs)  # reports unknown input names
     every = sampling.every(dt) if sampling is not None else 1
-    return Prepared(plant, obs, kind, layout, N, float(dt), t, base, noise, process_noise, every, caller)
+    return Prepared(plant, obs, kind, layout, N, float(dt), t, base, noise, process_noise, every, caller, x0_tail)
+
+
+def augmented_plant(plant: System, obs: Mapping[str, AbstractObserver]) -> tuple[System, tuple[float, ...]]:
+    """The plant to simulate with observers that estimate some of its parameters (designed on
+    ``plant.augmented(names)``): the plant augmented the same way, and the true values of those
+    parameters (appended to an x0 of the model's states)."""
+    est = next((o.system.estimated_params for o in obs.values() if o.system.estimated_params), ())
+    if not est or plant.estimated_params or any(k not in plant.params for k in est):
+        return plant, ()  # nothing to do, or check_compatible reports the mismatch
+    return plant.augmented(est), tuple(plant.params[k] for k in est)
 
 
 def _xhat0_for(xhat0: Any, name: str, n: int) -> Any:
@@ -569,5 +599,6 @@ def _assemble(plant: System, obs: Mapping[str, AbstractObserver], layout: _Layou
         z = O[:, zsl] if zsl is not None else S[:, layout.slices[name]]
         xhat = O[:, xsl] if xsl is not None else z[:, :n]
         prior = o.estimate(t[0], S[0, layout.slices[name]], u[0], y[0])
-        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, z, xhat, prior)
-    return Run(plant.name, t, plant.states, plant.inputs, plant.outputs, u, y, traces, x=S[:, :n], y_true=y_true, info=info)
+        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, z, xhat, prior, std=estimate_std(o.design, z))
+    return Run(plant.name, t, plant.states, plant.inputs, plant.outputs, u, y, traces, x=S[:, :n], y_true=y_true, info=info,
+               estimated_params=plant.estimated_params)
