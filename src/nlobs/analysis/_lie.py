@@ -21,6 +21,7 @@ import numpy as np
 import sympy as sp
 
 from ..errors import ModelError
+from ._identity import decide_identity
 from ..model import TIME, System, symbol
 from ..model._expr import ExpressionError, parse_expression
 from ..model._system import ExprLike, exact, to_expr
@@ -325,8 +326,8 @@ def _sign_symmetries(system: System, st: _Setup, params_unknown: tuple[str, ...]
                      budget: int = 4096) -> tuple[tuple[Symmetry, ...], str]:
     """Sign changes of unknowns that leave the model invariant: f(σz) = σ f(z), h(σz) = h(z).
 
-    Screened numerically at a random point for all sign patterns (up to `budget`), then proved
-    symbolically. Each one gives pairs of indistinguishable states (001 §IV-C: x2 -> -x2 when c = 0).
+    Screened numerically at a random point for all sign patterns (up to `budget`), then decided
+    exactly (:func:`decide_identity`). Each one gives pairs of indistinguishable states (001 §IV-C: x2 -> -x2 when c = 0).
     """
     from ..model._translate import NUMPY, translate
 
@@ -370,8 +371,8 @@ def _sign_symmetries(system: System, st: _Setup, params_unknown: tuple[str, ...]
         if key in group:
             continue
         sub = {s: -s for s, v in zip(syms, r) if v < 0}
-        proved = all(sp.simplify(e.xreplace(sub) - sgn * e) == 0 for e, sgn in zip(f, r[: len(f)])) and all(
-            sp.simplify(e.xreplace(sub) - e) == 0 for e in h)
+        proved = all(decide_identity(e.xreplace(sub), sgn * e).holds for e, sgn in zip(f, r[: len(f)])) and all(
+            decide_identity(e.xreplace(sub), e).holds for e in h)
         if not proved:
             continue
         found.append(r)

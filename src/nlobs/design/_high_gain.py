@@ -15,7 +15,9 @@ from ..engine import compile_system
 from ..errors import FormError, PreconditionError, ShapeError
 from ..model import TIME, System, symbol
 from ..model._system import ExprLike, exact, to_expr
+from ..analysis import decide_identity
 from ._base import Certificate, Check, ObserverDesign, Symbols
+from ._checks import identity_check
 from ._common import chain_gain, leaves_of, measured_states, saturate, saturation_bounds, to_sx
 from ..references import cite
 
@@ -498,13 +500,17 @@ def design_high_gain_derivatives(system: System, *, xhat: Mapping[str, ExprLike]
     _, h = system.substituted()
     subs = {dsyms[f"D{i}_{yk}"]: lie[k][i] for k, yk in enumerate(system.outputs) for i in range(rho[k])}
     subs.update({symbol(yk): h[k] for k, yk in enumerate(system.outputs)})
+    verdicts = []
     for j, e in enumerate(psi):
-        res = sp.simplify(e.xreplace(subs) - system.x[j])
-        if res != 0:
+        v = decide_identity(e.xreplace(subs), system.x[j], seed=j)
+        if v.fails:
+            res = sp.simplify(e.xreplace(subs) - system.x[j])
             raise PreconditionError(f"{caller}: xhat[{system.states[j]}] = {psi_in[j]} does not recover {system.states[j]} from the "
-                                    f"output derivatives: with D{{i}}_y = L_f^i h it leaves {res} (inputs held constant). "
-                                    "Check Ψ against the model.")
-    checks = [Check("Ψ(y, ẏ, ...) recovers x from the Lie derivatives of h (inputs held constant)", True),
+                                    f"output derivatives: with D{{i}}_y = L_f^i h it leaves {res}{v.where()} (inputs held "
+                                    "constant). Check Ψ against the model.")
+        verdicts.append(v)
+    checks = [identity_check("Ψ(y, ẏ, ...) recovers x from the Lie derivatives of h (inputs held constant)", verdicts,
+                             [f"state {s_}" for s_ in system.states]),
               Check("α gives Hurwitz injection polynomials", True,
                     "; ".join(f"{yk}: max Re eig = {e.real.max():.4g}" for yk, e in zip(system.outputs, eigs)))]
     names = [f"D{i}_{yk}" for k, yk in enumerate(system.outputs) for i in range(rho[k])]
