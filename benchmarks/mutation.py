@@ -44,14 +44,11 @@ SCRATCH = Path(os.environ.get("NLOBS_MUTATION_DIR", "/tmp/nlobs-mutation"))
 
 #: module (relative to src/nlobs) -> the focused tests that check its equations
 MODULES: dict[str, list[str]] = {
-    "design/_regression.py": ["tests/design/test_regression.py", "tests/design/test_estimators.py",
-                              "tests/papers/test_000_2gd_not_uco.py"],
-    "design/_kalman.py": ["tests/design/test_kalman.py", "tests/design/test_high_gain.py", "tests/papers/test_002_vdp.py",
-                          "tests/papers/test_002_pendulum_b.py"],
-    "design/_gpebo.py": ["tests/design/test_gpebo.py", "tests/papers/test_000_2gd_not_uco.py"],
-    "design/_banks.py": ["tests/design/test_banks.py", "tests/papers/test_003_banks.py"],
-    "analysis/_conditions.py": ["tests/analysis/test_forms_banks.py", "tests/design/test_banks.py",
-                                "tests/papers/test_003_banks.py"],
+    "design/_regression.py": ["tests/design/test_regression.py", "tests/design/test_estimators.py"],
+    "design/_kalman.py": ["tests/design/test_kalman.py", "tests/design/test_high_gain.py"],
+    "design/_gpebo.py": ["tests/design/test_gpebo.py", "tests/papers/test_000_2gd_not_uco.py::test_2gd_error_follows_the_paper_law_to_round_off"],
+    "design/_banks.py": ["tests/design/test_banks.py"],
+    "analysis/_conditions.py": ["tests/analysis/test_forms_banks.py", "tests/design/test_banks.py"],
     "analysis/_identity.py": ["tests/analysis/test_identity.py", "tests/design/test_pebo.py", "tests/design/test_iandi.py"],
 }
 
@@ -64,6 +61,9 @@ pytest_add_cli_args = ["-p", "no:cacheprovider"]
 timeout_multiplier = 5.0
 timeout_constant = 30.0
 use_git_change_detection = false
+# error messages and certificate text are not equations: raise statements, Check(...) lines and
+# certificate values are left alone (a changed message is not a broken equation)
+do_not_mutate_patterns = ["^\\s*raise ", "Check\\(|Check\\.assumed\\(", "values\\[|values\\.update|values = \\{|values: dict", "__str__"]
 """
 
 

@@ -277,3 +277,11 @@ def test_c_text_helpers_escape_everything_that_could_end_a_comment_or_string():
     assert all(ch.isalnum() or ch in "_,\\" for ch in lit)      # only escapes and plain characters
     # the literal decodes back to the original bytes (C octal escapes are the same as Python's)
     assert lit.encode().decode("unicode_escape").encode("latin-1") == nasty.encode("utf-8")
+
+
+@pytest.mark.parametrize("bad", ["abc\n", "a b", "*/x", "int", "a" * 41, "1abc", "é"])
+def test_export_name_must_be_a_c_identifier_exactly(bad, tmp_path):
+    with pytest.raises(ValueError, match="C identifier") as info:
+        export_c(design_output_injection(PEND.system, poles=[-2.0, -3.0]), tmp_path, name=bad)
+    assert len(str(info.value)) < 300
+    assert not any(tmp_path.iterdir())

@@ -15,6 +15,7 @@ from ..model import TIME, System, symbol
 from ..model._forms import matrix_of
 from ..model._system import ExprLike, exact
 from ..analysis import decide_identity
+from ._common import require_system
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import identity_check, observer_gain
 from ._kalman import StateAffineParts, _riccati_design
@@ -79,6 +80,7 @@ def design_augmented(system: System, *, T: Sequence[ExprLike], A: Any, C: Any, l
     ----------
     001_1b4027b3a70d560f.txt eqs. (2), (15)-(18), (20)-(22), Def. 3, Theorem 1, Lemma 1.
     """
+    require_system(system, "design_augmented")
     caller = "design_augmented"
     n = system.n_states
     params = {symbol(k): exact(v) for k, v in system.params.items()}

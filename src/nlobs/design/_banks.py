@@ -22,7 +22,7 @@ from ..model._system import ExprLike, exact, to_expr
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import check_matrix
 from ..analysis import matrix_measure
-from ._common import batch, box_of, sup_over_box
+from ._common import batch, box_of, require_system, sup_over_box
 from ..references import cite
 
 __all__ = ["design_banks", "banks_conditions", "BanksConditions"]
@@ -173,6 +173,7 @@ def design_banks(system: System, *, P: Any, region: Mapping[str, Sequence[float]
     ----------
     003_a2c72ccb4281ea3f.txt, Lemmas 2.3, 2.4, Theorem 2.6, examples 3.1 and 3.2.
     """
+    require_system(system, "design_banks")
     caller = "design_banks"
     n, p = system.n_states, system.n_outputs
     Pm = check_matrix(P, n, p, "P", caller)

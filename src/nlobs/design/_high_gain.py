@@ -18,7 +18,7 @@ from ..model._system import ExprLike, exact, to_expr
 from ..analysis import decide_identity
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import identity_check
-from ._common import chain_gain, leaves_of, measured_states, saturate, saturation_bounds, to_sx
+from ._common import chain_gain, leaves_of, measured_states, require_system, saturate, saturation_bounds, to_sx
 from ..references import cite
 
 __all__ = ["design_high_gain", "design_high_gain_derivatives", "triangular_chains", "Chain"]
@@ -276,6 +276,7 @@ def design_high_gain(system: System, *, theta: float | None = None, r: float | N
     >>> d.certificate.values["K0"], round(d.certificate.values["nominal_rate"], 9)
     ([array([2., 1.])], 10.0)
     """
+    require_system(system, "design_high_gain")
     caller = "design_high_gain"
     th = _theta(theta, r, caller)
     try:
@@ -448,6 +449,7 @@ def design_high_gain_derivatives(system: System, *, xhat: Mapping[str, ExprLike]
     α1 = α3 = 2, α2 = α4 = 1. (The table prints r1 inside the formula of this observer but lists
     r2 as its parameter; the text assigns r2 = 0.005 to it.)
     """
+    require_system(system, "design_high_gain_derivatives")
     caller = "design_high_gain_derivatives"
     th = _theta(theta, r, caller)
     n, p = system.n_states, system.n_outputs

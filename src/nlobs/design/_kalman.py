@@ -17,7 +17,7 @@ from ..model import TIME, StateAffine, System, symbol
 from ..model._system import exact
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import check_matrix
-from ._common import box_of, leaves_of, measured_states, sup_over_box, to_sx
+from ._common import box_of, leaves_of, measured_states, require_system, sup_over_box, to_sx
 from ._high_gain import _theta, triangular_chains
 from ..references import cite
 
@@ -336,6 +336,7 @@ def design_high_gain_kalman(system: System, *, lam: float, delta: float, W: Any 
     ----------
     002_613af42269ea26a7.txt, "'Non uniformly observable' systems - LTV-like with structured NL".
     """
+    require_system(system, "design_high_gain_kalman")
     caller = "design_high_gain_kalman"
     if system.n_outputs != 1:
         raise PreconditionError(f"{caller}: one output is required ({cite('002')}'s form has y = x1); the model has {system.n_outputs}")

@@ -16,7 +16,7 @@ from ..errors import PreconditionError
 from ..model import TIME, System
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import check_matrix
-from ._common import batch, box_of, sup_over_box
+from ._common import batch, box_of, require_system, sup_over_box
 from ..references import cite
 
 __all__ = ["design_lipschitz", "lipschitz_constant", "thau_margin"]
@@ -206,6 +206,7 @@ def design_lipschitz(system: System, *, gamma: float | None = None, region: Mapp
     ----------
     002_613af42269ea26a7.txt, "LTI + Lipschitz NL", "First idea" (Thau 1973).
     """
+    require_system(system, "design_lipschitz")
     caller = "design_lipschitz"
     n, p = system.n_states, system.n_outputs
     f, h = system.substituted()

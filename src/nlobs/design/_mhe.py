@@ -17,6 +17,7 @@ import numpy as np
 from ..engine import compile_system, rk4_step
 from ..errors import PreconditionError
 from ..model import System
+from ._common import require_system
 from ._base import Certificate, Check, ObserverDesign, check_vector
 from ._checks import check_matrix
 from ..references import cite
@@ -91,6 +92,7 @@ def design_mhe(system: System, *, horizon: int = 20, R: Any = None, P_arrival: A
     ----------
     002_613af42269ea26a7.txt, "Some observer problem formulations - About methods", approach I.
     """
+    require_system(system, "design_mhe")
     caller = "design_mhe"
     n, p, nu = system.n_states, system.n_outputs, system.n_inputs
     N = int(horizon)

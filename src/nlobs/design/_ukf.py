@@ -10,6 +10,7 @@ import numpy as np
 from ..engine import compile_system
 from ..errors import PreconditionError
 from ..model import System
+from ._common import require_system
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import check_matrix
 
@@ -81,6 +82,7 @@ def design_ukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
     ----------
     Särkkä (2007); Julier & Uhlmann (2004); the continuous-discrete EKF of this package for comparison.
     """
+    require_system(system, "design_ukf")
     caller = "design_ukf"
     n, p = system.n_states, system.n_outputs
     Qm = check_matrix(Q, n, n, "Q", caller, definite="semidefinite")

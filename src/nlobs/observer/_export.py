@@ -30,7 +30,7 @@ from ._base import AbstractObserver, Observer, as_observer
 
 __all__ = ["CExport", "export_c"]
 
-_C_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,39}$")
+_C_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,39}")
 _C_KEYWORDS = frozenset(
     "auto break case char const continue default do double else enum extern float for goto if inline int long "
     "register restrict return short signed sizeof static struct switch typedef union unsigned void volatile while "
@@ -118,9 +118,9 @@ def _default_name(design: ObserverDesign) -> str:
 
 
 def _check_name(name: str) -> str:
-    if not isinstance(name, str) or not _C_NAME.match(name) or name in _C_KEYWORDS or keyword.iskeyword(name):
+    if not isinstance(name, str) or not _C_NAME.fullmatch(name) or name in _C_KEYWORDS or keyword.iskeyword(name):
         raise ValueError(f"export_c: `name` must be a C identifier of at most 40 characters (a letter, then letters, "
-                         f"digits or underscores; not a C keyword), got {name!r}")
+                         f"digits or underscores; not a C keyword), got {repr(name)[:60]}")  # fullmatch: "abc\n" is refused
     return name
 
 

@@ -12,6 +12,8 @@ compiled through CasADi (see :mod:`nlobs.engine`). Two measurement modes:
 
 from __future__ import annotations
 
+import numbers
+
 from collections import OrderedDict
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -230,6 +232,10 @@ class Prepared:
         return self.noise is not None or self.process_noise is not None
 
 
+#: Most RK4 steps one run stores (t_final / dt); beyond it the trajectories alone need tens of GB.
+MAX_STEPS = 1e8
+
+
 def prepare(plant: System, observers: Any, *, t_final: float, dt: float, inputs: Any, params: Mapping[str, float] | None,
             noise: Noise | None, process_noise: ProcessNoise | None, sampling: Sampling | None, caller: str,
             integrator: Adaptive | None = None) -> Prepared:
@@ -237,8 +243,13 @@ def prepare(plant: System, observers: Any, *, t_final: float, dt: float, inputs:
     if not isinstance(plant, System):
         raise TypeError(f"{caller}: `plant` must be an nlobs.System, got {type(plant).__name__}")
     for label, v in (("t_final", t_final), ("dt", dt)):
-        if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
+        if not (isinstance(v, numbers.Real) and not isinstance(v, bool) and np.isfinite(v) and v > 0):
             raise ShapeError(f"{caller}: `{label}` must be a positive number, got {v!r}")
+    # a float32/float16 value means its shortest decimal (np.float32(1e-3) -> 0.001, not 0.0010000000475)
+    t_final, dt = (float(str(v)) if isinstance(v, np.floating) and np.finfo(v).bits < 64 else float(v) for v in (t_final, dt))
+    if t_final / dt > MAX_STEPS:
+        raise ShapeError(f"{caller}: t_final / dt = {t_final:g} / {dt:g} = {t_final / dt:.3g} steps, more than {MAX_STEPS:.0e} "
+                         "(every step is stored): choose a larger dt or a shorter t_final")
     N = int(round(t_final / dt))
     if N < 1 or abs(N * dt - t_final) > 1e-9 * max(1.0, t_final):
         raise ShapeError(f"{caller}: t_final = {t_final:g} must be a whole multiple of dt = {dt:g}")
