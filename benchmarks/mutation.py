@@ -52,7 +52,7 @@ MODULES: dict[str, list[str]] = {
     "analysis/_identity.py": ["tests/analysis/test_identity.py", "tests/design/test_pebo.py", "tests/design/test_iandi.py"],
 }
 
-_SETUP = """
+_SETUP = r"""
 [tool.mutmut]
 source_paths = ["src/nlobs"]
 only_mutate = ["src/nlobs/{module}"]
@@ -63,7 +63,7 @@ timeout_constant = 30.0
 use_git_change_detection = false
 # error messages and certificate text are not equations: raise statements, Check(...) lines and
 # certificate values are left alone (a changed message is not a broken equation)
-do_not_mutate_patterns = ["^\\s*raise ", "Check\\(|Check\\.assumed\\(", "values\\[|values\\.update|values = \\{|values: dict", "__str__"]
+do_not_mutate_patterns = ['^\s*raise ', 'Check\(|Check\.assumed\(', 'values\[|values\.update|values = \{|values: dict', '__str__']
 """
 
 
@@ -77,7 +77,8 @@ def _prepare(module: str, tests: list[str]) -> Path:
     shutil.copy(ROOT / "pyproject.toml", work / "pyproject.toml")
     text = (work / "pyproject.toml").read_text()
     # pytest options of the project apply (warnings as errors, markers); mutmut's own table is appended
-    (work / "pyproject.toml").write_text(text + _SETUP.format(module=module, tests=json.dumps(tests)))
+    table = _SETUP.replace("{module}", module).replace("{tests}", json.dumps(tests))
+    (work / "pyproject.toml").write_text(text + table)
     # PYTHONPATH points at mutants/src; it must exist before mutmut starts, or Python caches "no such
     # directory" for it and the tests import the unmutated package through the editable install
     (work / "mutants" / "src").mkdir(parents=True)

@@ -199,10 +199,18 @@ def design_banks(system: System, *, P: Any, region: Mapping[str, Sequence[float]
     f, h = system.substituted()
     J = ((f - sp.Matrix(f2)).jacobian(sp.Matrix(system.x)) + _exact(Pm) * h.jacobian(sp.Matrix(system.x))).applyfunc(sp.simplify)
     how = "exact (constant matrix)" if cond.exact else "sup over the region (grid + local polish)"
-    checks = [Check(f"λ(Df1(x) + P·DB(x)) <= -ε < 0 on Ω ({cite('003')} Lemma 2.3 / Theorem 2.6)", True, f"ε = {cond.epsilon:.6g}, {how}{at}"),
+    sampled = "sampled over Ω (random points, corners, centre, L-BFGS-B): the supremum is estimated from below, not proved"
+    checks = [Check(f"λ(Df1(x) + P·DB(x)) <= -ε < 0 on Ω ({cite('003')} Lemma 2.3 / Theorem 2.6)", True, f"ε = {cond.epsilon:.6g}, {how}{at}",
+                    "exact (constant matrix)" if cond.exact else sampled),
               Check(f"perturbation Lipschitz K < ε ({cite('003')} Theorem 2.6; Lemma 2.4 with slope μ <= K)", True,
                     f"K = {cond.K:.4g}" + (" (given)" if perturbation_bound is not None else " (sup ‖Df2‖₂ over Ω)")
-                    + f", slope μ = {cond.slope:.4g}")]
+                    + f", slope μ = {cond.slope:.4g}",
+                    "K as given, compared exactly" if perturbation_bound is not None else
+                    ("exact (f2 linear)" if not any(e.free_symbols & set(system.x) for e in sp.Matrix(f2).jacobian(sp.Matrix(system.x)))
+                     else sampled))]
+    if perturbation_bound is not None:
+        checks.append(Check.assumed(f"the perturbation f2 is Lipschitz with the constant K = {cond.K:.4g} given",
+                                    "stated by the user (perturbation_bound); not verified"))
     if region is not None:
         checks.append(Check.assumed("x and x̂ stay in the convex region Ω", f"{cite('003')} Theorem 2.6: " +
                             ", ".join(f"{k} in [{v[0]:g}, {v[1]:g}]" for k, v in region.items())))

@@ -344,7 +344,10 @@ def design_high_gain(system: System, *, theta: float | None = None, r: float | N
                 raise PreconditionError(f"{caller}: theta = {th:.4g} is not above the sufficient bound theta* = max(1, 2√n γ "
                                         f"λmax(P0)) = {theta_min:.4g} (γ = {gam:g}, λmax(P0) = {lmax:.4g}); increase theta")
             rate = (th - 2.0 * np.sqrt(n) * gam * lmax) / (2.0 * lmax)
-            checks.append(Check("theta > theta* (Lyapunov bound in scaled coordinates)", True, f"{th:.4g} > {theta_min:.4g}"))
+            checks.append(Check("theta > theta* (Lyapunov bound in scaled coordinates)", True, f"{th:.4g} > {theta_min:.4g}",
+                                "floating point (Lyapunov equation), with the γ given"))
+            checks.append(Check.assumed(f"the nonlinearity is globally Lipschitz with the γ = {gam:g} given",
+                                        "stated by the user (`lipschitz`); not verified"))
             values.update({"P0": P0, "theta_min": theta_min, "lipschitz": gam, "guaranteed_rate": float(rate)})
     elif lipschitz is not None:
         raise PreconditionError(f"{caller}: the Lipschitz bound needs constant couplings; with a coupling depending on (u, y) "

@@ -142,7 +142,12 @@ def _riccati_design(method: str, title: str, ref: str, parts: StateAffineParts, 
         if d <= 2 * normA:
             raise PreconditionError(f"{caller}: the forgetting factor δ = {d:g} is not above 2 sup‖A‖ = {2 * normA:.4g} ({where}); "
                                     f"take δ > {2 * normA:.4g}, or give V positive definite ({cite('002')}: δ > 2‖A(t)‖ or V > 0)")
-        checks.append(Check(f"δ > 2 sup‖A‖ ({cite('002')})", True, f"{d:g} > {2 * normA:.4g}, {where}"))
+        checks.append(Check(f"δ > 2 sup‖A‖ ({cite('002')})", True, f"{d:g} > {2 * normA:.4g}, {where}",
+                            "exact (A constant)" if not parts.A.free_symbols else
+                            "sampled over the region: sup‖A‖ is estimated from below, not proved"))
+        if parts.A.free_symbols:
+            checks.append(Check.assumed("the inputs and outputs stay in the region where sup‖A‖ was estimated",
+                                        "not checked at design time"))
         values["sup_norm_A"] = normA
     else:
         raise PreconditionError(f"{caller}: neither forgetting nor noise: give δ > 2‖A‖ (`delta`) or V positive definite "

@@ -239,12 +239,17 @@ def design_lipschitz(system: System, *, gamma: float | None = None, region: Mapp
                                     "states and inputs) to estimate it over")
         gam, where = lipschitz_constant(system, phi, region, caller=caller)
         checks.append(Check("γ estimated over the region (sup of ‖∂φ/∂x‖₂; valid while x and x̂ stay in it)", True,
-                            f"γ ≈ {gam:.4g} at {where}"))
+                            f"γ ≈ {gam:.4g} at {where}", "sampled over the region: a lower bound of the supremum, not a proof"))
+        checks.append(Check.assumed("x and x̂ stay in the region where γ was estimated",
+                                    ", ".join(f"{k} in [{v[0]:g}, {v[1]:g}]" for k, v in region.items())))
         values["region"] = dict(region)
+        gamma_kind = "with γ sampled from below over the region"
     else:
         gam = float(gamma)
         if not (np.isfinite(gam) and gam >= 0):
             raise PreconditionError(f"{caller}: `gamma` must be a non-negative number, got {gamma}")
+        checks.append(Check.assumed(f"φ = f - Ax is Lipschitz with the γ = {gam:g} given", "stated by the user; not verified"))
+        gamma_kind = "with the γ given"
     if K is not None:
         Km = check_matrix(K, n, p, "K", caller)
         margin, P = thau_margin(Am, C, Km)
@@ -266,7 +271,8 @@ def design_lipschitz(system: System, *, gamma: float | None = None, region: Mapp
     ev = np.linalg.eigvals(Am - Km @ C)
     ev = ev[np.lexsort((ev.imag, ev.real))]
     lam = np.linalg.eigvalsh(P)
-    checks.append(Check("Thau condition eigmin(Q)/(2 eigmax(P)) > γ (Q = I)", True, f"{margin:.4g} > {gam:.4g}"))
+    checks.append(Check("Thau condition eigmin(Q)/(2 eigmax(P)) > γ (Q = I)", True, f"{margin:.4g} > {gam:.4g}",
+                        f"floating point, {gamma_kind}"))
     values.update({"K": Km, "P": P, "Q": np.eye(n), "margin": margin, "gamma": gam, "guaranteed_rate": margin - gam,
                    "overshoot": float(np.sqrt(lam.max() / lam.min())), "eigenvalues": ev})
     s = Symbols.make(system, n)
