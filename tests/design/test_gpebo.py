@@ -73,3 +73,21 @@ def test_a_depending_on_the_output_uses_the_measurement():
     flow = np.asarray(d.flow(0.0, np.arange(d.n_z, dtype=float) * 0.1, [], [2.0])).ravel()
     # ξ' = A(y)ξ with ξ = (0, 0.1) and y = 2: (0.1, -4·0.1)
     assert np.allclose(flow[:2], [0.1, -0.4])
+
+
+def test_refusal_names_the_unstable_eigenvalue_and_the_matrix():
+    # assumption (5) of 000: the message names the eigenvalue with the largest real part (3, not -1) and which
+    # matrix has it (A without injection, A - LCᵀ with one), with the matching next step
+    sa = StateAffine([[-1, 0], [0, 3]], [0, 0], [[1], [1]])
+    with pytest.raises(PreconditionError, match=r"A has the eigenvalue 3\+0j .*choose an output injection `L`"):
+        design_2gd(sa)
+    with pytest.raises(PreconditionError, match=r"A - LCᵀ has the eigenvalue 3\+0j .*choose another `L`"):
+        design_2gd(sa, L=[[0.5], [0.0]])      # A - LCᵀ = [[-1.5, -0.5], [0, 3]]: 3 stays
+
+
+def test_2gd_documented_defaults_and_initial_estimate():
+    # design_2gd's defaults are γ_g = γ = 1 (its signature and docstring); x̂(0) is the xhat0 given (ξ(0) = x̂0, θ̂(0) = 0)
+    d = design_2gd(OSC, xhat0=[0.25, -0.75])
+    assert d.certificate.values["gd.gamma_g"] == 1.0 and d.certificate.values["gd.gamma"] == 1.0
+    run = simulate(OSC.to_system(), {"o": d}, t_final=0.01, dt=1e-3, x0=[1.0, -0.5], inputs={"u": "0"})
+    assert np.array_equal(run.observers["o"].xhat[0], [0.25, -0.75])
