@@ -102,7 +102,7 @@ CASES: list[Case] = []
 #: cases that take seconds (long runs, big inputs, time gaps): benchmarks/hostile_slow.py runs them
 SLOW = {"csv-gap", "csv-gap-max-step", "toml-blowup-analyze", "toml-toml-big", "toml-many-states", "csv-long-line",
         "csv-many-columns", "cli-analyze-inputs-huge", "cli-sim-plot-bad-dir", "cli-sim-plot-bad-ext", "cli-sim-valid",
-        "cli-sim-json", "cli-export-valid", "api-simulate_dt_huge_steps", "toml-name-long"}
+        "cli-sim-json", "cli-export-valid", "toml-name-long"}
 
 
 def case(*args: Any, **kwargs: Any) -> None:
@@ -494,82 +494,34 @@ def _sim(**kw):
     return nlobs.simulate(s, obs, **args)
 
 
-@api()
-def simulate_t_final_negative(d):
-    return _sim(t_final=-1)
+_SIM_ERRORS = {  # simulate(...) with one bad argument: each must be refused with a clean error
+    "simulate_t_final_negative": lambda: dict(t_final=-1),
+    "simulate_t_final_nan": lambda: dict(t_final=float("nan")),
+    "simulate_dt_zero": lambda: dict(dt=0),
+    "simulate_dt_negative": lambda: dict(dt=-1e-3),
+    "simulate_dt_huge_steps": lambda: dict(t_final=1e9, dt=1e-3),
+    "simulate_x0_length": lambda: dict(x0=[1]),
+    "simulate_x0_nan": lambda: dict(x0=[float("nan"), 0]),
+    "simulate_x0_string": lambda: dict(x0="one"),
+    "simulate_input_unknown": lambda: dict(inputs={"zz": 1}),
+    "simulate_input_code": lambda: dict(inputs={"u": "__import__('os').system('touch PWNED')"}),
+    "simulate_input_state": lambda: dict(inputs={"u": "x1"}),
+    "simulate_input_array_length": lambda: dict(inputs={"u": [1.0, 2.0, 3.0]}),
+    "simulate_noise_negative": lambda: dict(noise=__import__("nlobs").Noise.gaussian(-1.0)),
+    "simulate_sampling_zero": lambda: dict(sampling=__import__("nlobs").Sampling(0.0)),
+    "simulate_sampling_nan": lambda: dict(sampling=__import__("nlobs").Sampling(float("nan"))),
+    "simulate_xhat0_nan": lambda: dict(xhat0=[float("nan"), 0]),
+    "simulate_unknown_engine": lambda: dict(engine="gpu"),
+}
 
 
-@api()
-def simulate_t_final_nan(d):
-    return _sim(t_final=float("nan"))
+def _sim_case(kwargs_of: Callable[[], dict]) -> Callable[[Path], Any]:
+    return lambda d: _sim(**kwargs_of())
 
 
-@api()
-def simulate_dt_zero(d):
-    return _sim(dt=0)
-
-
-@api()
-def simulate_dt_negative(d):
-    return _sim(dt=-1e-3)
-
-
-@api()
-def simulate_dt_huge_steps(d):
-    return _sim(t_final=1e9, dt=1e-3)
-
-
-@api()
-def simulate_x0_length(d):
-    return _sim(x0=[1])
-
-
-@api()
-def simulate_x0_nan(d):
-    return _sim(x0=[float("nan"), 0])
-
-
-@api()
-def simulate_x0_string(d):
-    return _sim(x0="one")
-
-
-@api()
-def simulate_input_unknown(d):
-    return _sim(inputs={"zz": 1})
-
-
-@api()
-def simulate_input_code(d):
-    return _sim(inputs={"u": "__import__('os').system('touch PWNED')"})
-
-
-@api()
-def simulate_input_state(d):
-    return _sim(inputs={"u": "x1"})
-
-
-@api()
-def simulate_input_array_length(d):
-    return _sim(inputs={"u": [1.0, 2.0, 3.0]})
-
-
-@api()
-def simulate_noise_negative(d):
-    import nlobs
-    return _sim(noise=nlobs.Noise.gaussian(-1.0))
-
-
-@api()
-def simulate_sampling_zero(d):
-    import nlobs
-    return _sim(sampling=nlobs.Sampling(0.0))
-
-
-@api()
-def simulate_sampling_nan(d):
-    import nlobs
-    return _sim(sampling=nlobs.Sampling(float("nan")))
+for _name, _kw in _SIM_ERRORS.items():
+    API[_name] = _sim_case(_kw)
+    case(f"api-{_name}", "api", _name)
 
 
 @api()
@@ -584,16 +536,6 @@ def simulate_float32_dt(d):
     import numpy as np
     run = _sim(dt=np.float32(1e-3))
     return bool(np.all(np.isfinite(run.x)))
-
-
-@api()
-def simulate_xhat0_nan(d):
-    return _sim(xhat0=[float("nan"), 0])
-
-
-@api()
-def simulate_unknown_engine(d):
-    return _sim(engine="gpu")
 
 
 @api(expect="ok")
