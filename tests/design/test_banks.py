@@ -58,3 +58,25 @@ def test_bad_gain_is_refused_with_the_point():
         design_banks(KOU, P=[[1.0], [1.0]], region={"x2": (-2.0, 2.0)})
     with pytest.raises(PreconditionError, match="region"):
         design_banks(KOU, P=[[-2.0], [1.0]])
+
+
+def test_constant_jacobian_is_decided_exactly():
+    # LTI model: Df1 + P·DB = A + PC is constant, so ε = -λ(A + PC) exactly (no region needed, evidence "exact")
+    lti = nlobs.System(states=["x1", "x2"], f=["-x1 + 3*x2", "-2*x2"], outputs=["y"], h=["x1"])
+    d = design_banks(lti, P=[[-1.0], [0.0]])
+    M = np.array([[-2.0, 3.0], [0.0, -2.0]])                      # A + PC
+    assert d.certificate.values["epsilon"] == pytest.approx(-np.linalg.eigvalsh((M + M.T) / 2).max(), abs=1e-12)
+    assert d.certificate.values["epsilon"] == pytest.approx(0.5, abs=1e-12)   # -(-2 + 3/2)
+    first = d.certificate.checks[0]
+    assert first.holds and first.evidence == "exact (constant matrix)"
+
+
+def test_input_in_the_jacobian_ranges_over_the_region():
+    # Df1 + P·DB = [[-2, u], [0, -3]] (y = x1, P = (-1, 0)): λ = (-5 + sqrt(1 + u²))/2, largest at |u| = 1:
+    # ε = (5 - √2)/2 over u in [-1, 1] (closed form); the evidence says the sup was sampled
+    s = nlobs.System(states=["x1", "x2"], f=["-x1 + u*x2", "-3*x2"], inputs=["u"], outputs=["y"], h=["x1"])
+    d = design_banks(s, P=[[-1.0], [0.0]], region={"u": (-1.0, 1.0)})
+    assert d.certificate.values["epsilon"] == pytest.approx((5 - np.sqrt(2)) / 2, abs=1e-9)
+    assert "sampled" in d.certificate.checks[0].evidence
+    d2 = design_banks(s, P=[[-1.0], [0.0]], region={"u": (-3.0, 3.0)})
+    assert d2.certificate.values["epsilon"] == pytest.approx((5 - np.sqrt(10)) / 2, abs=1e-9)
