@@ -83,3 +83,48 @@ class TestBanks:
             banks_condition(KOU_F1, ["x1 + x2"], [-2, 1, 3], ["x1", "x2"], [[-1, 1], [-1, 1]])
         with pytest.raises(ShapeError, match="square"):
             matrix_measure([[1, 2, 3]])
+
+
+class TestBanksReports:
+    """What Banks' checks tell a user: the function and argument at fault, the verdict, the worst point, the evidence."""
+
+    @pytest.mark.parametrize("call, where", [
+        (lambda: max_slope(["x1 +"], ["x1"], [[0, 1]]), r"^max_slope: `exprs`\[0\]"),
+        (lambda: max_slope(["x1"], ["x1"], [[0, 1], [0, 1]]), r"^max_slope: `box`"),
+        (lambda: max_slope(["x1", "1"], ["x1"], [[0, 1]]), r"^max_slope: N must map R\^1 to itself: 2 components"),
+        (lambda: banks_condition(["x1 +"], ["x1"], [[-1]], ["x1"], [[0, 1]]), r"^banks_condition: `f1`\[0\]"),
+        (lambda: banks_condition(["-x1"], ["q"], [[-1]], ["x1"], [[0, 1]]), r"^banks_condition: `B`\[0\]"),
+        (lambda: banks_condition(["-x1"], ["x1"], [[-1]], ["x1"], [[0, 1], [0, 1]]), r"^banks_condition: `region`"),
+        (lambda: banks_condition(["-x1", "0"], ["x1"], [[-1]], ["x1"], [[0, 1]]), r"^banks_condition: `f1` must have 1"),
+        (lambda: banks_condition(["-x1"], ["x1"], [[np.inf]], ["x1"], [[0, 1]]), r"^banks_condition: `P` has non-finite"),
+        (lambda: lipschitz_bound(["x1"], ["x1"], [[0, 1], [0, 1]]), r"^lipschitz_bound: `box`"),
+        (lambda: matrix_measure([[np.nan]]), r"^matrix_measure: `A` has non-finite"),
+    ])
+    def test_errors_name_the_function_and_the_argument(self, call, where):
+        with pytest.raises(ValueError, match=where):
+            call()
+
+    def test_reports_give_verdict_point_and_evidence(self):
+        ok = max_slope(["-x - x**3"], ["x"], [[-1, 1]])
+        assert ok.dissipative and ok.mu == pytest.approx(-1.0, abs=1e-6) and ok.worst_point == pytest.approx([0.0], abs=1e-4)
+        text = str(ok)
+        assert "dissipative (Lemma 2.3)" in text and "(x=0)" in text and "Banks (1980)" in text and "lower bound" in text
+        bad = max_slope(["x**3"], ["x"], [[-1, 2]])
+        assert not bad.dissipative and bad.mu == pytest.approx(12.0) and "NOT dissipative" in str(bad)
+        assert bad.evidence == "witness point" and abs(bad.worst_point[0]) == pytest.approx(2.0)
+        chk = banks_condition(KOU_F1, ["x1 + x2"], [[-2], [1]], ["x1", "x2"], [[-5, 5], [-5, 5]], epsilon=0.5)
+        assert chk.holds and "≤ -ε = -0.5" in str(chk) and "Thm 2.6" in str(chk) and "K < 1" in str(chk)
+        assert chk.margin == pytest.approx(1.0, abs=1e-9) and chk.P.shape == (2, 1)
+        free = banks_condition(KOU_F1, ["x1 + x2"], [[-2], [1]], ["x1", "x2"], [[-5, 5], [-5, 5]])
+        assert free.holds and "< 0" in str(free) and free.epsilon == 0.0
+        assert "FAILS" in str(banks_condition(KOU_F1, ["x1 + x2"], [[-2], [1]], ["x1", "x2"], [[-5, 5], [-5, 5]], epsilon=2.0))
+
+    def test_defaults_are_reproducible_and_documented(self):
+        # samples = 2000 and seed = 0 by default: the same numbers as asking for them explicitly
+        a = lipschitz_bound(["sin(3*x)*y"], ["x", "y"], [[-1, 1], [0, 2]])
+        b = lipschitz_bound(["sin(3*x)*y"], ["x", "y"], [[-1, 1], [0, 2]], samples=2000, seed=0)
+        assert a.gamma == b.gamma and a.samples == 2000 and np.array_equal(a.worst_point, b.worst_point)
+        s1, s2 = max_slope(["sin(3*x)"], ["x"], [[-1, 1]]), max_slope(["sin(3*x)"], ["x"], [[-1, 1]], samples=2000, seed=0)
+        assert s1.mu == s2.mu and s1.tol == 1e-9 and s1.samples == 2000
+        # a slope at the tolerance counts as dissipative (μ <= tol)
+        assert max_slope(["0*x"], ["x"], [[-1, 1]]).dissipative
