@@ -110,7 +110,7 @@ def banks_conditions(system: System, P: np.ndarray, perturbation: Sequence[sp.Ex
         where = dict(zip(names, np.round(arg, 6).tolist()))
     if perturbation_bound is not None:
         K = slope = float(perturbation_bound)
-    elif f2.free_symbols & set(lookup.values()):
+    elif D2.free_symbols & set(lookup.values()):   # Df2 varies (a linear f2 has a constant Df2: exact)
         K, _ = sup_over_box(lambda Q: np.linalg.norm(batch(Df, Q), 2, axis=(1, 2)), lo, hi)
         slope, _ = sup_over_box(lambda Q: matrix_measure(batch(Df, Q)), lo, hi)
     else:
