@@ -128,3 +128,41 @@ class TestBanksReports:
         assert s1.mu == s2.mu and s1.tol == 1e-9 and s1.samples == 2000
         # a slope at the tolerance counts as dissipative (μ <= tol)
         assert max_slope(["0*x"], ["x"], [[-1, 1]]).dissipative
+
+
+class TestBoxSup:
+    """The sampled supremum over a box (analysis.box_sup) that every Banks/Lipschitz estimate uses."""
+
+    def test_sup_at_a_corner_of_a_box_away_from_the_origin(self):
+        from nlobs.analysis._conditions import box_sup
+        box = np.array([[1.0, 2.0], [3.0, 5.0]])
+        v, x = box_sup(lambda P: P[:, 0] + P[:, 1], box)
+        assert v == 7.0 and np.array_equal(x, [2.0, 5.0])          # the corner (hi, hi), exactly, and inside the box
+        v, x = box_sup(lambda P: -P[:, 0] - P[:, 1], box)
+        assert v == -4.0 and np.array_equal(x, [1.0, 3.0])
+        v, x = box_sup(lambda P: -((P[:, 0] - 1.5) ** 2) - (P[:, 1] - 4.0) ** 2, box)
+        assert v == 0.0 and np.array_equal(x, [1.5, 4.0])          # the centre is sampled exactly
+        # a corner that random samples and a local search from the best samples would miss: a narrow spike
+        v, x = box_sup(lambda P: np.where((P[:, 0] > 1.999999) & (P[:, 1] < 3.000001), 10.0, 0.0), box)
+        assert v == 10.0
+        with pytest.raises(Exception, match=r"not finite at \(1, 3\)|not finite at \[1, 3\]|not finite at"):
+            box_sup(lambda P: np.where(P[:, 0] == 1.0, np.inf, 0.0), box)
+
+    def test_lipschitz_constant_on_a_shifted_box(self):
+        # γ of x² on [1, 2] is 4, at x = 2 (samples must stay inside the box)
+        est = lipschitz_bound(["x**2"], ["x"], [[1.0, 2.0]])
+        assert est.gamma == pytest.approx(4.0, abs=1e-12) and est.worst_point == pytest.approx([2.0])
+
+    def test_boxes_and_matrices_are_checked(self):
+        assert max_slope("-x", ["x"], [-1, 1]).dissipative            # a single expression and a flat [lo, hi]
+        assert max_slope(["-x"], ["x"], [[0.5, 0.5]]).mu == pytest.approx(-1.0)   # a degenerate box is a point
+        with pytest.raises(ShapeError, match="one \\[low, high\\] pair per coordinate"):
+            max_slope(["-x", "-y"], ["x", "y"], [-1, 1, -1, 1])
+        with pytest.raises(DataError, match="row 1 has a NaN"):
+            max_slope(["-x", "-y"], ["x", "y"], [[-1, 1], [np.nan, 1]])
+        with pytest.raises(DataError, match=r"row 1 has low > high: \[2.0, 1.0\]"):
+            max_slope(["-x", "-y"], ["x", "y"], [[-1, 1], [2, 1]])
+        assert isinstance(matrix_measure([[1.0, 0.0], [0.0, -1.0]]), float)
+        assert matrix_measure(np.zeros((4, 2, 2))).shape == (4,)
+        with pytest.raises(ShapeError, match="square"):
+            matrix_measure(np.zeros((4, 2, 3)))
