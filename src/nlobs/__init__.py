@@ -21,6 +21,7 @@ from .design import design_output_injection as design_output_injection
 from .errors import ConvergenceWarning as ConvergenceWarning
 from .errors import DataError as DataError
 from .errors import FiniteEscapeError as FiniteEscapeError
+from .errors import SolverError as SolverError
 from .errors import FormError as FormError
 from .errors import ModelError as ModelError
 from .errors import ModelFileError as ModelFileError

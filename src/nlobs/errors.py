@@ -25,6 +25,7 @@ __all__ = [
     "DataError",
     "EngineError",
     "FiniteEscapeError",
+    "SolverError",
     "ConvergenceWarning",
 ]
 
@@ -102,6 +103,23 @@ class FiniteEscapeError(NlobsError, RuntimeError):
         self.where = where
         self.t = float(t)
         self.x = np.asarray(x, dtype=float)
+
+
+class SolverError(NlobsError, RuntimeError):
+    """An optimisation solved inside an estimator failed (e.g. the NLP of a moving-horizon window).
+
+    Attributes
+    ----------
+    window : tuple of float
+        The time span (first and last sample time) of the data the solver was given.
+    status : str
+        What the solver(s) reported.
+    """
+
+    def __init__(self, message: str, *, window: tuple[float, float], status: str):
+        super().__init__(message)
+        self.window = (float(window[0]), float(window[1]))
+        self.status = status
 
 
 class ConvergenceWarning(UserWarning):

@@ -104,6 +104,14 @@ _ALL = (
     Reference("schoukens2016", "M. Schoukens, P. Mattsson, T. Wigren, J.-P. Noël", "Schoukens, Mattsson, Wigren & Noël",
               "Cascaded tanks benchmark combining soft and hard nonlinearities",
               "Workshop on Nonlinear System Identification Benchmarks, Brussels", 2016),
+    Reference("rao2003", "C. V. Rao, J. B. Rawlings, D. Q. Mayne", "Rao, Rawlings & Mayne",
+              "Constrained state estimation for nonlinear discrete-time systems: stability and moving horizon approximations",
+              "IEEE Transactions on Automatic Control 48(2):246–258", 2003),
+    Reference("kuhl2011", "P. Kühl, M. Diehl, T. Kraus, J. P. Schlöder, H. G. Bock", "Kühl, Diehl, Kraus, Schlöder & Bock",
+              "A real-time algorithm for moving horizon state and parameter estimation",
+              "Computers & Chemical Engineering 35(1):71–83", 2011),
+    Reference("simon2010", "D. Simon", "Simon", "Kalman filtering with state constraints: a survey of linear and nonlinear algorithms",
+              "IET Control Theory & Applications 4(8):1303–1318", 2010),
 )
 
 #: Every work nlobs cites, by key.

@@ -19,7 +19,7 @@ import casadi as ca
 import numpy as np
 
 from ..design import ObserverDesign
-from ..engine import compile_system, rk4_step
+from ..engine import compile_system, raise_deferred, rk4_step
 from ..errors import DataError, ShapeError
 
 __all__ = ["AbstractObserver", "Observer", "OnlineObserver", "as_observer"]
@@ -113,7 +113,9 @@ class Observer(AbstractObserver):
         if self._design.update is None:
             return _vec(z, self.n_z, "z").copy()
         m = np.ones(self.system.n_outputs) if mask is None else _vec(mask, self.system.n_outputs, "mask")
-        return np.asarray(self._design.update(*self._io(t, z, u, y), m), dtype=float).reshape(-1)
+        out = np.asarray(self._design.update(*self._io(t, z, u, y), m), dtype=float).reshape(-1)
+        raise_deferred()  # an update that runs Python (MHE's solver) reports its failure here, with its own error
+        return out
 
     def step_function(self, substeps: int = 1) -> ca.Function:
         """``(z, t, dt, u, y) -> z(t + dt)``: `substeps` RK4 steps of the flow with u, y held."""
