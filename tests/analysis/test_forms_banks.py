@@ -166,3 +166,28 @@ class TestBoxSup:
         assert matrix_measure(np.zeros((4, 2, 2))).shape == (4,)
         with pytest.raises(ShapeError, match="square"):
             matrix_measure(np.zeros((4, 2, 3)))
+
+
+class TestSamplingOptions:
+    def test_spectral_norm_two_outputs_and_report_text(self):
+        est = lipschitz_bound(["0.3*y", "0.4*x"], ["x", "y"], [[-1, 1], [-1, 1]])
+        assert est.gamma == pytest.approx(0.4, abs=1e-12)                  # ‖[[0, 0.3], [0.4, 0]]‖₂ (Frobenius: 0.5)
+        assert "x=" in str(est) and "‖DN‖₂" in str(est)
+        # two outputs, P given flat (n·p numbers, row-major): P = [[-1, 0], [0, -1]]
+        chk = banks_condition(["x1", "x2"], ["x1", "x2"], [-2, 0, 0, -2], ["x1", "x2"], [[-1, 1], [-1, 1]])
+        assert chk.P.shape == (2, 2) and chk.lam_max == pytest.approx(-1.0, abs=1e-12)
+
+    def test_seed_and_samples_are_used(self):
+        # on a plateau every sample is a maximiser: the reported point is a sample, so it follows seed and samples
+        def worst(**kw):
+            return banks_condition(["-x1"], ["x1"], [[0.0]], ["x1"], [[0.0, 1.0]], **kw).worst_point[0]
+        assert worst(seed=3) == worst(seed=3) != worst(seed=4)
+        assert worst(samples=50, seed=3) != worst(samples=60, seed=3)
+        s3, s4 = (max_slope(["0*x"], ["x"], [[0.0, 1.0]], seed=k).worst_point[0] for k in (3, 4))
+        assert s3 != s4
+        l3, l4 = (lipschitz_bound(["x"], ["x"], [[0.0, 1.0]], seed=k, samples=40).worst_point[0] for k in (3, 4))
+        assert l3 != l4 and lipschitz_bound(["x"], ["x"], [[0.0, 1.0]], samples=40).samples == 40
+
+    def test_tolerance_is_inclusive(self):
+        assert max_slope(["0*x"], ["x"], [[-1, 1]], tol=0.0).dissipative           # μ = 0 <= tol = 0
+        assert not max_slope(["1e-6*x"], ["x"], [[-1, 1]], tol=0.0).dissipative
