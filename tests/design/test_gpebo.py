@@ -129,3 +129,16 @@ def test_injection_gain_may_use_parameters_and_is_checked():
 def test_gpebo_default_estimator_is_gd_with_unit_gains():
     d = design_gpebo(OSC)
     assert d.certificate.values["gd.gamma_g"] == 1.0 and d.certificate.values["gd.gamma"] == 1.0
+
+
+def test_method_certificate_and_reference_name_what_was_built():
+    gd = design_2gd(OSC)
+    assert gd.method == "gpebo_2gd" and gd.certificate.method == "2G+D observer"
+    assert "Wang, Ortega & Bobtsov" in gd.certificate.reference and "(16)-(17)" in gd.certificate.reference
+    g = design_gpebo(OSC, estimator=Gradient(1.0))
+    assert g.method == "gpebo" and g.certificate.method == "GPEBO observer with Gradient estimator"
+    assert "gradient estimator" in g.certificate.reference
+    sa = StateAffine([[0, 1], [2, 0]], [0, 0], [[1], [0]])
+    assert design_2gd(sa, L=[[3], [4]]).certificate.method == "2G+D observer and output injection"
+    with pytest.raises(PreconditionError, match=r"^design_gpebo: .*not state-affine"):
+        design_gpebo(System(states=["x1", "x2"], f=["x2**2", "0"], outputs=["y"], h=["x1"]))
