@@ -21,6 +21,7 @@ import numpy as np
 import sympy as sp
 
 from ..errors import ModelError
+from ._identity import decide_identity
 from ..model import TIME, System, symbol
 from ..model._budget import symbolic_budget
 from ..model._translate import NUMPY, translate
@@ -346,8 +347,8 @@ def _sign_symmetries(system: System, st: _Setup, params_unknown: tuple[str, ...]
                      budget: int = 4096, max_proofs: int = 64) -> tuple[tuple[Symmetry, ...], str]:
     """Sign changes of unknowns that leave the model invariant: f(σz) = σ f(z), h(σz) = h(z).
 
-    Screened numerically at a random point, then proved symbolically. With at most 12 unknowns
-    every sign pattern is screened (up to `budget`); beyond, the sign changes of one or two
+    Screened numerically at a random point, then decided exactly (:func:`decide_identity`). With at
+    most 12 unknowns every sign pattern is screened (up to `budget`); beyond, the sign changes of one or two
     unknowns. Screening is sparse: an expression is evaluated only on the patterns that flip one
     of its variables (or its own state), since every other pattern leaves it unchanged, so the
     cost grows like m · Σ|vars of f_i|² rather than m² · (size of f). Each symmetry gives pairs of
@@ -433,9 +434,9 @@ def _sign_symmetries(system: System, st: _Setup, params_unknown: tuple[str, ...]
         sub = {s: -s for s, v in zip(syms, r) if v < 0}
         flipped = set(sub)
         # only the equations that involve a flipped unknown, or whose own state flips, can change
-        proved = all(sp.simplify(e.xreplace(sub) - sgn * e) == 0 for e, sgn in zip(f, r[: len(f)])
+        proved = all(decide_identity(e.xreplace(sub), sgn * e).holds for e, sgn in zip(f, r[: len(f)])
                      if sgn < 0 or e.free_symbols & flipped) and all(
-            sp.simplify(e.xreplace(sub) - e) == 0 for e in h if e.free_symbols & flipped)
+            decide_identity(e.xreplace(sub), e).holds for e in h if e.free_symbols & flipped)
         if not proved:
             continue
         found.append(r)

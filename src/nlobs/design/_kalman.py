@@ -18,7 +18,7 @@ from ..model._budget import expand
 from ..model._system import exact
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import check_matrix
-from ._common import box_of, leaves_of, measured_states, sup_over_box, to_sx
+from ._common import box_of, leaves_of, measured_states, require_system, sup_over_box, to_sx
 from ._high_gain import _theta, triangular_chains
 from ..references import cite
 
@@ -143,7 +143,12 @@ def _riccati_design(method: str, title: str, ref: str, parts: StateAffineParts, 
         if d <= 2 * normA:
             raise PreconditionError(f"{caller}: the forgetting factor δ = {d:g} is not above 2 sup‖A‖ = {2 * normA:.4g} ({where}); "
                                     f"take δ > {2 * normA:.4g}, or give V positive definite ({cite('002')}: δ > 2‖A(t)‖ or V > 0)")
-        checks.append(Check(f"δ > 2 sup‖A‖ ({cite('002')})", True, f"{d:g} > {2 * normA:.4g}, {where}"))
+        checks.append(Check(f"δ > 2 sup‖A‖ ({cite('002')})", True, f"{d:g} > {2 * normA:.4g}, {where}",
+                            "exact (A constant)" if not parts.A.free_symbols else
+                            "sampled over the region: sup‖A‖ is estimated from below, not proved"))
+        if parts.A.free_symbols:
+            checks.append(Check.assumed("the inputs and outputs stay in the region where sup‖A‖ was estimated",
+                                        "not checked at design time"))
         values["sup_norm_A"] = normA
     else:
         raise PreconditionError(f"{caller}: neither forgetting nor noise: give δ > 2‖A‖ (`delta`) or V positive definite "
@@ -340,6 +345,7 @@ def design_high_gain_kalman(system: System, *, lam: float, delta: float, W: Any 
     ----------
     002_613af42269ea26a7.txt, "'Non uniformly observable' systems - LTV-like with structured NL".
     """
+    require_system(system, "design_high_gain_kalman")
     caller = "design_high_gain_kalman"
     if system.n_outputs != 1:
         raise PreconditionError(f"{caller}: one output is required ({cite('002')}'s form has y = x1); the model has {system.n_outputs}")

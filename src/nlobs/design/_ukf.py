@@ -11,6 +11,7 @@ import numpy as np
 from ..engine import compile_system
 from ..errors import PreconditionError
 from ..model import System
+from ._common import require_system
 from ._base import Certificate, Check, ObserverDesign, Symbols, check_vector
 from ._bounds import POLICY, bounds_check, check_start, clip_const, parse_bounds
 from ._checks import check_matrix
@@ -89,6 +90,7 @@ def design_ukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
     ----------
     Särkkä (2007); Julier & Uhlmann (2004); the continuous-discrete EKF of this package for comparison.
     """
+    require_system(system, "design_ukf")
     caller = "design_ukf"
     n, p = system.n_states, system.n_outputs
     Qm = check_matrix(Q, n, n, "Q", caller, definite="semidefinite")

@@ -335,6 +335,10 @@ class Prepared:
         return self.noise is not None or self.process_noise is not None
 
 
+#: Most RK4 steps one run stores (t_final / dt); beyond it the trajectories alone need tens of GB.
+MAX_STEPS = 1e8
+
+
 def prepare(plant: System, observers: Any, *, t_final: float, dt: float, inputs: Any, params: Mapping[str, float] | None,
             noise: Noise | None, process_noise: ProcessNoise | None, sampling: Sampling | None, caller: str,
             integrator: Adaptive | None = None, fold_params: bool = False) -> Prepared:
@@ -351,6 +355,9 @@ def prepare(plant: System, observers: Any, *, t_final: float, dt: float, inputs:
     # a single-precision number (np.float32(0.1)) is only that precise: compare the grid at its precision
     rel = max([1e-9] + [4 * float(np.finfo(v.dtype).eps) for v in (t_final, dt) if isinstance(v, np.floating)])
     t_final, dt = float(t_final), float(dt)
+    if t_final / dt > MAX_STEPS:
+        raise ShapeError(f"{caller}: t_final / dt = {t_final:g} / {dt:g} = {t_final / dt:.3g} steps, more than {MAX_STEPS:.0e} "
+                         "(every step is stored): choose a larger dt or a shorter t_final")
     N = int(round(t_final / dt))
     if N < 1 or abs(N * dt - t_final) > rel * max(1.0, t_final):
         raise ShapeError(f"{caller}: t_final = {t_final:g} must be a whole multiple of dt = {dt:g}")
