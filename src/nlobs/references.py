@@ -117,6 +117,8 @@ _ALL = (
     Reference("schoukens2016", "M. Schoukens, P. Mattsson, T. Wigren, J.-P. Noël", "Schoukens, Mattsson, Wigren & Noël",
               "Cascaded tanks benchmark combining soft and hard nonlinearities",
               "Workshop on Nonlinear System Identification Benchmarks, Brussels", 2016),
+    Reference("ljungbox1978", "G. M. Ljung, G. E. P. Box", "Ljung & Box", "On a measure of lack of fit in time series models",
+              "Biometrika 65(2):297–303", 1978, doi="10.1093/biomet/65.2.297"),
     Reference("rao2003", "C. V. Rao, J. B. Rawlings, D. Q. Mayne", "Rao, Rawlings & Mayne",
               "Constrained state estimation for nonlinear discrete-time systems: stability and moving horizon approximations",
               "IEEE Transactions on Automatic Control 48(2):246–258", 2003),
