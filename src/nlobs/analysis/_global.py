@@ -165,11 +165,28 @@ class GlobalResult:
                     "engine_seconds": self.engine_seconds, "notes": list(self.notes)})
         return out
 
+    def summary(self, what: str = "identifiable") -> str:
+        """The global verdict in one sentence."""
+        if self.refused:
+            return f"global check not done: {self.refused}"
+        if not self.locally_only and not self.non_identifiable:
+            return f"GLOBALLY {what.upper()}: the output determines every unknown uniquely"
+        parts = []
+        if self.locally_only:
+            parts.append(", ".join(f"{lo.name} only up to {lo.solutions if lo.solutions else 'finitely many'} values"
+                                   for lo in self.locally_only))
+        if self.non_identifiable:
+            parts.append(f"{', '.join(self.non_identifiable)} not at all")
+        head = f"NOT globally {what}" + (" (locally it is)" if not self.non_identifiable else "")
+        known = f"the output determines {', '.join(self.globally)} uniquely; " if self.globally else ""
+        return f"{head}: {known}{'; '.join(parts)}"
+
     def describe(self, what: str = "identifiable") -> list[str]:
         """The verdicts in words, one line each (used by the text report)."""
         if self.refused:
             return [f"global check not done: {self.refused}"]
-        lines = [f"globally {what}: {', '.join(self.globally) or '(none)'}"]
+        lines = [self.summary(what)]
+        lines.append(f"globally {what}: {', '.join(self.globally) or '(none)'}")
         if self.locally_only:
             lines.append(f"locally but NOT globally {what} (number of solutions): "
                          + ", ".join(str(lo) for lo in self.locally_only))

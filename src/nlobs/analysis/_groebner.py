@@ -105,6 +105,8 @@ class GroebnerEngine:
         Number of engine calls so far.
     threads : int
         Threads msolve may use.
+    timeout : float or None
+        Seconds after which a subprocess engine is stopped (an EngineError saying so); None: no limit.
     """
 
     name: str
@@ -113,6 +115,7 @@ class GroebnerEngine:
     cpu_seconds: float = 0.0
     calls: int = 0
     threads: int = 1
+    timeout: float | None = None
     _version: str = field(default="", repr=False)
 
     def normal_forms(self, names: Sequence[str], p: int, F: Sequence[Poly], G: Sequence[Poly]) -> list[Poly]:
@@ -157,7 +160,7 @@ class GroebnerEngine:
             body = ",\n".join(_format(f, names, p) for f in (*F, *G))
             src.write_text(",".join(names) + f"\n{p}\n" + body + "\n")
             cmd = [self.path, "-f", str(src), "-o", str(dst), "-n", str(len(G)), "-t", str(self.threads)]
-            res = subprocess.run(cmd, capture_output=True, text=True)
+            res = self._run(cmd, f"{len(F)} equations in {len(names)} variables")
             if res.returncode != 0 or not dst.exists():
                 raise EngineError(f"msolve failed (exit {res.returncode}) on {len(F)} equations in {len(names)} "
                                   f"variables: {(res.stderr or res.stdout).strip()[:300]}")
@@ -179,6 +182,13 @@ class GroebnerEngine:
             out = [{m[:-1]: c for m, c in g.items()} for g in out]
         return out
 
+    def _run(self, cmd: list[str], what: str) -> subprocess.CompletedProcess:
+        try:
+            return subprocess.run(cmd, capture_output=True, text=True, timeout=self.timeout)
+        except subprocess.TimeoutExpired:
+            raise EngineError(f"{self.name} did not finish within {self.timeout:g} s on {what}; the Gröbner basis is "
+                              "too hard at this size (the local verdict stands)") from None
+
     # -- Singular ----------------------------------------------------------------------------
     def _singular(self, names: Sequence[str], p: int, F: Sequence[Poly], G: Sequence[Poly]) -> list[Poly]:
         names = list(names)
@@ -194,7 +204,8 @@ class GroebnerEngine:
         with tempfile.TemporaryDirectory(prefix="nlobs-singular-") as d:
             src = Path(d, "in.sing")
             src.write_text("\n".join(lines) + "\n")
-            res = subprocess.run([self.path, "-q", "--no-rc", "--no-warn", str(src)], capture_output=True, text=True)
+            res = self._run([self.path, "-q", "--no-rc", "--no-warn", str(src)],
+                            f"{len(F)} equations in {len(names)} variables")
         if res.returncode != 0 or "? " in res.stdout:
             raise EngineError(f"Singular failed (exit {res.returncode}): {(res.stdout + res.stderr).strip()[:300]}")
         got = [line[2:] for line in res.stdout.splitlines() if line.startswith("@@")]

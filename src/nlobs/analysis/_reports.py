@@ -176,10 +176,14 @@ class ObservabilityReport:
 
     def _extensions(self) -> dict[str, Any]:
         out: dict[str, Any] = {}
-        if self.global_check is not None:
-            out["global"] = self.global_check.to_dict()
+        if self.global_check is not None:  # "global": exactly the three lists (null when refused); evidence apart
+            d = self.global_check.to_dict()
+            out["global"] = None if self.global_check.refused else {
+                k: d[k] for k in ("globally", "locally_only", "non_identifiable")}
+            out["global_detail"] = d
         if self.identifiable_functions is not None:
-            out["identifiable_functions"] = self.identifiable_functions.to_list()
+            idf = self.identifiable_functions
+            out["identifiable_functions"] = None if idf.refused else idf.to_list()
             out["identifiable_functions_detail"] = self.identifiable_functions.to_dict()
         if self.experiments is not None:
             out["experiments"] = self.experiments.to_dict()
