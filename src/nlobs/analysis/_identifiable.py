@@ -273,12 +273,15 @@ class _Search:
         return Kc
 
     def functions(self, Kc: np.ndarray, Q: tuple[int, ...]) -> list[sp.Expr]:
+        """The candidates P/Q of the rows of `Kc`, normalised as :func:`_normalise` does (on exponent dictionaries:
+        SymPy's cancel on hundreds of candidates was most of the running time)."""
         p = self.p
         syms = [symbol(u) for u in self.U]
-        qexpr = sp.Mul(*[s**k for s, k in zip(syms, Q)])
+        order = sorted(range(len(syms)), key=lambda i: str(syms[i]))
+        gens = [syms[i] for i in order]
         out = []
         for row in _rref(Kc, p):
-            terms = []
+            terms: dict[tuple[int, ...], sp.Rational] = {}
             ok = True
             for c, e in zip(row, self.monos):
                 if not c:
@@ -287,14 +290,24 @@ class _Search:
                 if rr is None:
                     ok = False
                     break
-                terms.append(sp.Rational(rr[0], rr[1]) * sp.Mul(*[s**k for s, k in zip(syms, e)]))
+                terms[e] = sp.Rational(rr[0], rr[1])
             if not ok or not terms:
                 continue
-            P = sp.Add(*terms)
-            f = sp.cancel(P / qexpr)
+            # cancel the common monomial factor of P and Q
+            g = [min([Q[i], *(e[i] for e in terms)]) for i in range(len(syms))]
+            terms = {tuple(a - b for a, b in zip(e, g)): c for e, c in terms.items()}
+            q = tuple(a - b for a, b in zip(Q, g))
+            zero = tuple([0] * len(syms))
+            if not any(q):  # a polynomial: identifiable up to an additive constant too
+                terms.pop(zero, None)
+            if not terms or (list(terms) == [zero] and not any(q)):
+                continue
+            P = sp.Poly.from_dict({tuple(e[i] for i in order): c for e, c in terms.items()}, *gens, domain="QQ")
+            P = P.quo_ground(P.LC())
+            f = P.as_expr() / sp.Mul(*[s**k for s, k in zip(syms, q)])
             if f.is_number:
                 continue
-            out.append(_normalise(f))
+            out.append(f)
         return out
 
 
@@ -382,7 +395,7 @@ def _fibre_system(funcs: Sequence[sp.Expr], X: list[str], p: int, rng: np.random
 def _relation(f: sp.Expr, X: list[str], xhat: dict[str, int], p: int) -> Poly:
     """num(x) den(x̂) - num(x̂) den(x): zero on the fibre iff f is constant there."""
     syms = [symbol(u) for u in X]
-    num, den = sp.fraction(sp.cancel(sp.together(f)))
+    num, den = sp.fraction(sp.together(f))  # candidates are already P/Q in lowest terms
     vals = {s: xhat[u] for s, u in zip(syms, X)}
 
     def ev(e: sp.Expr) -> int:
@@ -569,8 +582,8 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
         Kc = search.solve(Q)
         cands += search.functions(Kc, Q)
     singles = [symbol(u) for u in single]
-    pool = sorted({c for c in cands if c not in singles}, key=_complexity)
-    pool = _verified(prep, eng, pool, U)
+    pool = list(dict.fromkeys(c for c in cands if c not in singles))
+    pool = sorted(_verified(prep, eng, pool, U), key=_complexity)  # sort the survivors only (the key prints)
     chosen = _select([*singles, *pool], U, eng, prep.p, rng)
     texts = tuple(_text(f) for f in chosen)
     checks = tuple(observable_function(system, t, unknown_params=prep.local.unknown_params, inputs=inputs,

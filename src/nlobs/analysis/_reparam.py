@@ -32,7 +32,9 @@ from ._modular import inv
 __all__ = ["Reparametrization", "reparametrize"]
 
 #: Degrees (numerator, denominator) tried in turn for each new right-hand side.
-_DEGREES = ((1, 0), (2, 0), (3, 0), (1, 1), (2, 1), (2, 2), (3, 1), (3, 2))
+_DEGREES = ((1, 0), (2, 0), (3, 0), (1, 1), (2, 1), (2, 2), (3, 1), (3, 2), (4, 1), (4, 2))
+#: Largest number of unknown coefficients tried (beyond it the degree pair is skipped).
+_MAX_WIDTH = 700
 _PRIME = 134217689  # the largest prime below 2^27 (RowEchelon is exact in int64 there)
 
 
@@ -56,6 +58,8 @@ class Reparametrization:
         The reparametrised model (parameter values from the original's), when found.
     missing : tuple of str
         What could not be expressed in the new variables (when not found).
+    not_needed : bool
+        Every state and unknown parameter is identifiable itself: the model is its own reparametrisation.
     """
 
     found: bool
@@ -66,8 +70,11 @@ class Reparametrization:
     h: dict[str, str] = field(default_factory=dict)
     system: System | None = None
     missing: tuple[str, ...] = ()
+    not_needed: bool = False
 
     def to_dict(self) -> dict[str, Any]:
+        if self.not_needed:
+            return {"found": False, "not_needed": True}
         out: dict[str, Any] = {"found": self.found, "states": list(self.states), "params": list(self.params),
                                "definitions": dict(self.definitions), "dynamics": dict(self.f), "outputs": dict(self.h)}
         if self.missing:
@@ -75,6 +82,8 @@ class Reparametrization:
         return out
 
     def describe(self) -> list[str]:
+        if self.not_needed:
+            return ["reparametrisation not needed: every state and unknown parameter is identifiable itself"]
         if not self.found:
             return ["reparametrisation in these functions not found: no rational right-hand side of low degree for "
                     + ", ".join(self.missing)]
@@ -137,32 +146,57 @@ def _express(target: sp.Expr, gens: Sequence[sp.Expr], new: Sequence[sp.Symbol],
     """`target` (in the old symbols) as a rational function of `gens` (named `new`), verified exactly; or None."""
     from ._identifiable import _kernel
 
+    direct = _by_substitution(target, gens, new, old)
+    if direct is not None and sp.cancel(sp.together(direct.xreplace(dict(zip(new, gens))) - target)) == 0:
+        return direct
     p = _PRIME
     n = len(gens)
-    gl = [sp.lambdify(old, g, "math") for g in gens]
-    num_t, den_t = sp.fraction(sp.cancel(sp.together(target)))
-    tl_n, tl_d = sp.lambdify(old, num_t, "math"), sp.lambdify(old, den_t, "math")
+    def compile_(e: sp.Expr) -> tuple[list, list]:
+        num, den = sp.fraction(sp.cancel(sp.together(e)))
+        out = []
+        for part in (num, den):
+            P = sp.Poly(sp.expand(part), *old, domain="QQ")
+            out.append([(int(sp.Rational(c).p) % p * inv(int(sp.Rational(c).q) % p, p) % p, m) for m, c in P.terms()])
+        return out[0], out[1]
 
-    def modval(fn: Any, pt: Sequence[sp.Rational]) -> int | None:
-        v = sp.Rational(fn(*pt))
-        if v.q % p == 0:
-            return None
-        return int(v.p) % p * inv(int(v.q) % p, p) % p
+    def ev(terms: list, vals: list[int]) -> int:
+        acc = 0
+        for c, m in terms:
+            t = c
+            for v, k in zip(vals, m):
+                if k:
+                    t = t * pow(v, k, p) % p
+            acc += t
+        return acc % p
+
+    gl = [compile_(g) for g in gens]
+    tl = compile_(target)
+    samples: list[tuple[list[int], int]] = []
+
+    def sample() -> None:
+        vals = [int(rng.integers(1, p)) for _ in old]
+        gv = []
+        for num, den in gl:
+            d = ev(den, vals)
+            if not d:
+                return
+            gv.append(ev(num, vals) * inv(d, p) % p)
+        td = ev(tl[1], vals)
+        if not td:
+            return
+        samples.append((gv, ev(tl[0], vals) * inv(td, p) % p))
 
     for dn, dd in _DEGREES:
         mn, md = _monos(n, dn), _monos(n, dd)
         width = len(mn) + len(md)
+        if width > _MAX_WIDTH:
+            continue
+        for _ in range(3 * (width + 12)):
+            if len(samples) >= width + 12:
+                break
+            sample()
         rows: list[np.ndarray] = []
-        for _ in range(width + 12):
-            pt = [sp.Rational(int(rng.integers(1, 997)), int(rng.integers(1, 97))) for _ in old]
-            try:
-                gv = [modval(g, pt) for g in gl]
-                tn, td = modval(tl_n, pt), modval(tl_d, pt)
-            except (ZeroDivisionError, TypeError):
-                continue
-            if None in gv or tn is None or not td:
-                continue
-            tv = tn * inv(td, p) % p
+        for gv, tv in samples[: width + 12]:
             row = np.zeros(width, dtype=np.int64)
             for c, e in enumerate(mn):  # N(g) - target * D(g) = 0
                 row[c] = _mv(e, gv, p)
@@ -185,6 +219,30 @@ def _express(target: sp.Expr, gens: Sequence[sp.Expr], new: Sequence[sp.Symbol],
             if sp.cancel(sp.together(back - target)) == 0:  # exact check in the original variables
                 return cand
     return None
+
+
+def _by_substitution(target: sp.Expr, gens: Sequence[sp.Expr], new: Sequence[sp.Symbol],
+                     old: Sequence[sp.Symbol]) -> sp.Expr | None:
+    """Solve each compound generator X = g for one old variable it holds linearly (and no generator is), substitute.
+
+    Exact by construction; accepted only when nothing but new variables remains.
+    """
+    plain = {g: n for g, n in zip(gens, new) if g.is_Symbol}
+    sub: dict[sp.Symbol, sp.Expr] = {}
+    for g, n in zip(gens, new):
+        if g.is_Symbol:
+            continue
+        for v in sorted(g.free_symbols - set(plain) - set(sub), key=str):
+            if v not in old or sp.degree(sp.numer(sp.together(g)), v) != 1 or sp.denom(sp.together(g)).has(v):
+                continue
+            sol = sp.solve(sp.Eq(n, g), v, dict=True)
+            if len(sol) == 1:
+                sub[v] = sol[0][v]
+                break
+    e = target.xreplace(plain)
+    for _ in range(len(sub) + 1):
+        e = sp.cancel(sp.together(e.xreplace(sub)))
+    return e if e.free_symbols <= set(new) else None
 
 
 def _mv(e: Sequence[int], vals: Sequence[int], p: int) -> int:
@@ -256,6 +314,9 @@ def reparametrize(system: System, functions: Sequence[str], *, unknown_params: S
         new_h.append(e.xreplace(back))
         hout[y] = str(new_h[-1])
     st_names = tuple(n for n, s in zip(names, is_state) if s)
+    unknown = {*system.states, *unknown_params}
+    if all(g.is_Symbol for g in gens) and {g.name for g in gens} == unknown:
+        return Reparametrization(False, missing=(), not_needed=True)
     pa_names = tuple(n for n, s in zip(names, is_state) if not s)
     definitions = {n: str(g) for n, g in zip(names, gens) if str(g) != n}
     if missing:
