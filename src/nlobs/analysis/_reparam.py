@@ -18,7 +18,6 @@ no candidate is found within the degree bounds, the reparametrisation is reporte
 
 from __future__ import annotations
 
-import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -118,33 +117,11 @@ def _names(funcs: Sequence[sp.Expr], system: System) -> list[str]:
     return out
 
 
-def _monos(n: int, deg: int) -> list[tuple[int, ...]]:
-    out = []
-    for d in range(deg + 1):
-        for combo in itertools.combinations_with_replacement(range(n), d):
-            e = [0] * n
-            for i in combo:
-                e[i] += 1
-            out.append(tuple(e))
-    return out
-
-
-def _ratrec(a: int, p: int, bound: int = 10**4) -> sp.Rational | None:
-    a %= p
-    r0, r1, s0, s1 = p, a, 0, 1
-    while r1 > bound:
-        q = r0 // r1
-        r0, r1 = r1, r0 - q * r1
-        s0, s1 = s1, s0 - q * s1
-    if s1 == 0 or abs(s1) > bound:
-        return None
-    return sp.Rational(r1, s1) if s1 > 0 else sp.Rational(-r1, -s1)
-
-
 def _express(target: sp.Expr, gens: Sequence[sp.Expr], new: Sequence[sp.Symbol], old: Sequence[sp.Symbol],
              rng: np.random.Generator) -> sp.Expr | None:
     """`target` (in the old symbols) as a rational function of `gens` (named `new`), verified exactly; or None."""
-    from ._identifiable import _kernel
+    from ._global import _eval_poly
+    from ._identifiable import _kernel, _mono_value, _monomials, _ratrec
 
     direct = _by_substitution(target, gens, new, old)
     if direct is not None and sp.cancel(sp.together(direct.xreplace(dict(zip(new, gens))) - target)) == 0:
@@ -156,18 +133,11 @@ def _express(target: sp.Expr, gens: Sequence[sp.Expr], new: Sequence[sp.Symbol],
         out = []
         for part in (num, den):
             P = sp.Poly(sp.expand(part), *old, domain="QQ")
-            out.append([(int(sp.Rational(c).p) % p * inv(int(sp.Rational(c).q) % p, p) % p, m) for m, c in P.terms()])
+            out.append({m: int(sp.Rational(c).p) % p * inv(int(sp.Rational(c).q) % p, p) % p for m, c in P.terms()})
         return out[0], out[1]
 
-    def ev(terms: list, vals: list[int]) -> int:
-        acc = 0
-        for c, m in terms:
-            t = c
-            for v, k in zip(vals, m):
-                if k:
-                    t = t * pow(v, k, p) % p
-            acc += t
-        return acc % p
+    def ev(poly: dict, vals: list[int]) -> int:
+        return _eval_poly(poly, vals, p)
 
     gl = [compile_(g) for g in gens]
     tl = compile_(target)
@@ -187,7 +157,7 @@ def _express(target: sp.Expr, gens: Sequence[sp.Expr], new: Sequence[sp.Symbol],
         samples.append((gv, ev(tl[0], vals) * inv(td, p) % p))
 
     for dn, dd in _DEGREES:
-        mn, md = _monos(n, dn), _monos(n, dd)
+        mn, md = _monomials(n, dn), _monomials(n, dd)
         width = len(mn) + len(md)
         if width > _MAX_WIDTH:
             continue
@@ -199,17 +169,18 @@ def _express(target: sp.Expr, gens: Sequence[sp.Expr], new: Sequence[sp.Symbol],
         for gv, tv in samples[: width + 12]:
             row = np.zeros(width, dtype=np.int64)
             for c, e in enumerate(mn):  # N(g) - target * D(g) = 0
-                row[c] = _mv(e, gv, p)
+                row[c] = _mono_value(e, gv, p)
             for c, e in enumerate(md):
-                row[len(mn) + c] = (-tv * _mv(e, gv, p)) % p
+                row[len(mn) + c] = (-tv * _mono_value(e, gv, p)) % p
             rows.append(row)
         K = _kernel(rows, width, p)
         for vec in K:
             if not np.any(vec[len(mn):]):
                 continue
-            coeffs = [_ratrec(int(c), p) if c else sp.Integer(0) for c in vec]
-            if any(c is None for c in coeffs):
+            rr = [_ratrec(int(c), p) if c else (0, 1) for c in vec]
+            if any(c is None for c in rr):
                 continue
+            coeffs = [sp.Rational(a, b) for a, b in rr]
             N = sum(c * sp.Mul(*[s**k for s, k in zip(new, e)]) for c, e in zip(coeffs[:len(mn)], mn))
             D = sum(c * sp.Mul(*[s**k for s, k in zip(new, e)]) for c, e in zip(coeffs[len(mn):], md))
             if D == 0:
@@ -243,14 +214,6 @@ def _by_substitution(target: sp.Expr, gens: Sequence[sp.Expr], new: Sequence[sp.
     for _ in range(len(sub) + 1):
         e = sp.cancel(sp.together(e.xreplace(sub)))
     return e if e.free_symbols <= set(new) else None
-
-
-def _mv(e: Sequence[int], vals: Sequence[int], p: int) -> int:
-    t = 1
-    for v, k in zip(vals, e):
-        if k:
-            t = t * pow(v, k, p) % p
-    return t
 
 
 def reparametrize(system: System, functions: Sequence[str], *, unknown_params: Sequence[str] = (),
