@@ -115,15 +115,19 @@ def _fmt_engine_row(row, names):
     return "| " + " | ".join(cells) + " |"
 
 
-def run_one(m, engine: str) -> dict:
-    """Global check, identifiable functions and multi-experiment count of one model, against its published results."""
+def run_one(m, engine: str, part: str = "all") -> dict:
+    """Global check, identifiable functions and multi-experiment count of one model, against its published results.
+
+    `part`: "global", "functions", "me" or "all" (the verdicts mode runs each part in its own process and
+    time limit, so a slow identifiable-function search does not hide the global check's timing).
+    """
     from nlobs.analysis import find_identifiable_functions, global_identifiability, multi_experiment
     from nlobs.analysis._groebner import get_engine
 
     system = m.system()
     row: dict = {"model": m.name, "source": m.source, "case": m.case, "checks": []}
     c0 = time.process_time()
-    if m.verdicts or m.ident is not None:
+    if (m.verdicts or m.ident is not None) and part in ("global", "all"):
         eng = get_engine(engine)
         fn = [k for k in m.verdicts if k not in m.states and k not in m.params]
         fn += [f for f in (m.ident or ()) if f not in m.states and f not in m.params and f not in fn]
@@ -146,7 +150,7 @@ def run_one(m, engine: str) -> dict:
                 ours = word[res.verdict(f)]
                 row["checks"].append({"what": f"{f} (published generator)", "published": "globally", "ours": ours,
                                       "agree": ours == "globally"})
-    if m.ident is not None:
+    if m.ident is not None and part in ("functions", "all"):
         eng = get_engine(engine)
         t0 = time.perf_counter()
         c1 = time.process_time()
@@ -164,7 +168,7 @@ def run_one(m, engine: str) -> dict:
         same = _same_field_engine(list(idf.functions), list(m.ident), names, eng) if idf.functions or not m.ident else False
         row["checks"].append({"what": "identifiable functions (field)", "published": list(m.ident),
                               "ours": list(idf.functions), "agree": bool(same)})
-    if m.me is not None:
+    if m.me is not None and part in ("me", "all"):
         t0 = time.perf_counter()
         me = multi_experiment(system, max(1, m.me), global_check=False)
         row["me_seconds"] = time.perf_counter() - t0
@@ -207,13 +211,22 @@ def run_verdicts(models, engine: str, timeout: float) -> dict:
     print("|---|---|---|---|---|---|")
     for m in models:
         t0 = time.perf_counter()
-        try:
-            res = subprocess.run([sys.executable, __file__, "one", "--models", m.name, "--engine", engine],
-                                 capture_output=True, text=True, timeout=timeout)
-            line = [x for x in res.stdout.splitlines() if x.startswith("RESULT ")]
-            row = json.loads(line[0][7:]) if line else {"model": m.name, "error": res.stderr[-500:]}
-        except subprocess.TimeoutExpired:
-            row = {"model": m.name, "timeout": timeout}
+        row = {"model": m.name, "source": m.source, "case": m.case, "checks": []}
+        parts = [x for x, has in (("global", m.verdicts or m.ident is not None), ("functions", m.ident is not None),
+                                  ("me", m.me is not None)) if has]
+        for part in parts:
+            try:
+                res = subprocess.run([sys.executable, __file__, "one", "--models", m.name, "--engine", engine,
+                                      "--part", part], capture_output=True, text=True, timeout=timeout)
+                line = [x for x in res.stdout.splitlines() if x.startswith("RESULT ")]
+                got = json.loads(line[0][7:]) if line else {"error": f"{part}: " + res.stderr[-500:]}
+            except subprocess.TimeoutExpired:
+                got = {f"{part}_timeout": timeout}
+                if part == "global":
+                    got["timeout"] = timeout
+            checks = got.pop("checks", [])
+            row.update({k: v for k, v in got.items() if k not in ("model", "source", "case")})
+            row["checks"] += checks
         row["wall"] = time.perf_counter() - t0
         rows.append(row)
         checks = row.get("checks", [])
@@ -308,7 +321,8 @@ def write_report() -> None:
         n_models += 1
         n_checks += len(checks)
         n_agree += ok
-        all_ok = bool(checks) and ok == len(checks) and "timeout" not in r and "error" not in r
+        stopped = [k[:-8] for k in r if k.endswith("_timeout")]
+        all_ok = bool(checks) and ok == len(checks) and not stopped and "error" not in r
         n_ok += all_ok
         if all_ok and any(c["what"] == "identifiable functions (field)" for c in checks):
             with_funcs_ok += 1
@@ -322,15 +336,21 @@ def write_report() -> None:
             gtxt = f"**> {r['timeout']:.0f} s (stopped)**"
             slow.append((r["model"], f"stopped after {r['timeout']:.0f} s", r.get("size", "")))
         elif "error" in r:
-            gtxt = "error: " + r["error"].strip().splitlines()[-1][:80] if r["error"].strip() else "error"
+            gtxt = ("error: " + r["error"].strip().splitlines()[-1][:80]) if r["error"].strip() else "error"
         else:
             gtxt = "-"
         ftxt = f"{r['functions_seconds']:.2f} ({r['functions_cpu']:.2f})" if "functions_seconds" in r else "-"
+        if "functions_timeout" in r:
+            ftxt = f"**> {r['functions_timeout']:.0f} s (stopped)**"
+            slow.append((r["model"], f"identifiable-function search stopped after {r['functions_timeout']:.0f} s "
+                         "(the global check itself: see its column)", r.get("size", "")))
         rp = r.get("reparametrization")
         rtxt = "-" if rp is None else ("found, verified" if rp["found"] else "not found")
         src = _cite(m) if m else "?"
         case = (m.case if m else "").replace("|", "\\|")
         status = f"{ok}/{len(checks)}"
+        if stopped:
+            status += " (not checked: " + ", ".join(stopped) + " stopped)"
         if checks and ok != len(checks):
             status += " — differs: " + "; ".join(c["what"] for c in checks if not c["agree"])
             bad.append(r)
@@ -360,6 +380,8 @@ def main() -> None:
     ap.add_argument("--timeout", type=float, default=60.0)
     ap.add_argument("--models", default="")
     ap.add_argument("--engine", default="auto")
+    ap.add_argument("--part", default="all", choices=["all", "global", "functions", "me"])
+    ap.add_argument("--out", default="", help="results file name (default global_<mode>.json)")
     ap.add_argument("--merge", action="store_true",
                     help="verdicts: replace these models' rows in the existing results file instead of rewriting it")
     args = ap.parse_args()
@@ -380,11 +402,11 @@ def main() -> None:
         print("total of minima (s): " + ", ".join(f"{n} {v:.2f}" for n, v in tot.items()))
         out = {"meta": meta, "rows": rows, "total_min_seconds": tot}
     elif args.mode == "one":
-        print("RESULT " + json.dumps(run_one(models[0], args.engine), default=str))
+        print("RESULT " + json.dumps(run_one(models[0], args.engine, args.part), default=str))
         return
     else:
         out = {"meta": meta, **run_verdicts(models, args.engine, args.timeout)}
-    path = ROOT / "benchmarks" / "results" / f"global_{args.mode}.json"
+    path = ROOT / "benchmarks" / "results" / (args.out or f"global_{args.mode}.json")
     if args.merge and path.exists():
         old = json.loads(path.read_text())
         fresh = {r["model"]: r for r in out["rows"]}
@@ -397,7 +419,7 @@ def main() -> None:
             out["total"] = sum(len(r.get("checks", [])) for r in out["rows"])
             out["agree"] = sum(sum(c["agree"] for c in r.get("checks", [])) for r in out["rows"])
     path.write_text(json.dumps(out, indent=1, default=str))
-    print(f"written {path.relative_to(ROOT)}")
+    print(f"written {path}")
 
 
 if __name__ == "__main__":
