@@ -22,6 +22,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from .._display import html_block
 from ..errors import ShapeError
 from ..model import System
 
@@ -123,6 +124,13 @@ class Certificate:
         lines += [f"  {c}" for c in self.checks]
         lines += [f"  {k} = {_fmt(v)}" for k, v in self.values.items()]
         return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        counts = ", ".join(f"{sum(c.status == s for c in self.checks)} {s}" for s in _STATUS if any(c.status == s for c in self.checks))
+        return f"Certificate({self.method!r}, reference={self.reference!r}, checks: {counts or 'none'}, values: {', '.join(self.values)})"
+
+    def _repr_html_(self) -> str:
+        return html_block(f"Certificate: {self.method}", str(self))
 
 
 @dataclass(frozen=True)

@@ -161,7 +161,7 @@ def _figure(noisy: Run, e_clean: Mapping[str, np.ndarray], e_noisy: Mapping[str,
     return fig
 
 
-@register("004-cuk", f"{cite('004')}: Ćuk converter, six observers under bounded noise (Table I)", 90)
+@register("cuk", f"{cite('004')}: Ćuk converter, six observers under bounded noise (Table I)", 90, aliases=("004-cuk",))
 def run() -> ExampleResult:
     system = model()
     ds = designs(system)
@@ -230,7 +230,7 @@ def run() -> ExampleResult:
     notes = [
         f"Set points |V_d| = {', '.join(f'{v:g}' for v in SETPOINTS)} V on successive 0.2 s intervals and λ = {LAMBDA:g}: "
         f"{cite('004')} gives neither (|V_d| from 15 to 30 V from E = 12 V keeps the duty cycle in [0.55, 0.72]).",
-        f"L3 = 10 mH: {cite('004')} §V-C lists L1, C2, C4, G, E but not L3 (lost in the conversion); 10 mH as L1 (and {cite('004')} ref. [15]).",
+        f"L3 = 10 mH: {cite('004')} §V-C lists L1, C2, C4, G, E but not L3 (not given); 10 mH as L1 (and {cite('004')} ref. [15]).",
         f"The plant starts at the equilibrium of |V_d| = {SETPOINTS[0]:g} V, (i1, v4, v2, i3) = {np.round(x0, 3).tolist()}; every "
         f"observer's dynamic extension starts at 0 ({cite('004')} §V-C), so the initial errors are the equilibrium values.",
         "The feedback uses the true state (the paper's 'ideal' feedback). It is simulated first; its duty cycle is then "
@@ -238,7 +238,7 @@ def run() -> ExampleResult:
         f"closed loop by at most {replay[0]:.2g} A (i1) and {replay[1]:.2g} V (v4).",
         f"Noise: uniform in ±{NOISE[0]:g} (v2) and ±{NOISE[1]:g} (i3), drawn every {NOISE_PERIOD:g} s and held, added to the "
         f"continuous outputs; RK4 with dt = {DT:g} s (the gradient estimators of PEBO reach rates of 1e5/s).",
-        "Derived again from (50) where Table I is garbled: I&IO: x̂2 = ξ2 - L3γ2 y2 and -γ1 u y2 in ξ1' (eq. 18 gives both; "
+        "Derived again from (50) where Table I as printed is inconsistent with it: I&IO: x̂2 = ξ2 - L3γ2 y2 and -γ1 u y2 in ξ1' (eq. 18 gives both; "
         "the printed signs make the error grow); PEBO: B2 = (y2 + G u y1)/C4 and Y2 = W[y2] + F[(u y1 + ξ2)/L3 + G y2/C4]; "
         "KKL+PEBO: Y = W[y1] - F[((1 - u)ξ1 + u y2)/C2] (printed with ξ2); the regressors are filtered, F[b], also where "
         "the table writes the constant -1/L3 (same regression, smaller transient).",
@@ -258,7 +258,7 @@ def run() -> ExampleResult:
     evidence = [_text_table(rows), *(f"{n}:\n{ds[n]}" for n in names)]
     return ExampleResult(
         systems={"Ćuk converter (50)": model()},
-        key="004-cuk", title=f"{cite('004')} §V-C: Ćuk converter, six observers under bounded noise", reference=REF,
+        key="cuk", title=f"{cite('004')} §V-C: Ćuk converter, six observers under bounded noise", reference=REF,
         summary=(f"Six observers of {cite('004')} Table I on the Ćuk converter (50) under state feedback and bounded noise. KKLO: "
                  f"noise part of the error {kkl.noise_rms[0]:.2g} A / {kkl.noise_rms[1]:.2g} V; the worst RMS errors under "
                  f"noise are the high-gain observers' in i1; the paper's 'KKLO least noise-sensitive' holds for v4, not for i1."),

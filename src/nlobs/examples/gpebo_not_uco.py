@@ -39,7 +39,7 @@ def model() -> StateAffine:
     return StateAffine([[0, "u"], [0, 0]], [0, 0], [[1], [0]], inputs=["u"], outputs=["y"], name="ltv_vanishing_input")
 
 
-@register("000-2gd-not-uco", f"{cite('000')}: 2G+D converges where the system is observable but not UCO", 70)
+@register("2gd-not-uco", f"{cite('000')}: 2G+D converges where the system is observable but not UCO", 70, aliases=("000-2gd-not-uco",))
 def run() -> ExampleResult:
     sa = model()
     system = sa.to_system()
@@ -113,7 +113,7 @@ def run() -> ExampleResult:
     ]
     return ExampleResult(
         systems={"ẋ = [[0, u], [0, 0]]x, y = x1": model().to_system()},
-        key="000-2gd-not-uco", title=f"{cite('000')}: 2G+D on an observable, non-UCO LTV system", reference=REF,
+        key="2gd-not-uco", title=f"{cite('000')}: 2G+D on an observable, non-UCO LTV system", reference=REF,
         summary=(f"With u(t) = e^(-t) the system ẋ = [[0, u], [0, 0]]x, y = x1 is observable on [0, T] but not UCO. The 2G+D "
                  f"observer (order 14) reaches |x̂ - x| = {e_gd[-1]:.2g} at t = 20; the Kalman-like observer stalls at "
                  f"{e_kl[-1]:.3g}."),

@@ -50,7 +50,7 @@ def _failure(fn, **kw) -> str:  # noqa: ANN001
     return ""
 
 
-@register("004-kkl-pebo", f"{cite('004')}: neither KKL nor PEBO, but KKL+PEBO (example 31)", 80)
+@register("kkl-pebo", f"{cite('004')}: neither KKL nor PEBO, but KKL+PEBO (example 31)", 80, aliases=("004-kkl-pebo",))
 def run() -> ExampleResult:
     system = model()
     kkl_msg = _failure(design_kkl, Lambda=[-1, -1])
@@ -95,7 +95,7 @@ def run() -> ExampleResult:
     ]
     return ExampleResult(
         systems={"example (31)": model()},
-        key="004-kkl-pebo", title=f"{cite('004')} §V-A: KKL+PEBO where KKL and PEBO fail", reference=REF,
+        key="kkl-pebo", title=f"{cite('004')} §V-A: KKL+PEBO where KKL and PEBO fail", reference=REF,
         summary=(f"The KKL and PEBO checks fail and say which component needs which λ; KKL+PEBO (32)-(37) reaches "
                  f"|x̂2 - x2| = {err[-1, 1]:.2g}, |x̂3 - x3| = {err[-1, 2]:.2g} at t = {T_FINAL:g}."),
         model=str(system), evidence=[f"KKL check: {kkl_msg}", f"PEBO check: {pebo_msg}", str(d), str(rep)],

@@ -146,24 +146,26 @@ def _gramian(aug: dict, system: System, run, window: float) -> np.ndarray:  # no
     return gramian(augmented_matrix(aug, system), np.array(aug["C"], dtype=float), run.t[:k], run.u[:k], run.y_true[:k])
 
 
-@register("001-range-velocity", f"{cite('001')} §IV-A — range-only localisation with velocity input (9-state augmentation)", 20)
+@register("range-vel", f"{cite('001')} §IV-A — range-only localisation with velocity input (9-state augmentation)", 20, aliases=("001-range-velocity",))
 def run_velocity() -> ExampleResult:
-    return _run("001-range-velocity", f"{cite('001')} §IV-A — range-only localisation with velocity input (9-state augmentation)",
+    return _run("range-vel", f"{cite('001')} §IV-A — range-only localisation with velocity input (9-state augmentation)",
                 velocity_model(), velocity_augmentation(), x0=[8.0, -5.0, 3.0, 0.2, -0.1, 0.05], xhat0=[1.0, 1.0, 1.0, 0, 0, 0],
                 rich={"u1": "2*cos(t)", "u2": "2*sin(0.7*t)", "u3": "cos(0.4*t)"},
                 straight={"u1": 1.0, "u2": 0.5, "u3": 0.0}, T=100.0, dt=5e-3,
                 P0=np.diag([10.0] * 6 + [0.1, 10.0, 10.0]), Q=1e-2,
                 reference=f"{cite('001')} §IV-A, eqs. (15)-(16), Lemma 1, estimate [I6 0]ŵ",
-                notes=("A of (16) is garbled in the text conversion; it is re-derived from d/dt T(x) (module docstring) and "
+                notes=("A of (16) is re-derived from $\\frac{d}{dt}T(x)$: $\\frac{d}{dt}\\|x_1\\| = (u^\\top x_1 + x_1 \\cdot x_2)/y$ and "
+                       "$\\frac{d}{dt}(x_1 \\cdot x_2) = u^\\top x_2 + x_2 \\cdot x_2$ give the rows of $\\|x_1\\|$ and $x_1 \\cdot x_2$; "
+                       "the result is "
                        "checked symbolically by design_augmented.",
                        "Trajectory, current, input, Q = 0.01 I, R = 0.01, P0 (small on the measured range) and the noise are "
                        "our choices; the paper gives no simulation for §IV-A."))
 
 
-@register("001-range-acceleration", f"{cite('001')} §IV-B — range-only localisation with acceleration input (14-state augmentation)", 30)
+@register("range-acc", f"{cite('001')} §IV-B — range-only localisation with acceleration input (14-state augmentation)", 30, aliases=("001-range-acceleration",))
 def run_acceleration() -> ExampleResult:
     g = (0.1, -0.2, -1.0)
-    return _run("001-range-acceleration",
+    return _run("range-acc",
                 f"{cite('001')} §IV-B — range-only localisation with acceleration input (14-state augmentation)",
                 acceleration_model(), acceleration_augmentation(), x0=[8.0, -5.0, 3.0, 0.1, 0.0, 0.05, *g],
                 xhat0=[1.0, 1.0, 1.0, 0, 0, 0, 0, 0, 0],

@@ -34,7 +34,7 @@ def van_der_pol_unknown() -> System:
     return bundled("van_der_pol_unknown").system
 
 
-@register("002-vdp", f"{cite('002')} — Van der Pol with unknown γ, ω²: Kalman-like observer on ż = A(y)z", 60)
+@register("vdp", f"{cite('002')} — Van der Pol with unknown γ, ω²: Kalman-like observer on ż = A(y)z", 60, aliases=("002-vdp",))
 def run() -> ExampleResult:
     mf = bundled("van_der_pol_unknown")
     system = mf.system
@@ -67,7 +67,7 @@ def run() -> ExampleResult:
         row["gamma_hat"], row["omega2_hat"] = float(tr[2]), float(tr[3])
     return ExampleResult(
         systems={"Van der Pol with γ, ω² as states": van_der_pol_unknown()},
-        key="002-vdp",
+        key="vdp",
         title=f"{cite('002')} — Van der Pol with unknown γ, ω²: Kalman-like observer on ż = A(y)z",
         reference=REFERENCE,
         summary=("In Liénard coordinates the Van der Pol oscillator with unknown γ and ω² is state-affine in the measured "

@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from .._display import MISSING, Column, SummaryTable, fmt_number, short_repr
 from ._metrics import Metrics, error_metrics
 
 __all__ = ["ObserverTrace", "Run"]
@@ -33,6 +34,9 @@ class ObserverTrace:
     z: np.ndarray
     xhat: np.ndarray
     xhat_prior: np.ndarray | None = None  #: the initial estimate before any measurement (sets the default tolerance)
+
+    def __repr__(self) -> str:
+        return short_repr(self, {"name": self.name, "method": self.method, "z": self.z, "xhat": self.xhat})
 
 
 @dataclass(frozen=True, eq=False)
@@ -98,18 +102,34 @@ class Run:
             raise ValueError("noise_gain: this run has no measurement noise")
         return float(np.sqrt(np.mean(self.error_norm(name)[sel] ** 2)) / noise_rms)
 
-    def summary(self, *, tol: float | None = None) -> str:
-        """A text table of every observer's metrics."""
-        head = f"{'observer':<18} {'final err':>10} {'RMS (last 20%)':>15} {'peak err':>10} {'conv. time':>11}"
-        lines = [f"{self.model}: t in [{self.t[0]:g}, {self.t[-1]:g}], {len(self.t)} samples", head, "-" * len(head)]
-        for name in self.observers:
-            if self.x is None:
-                lines.append(f"{name:<18} (no true state)")
-                continue
-            m = self.metrics(name, tol=tol)
-            tc = "never" if m.convergence_time is None else f"{m.convergence_time:.3g}"
-            lines.append(f"{name:<18} {m.final_error:>10.3g} {m.rms_error:>15.3g} {m.peak_error:>10.3g} {tc:>11}")
-        return "\n".join(lines)
+    def summary(self, *, tol: float | None = None) -> SummaryTable:
+        """Every observer's metrics as a table: ``print()`` it, show it in a notebook, or
+        ``.to_pandas()`` it. Without a true state (recorded data) the table gives the final estimates.
+
+        Parameters
+        ----------
+        tol : float, optional
+            Convergence tolerance (default: 2 % of each observer's initial error).
+        """
+        title = f"{self.model}: t in [{self.t[0]:g}, {self.t[-1]:g}], {len(self.t)} samples"
+        name = Column("observer", "observer", str, numeric=False)
+        if self.x is None:
+            cols = [name] + [Column(s, s, lambda v: fmt_number(v, 6)) for s in self.state_names]
+            rows = [{"observer": n, **dict(zip(self.state_names, tr.xhat[-1].tolist()))} for n, tr in self.observers.items()]
+            return SummaryTable(title + " (no true state: final estimates)", cols, rows)
+        cols = [name, Column("final_error", "final err"), Column("rms_error", "RMS (last 20%)"),
+                Column("peak_error", "peak err"), Column("convergence_time", "conv. time")]
+        rows = [{"observer": n, **self.metrics(n, tol=tol).to_dict()} for n in self.observers]
+        return SummaryTable(title, cols, rows, ("conv. time: first time after which the error stays within the tolerance; "
+                                                f"{MISSING}: not within the run",))
+
+    def __repr__(self) -> str:
+        return short_repr(self, {"model": self.model, "t": (float(self.t[0]), float(self.t[-1])), "samples": int(self.t.size),
+                                 "states": self.state_names, "observers": tuple(self.observers),
+                                 "true_state": self.x is not None})
+
+    def _repr_html_(self) -> str:
+        return self.summary()._repr_html_()
 
     # -- export -------------------------------------------------------------------------
     def to_numpy(self) -> dict[str, np.ndarray]:
@@ -156,11 +176,22 @@ class Run:
             obs[name] = entry
         return {"model": self.model, "t_final": float(self.t[-1]), "samples": int(self.t.size), "observers": obs}
 
-    def plot(self, path: str | None = None, *, observers: Sequence[str] | None = None) -> Any:
+    def plot(self, path: str | None = None, *, observers: Sequence[str] | None = None, width: float = 6.4) -> Any:
         """States vs estimates, and the error norms on a log scale; saved to `path` if given.
 
-        Returns the matplotlib Figure.
+        Parameters
+        ----------
+        path : str, optional
+            File to save the figure to (png, pdf, svg, ...).
+        observers : sequence of str, optional
+            Observers to draw (default: all).
+        width : float
+            Figure width in inches.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
         """
         from ._plot import plot_run
 
-        return plot_run(self, path, observers=observers)
+        return plot_run(self, path, observers=observers, width=width)

@@ -472,4 +472,4 @@ def _assemble(plant: System, obs: Mapping[str, AbstractObserver], layout: _Layou
         xhat = O[:, xsl] if xsl is not None else z[:, :n]
         prior = o.estimate(t[0], S[0, layout.slices[name]], u[0], y[0])
         traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, z, xhat, prior)
-    return Run(plant.name, t, plant.states, plant.inputs, plant.outputs, u, y, traces, x=S[:, :n], y_true=y_true, info=info)
+    return Run(plant.name, t, plant.states, plant.inputs, plant.outputs, u, y, traces, x=S[:, :n], y_true=y_true, info={**info, "units": dict(getattr(plant, "units", None) or {})})
