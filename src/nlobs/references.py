@@ -104,6 +104,22 @@ _ALL = (
     Reference("schoukens2016", "M. Schoukens, P. Mattsson, T. Wigren, J.-P. Noël", "Schoukens, Mattsson, Wigren & Noël",
               "Cascaded tanks benchmark combining soft and hard nonlinearities",
               "Workshop on Nonlinear System Identification Benchmarks, Brussels", 2016),
+    # -- works cited in the prose of docstrings and certificates -----------------------------------
+    Reference("jazwinski1970", "A. H. Jazwinski", "Jazwinski", "Stochastic Processes and Filtering Theory",
+              "Academic Press, New York", 1970),
+    Reference("bucy1968", "R. S. Bucy, P. D. Joseph", "Bucy & Joseph",
+              "Filtering for Stochastic Processes with Applications to Guidance", "Interscience, New York", 1968),
+    Reference("simon2006", "D. Simon", "Simon", "Optimal State Estimation: Kalman, H∞, and Nonlinear Approaches",
+              "Wiley, Hoboken", 2006),
+    Reference("sarkka2007", "S. Särkkä", "Särkkä",
+              "On unscented Kalman filtering for state estimation of continuous-time nonlinear systems",
+              "IEEE Transactions on Automatic Control 52(9):1631–1641", 2007),
+    Reference("wan2000", "E. A. Wan, R. van der Merwe", "Wan & van der Merwe", "The unscented Kalman filter for nonlinear estimation",
+              "Proc. IEEE Adaptive Systems for Signal Processing, Communications, and Control Symposium (AS-SPCC), 153–158", 2000),
+    Reference("rao2003", "C. V. Rao, J. B. Rawlings, D. Q. Mayne", "Rao, Rawlings & Mayne",
+              "Constrained state estimation for nonlinear discrete-time systems: stability and moving horizon approximations",
+              "IEEE Transactions on Automatic Control 48(2):246–258", 2003),
+    Reference("ioannou1996", "P. A. Ioannou, J. Sun", "Ioannou & Sun", "Robust Adaptive Control", "Prentice Hall, Upper Saddle River", 1996),
 )
 
 #: Every work nlobs cites, by key.
