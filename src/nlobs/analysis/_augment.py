@@ -181,7 +181,7 @@ def propose_augmentation(system: System, *, max_degree: int = 4, max_states: int
     r"""Build a state augmentation w = T(x) = [x; T_a(x)] and a mimicking system automatically.
 
     Polynomial dynamics are required (outputs may be a fractional power of a polynomial, such as
-    the range |p| = (p·p)^½, which then enters A as y). The span of {x, h} is closed under the time
+    the range ‖p‖ = (p·p)^½, which then enters A as y). The span of {x, h} is closed under the time
     derivative: each derivative is split into groups of terms with a common coefficient in the
     known signals (u, y, t, parameters); a group already in the span contributes a column of A, a
     group with no state contributes to b, and any other group becomes a new state.

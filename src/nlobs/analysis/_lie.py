@@ -540,7 +540,7 @@ def observable_function(system: System, expr: ExprLike, **options: Any) -> Funct
 
     φ is locally observable iff :math:`d\varphi` lies in :math:`d\mathcal O(h)` (generically): its
     gradient is in the row space of the output-jet Jacobian. Range-only localisation with u = 0
-    (p' = v, v' = 0, y = |p|²) observes |p|², p·v and |v|² but not p1.
+    (p' = v, v' = 0, y = ‖p‖²) observes ‖p‖², p·v and ‖v‖² but not p1.
 
     Parameters
     ----------

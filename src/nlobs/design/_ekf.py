@@ -44,7 +44,7 @@ def design_ekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
 
     Here R is an intensity: white noise sampled with standard deviation σ every Δt has
     intensity σ²Δt, and a small R makes the gain P Hᵀ R⁻¹ H large, so the integration step
-    must resolve it (RK4 is stable for |λ|Δt < 2.8).
+    must resolve it (RK4 is stable for Δt·abs(λ) < 2.8).
 
     P is stored in full and kept exactly symmetric: every derivative and update is
     symmetrised, so P stays symmetric to the last bit and positive definite as long as the

@@ -249,7 +249,7 @@ def design_high_gain(system: System, *, theta: float | None = None, r: float | N
     -------
     ObserverDesign
         Certificate values: ``theta``, ``K0``, ``eigenvalues`` (of A_c - K0C0),
-        ``nominal_rate`` (θ min |Re eig|), and with `lipschitz` ``theta_min``, ``P0`` and
+        ``nominal_rate`` (θ · min abs(Re eig)), and with `lipschitz` ``theta_min``, ``P0`` and
         ``guaranteed_rate``.
 
     Raises

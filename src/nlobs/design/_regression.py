@@ -663,7 +663,7 @@ class ExcitationReport:
     delta : numpy.ndarray or None
         The mixed scalar regressor Δ(t) (DREM, G+D).
     delta_time : float or None
-        First time |Δ| exceeds `tol` (000 Lemma 2: Δ ≠ 0 for t ≥ t_d under IE).
+        First time abs(Δ) exceeds `tol` (000 Lemma 2: Δ ≠ 0 for t ≥ t_d under IE).
     tol : float
     """
 

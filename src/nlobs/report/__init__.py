@@ -5,6 +5,7 @@ from ._demo import DemoOutcome as DemoOutcome
 from ._demo import example_section as example_section
 from ._demo import run_demo as run_demo
 from ._demo import summary_table as summary_table
+from ._html import HTML as HTML
 from ._html import bibliography as bibliography
 from ._html import details as details
 from ._html import equations as equations
@@ -19,5 +20,5 @@ from ._html import prose as prose
 from ._html import section as section
 from ._html import table as table
 
-__all__ = ["DemoOutcome", "run_demo", "example_section", "summary_table", "bibliography", "details", "equations", "expr",
+__all__ = ["HTML", "DemoOutcome", "run_demo", "example_section", "summary_table", "bibliography", "details", "equations", "expr",
            "figure", "fmt", "maths", "page", "plain", "pre", "prose", "section", "table"]

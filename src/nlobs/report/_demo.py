@@ -149,8 +149,19 @@ def _reference_links(text: str) -> str:
     return out
 
 
-def example_section(r: ExampleResult, seconds: float | None = None, *, level: int = 2) -> str:
-    """One example as an HTML section: claims, observability, the table, the plots, the model, the evidence, notes."""
+def example_section(r: ExampleResult, seconds: float | None = None, *, level: int = 2, plots: bool = True) -> str:
+    """One example as an HTML section: claims, observability, the table, the plots, the model, the evidence, notes.
+
+    Parameters
+    ----------
+    r : ExampleResult
+    seconds : float, optional
+        How long it ran (shown under the title).
+    level : int
+        Heading level of the title (2: ``<h2>``).
+    plots : bool
+        Include the run plots and the example's figures.
+    """
     h = level + 1
     sub = _reference_links(r.reference) + (f" · ran in {seconds:.1f} s" if seconds is not None else "")
     parts = [f"<p>{prose(r.summary)}</p>", f"<h{h}>Claims checked</h{h}><ul class='claims'>"]
@@ -163,10 +174,10 @@ def example_section(r: ExampleResult, seconds: float | None = None, *, level: in
     if r.table:
         parts.append(f"<h{h}>Convergence and accuracy</h{h}>" + table(r.table, COLUMNS + _extra_columns(r))
                      + f"<p class='note'>{html.escape(CONVERGENCE_NOTE)}</p>")
-    if r.runs:
+    if r.runs and plots:
         parts.append("<div class='figs'>" + "".join(figure(run.plot(width=HALF_WIDTH), label, alt=f"{r.key} {plain(label)}")
                                                   for label, run in r.runs.items()) + "</div>")
-    for caption, fig in r.figures.items():
+    for caption, fig in r.figures.items() if plots else ():
         parts.append(figure(fig, caption))
     if r.systems:
         parts.append(f"<h{h}>Model</h{h}>" + "".join(f"<p>{prose(label)}</p>{equations(s)}" for label, s in r.systems.items()))

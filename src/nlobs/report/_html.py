@@ -25,7 +25,7 @@ from .._display import fmt_number
 from ..references import REFERENCES, cited_keys, full_citation
 
 __all__ = ["fmt", "maths", "expr", "prose", "plain", "equations", "figure", "img", "table", "section", "details", "pre",
-           "bibliography", "page", "CSS", "FIGURE_WIDTH", "HALF_WIDTH"]
+           "bibliography", "page", "HTML", "CSS", "FIGURE_WIDTH", "HALF_WIDTH"]
 
 #: Width in inches of a full-width figure and of one of two side-by-side figures. Figures are
 #: shown at 96 CSS pixels per inch (never scaled up), so fonts match across figures.
@@ -134,9 +134,16 @@ def plain(text: str) -> str:
     return _DOLLARS.sub(lambda m: _plain_maths(m.group(1)), text)
 
 
+def _dotted(name: str) -> str:
+    """The time derivative of a state as LaTeX, the dot on the letter: x1 -> \\dot{x}_{1}."""
+    tex = sp.latex(sp.Symbol(name))
+    m = re.fullmatch(r"(\\?[A-Za-z]+)_\{(.+)\}", tex)
+    return rf"\dot{{{m.group(1)}}}_{{{m.group(2)}}}" if m else rf"\dot{{{tex}}}"
+
+
 def equations(system: Any, *, display: bool = True) -> str:
     """A model's equations, ẋᵢ = fᵢ(x, u, t) and yⱼ = hⱼ(x, u, t), as one aligned MathML block."""
-    rows = [rf"\dot{{{sp.latex(sp.Symbol(n))}}} &=& {sp.latex(e)}" for n, e in zip(system.states, system.f)]
+    rows = [rf"{_dotted(n)} &=& {sp.latex(e)}" for n, e in zip(system.states, system.f)]
     rows += [rf"{sp.latex(sp.Symbol(n))} &=& {sp.latex(e)}" for n, e in zip(system.outputs, system.h)]
     body = maths(r"\begin{array}{rcl}" + r"\\".join(rows) + r"\end{array}", display=display)
     params = getattr(system, "params", {}) or {}
@@ -209,6 +216,13 @@ def bibliography(*texts: str, title: str = "References") -> str:
         link = f" <a href='https://doi.org/{html.escape(r.doi)}'>doi:{html.escape(r.doi)}</a>" if r.doi else ""
         items.append(f"<li id='ref-{html.escape(k)}'>{html.escape(full_citation(k).removesuffix(f', doi:{r.doi}.'))}{link}</li>")
     return section(title, f"<ol class='bib'>{''.join(items)}</ol>", id="references")
+
+
+class HTML(str):
+    """A piece of HTML that shows itself as HTML in a notebook (and in a documentation gallery)."""
+
+    def _repr_html_(self) -> str:
+        return str(self)
 
 
 def page(title: str, subtitle: str, body: Iterable[str]) -> str:

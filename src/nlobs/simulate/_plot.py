@@ -35,7 +35,8 @@ def _label(name: str, units: Mapping[str, str]) -> str:
     return f"{name} [{unit}]" if unit else name
 
 
-def plot_run(run: Run, path: str | None = None, *, observers: Sequence[str] | None = None, width: float = 6.4) -> Figure:
+def plot_run(run: Run, path: str | None = None, *, observers: Sequence[str] | None = None, width: float = 6.4,
+             title: str | None = None) -> Figure:
     """One panel per state (true state in black, one line per observer) and, when the truth is
     known, a last panel with ‖x̂ - x‖ on a log scale. Uses no GUI backend.
 
@@ -48,6 +49,8 @@ def plot_run(run: Run, path: str | None = None, *, observers: Sequence[str] | No
         Observers to draw (default: all).
     width : float
         Figure width in inches (the height follows the number of panels).
+    title : str, optional
+        A title above the panels.
 
     Returns
     -------
@@ -82,6 +85,8 @@ def plot_run(run: Run, path: str | None = None, *, observers: Sequence[str] | No
         fig.legend(handles, labels, loc="outside upper center", ncol=min(3, len(labels)), fontsize=FONT["legend"],
                    frameon=False, handlelength=3.0)
     axes[-1].set_xlabel(_label("t", units))
+    if title:
+        fig.suptitle(title, fontsize=FONT["title"])
     if path is not None:
         fig.savefig(path, dpi=150)
     return fig

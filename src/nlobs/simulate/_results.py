@@ -176,7 +176,8 @@ class Run:
             obs[name] = entry
         return {"model": self.model, "t_final": float(self.t[-1]), "samples": int(self.t.size), "observers": obs}
 
-    def plot(self, path: str | None = None, *, observers: Sequence[str] | None = None, width: float = 6.4) -> Any:
+    def plot(self, path: str | None = None, *, observers: Sequence[str] | None = None, width: float = 6.4,
+             title: str | None = None) -> Any:
         """States vs estimates, and the error norms on a log scale; saved to `path` if given.
 
         Parameters
@@ -187,6 +188,8 @@ class Run:
             Observers to draw (default: all).
         width : float
             Figure width in inches.
+        title : str, optional
+            A title above the panels.
 
         Returns
         -------
@@ -194,4 +197,4 @@ class Run:
         """
         from ._plot import plot_run
 
-        return plot_run(self, path, observers=observers, width=width)
+        return plot_run(self, path, observers=observers, width=width, title=title)
