@@ -2,7 +2,8 @@
 
 Everything comes from the design functions themselves: the options and defaults from their
 signatures, the descriptions from their NumPy-style docstrings, the references from the works
-those docstrings cite (:func:`nlobs.references.cited_keys`).
+those docstrings and the certificates' references (the module's ``REF...`` strings) cite
+(:func:`nlobs.references.cited_keys`).
 """
 
 from __future__ import annotations
@@ -80,7 +81,9 @@ def kind_info(kind: str) -> dict[str, Any]:
         options.append({"name": name, "required": p.default is inspect.Parameter.empty,
                         "default": default if isinstance(default, (int, float, str, bool, type(None))) else repr(default),
                         "description": _clean_rst(params.get(name, ""))})
-    keys = cited_keys(doc) or cited_keys(module_doc)
+    module = sys.modules[fn.__module__]
+    certificate_refs = [v for k, v in vars(module).items() if k.startswith("REF") and isinstance(v, str)]
+    keys = cited_keys("\n".join([doc, *certificate_refs])) or cited_keys(module_doc)
     summary = _clean_rst(" ".join(_sections(doc)[""][:1]).strip()) if doc else ""
     return {"kind": kind, "function": f"nlobs.{fn.__name__}", "summary": summary, "options": options,
             "references": [{"key": k, "cite": REFERENCES[k].label, "full": str(REFERENCES[k])} for k in keys]}
@@ -131,6 +134,8 @@ def run(args: argparse.Namespace) -> int:
     width = max(len(i["kind"]) for i in infos)
     for i in infos:
         refs = "; ".join(r["cite"] for r in i["references"]) or "—"
-        print(f"{i['kind']:<{width}}  {i['function']:<30} {refs}")
+        pad = " " * (width + 2)
+        print(textwrap.fill(i["summary"], width=100, initial_indent=f"{i['kind']:<{width}}  ", subsequent_indent=pad))
+        print(textwrap.fill(f"[{refs}]", width=100, initial_indent=pad, subsequent_indent=pad))
     print("\nnlobs kinds KIND: the options of one kind, with their defaults")
     return 0

@@ -1,6 +1,6 @@
 """What a design returns: the observer's equations with the evidence behind them.
 
-An observer is a dynamical system (004 eq. 2, 000 eq. 6)
+An observer is a dynamical system (Yi, Ortega & Zhang (2019), eq. 2, Wang, Ortega & Bobtsov (2021), eq. 6)
 
 .. math::
 

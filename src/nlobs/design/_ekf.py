@@ -9,14 +9,15 @@ import numpy as np
 
 from ..engine import compile_system
 from ..errors import PreconditionError
+from ..references import cite
 from ..model import System
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import check_matrix
 
 __all__ = ["design_ekf"]
 
-REF_EKF = ("Extended Kalman filter (Jazwinski 1970; D. Simon, Optimal State Estimation, 2006, ch. 13); "
-           "Joseph-form update (Bucy & Joseph 1968)")
+REF_EKF = (f"Extended Kalman filter ({cite('jazwinski1970')}; {cite('simon2006', 'ch. 13')}); "
+           f"Joseph-form update ({cite('bucy1968')})")
 
 
 def _sym(M: ca.SX) -> ca.SX:

@@ -1,4 +1,4 @@
-"""Moving-horizon estimation: the "corrected trajectory-based" observer of 002, solved with CasADi and IPOPT.
+"""Moving-horizon estimation: the "corrected trajectory-based" observer of Besançon (2010), solved with CasADi and IPOPT.
 
 The window of past samples lives inside the observer's state z, so MHE fits the observer
 contract: the flow predicts the current estimate between samples, and the update at each
@@ -25,7 +25,7 @@ __all__ = ["design_mhe"]
 
 REF = (f"{cite('002')}, 'I. \"Corrected trajectory-based\" approach': min over z_(t-T) of "
        "∫_(t-T)^t ‖h(χ_u(τ, z_(t-T))) - y(τ)‖² dτ; discretised on the samples of the window, with an arrival cost "
-       "(Rao, Rawlings & Mayne 2003) and warm start from the previous solution")
+       f"({cite('rao2003')}) and warm start from the previous solution")
 
 
 def design_mhe(system: System, *, horizon: int = 20, R: Any = None, P_arrival: Any = None, substeps: int = 2,
@@ -43,7 +43,7 @@ def design_mhe(system: System, *, horizon: int = 20, R: Any = None, P_arrival: A
 
     where χ integrates the model from the window's first sample (RK4, `substeps` steps per
     sample interval, input held), :math:`\bar x` (the arrival prior) is the previous solution
-    propagated to the new window start, and :math:`m_i` masks missing outputs. This is 002's
+    propagated to the new window start, and :math:`m_i` masks missing outputs. This is Besançon (2010)'s
     "corrected trajectory-based" estimator (the integral replaced by the sum over samples) with
     an arrival cost. IPOPT is warm-started at :math:`\bar x`. Between samples the estimate is
     predicted with the model. While the window fills up, its empty slots carry no weight
@@ -89,7 +89,7 @@ def design_mhe(system: System, *, horizon: int = 20, R: Any = None, P_arrival: A
 
     References
     ----------
-    002_613af42269ea26a7.txt, "Some observer problem formulations - About methods", approach I.
+    Besançon (2010), "Some observer problem formulations - About methods", approach I.
     """
     caller = "design_mhe"
     n, p, nu = system.n_states, system.n_outputs, system.n_inputs

@@ -1,4 +1,4 @@
-"""003 (Banks), examples 3.1 (Kou et al.) and 3.2: exponential observers x̂' = f(x̂) + P·(ŷ - y).
+"""Banks (1980), (Banks), examples 3.1 (Kou et al.) and 3.2: exponential observers x̂' = f(x̂) + P·(ŷ - y).
 
 3.1: x1' = x1 + f1(x1), x2' = x1 - 2x2 + e^{-x2} + f2(x2), y = x1 + x2, P = (-2, 1)ᵀ:
 λ(A + PB) = λ([[-1, -2], [2, -1]]) = -1 and e^{-x2} is dissipative (Lemmas 2.3/2.4).
@@ -27,14 +27,14 @@ NOISE = 0.01
 
 
 def example_31(perturbed: bool) -> System:
-    """003 eq. (3.1); with `perturbed`, f1 = 0.5 sin x1 and f2 = 0.5 sin x2 (maximum slope 0.5)."""
+    """Banks (1980), eq. (3.1); with `perturbed`, f1 = 0.5 sin x1 and f2 = 0.5 sin x2 (maximum slope 0.5)."""
     p1, p2 = ("0.5*sin(x1)", "0.5*sin(x2)") if perturbed else ("0", "0")
     return System(states=["x1", "x2"], f=[f"x1 + {p1}", f"x1 - 2*x2 + exp(-x2) + {p2}"], outputs=["y"], h=["x1 + x2"],
                   name="banks_3_1" + ("_perturbed" if perturbed else ""))
 
 
 def example_32(perturbed: bool) -> System:
-    """003 eq. (3.2); with `perturbed`, f1 = 0.5 sin x1 and f2 = 0.5 tanh x2 (Lipschitz constant 0.5)."""
+    """Banks (1980), eq. (3.2); with `perturbed`, f1 = 0.5 sin x1 and f2 = 0.5 tanh x2 (Lipschitz constant 0.5)."""
     p1, p2 = ("0.5*sin(x1)", "0.5*tanh(x2)") if perturbed else ("0", "0")
     return System(states=["x1", "x2"], f=[f"-x1 - x1**3 + x1*x2 + {p1}", f"-x2 - x2**5 - 4*x1*x2 + {p2}"], outputs=["y"],
                   h=["x1*x2"], name="banks_3_2" + ("_perturbed" if perturbed else ""))

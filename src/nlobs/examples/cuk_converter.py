@@ -1,4 +1,4 @@
-"""M8 #9 (004 §V-C): the DC-DC Ćuk converter (50) and the six observers of Table I under bounded noise.
+"""M8 #9 (Yi, Ortega & Zhang (2019), §V-C): the DC-DC Ćuk converter (50) and the six observers of Table I under bounded noise.
 
 The converter runs under the paper's "ideal" state feedback with set-point changes every 0.2 s; the
 six observers (KKLO, PEBO, KKL+PEBO, I&IO and two high-gain observers, all from the bundled model
@@ -42,7 +42,7 @@ STATES = ("i1", "v4")
 
 
 def model() -> System:
-    """The averaged Ćuk converter (004 eq. 50) from ``models/cuk.toml``."""
+    """The averaged Ćuk converter (Yi, Ortega & Zhang (2019), eq. 50) from ``models/cuk.toml``."""
     return bundled("cuk").system
 
 
@@ -64,7 +64,7 @@ def equilibrium(vd: float, params: Mapping[str, float]) -> np.ndarray:
 
 
 def control_law(system: System, lam: float) -> sp.Expr:
-    r"""u = |V_d|/(|V_d| + E) + λ s/(1 + s²), s = G|V_d| v2 + E(i3 - i1) (004 §V-C, from its ref. [2]).
+    r"""u = |V_d|/(|V_d| + E) + λ s/(1 + s²), s = G|V_d| v2 + E(i3 - i1) (Yi, Ortega & Zhang (2019), §V-C, from its ref. [2]).
 
     The PDF prints s = G|V_d| v2 + E(x2 - x1); with x = (i1, v4) that mixes a voltage into a current.
     s is the passive output of the incremental model (50) around the set point (with storage

@@ -1,6 +1,6 @@
-"""M8 #8 (004 §V-A): a system neither KKL nor PEBO solves, and the KKL+PEBO observer (32)-(37).
+"""M8 #8 (Yi, Ortega & Zhang (2019), §V-A): a system neither KKL nor PEBO solves, and the KKL+PEBO observer (32)-(37).
 
-ẋ1 = -x1³ + e^{x3}, ẋ2 = -x2 + x1² + sin x1, ẋ3 = (x1² + 1)^{-1} + x1 u, y = x1 (004 eq. 31).
+ẋ1 = -x1³ + e^{x3}, ẋ2 = -x2 + x1² + sin x1, ẋ3 = (x1² + 1)^{-1} + x1 u, y = x1 (Yi, Ortega & Zhang (2019), eq. 31).
 x2 has a stable self-dynamics (it needs λ = -1: a KKL component) and x3 has none (it needs
 λ = 0: a PEBO component), so the checks of the pure designs fail and point at that, while the
 KKL+PEBO observer with Λ = diag(-1, 0), φ = (x2, x3) converges (F3, F4).
@@ -30,7 +30,7 @@ B = ["y**2 + sin(y)", "u*y + 1/(y**2 + 1)"]   # 004 F4 proof: B(h(x), u)
 
 
 def model() -> System:
-    """004 eq. (31)."""
+    """Yi, Ortega & Zhang (2019), eq. (31)."""
     return System(states=["x1", "x2", "x3"], f=["-x1**3 + exp(x3)", "-x2 + x1**2 + sin(x1)", "1/(x1**2 + 1) + x1*u"],
                   outputs=["y"], h=["x1"], inputs=["u"], name="yi_ortega_zhang_31")
 

@@ -1,4 +1,4 @@
-"""002, robot arm / pendulum: the error-linearisation (output-injection) observer.
+"""Besançon (2010), robot arm / pendulum: the error-linearisation (output-injection) observer.
 
 m l² ÿ + f l² ẏ + m g l sin y = u gives x1' = x2, x2' = −a1 sin x1 − a2 x2 + b u, y = x1, which
 is x' = Ax + B(u, y) with A = [[0, 1], [0, −a2]], B(u, y) = (0, −a1 sin y + b u), C = (1, 0).

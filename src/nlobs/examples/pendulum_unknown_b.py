@@ -1,4 +1,4 @@
-"""002, robot arm / pendulum with the input gain b unknown ("Pb2: x1, x2, b ?"): Kalman-like observer.
+"""Besançon (2010), robot arm / pendulum with the input gain b unknown ("Pb2: x1, x2, b ?"): Kalman-like observer.
 
 With b as a constant state the model is state-affine, x_e' = A_e(u)x_e + B_e(y), y = C_e x_e:
 A_e(u) = [[0, 1, 0], [0, -a2, u], [0, 0, 0]], B_e(y) = (0, -a1 sin y, 0). b is seen only through

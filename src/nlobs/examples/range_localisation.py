@@ -1,4 +1,4 @@
-"""001 §IV-A and §IV-B: single-range localisation through state augmentation, with a Kalman-Bucy filter
+"""Viegas, Batista, Oliveira & Silvestre (2015), §IV-A and §IV-B: single-range localisation through state augmentation, with a Kalman-Bucy filter
 on the augmented LTV system and the estimate recovered by the left inverse x̂ = [I 0]ŵ.
 
 §IV-A (15)-(16): x1' = x2 + u, x2' = 0, y = ‖x1‖; w = (x1, x2, ‖x1‖, x1·x2, x2·x2) ∈ R⁹.
@@ -40,13 +40,13 @@ def _dot(a: tuple[str, ...], b: tuple[str, ...]) -> str:
 
 
 def velocity_model() -> System:
-    """001 eq. (15): relative position p = x1, current velocity c = x2, measured vehicle velocity u."""
+    """Viegas, Batista, Oliveira & Silvestre (2015), eq. (15): relative position p = x1, current velocity c = x2, measured vehicle velocity u."""
     return System(states=[*P, "c1", "c2", "c3"], f=["c1 + u1", "c2 + u2", "c3 + u3", "0", "0", "0"],
                   inputs=["u1", "u2", "u3"], outputs=["y"], h=[RANGE], name="range_velocity")
 
 
 def velocity_augmentation() -> dict:
-    """T, A(u, y), b(u), C and the left inverse of 001 eq. (16) (A re-derived, see the module docstring)."""
+    """T, A(u, y), b(u), C and the left inverse of Viegas, Batista, Oliveira & Silvestre (2015), eq. (16) (A re-derived, see the module docstring)."""
     C_ = ("c1", "c2", "c3")
     T = [*P, *C_, RANGE, _dot(P, C_), _dot(C_, C_)]
     A = [["0"] * 9 for _ in range(9)]
@@ -61,14 +61,14 @@ def velocity_augmentation() -> dict:
 
 
 def acceleration_model() -> System:
-    """001 eq. (17): position p = x1, velocity v = x2, constant acceleration bias (gravity) g = x3, measured u."""
+    """Viegas, Batista, Oliveira & Silvestre (2015), eq. (17): position p = x1, velocity v = x2, constant acceleration bias (gravity) g = x3, measured u."""
     return System(states=[*P, "v1", "v2", "v3", "g1", "g2", "g3"],
                   f=["-v1", "-v2", "-v3", "g1 + u1", "g2 + u2", "g3 + u3", "0", "0", "0"],
                   inputs=["u1", "u2", "u3"], outputs=["y"], h=[RANGE], name="range_acceleration")
 
 
 def acceleration_augmentation() -> dict:
-    """T, A(u, y), b(u), C and the left inverse of 001 eq. (18)."""
+    """T, A(u, y), b(u), C and the left inverse of Viegas, Batista, Oliveira & Silvestre (2015), eq. (18)."""
     V, G = ("v1", "v2", "v3"), ("g1", "g2", "g3")
     T = [*P, *V, *G, RANGE, _dot(P, V), f"{_dot(P, G)} - ({_dot(V, V)})", _dot(V, G), _dot(G, G)]
     A = [["0"] * 14 for _ in range(14)]
@@ -141,7 +141,7 @@ def scaled_min_eig(W: np.ndarray) -> float:
 
 
 def _gramian(aug: dict, system: System, run, window: float) -> np.ndarray:  # noqa: ANN001
-    """The observability Gramian of the augmented LTV system over [0, window] along `run` (000 eq. 3)."""
+    """The observability Gramian of the augmented LTV system over [0, window] along `run` (Wang, Ortega & Bobtsov (2021), eq. 3)."""
     k = int(np.searchsorted(run.t, window)) + 1
     return gramian(augmented_matrix(aug, system), np.array(aug["C"], dtype=float), run.t[:k], run.u[:k], run.y_true[:k])
 

@@ -1,4 +1,4 @@
-"""001 §IV-C: the toy system (20) observed through the augmented LTI system (21).
+"""Viegas, Batista, Oliveira & Silvestre (2015), §IV-C: the toy system (20) observed through the augmented LTI system (21).
 
 x1' = x2², x2' = c, y = x1 is mimicked by w' = Aw + Bc, z = Cw with w = T(x) = (x1, x2, x2²),
 A = [[0, 0, 1], [0, 0, 0], [0, 2c, 0]], B = (0, 1, 0)ᵀ, C = (1, 0, 0). The observability

@@ -1,11 +1,11 @@
-"""002, Van der Pol with unknown γ and ω²: the state-affine model ż = A(y)z and a Kalman-like observer.
+"""Besançon (2010), Van der Pol with unknown γ and ω²: the state-affine model ż = A(y)z and a Kalman-like observer.
 
 ẍ - γ(1 - x²)ẋ + ω²x = 0, y = x. With z = (x, ẋ - γ(x - x³/3), γ, ω²):
 
     z1' = z2 + (y - y³/3) z3,  z2' = -y z4,  z3' = 0,  z4' = 0,  y = z1,
 
 i.e. ż = A(y)z with A(y) = [[0, 1, y - y³/3, 0], [0, 0, 0, -y], 0, 0]. On the limit cycle the output
-is regularly persistent and the Kalman-like observer estimates γ and ω² (002: "∃ a limit cycle ⇒
+is regularly persistent and the Kalman-like observer estimates γ and ω² (Besançon (2010): "∃ a limit cycle ⇒
 observability with 'regular persistency'").
 """
 

@@ -249,7 +249,7 @@ def montecarlo(
     seed : int
         Base seed; run j uses ``seeds[j]`` (see the result), exactly as ``simulate(seed=seeds[j])``.
     save_every : int, optional
-        Keep every k-th step (default: about 1,000 saved times); the final time is always kept.
+        Keep every k-th step (default: about 1,Wang, Ortega & Bobtsov (2021) saved times); the final time is always kept.
     tol : float, optional
         Convergence tolerance (default: 2 % of each run's initial error ‖x̂(0⁻) − x(0)‖).
     engine : {"auto", "vm", "c"}
