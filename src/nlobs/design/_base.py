@@ -107,7 +107,7 @@ class Certificate:
     method : str
         What was designed, in words.
     reference : str
-        The paper and equation implemented (file name and equation number).
+        The work and the equation implemented, cited by author and year (:func:`nlobs.references.cite`).
     checks : tuple of Check
         Preconditions and guarantees, each with its numbers.
     values : mapping

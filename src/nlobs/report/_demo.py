@@ -5,6 +5,7 @@ from __future__ import annotations
 import html
 import platform
 import sys
+import textwrap
 import time
 import traceback
 from collections.abc import Sequence
@@ -93,8 +94,9 @@ def summary_table(results: Sequence[ExampleResult]) -> SummaryTable:
             Column("rms_error", "RMS error"), Column("final_error", "final err")]
     rows = [dict(row, example=r.key, run=plain(str(row["run"])), observer=plain(str(row["observer"])))
             for r in results for row in r.table]
-    return SummaryTable("All observers (conv. time: error within 2 % of its initial value; RMS over the last 20 %; "
-                        "— : not within the run)", cols, rows)
+    return SummaryTable("All observers", cols, rows,
+                        ("conv. time: from then on the error stays below 2 % of its start (—: not within the run)",
+                         "RMS error: over the last 20 % of the run; final err: at the final time"))
 
 
 def _print_summary(results: Sequence[ExampleResult], failed: Sequence[tuple[str, str]], stream: TextIO, report: Path,
@@ -107,7 +109,8 @@ def _print_summary(results: Sequence[ExampleResult], failed: Sequence[tuple[str,
         w(f"{r.key:<{width}} claims {n_ok}/{len(r.claims)} hold" + ("" if r.ok else "  <-- see the report") + "\n")
         for c in r.claims:
             if not c.holds:
-                w(f"    FAILS: {plain(c.text)} ({plain(c.detail)})\n")
+                w(textwrap.fill(f"FAILS: {plain(c.text)} ({plain(c.detail)})", width=88, initial_indent="    ",
+                            subsequent_indent="      ") + "\n")
     for key, err in failed:
         w(f"{key:<{width}} CRASHED: {err.splitlines()[0]}\n")
     w(f"\nreport: {report.resolve()}\n"

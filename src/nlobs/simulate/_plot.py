@@ -7,11 +7,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
 if TYPE_CHECKING:
     from ._results import Run
 
-__all__ = ["plot_run", "style_axes", "LINESTYLES"]
+__all__ = ["plot_run", "style_axes", "log_axis", "LINESTYLES"]
 
 #: One dash pattern per observer (cycled), so that estimates lying on top of each other stay
 #: distinguishable: the patterns interleave instead of hiding one another.
@@ -20,6 +21,32 @@ LINESTYLES = ((0, (5, 3)), (0, (1, 2)), (0, (8, 3, 1, 3)), (0, (3, 1, 1, 1, 1, 1
 #: Samples drawn per line at most (every k-th sample of longer runs).
 MAX_POINTS = 2500
 FONT = {"tick": 9.0, "label": 10.0, "legend": 9.0, "title": 11.0}
+
+
+_SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+
+
+def _decade(value: float, _pos: Any = None) -> str:
+    """10⁻³ as plain text (no mathtext to typeset: drawing stays fast)."""
+    if value <= 0:
+        return ""
+    k = int(round(np.log10(value)))
+    return "1" if k == 0 else "10" + str(k).translate(_SUPERSCRIPT)
+
+
+def log_axis(ax: Any) -> None:
+    """A log-scaled y axis with decade ticks labelled 10ⁿ in plain text."""
+    ax.set_yscale("log")
+    ax.yaxis.set_major_locator(LogLocator(base=10, numticks=6))
+    ax.yaxis.set_major_formatter(FuncFormatter(_decade))
+    ax.yaxis.set_minor_formatter(NullFormatter())
+
+
+def _layout(fig: Figure, rows: int, legend: bool, title: bool) -> None:
+    """Fixed margins in inches (constrained layout costs as much as drawing the figure)."""
+    w, h = fig.get_size_inches()
+    top = 0.12 + (0.32 if legend else 0) + (0.3 if title else 0)
+    fig.subplots_adjust(left=0.8 / w, right=1 - 0.15 / w, bottom=0.5 / h, top=1 - top / h, hspace=0.12 * rows / max(rows, 1))
 
 
 def style_axes(ax: Any) -> None:
@@ -62,7 +89,7 @@ def plot_run(run: Run, path: str | None = None, *, observers: Sequence[str] | No
     units: Mapping[str, str] = dict(run.info.get("units") or {})
     n = len(run.state_names)
     rows = n + (1 if run.x is not None and names else 0)
-    fig = Figure(figsize=(width, 1.55 * rows + 0.9), layout="constrained")
+    fig = Figure(figsize=(width, 1.55 * rows + 0.9 + (0.3 if title else 0)))
     axes = fig.subplots(rows, 1, sharex=True, squeeze=False)[:, 0]
     for i, state in enumerate(run.state_names):
         ax = axes[i]
@@ -77,16 +104,18 @@ def plot_run(run: Run, path: str | None = None, *, observers: Sequence[str] | No
         ax = axes[-1]
         for j, name in enumerate(names):
             e = run.error_norm(name)[::k]
-            ax.semilogy(t, np.maximum(e, 1e-16), color=f"C{j % 10}", lw=1.3, ls=LINESTYLES[j % len(LINESTYLES)], label=name)
+            ax.plot(t, np.maximum(e, 1e-16), color=f"C{j % 10}", lw=1.3, ls=LINESTYLES[j % len(LINESTYLES)], label=name)
         ax.set_ylabel("‖x̂ − x‖")
+        log_axis(ax)
         style_axes(ax)
     handles, labels = axes[0].get_legend_handles_labels()
     if handles:
-        fig.legend(handles, labels, loc="outside upper center", ncol=min(3, len(labels)), fontsize=FONT["legend"],
-                   frameon=False, handlelength=3.0)
+        fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 1 - (0.3 if title else 0.02) / fig.get_size_inches()[1]),
+                   ncol=min(3, len(labels)), fontsize=FONT["legend"], frameon=False, handlelength=3.0)
     axes[-1].set_xlabel(_label("t", units))
     if title:
-        fig.suptitle(title, fontsize=FONT["title"])
+        fig.suptitle(title, fontsize=FONT["title"], y=1 - 0.08 / fig.get_size_inches()[1], va="top")
+    _layout(fig, rows, bool(handles), bool(title))
     if path is not None:
         fig.savefig(path, dpi=150)
     return fig
