@@ -68,7 +68,7 @@ sphinx_gallery_conf = {
 }
 
 templates_path = []
-exclude_patterns = ["_build", "_gallery_src", "**.ipynb_checkpoints"]
+exclude_patterns = ["_build", "_gallery_src", "**.ipynb_checkpoints", "sg_execution_times.rst"]  # it loads a script from a CDN
 html_theme = "pydata_sphinx_theme"
 html_title = f"nlobs {release}"
 html_static_path = ["_static"]

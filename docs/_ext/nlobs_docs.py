@@ -49,7 +49,7 @@ def _visit_displaymath(self: Any, node: nodes.Element) -> None:
 GALLERY_SRC = HERE / "_gallery_src"
 
 
-def _script(ex: Any, index: int) -> str:
+def _script(ex: Any) -> str:
     from nlobs.report import plain
 
     title = plain(ex.title)
@@ -98,7 +98,7 @@ def write_gallery_sources(app: Any = None) -> None:
         "and writes the same content as one self-contained report.\n", encoding="utf-8")
     for i, ex in enumerate(sorted(EXAMPLES.values(), key=lambda e: e.order)):
         name = f"plot_{i:02d}_{ex.key.replace('-', '_')}.py"
-        (GALLERY_SRC / name).write_text(_script(ex, i), encoding="utf-8")
+        (GALLERY_SRC / name).write_text(_script(ex), encoding="utf-8")
 
 
 class FigureScraper:

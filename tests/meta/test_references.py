@@ -80,14 +80,9 @@ def _docstrings(path: Path):
 
 def test_docstrings_cite_by_author_and_year():
     """Docstrings become the API reference: no paper file names, no bare paper numbers."""
-    bad = []
-    for path in sorted(ROOT.rglob("*.py")):
-        if path.name == "references.py":
-            continue
-        for line, doc in _docstrings(path):
-            m = FILE_NAME.search(doc) or BARE_NUMBER.search(doc)
-            if m:
-                bad.append(f"{path.relative_to(ROOT)}:{line}: ...{doc[max(0, m.start() - 30):m.end() + 30]!r}")
+    found = [(path, line, doc, FILE_NAME.search(doc) or BARE_NUMBER.search(doc))
+             for path in sorted(ROOT.rglob("*.py")) if path.name != "references.py" for line, doc in _docstrings(path)]
+    bad = [f"{path.relative_to(ROOT)}:{line}: ...{doc[max(0, m.start() - 30):m.end() + 30]!r}" for path, line, doc, m in found if m]
     assert not bad, "cite papers by author and year in docstrings:\n" + "\n".join(bad)
 
 
