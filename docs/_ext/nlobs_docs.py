@@ -53,11 +53,6 @@ def _script(ex: Any) -> str:
     from nlobs.report import plain
 
     title = plain(ex.title)
-    extra = ('''
-# %%
-# The example's further figures.
-figures = list(result.figures.values())
-''')
     return f'''"""
 {title}
 {"=" * len(title)}
@@ -79,9 +74,11 @@ result = find_example("{ex.key}").run()
 HTML(example_section(result, plots=False, level=3))
 
 # %%
-# The simulations: true states (grey) against each observer's estimate, and the error norms.
+# The simulations — true states (grey) against each observer's estimate, and the error norms —
+# then the example's own figures, if it has any.
 figures = [run.plot(width=5.1, title=label) for label, run in result.runs.items()]
-{extra}'''
+figures += list(result.figures.values())
+'''
 
 
 def write_gallery_sources(app: Any = None) -> None:
@@ -118,12 +115,15 @@ class FigureScraper:
             for item in value if isinstance(value, (list, tuple)) else [value]:
                 if isinstance(item, Figure) and id(item) not in seen:
                     figs.append(item)
-        paths = []
+        narrow, wide = [], []
         for fig, path in zip(figs, block_vars["image_path_iterator"]):
             seen.add(id(fig))
             fig.savefig(path, dpi=110)
-            paths.append(PurePosixPath(path))
-        return figure_rst(paths, gallery_conf["src_dir"]) if paths else ""
+            (wide if fig.get_size_inches()[0] > 6 else narrow).append(PurePosixPath(path))
+        # side-by-side figures two per row; a wide figure alone, at full width
+        parts = [figure_rst(narrow, gallery_conf["src_dir"])] if narrow else []
+        parts += [figure_rst([p], gallery_conf["src_dir"]) for p in wide]
+        return "\n".join(parts)
 
 
 # -- the API reference -----------------------------------------------------------------------
