@@ -183,3 +183,17 @@ def test_help_texts_cite_no_paper_numbers():
         texts += [parser.description or ""] + [a.help or "" for a in parser._actions]
     bad = [t for t in texts if re.search(r"(?<![\w.])00[0-4](?![\w-])", t) or FILE_NAME.search(t)]
     assert not bad, bad
+
+
+def test_plots_label_units_when_the_model_declares_them_and_keep_fonts_readable(run):
+    import dataclasses
+
+    from nlobs.simulate._plot import FONT
+
+    fig = dataclasses.replace(run, info={**run.info, "units": {"x1": "rad", "t": "s"}}).plot(width=5.1, title="T")
+    axes = fig.get_axes()
+    assert axes[0].get_ylabel() == "x1 [rad]" and axes[1].get_ylabel() == "x2" and axes[-1].get_xlabel() == "t [s]"
+    assert min(FONT.values()) >= 9 and axes[0].yaxis.get_ticklabels()[0].get_fontsize() >= 9
+    assert run.plot().get_axes()[0].get_ylabel() == "x1"  # no units declared: names only
+    styles = {line.get_linestyle() for line in fig.get_axes()[0].get_lines()[1:]}
+    assert styles  # estimates are drawn dashed/dotted over the grey truth
