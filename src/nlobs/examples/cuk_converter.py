@@ -144,7 +144,7 @@ def _figure(noisy: Run, e_clean: Mapping[str, np.ndarray], e_noisy: Mapping[str,
         if j == 1:
             axes[0, j].plot(t, setpoint[::20], color="C3", lw=0.8, ls="--", label="-|V_d|")
         axes[0, j].set_ylabel(f"{st} [{unit}]")
-        axes[0, j].legend(fontsize="small", loc="best")
+        axes[0, j].legend(fontsize=9, loc="best")
         for i, name in enumerate(names):
             ax = axes[i + 1, j]
             ax.plot(t, e_noisy[name][::20, j], color=f"C{i}", lw=0.6, label=f"{name}, noisy")
@@ -154,7 +154,7 @@ def _figure(noisy: Run, e_clean: Mapping[str, np.ndarray], e_noisy: Mapping[str,
             ax.set_ylim(-lim, lim)
             ax.set_ylabel(f"{st}: x̂ - x")
             ax.grid(alpha=0.3)
-            ax.legend(fontsize="x-small", loc="upper right")
+            ax.legend(fontsize=8, loc="upper right")
     for ax in axes[-1]:
         ax.set_xlabel("t [s]")
     fig.suptitle(f"{cite('004')} Fig. 2 reproduced: states and estimation errors (y-range scaled to the errors after 0.2 s)")
