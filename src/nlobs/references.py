@@ -120,6 +120,13 @@ _ALL = (
               "Constrained state estimation for nonlinear discrete-time systems: stability and moving horizon approximations",
               "IEEE Transactions on Automatic Control 48(2):246–258", 2003),
     Reference("ioannou1996", "P. A. Ioannou, J. Sun", "Ioannou & Sun", "Robust Adaptive Control", "Prentice Hall, Upper Saddle River", 1996),
+    Reference("ljungbox1978", "G. M. Ljung, G. E. P. Box", "Ljung & Box", "On a measure of lack of fit in time series models",
+              "Biometrika 65(2):297–303", 1978, doi="10.1093/biomet/65.2.297"),
+    Reference("kuhl2011", "P. Kühl, M. Diehl, T. Kraus, J. P. Schlöder, H. G. Bock", "Kühl, Diehl, Kraus, Schlöder & Bock",
+              "A real-time algorithm for moving horizon state and parameter estimation",
+              "Computers & Chemical Engineering 35(1):71–83", 2011),
+    Reference("simon2010", "D. Simon", "Simon", "Kalman filtering with state constraints: a survey of linear and nonlinear algorithms",
+              "IET Control Theory & Applications 4(8):1303–1318", 2010),
 )
 
 #: Every work nlobs cites, by key.

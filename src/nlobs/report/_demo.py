@@ -18,15 +18,13 @@ from .._display import Column, SummaryTable
 from ..analysis import analyze
 from ..examples import EXAMPLES, ExampleResult, find_example
 from ..references import REFERENCES, cited_keys
+from ..simulate import CONVERGENCE_RULE
 from ._html import HALF_WIDTH, bibliography, details, equations, figure, page, plain, pre, prose, section, table
 
 __all__ = ["run_demo", "DemoOutcome", "example_section", "summary_table"]
 
 COLUMNS = [("run", "run"), ("observer", "observer"), ("convergence_time", "convergence time"),
            ("rms_error", "RMS error (last 20 %)"), ("final_error", "final error")]
-CONVERGENCE_NOTE = ("Convergence time: first time after which ‖x̂ − x‖ stays below 2 % of its initial value (— : not within "
-                    "the run). RMS over the last 20 % of the run.")
-
 
 @dataclass(frozen=True)
 class DemoOutcome:
@@ -95,8 +93,8 @@ def summary_table(results: Sequence[ExampleResult]) -> SummaryTable:
     rows = [dict(row, example=r.key, run=plain(str(row["run"])), observer=plain(str(row["observer"])))
             for r in results for row in r.table]
     return SummaryTable("All observers", cols, rows,
-                        ("conv. time: from then on the error stays below 2 % of its start (—: not within the run)",
-                         "RMS error: over the last 20 % of the run; final err: at the final time"))
+                        tuple(textwrap.wrap(f"{CONVERGENCE_RULE} (—: not within the run). RMS error: over the "
+                                            "last 20 % of the run; final err: at the final time", width=88)))
 
 
 def _print_summary(results: Sequence[ExampleResult], failed: Sequence[tuple[str, str]], stream: TextIO, report: Path,
@@ -115,6 +113,13 @@ def _print_summary(results: Sequence[ExampleResult], failed: Sequence[tuple[str,
         w(f"{key:<{width}} CRASHED: {err.splitlines()[0]}\n")
     w(f"\nreport: {report.resolve()}\n"
       f"wall time {seconds:.1f} s (examples {t_examples:.1f} s, report {seconds - t_examples:.1f} s)\n")
+
+
+def _convergence_note(r: ExampleResult) -> str:
+    """What the convergence-time column of an example means (its own rule, or the rule of nlobs.simulate)."""
+    if r.convergence_rule:
+        return r.convergence_rule
+    return f"{CONVERGENCE_RULE[0].upper() + CONVERGENCE_RULE[1:]} (— : not within the run). RMS over the last 20 % of the run."
 
 
 def _observability(r: ExampleResult) -> list[str]:
@@ -176,7 +181,7 @@ def example_section(r: ExampleResult, seconds: float | None = None, *, level: in
     parts += _observability(r)
     if r.table:
         parts.append(f"<h{h}>Convergence and accuracy</h{h}>" + table(r.table, COLUMNS + _extra_columns(r))
-                     + f"<p class='note'>{html.escape(CONVERGENCE_NOTE)}</p>")
+                     + f"<p class='note'>{html.escape(_convergence_note(r))}</p>")
     if r.runs and plots:
         parts.append("<div class='figs'>" + "".join(figure(run.plot(width=HALF_WIDTH), label, alt=f"{r.key} {plain(label)}")
                                                   for label, run in r.runs.items()) + "</div>")

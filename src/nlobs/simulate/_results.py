@@ -9,9 +9,21 @@ from typing import Any
 import numpy as np
 
 from .._display import MISSING, Column, SummaryTable, fmt_number, short_repr
-from ._metrics import Metrics, error_metrics
+from ._metrics import CONVERGENCE_RULE, Metrics, error_metrics
+from ._whiteness import Whiteness, ljung_box
 
-__all__ = ["ObserverTrace", "Run"]
+__all__ = ["ObserverTrace", "Run", "write_csv"]
+
+
+def write_csv(path: Any, header: Sequence[str], data: np.ndarray) -> None:
+    """A CSV of `data` under `header`: floats in their shortest exact form (``repr``), NaN as an empty cell."""
+    import csv
+
+    with open(path, "w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(header)
+        w.writerows([("" if v != v else repr(v)) for v in row] for row in data.tolist())
+
 
 
 @dataclass(frozen=True, eq=False)
@@ -26,6 +38,10 @@ class ObserverTrace:
         Internal state at each time (after the sample-time update, for sampled observers).
     xhat : numpy.ndarray of shape (N, n)
         The estimate.
+    xhat_prior : numpy.ndarray of shape (n,), optional
+        The initial estimate before any measurement.
+    innovation : numpy.ndarray of shape (N, p), optional
+        Output prediction errors y_k − h(x̂_k⁻) on recorded data (see :meth:`Run.whiteness`).
     """
 
     name: str
@@ -34,6 +50,9 @@ class ObserverTrace:
     z: np.ndarray
     xhat: np.ndarray
     xhat_prior: np.ndarray | None = None  #: the initial estimate before any measurement (sets the default tolerance)
+    #: y_k − h(x̂_k⁻): each output sample against the output predicted before the sample was used
+    #: (shape (N, p), NaN where missing); set by :func:`nlobs.estimate`.
+    innovation: np.ndarray | None = None
 
     def __repr__(self) -> str:
         return short_repr(self, {"name": self.name, "method": self.method, "z": self.z, "xhat": self.xhat})
@@ -81,14 +100,18 @@ class Run:
     def metrics(self, name: str | None = None, *, tol: float | None = None, tail: float = 0.2) -> Metrics:
         """Convergence time, RMS and peak errors of one observer (see :class:`Metrics`).
 
-        The default tolerance is 2 % of the initial error before any measurement,
-        ‖x̂(0⁻) − x(0)‖ (a settling criterion that filters updating at t = 0 cannot game).
+        The convergence band is `tol` when given, else the larger of 2 % of the initial error
+        before any measurement, ‖x̂(0⁻) − x(0)‖ (which filters updating at t = 0 cannot game),
+        and twice the steady-state error (the noise floor), at most 20 % of the initial error
+        (:data:`nlobs.simulate.CONVERGENCE_RULE`). It does not depend on the run length, beyond
+        the slow growth of the largest noise peak with it.
         """
         trace = self._trace(name)
-        if tol is None and trace.xhat_prior is not None and self.x is not None:
+        e = self.error_norm(name)
+        e0 = None
+        if trace.xhat_prior is not None and self.x is not None:
             e0 = float(np.linalg.norm(trace.xhat_prior - self.x[0]))
-            tol = 0.02 * e0 if e0 > 0 else None
-        return error_metrics(self.t, self.error_norm(name), tol=tol, tail=tail)
+        return error_metrics(self.t, e, tol=tol, e0=e0, tail=tail)
 
     def noise_gain(self, name: str | None = None, *, tail: float = 0.2) -> float:
         """RMS estimation error over the last `tail` of the run divided by the RMS of the
@@ -102,26 +125,70 @@ class Run:
             raise ValueError("noise_gain: this run has no measurement noise")
         return float(np.sqrt(np.mean(self.error_norm(name)[sel] ** 2)) / noise_rms)
 
+    def innovations(self, name: str | None = None) -> np.ndarray:
+        """y_k − h(x̂_k⁻) of one observer, shape (N, p), NaN where a sample is missing. Needs a run
+        of :func:`nlobs.estimate` (recorded data)."""
+        tr = self._trace(name)
+        if tr.innovation is None:
+            raise ValueError("innovations are recorded by nlobs.estimate (observers on recorded data); this run has none")
+        return tr.innovation
+
+    def whiteness(self, name: str | None = None, *, lags: int | None = None, alpha: float = 0.05,
+                  burn_in: float = 0.1) -> dict[str, Whiteness]:
+        """Ljung–Box test of each output's innovations (see :func:`nlobs.simulate.ljung_box`): an
+        observer that uses all the information in the data leaves white innovations.
+
+        The first `burn_in` fraction of the samples (default 10 %) is left out: the initial
+        transient from a wrong x̂0 is not noise, and its large values would hide correlation.
+        Returns one :class:`Whiteness` per output name (mean, RMS and the test, over the rest).
+        """
+        if not 0 <= burn_in < 1:
+            raise ValueError(f"whiteness: `burn_in` must be a fraction in [0, 1), got {burn_in!r}")
+        inn = self.innovations(name)
+        start = int(np.ceil(burn_in * inn.shape[0]))
+        return {o: ljung_box(inn[start:, j], lags=lags, alpha=alpha) for j, o in enumerate(self.output_names)}
+
+    def residual_table(self) -> SummaryTable:
+        """Per observer and output: the innovations' mean and RMS and the Ljung–Box whiteness test
+        (a table: ``print()`` it, show it in a notebook, or ``.to_pandas()`` it)."""
+        cols = [Column("observer", "observer", str, numeric=False), Column("output", "output", str, numeric=False),
+                Column("mean", "mean"), Column("rms", "RMS"), Column("q", "Ljung-Box Q"), Column("lags", "lags"),
+                Column("p_value", "p"), Column("white", "white?", str, numeric=False)]
+        rows = []
+        for name, tr in self.observers.items():
+            if tr.innovation is None:
+                rows.append({"observer": name, "output": "(no innovations recorded)", "white": MISSING})
+                continue
+            for o, w in self.whiteness(name).items():
+                rows.append({"observer": name, "output": o, "mean": w.mean, "rms": w.rms, "q": w.q, "lags": w.lags,
+                             "p_value": w.p_value, "white": MISSING if w.p_value is None else ("yes" if w.white else "no")})
+        return SummaryTable("innovations y_k − h(x̂_k⁻) (each sample against the output predicted before it was used), "
+                            "after the first 10 % of the samples:", cols, rows,
+                            ("white?: Ljung–Box test at the 5 % level; 'no' means the innovations are correlated in time: "
+                             "the model, the tuning (Q, R) or the data leave information unused",))
+
     def summary(self, *, tol: float | None = None) -> SummaryTable:
-        """Every observer's metrics as a table: ``print()`` it, show it in a notebook, or
-        ``.to_pandas()`` it. Without a true state (recorded data) the table gives the final estimates.
+        """Every observer's metrics (with the convergence band of each) as a table: ``print()`` it,
+        show it in a notebook, or ``.to_pandas()`` it. For recorded data without true states, the
+        innovations and their whiteness instead (see :meth:`innovations` and :meth:`whiteness`).
 
         Parameters
         ----------
         tol : float, optional
-            Convergence tolerance (default: 2 % of each observer's initial error).
+            Convergence tolerance (default: the band of :data:`nlobs.simulate.CONVERGENCE_RULE`).
         """
         title = f"{self.model}: t in [{self.t[0]:g}, {self.t[-1]:g}], {len(self.t)} samples"
-        name = Column("observer", "observer", str, numeric=False)
         if self.x is None:
-            cols = [name] + [Column(s, s, lambda v: fmt_number(v, 6)) for s in self.state_names]
-            rows = [{"observer": n, **dict(zip(self.state_names, tr.xhat[-1].tolist()))} for n, tr in self.observers.items()]
-            return SummaryTable(title + " (no true state: final estimates)", cols, rows)
-        cols = [name, Column("final_error", "final err"), Column("rms_error", "RMS (last 20%)"),
-                Column("peak_error", "peak err"), Column("convergence_time", "conv. time")]
+            res = self.residual_table()
+            return SummaryTable(f"{title}\n{res.title}", res.columns, res.rows, res.notes)
+        cols = [Column("observer", "observer", str, numeric=False), Column("final_error", "final err"),
+                Column("rms_error", "RMS (last 20%)"), Column("peak_error", "peak err"),
+                Column("convergence_time", "conv. time"), Column("tol", "band", lambda v: fmt_number(v, 2))]
         rows = [{"observer": n, **self.metrics(n, tol=tol).to_dict()} for n in self.observers]
-        return SummaryTable(title, cols, rows, ("conv. time: first time after which the error stays within the tolerance; "
-                                                f"{MISSING}: not within the run",))
+        band = ("the tolerance given" if tol is not None else
+                "max(2 % of the initial error, 2 × steady-state error), at most 20 % of the initial error")
+        return SummaryTable(title, cols, rows, (f"band: {band}; conv. time: from then on the error stays within it "
+                                                f"({MISSING}: not within the run)",))
 
     def __repr__(self) -> str:
         return short_repr(self, {"model": self.model, "t": (float(self.t[0]), float(self.t[-1])), "samples": int(self.t.size),
@@ -165,16 +232,53 @@ class Run:
         return pd.DataFrame(cols, index=pd.Index(self.t, name="t"))
 
     def summary_dict(self, *, tol: float | None = None) -> dict[str, Any]:
-        """``{"model": str, "observers": {NAME: {"final_error", "rms_error", "convergence_time", ...}}}``."""
+        """``{"model", "t_final", "samples", "convergence_rule", "observers": {NAME: {...}}}``.
+
+        Per observer: ``method``, ``estimate`` (the final estimate by state name),
+        ``final_estimate`` (the same as a list); with true states the :class:`Metrics`
+        (``final_error``, ``rms_error``, ``convergence_time`` with its band ``tol``, ...); on
+        recorded data the ``innovations`` per output (mean, RMS, Ljung–Box test).
+        """
         obs: dict[str, Any] = {}
         for name, tr in self.observers.items():
-            entry: dict[str, Any] = {"method": tr.method, "final_estimate": tr.xhat[-1].tolist()}
+            entry: dict[str, Any] = {"method": tr.method,
+                                     "estimate": {s: float(v) for s, v in zip(self.state_names, tr.xhat[-1])},
+                                     "final_estimate": tr.xhat[-1].tolist()}
             if self.x is not None:
                 entry.update(self.metrics(name, tol=tol).to_dict())
                 if self.y_true is not None and not np.array_equal(self.y, self.y_true):
                     entry["noise_gain"] = self.noise_gain(name)
+            if tr.innovation is not None:
+                entry["innovations"] = {o: w.to_dict() for o, w in self.whiteness(name).items()}
             obs[name] = entry
-        return {"model": self.model, "t_final": float(self.t[-1]), "samples": int(self.t.size), "observers": obs}
+        out = {"model": self.model, "t_final": float(self.t[-1]), "samples": int(self.t.size), "observers": obs}
+        if self.x is not None:
+            given = "convergence time: the first time after which ‖x̂ − x‖ stays within `tol`"
+            out["convergence_rule"] = given if tol is not None else CONVERGENCE_RULE
+        return out
+
+    def to_csv(self, path: Any, *, every: int = 1) -> None:
+        """Write the run as a CSV that :meth:`nlobs.Recording.from_csv` (and ``nlobs estimate``) reads back.
+
+        Columns: ``t``, the inputs, the measured outputs, the true states (when known), then
+        ``NAME.STATE`` for each observer's estimate. Numbers are written in their shortest form
+        that reads back to the same double (Python's ``repr``); missing values as empty cells.
+        `every` keeps rows 0, k, 2k, ... (e.g. only the sample instants of a sampled run).
+        """
+        every = int(every)
+        if every < 1:
+            raise ValueError(f"to_csv: `every` must be a positive whole number of rows, got {every!r}")
+        keep = np.arange(0, self.t.size, every)
+        header = ["t", *self.input_names, *self.output_names]
+        blocks = [self.t[:, None], self.u, self.y]
+        if self.x is not None:
+            header += list(self.state_names)
+            blocks.append(self.x)
+        for name, tr in self.observers.items():
+            header += [f"{name}.{s}" for s in self.state_names]
+            blocks.append(tr.xhat)
+        data = np.hstack([np.asarray(b, dtype=float).reshape(self.t.size, -1) for b in blocks])[keep]
+        write_csv(path, header, data)
 
     def plot(self, path: str | None = None, *, observers: Sequence[str] | None = None, width: float = 6.4,
              title: str | None = None) -> Any:
