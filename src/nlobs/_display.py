@@ -8,6 +8,7 @@ of nlobs.
 from __future__ import annotations
 
 import html
+import textwrap
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -77,7 +78,9 @@ class SummaryTable:
 
         head = line([c.header for c in self.columns])
         out = [self.title, head, "-" * len(head)] + [line(row) for row in cells]
-        return "\n".join(out + list(self.notes))
+        width = max(88, len(head))
+        notes = [wrapped for n in self.notes for wrapped in (textwrap.wrap(n, width, subsequent_indent="  ") or [""])]
+        return "\n".join(out + notes)
 
     def __repr__(self) -> str:
         return str(self)
