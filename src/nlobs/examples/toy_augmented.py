@@ -49,7 +49,7 @@ def paper_observer(system: System, L: np.ndarray = L_PAPER) -> ObserverDesign:
 
 
 def global_claims() -> list[Claim]:
-    """001 §IV-C in global terms: c = 0 loses the sign of x2 (2 solutions), c = 0.5 does not."""
+    """The toy system of §IV-C in global terms: c = 0 loses the sign of x2 (2 solutions), c = 0.5 does not."""
     from ..analysis import global_identifiability
 
     g0, g5 = global_identifiability(toy_system(0.0)), global_identifiability(toy_system(0.5))
