@@ -7,7 +7,7 @@ alternative is unique, and if not, how many there are, following SIAN:
 1. *Jets.* For a rational model :math:`x' = F(x, \theta, u)/Q(x, \theta, u)`,
    :math:`y = G/R`, the equations :math:`Q x' - F = 0` and :math:`R y - G = 0` are differentiated
    symbolically: :math:`X_i^{(k)}` defines :math:`x_i^{(k)}` and :math:`Y_j^{(k)}` relates
-   :math:`y_j^{(k)}` to the state jets (Hong, Ovchinnikov, Pogudin & Yap 2020, Algorithm 1, step 1).
+   :math:`y_j^{(k)}` to the state jets (Hong, Ovchinnikov, Pogudin & Yap (2020), Algorithm 1, step 1).
 2. *Truncation.* Output derivatives are added one at a time, output after output, as long as each
    new equation is independent (Jacobian rank at a random point); the state-jet equations they
    need come along (step 2).
@@ -789,7 +789,7 @@ def global_identifiability(system: System, *, unknown_params: Any = (), inputs: 
     Every unknown (initial state, unknown parameter, coefficient of an unknown input) is classed as
     *globally* identifiable (the output determines it uniquely), *locally only* (finitely many
     values fit; their number is given) or *not identifiable* (a continuum fits). The algorithm is
-    SIAN's (Hong, Ovchinnikov, Pogudin & Yap 2019; module docstring): truncated output jets at a
+    SIAN's (Hong, Ovchinnikov, Pogudin & Yap (2019); module docstring): truncated output jets at a
     random point of GF(p), then one Gröbner basis and normal forms.
 
     Parameters
@@ -840,7 +840,7 @@ def global_identifiability(system: System, *, unknown_params: Any = (), inputs: 
     --------
     >>> from nlobs import System
     >>> toy = System(states=["x1", "x2"], f=["x2**2", "0"], outputs=["y"], h=["x1"])
-    >>> r = global_identifiability(toy)   # 001 §IV-C with c = 0: y = x1 + x2² t
+    >>> r = global_identifiability(toy)   # Viegas et al.'s toy with c = 0: y = x1 + x2² t
     >>> r.globally, [(lo.name, lo.solutions) for lo in r.locally_only]   # doctest: +SKIP
     (('x1',), [('x2', 2)])
     """
@@ -1135,7 +1135,7 @@ def multi_experiment(system: System, experiments: int = 1, *, unknown_params: An
     r"""How many experiments make the parameters identifiable, and what `experiments` experiments identify.
 
     Each experiment has its own unknown initial state and its own generic inputs; the parameters
-    are shared (SIAN's replicas; Ovchinnikov, Pillay, Pogudin & Scanlon 2022). The number of
+    are shared (SIAN's replicas; Ovchinnikov, Pillay, Pogudin & Scanlon (2022)). The number of
     identifiable parameter directions from r experiments is
     :math:`\rho(r) = \operatorname{rank} J_r - \operatorname{rank} J_r^{x}`, the generic rank of the
     output-jet Jacobian of the r-fold model minus that of its state columns; r grows until

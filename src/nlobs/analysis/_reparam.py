@@ -228,6 +228,8 @@ def reparametrize(system: System, functions: Sequence[str], *, unknown_params: S
         (:attr:`IdentifiableFunctions.functions` with ``with_states=True``).
     unknown_params : sequence of str
         The unknown parameters (the others keep their values and stay numbers).
+    seed : int, default 0
+        Seed of the random points of the coefficient search (the result is verified exactly either way).
 
     Returns
     -------
@@ -240,8 +242,9 @@ def reparametrize(system: System, functions: Sequence[str], *, unknown_params: S
         return Reparametrization(False, missing=("the model depends on t explicitly (only autonomous models are "
                                                  "rewritten)",))
     known = {symbol(k): exact(v) for k, v in system.params.items() if k not in unknown_params}
-    loc = {n: symbol(n) for n in (*system.states, *system.params, *system.inputs)}
-    gens = [sp.sympify(t, locals=loc) for t in functions]
+    from ._lie import _parse_functions
+
+    gens = [e for _, e in _parse_functions(system, functions)]
     names = _names(gens, system)
     new = [sp.Symbol(f"_new_{n}") for n in names]
     states = [symbol(s) for s in system.states]
