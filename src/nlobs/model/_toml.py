@@ -44,6 +44,7 @@ import sympy as sp
 
 from ..errors import ModelError, ModelFileError
 from ._expr import ExpressionError, parse_expression
+from ._library import bundled_path
 from ._system import TIME, System, symbol
 
 __all__ = ["ModelFile", "SimulationConfig", "ObserverConfig", "load_model", "loads_model"]
@@ -88,7 +89,9 @@ class ModelFile:
 
 
 def load_model(path: str | Path) -> ModelFile:
-    """Read a TOML model file.
+    """Read a TOML model file, or a bundled model by name (``load_model("lorenz")``; see ``nlobs models``).
+
+    A path that exists always wins over a bundled name.
 
     Raises
     ------
@@ -96,10 +99,13 @@ def load_model(path: str | Path) -> ModelFile:
         If the file cannot be read, is not valid TOML, or breaks the format.
     """
     p = Path(path)
+    if not p.exists():  # a bare name of the bundled library (`nlobs models`); an existing path always wins
+        p = bundled_path(str(path)) or p
     try:
         text = p.read_text(encoding="utf-8")
     except OSError as e:
-        raise ModelFileError(f"cannot read the model file: {e.strerror}", path=str(p)) from None
+        hint = "; not a bundled model name either (`nlobs models` lists them)" if not p.exists() else ""
+        raise ModelFileError(f"cannot read the model file: {e.strerror}{hint}", path=str(p)) from None
     except UnicodeDecodeError:
         raise ModelFileError("the model file is not UTF-8 text", path=str(p)) from None
     return loads_model(text, path=str(p), default_name=p.stem)
