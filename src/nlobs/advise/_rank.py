@@ -1,0 +1,109 @@
+r"""``--run``: every applicable design on the same measurements, ranked.
+
+The candidates run together in one simulation (one compiled step). A candidate that blows up is
+reported as diverged, with the time, and the others are run again without it.
+
+Ranking: by the error after convergence — the RMS of ‖x̂ − x‖ over the last 20 % of the run
+(:meth:`nlobs.Run.metrics`) — and, among errors within a factor 1.25 of each other (a tie at the
+precision such a run has), by the convergence time. On a recording there is no true state; the
+candidates are then ranked by the RMS output residual y − h(x̂) over the last 20 %.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from ..engine import compile_system
+from ..errors import FiniteEscapeError
+from ..model import System
+from ..simulate import Run, estimate, simulate
+from ._advice import Candidate, Score
+from ._context import Context
+
+__all__ = ["compare", "rank", "residuals", "TIE"]
+
+#: Errors within this factor count as a tie, broken by the convergence time.
+TIE = 1.25
+
+
+def _score(run: Run, name: str, ctx: Context) -> Score:
+    """The metrics of one candidate (the one place that reads :meth:`Run.metrics`, so its definition may change)."""
+    tr = run.observers[name]
+    params = {}
+    for i, k in enumerate(ctx.system.states):
+        if k in ctx.system.estimated_params:
+            params[k] = {"estimate": float(tr.xhat[-1, i]), "true": ctx.truth.get(k)}
+    if not np.all(np.isfinite(tr.xhat)):
+        bad = int(np.flatnonzero(~np.isfinite(tr.xhat).all(axis=1))[0])
+        return Score(name, "diverged", detail=f"non-finite estimate at t = {run.t[bad]:.4g}")
+    if run.x is not None:
+        m = run.metrics(name)
+        return Score(name, "ok", m.rms_error, m.convergence_time, m.final_error, parameters=params)
+    resid = residuals(run, name, ctx.system)
+    tail = run.t >= run.t[-1] - 0.2 * (run.t[-1] - run.t[0])
+    rms = float(np.sqrt(np.mean(np.sum(resid[tail] ** 2, axis=1))))
+    return Score(name, "ok", rms, None, float(np.linalg.norm(resid[-1])), detail="output residual (no true state)",
+                 parameters=params)
+
+
+def residuals(run: Run, name: str, system: System) -> np.ndarray:
+    """y − h(x̂) along a run, shape (N, p) (on recorded data, the only error there is)."""
+    import casadi as ca
+
+    tr = run.observers[name]
+    comp = compile_system(system)
+    N = run.t.size
+    h = comp.h.map(N)(ca.DM(run.t).T, ca.DM(tr.xhat.T), ca.DM(run.u.T) if system.n_inputs else ca.DM(0, N),
+                      ca.repmat(ca.DM(system.param_values), 1, N))
+    return run.y - np.asarray(h, dtype=float).T
+
+
+def rank(scores: Sequence[Score]) -> list[Score]:
+    """Best first: finite errors grouped within a factor :data:`TIE`, each group by convergence time; then the failures."""
+    ok = sorted((s for s in scores if s.status == "ok"), key=lambda s: s.rms_error)
+    out: list[Score] = []
+    i = 0
+    while i < len(ok):
+        j = i
+        while j + 1 < len(ok) and ok[j + 1].rms_error <= TIE * ok[i].rms_error:
+            j += 1
+        group = ok[i:j + 1]
+        out += sorted(group, key=lambda s: (s.convergence_time is None, s.convergence_time or 0.0, s.rms_error))
+        i = j + 1
+    return out + [s for s in scores if s.status != "ok"]
+
+
+def compare(ctx: Context, candidates: Sequence[Candidate], *, progress: bool | Callable[[float], None] | None = None,
+            engine: str = "auto") -> tuple[list[Score], Run | None]:
+    """Run every runnable applicable candidate on the context's scenario; return the ranked scores and the run."""
+    sc, rec = ctx.scenario, ctx.recording
+    designs = {c.kind: c.design for c in candidates if c.applies and c.runnable and c.design is not None}
+    failed: list[Score] = []
+    run = None
+    while designs:
+        try:
+            if rec is not None:
+                run = estimate(designs, rec, engine=engine)
+            else:
+                run = simulate(ctx.system, designs, t_final=sc.t_final, dt=sc.dt, x0=sc.x0, inputs=sc.inputs, noise=sc.noise,
+                               process_noise=sc.process_noise, sampling=sc.sampling, seed=sc.seed, engine=engine,
+                               progress=progress)
+            break
+        except FiniteEscapeError as e:
+            name = _culprit(e, designs)
+            if name is None:
+                raise
+            failed.append(Score(name, "diverged", detail=f"blew up after t = {e.t:.4g}"))
+            designs = {k: v for k, v in designs.items() if k != name}
+    scores = [_score(run, k, ctx) for k in designs] if run is not None else []
+    return rank(scores + failed), run
+
+
+def _culprit(e: FiniteEscapeError, designs: Mapping[str, Any]) -> str | None:
+    for name in designs:
+        if e.where == f"observer {name!r}":
+            return name
+    return None
