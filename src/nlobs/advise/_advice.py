@@ -157,6 +157,7 @@ class Advice:
     run: Run | None = None
     scenario: str = ""
     seconds: float = 0.0
+    description: str = ""  #: the model file's description (it cites the model's source)
 
     @property
     def applicable(self) -> tuple[Candidate, ...]:
@@ -181,7 +182,7 @@ class Advice:
         obs.update(jsonable(dict(self.extra)))
         obs["blockers"] = list(self.blockers)
         obs["forms"] = list(self.forms)
-        out: dict[str, Any] = {"model": self.model, "states": list(self.system.states),
+        out: dict[str, Any] = {"model": self.model, "description": self.description, "states": list(self.system.states),
                                "estimated_params": list(self.system.estimated_params), "observability": jsonable(obs),
                                "candidates": [c.to_dict() for c in self.candidates], "notes": list(self.notes)}
         if self.scores is not None:
@@ -194,7 +195,8 @@ class Advice:
         rep = self.observability
         lines = [f"Observer design for {self.model!r} ({self.system.n_states} states"
                  + (f", of which {len(self.system.estimated_params)} unknown parameter(s): "
-                    f"{', '.join(self.system.estimated_params)}" if self.system.estimated_params else "") + ")"]
+                    f"{', '.join(self.system.estimated_params)}" if self.system.estimated_params else "") + ")"
+                 + (f": {self.description}" if self.description else "")]
         verdict = "observable" if rep.observable else "NOT observable"
         lines.append(f"  observability: {verdict} (generic rank {rep.rank} of {len(rep.unknowns)}; "
                      f"observable: {', '.join(rep.observable_states) or 'none'}"
@@ -206,14 +208,21 @@ class Advice:
         for n in self.notes:
             lines.append(f"  note: {n}")
         groups = [("applies", "Applies"), ("fails", "Does not apply"), ("needs input", "Needs input"), ("not tuned", "Not tuned")]
+        blocked = "; ".join(self.blockers)
         for status, title in groups:
             rows = [c for c in self.candidates if c.status == status]
             if not rows:
                 continue
             lines.append(f"{title} ({len(rows)}):")
+            same = [c.kind for c in rows if blocked and c.why == blocked]
+            if same:
+                lines.append(f"  blocked (see above): {', '.join(same)}")
             for c in rows:
-                lines.append(f"  {c.kind:<24} {c.why}")
-        if self.scores is not None:
+                if not (blocked and c.why == blocked):
+                    lines.append(f"  {c.kind:<24} {c.why}")
+        if self.scores is not None and not self.scores:
+            lines.append("Nothing to run: no observer kind applies.")
+        elif self.scores is not None:
             lines.append(f"Ranking on {self.scenario} (error RMS over the last 20 %, then convergence time):")
             for i, s in enumerate(self.scores):
                 if s.status == "ok":
@@ -222,5 +231,7 @@ class Advice:
                                  + (f"  {s.detail}" if s.detail else ""))
                 else:
                     lines.append(f"   -  {s.kind:<24} {s.status}: {s.detail}")
+            if not any(s.status == "ok" and s.convergence_time is not None for s in self.scores):
+                lines.append("  none converged within the run (to 2 % of the initial error): see the report's plots")
         lines.append(f"({self.seconds:.1f} s)")
         return "\n".join(lines)

@@ -71,7 +71,17 @@ def _uco(ctx: Context) -> tuple[dict[str, Any] | None, str]:
     except (ValueError, ModelError):
         return None, ""
     lam = float(gram.eigenvalues[0])
-    info = {"observable_on_run": bool(gram.observable), "gramian_min_eig": lam, "uco_window": uco.window,
+    top = float(np.max(np.abs(gram.eigenvalues)))
+    if not np.all(np.isfinite(gram.eigenvalues)) or lam < -1e-8 * top or top > 1e12 or uco.delta.min() < -1e-8 * abs(uco.delta).max():
+        return ({"observable_on_run": None, "gramian_max_eig": top},
+                f"along the run the frozen model's transition matrix grows to ~{top:.1e} (A(u, y, t) is not stable along the "
+                "run): its Gramian cannot decide observability or uniformity here, and GPEBO-type observers (Φ_A) need an "
+                f"output injection ({cite('000', 'assumption 5')})")
+    tr = np.trace(gram.W_path, axis1=1, axis2=2) if gram.W_path is not None and len(gram.W_path) == t.size else None
+    peak = float(np.max(np.diff(tr) / np.diff(t))) if tr is not None else None
+    info = {"observable_on_run": bool(gram.observable), "gramian_min_eig": lam, "gramian_trace": float(np.trace(gram.W)),
+            "regressor_peak": peak,
+            "horizon": float(t[-1] - t[0]), "uco_window": uco.window,
             "uco_uniform": bool(uco.uniform), "uco_min_delta": float(uco.delta.min()), "uco_worst_start": uco.worst_start}
     if gram.observable and not uco.uniform:
         text = (f"along the run the model is observable on [0, {t[-1]:g}] (λmin W = {lam:.3g}) but NOT uniformly completely "
@@ -179,6 +189,7 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
         info, text = _uco(ctx)
         if info is not None:
             extra["uco"] = info
+            ctx.uco = info
             ctx.notes.append(text)
     candidates: list[Candidate] = []
     if say:
@@ -197,9 +208,14 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
             n_run = sum(c.applies and c.runnable for c in candidates)
             say(f"advise {system.name}: running {n_run} design(s) ...")
         scores, runres = compare(ctx, candidates, engine=engine)
+        if scores and ctx.recording is None and ctx.scenario.process_std is None:
+            ctx.notes.append("the comparison run has no process noise and the model is exact: estimators that lean on the "
+                             "model (an open-loop copy of a stable model, a tiny Q) look better here than on a real system; "
+                             "add [simulation] process_noise to compare them under model error")
         scenario = (f"the recording ({ctx.recording.t.size} samples)" if ctx.recording is not None else
                     ctx.scenario.describe() + ", x̂(0) = (" + ", ".join(f"{v:.3g}" for v in ctx.xhat0) + ")")
     if say and progress is True and sys.stderr.isatty():
         sys.stderr.write("\r\033[K")
     return Advice(system.name, ctx.system, ctx.report, tuple(candidates), tuple(ctx.notes), tuple(ctx.blockers), forms,
-                  extra, None if scores is None else tuple(scores), runres, scenario, time.perf_counter() - t0)
+                  extra, None if scores is None else tuple(scores), runres, scenario, time.perf_counter() - t0,
+                  mf.description if mf is not None else "")

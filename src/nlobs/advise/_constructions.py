@@ -49,9 +49,10 @@ def _measured(system: System) -> list[int] | None:
     return out
 
 
-def find_chains(system: System) -> list[list[str]] | None:
+def find_chains(system: System, why: list[str] | None = None) -> list[list[str]] | None:
     """Chains for the triangular form, following each measured state to the one unmeasured state its equation
-    uses; None when an output is not a single state or the states do not split into chains that way."""
+    uses; None when an output is not a single state or the states do not split into chains that way (then the
+    reason is appended to `why`)."""
     meas = _measured(system)
     if meas is None or len(set(meas)) != len(meas):
         return None
@@ -63,11 +64,17 @@ def find_chains(system: System) -> list[list[str]] | None:
         while True:
             nxt = [m for m, xs in enumerate(system.x) if m not in taken and xs in f[chain[-1]].free_symbols]
             if len(nxt) != 1:
+                if len(nxt) > 1 and why is not None:
+                    why.append(f"following the chain {' -> '.join(system.states[k] for k in chain)}, the equation of "
+                               f"{system.states[chain[-1]]} brings in {', '.join(system.states[k] for k in nxt)} at once: "
+                               "the triangular form needs each equation to add one new state")
                 break
             chain.append(nxt[0])
             taken.add(nxt[0])
         chains.append(chain)
     if len(taken) != system.n_states:
+        if why is not None and not why:
+            why.append(f"the chains from the measured states reach only {', '.join(system.states[k] for k in sorted(taken))}")
         return None
     return [[system.states[j] for j in ch] for ch in chains]
 

@@ -15,9 +15,10 @@ Automatic tuning rules (each one reported with the candidate that uses it):
   filters); a uniform bound b gives :math:`\sigma^2 = b^2/3`. Without declared noise, σ is 0.1 % of the
   output's range (said so in the tuning). Declared process noise σ_w gives :math:`Q = \sigma_w^2`;
   otherwise :math:`Q = (0.01\,s_i)^2\omega_p` per state (s_i its scale, below), a small model-error allowance.
-* **Initial estimate.** x̂(0) is x(0) moved by half of each state's scale s_i (its range on the run, at least
-  half its largest magnitude), with alternating signs (a state that keeps its sign on the run keeps it: ×1.5
-  or ×0.5); unknown parameters start at the file's value (the initial guess). P(0) = diag(max(s_i, |x̂_i(0) − x_i(0)|)²).
+* **Initial estimate.** x̂(0) is x(0) moved by half of each state's scale s_i (its range on the run; half its
+  largest magnitude for a state that moves less than 5 % of it), with alternating signs (a state that keeps its
+  sign on the run keeps it: ×1.5 or ×0.5 where the move would flip it); unknown parameters start at the file's
+  value (the initial guess). P(0) = diag(max(s_i, |x̂_i(0) − x_i(0)|)²).
 """
 
 from __future__ import annotations
@@ -30,11 +31,12 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from ..analysis import ObservabilityReport, analyze, matrix_measure, pbh_test, recognise_forms
+from ..analysis import ObservabilityReport, analyze, matrix_measure, pbh_test
 from ..engine import compile_system, to_casadi
 from ..errors import FiniteEscapeError, FormError, ModelError
 from ..model import LTI, TIME, ModelFile, System
 from ..simulate import Noise, ProcessNoise, Recording, Run, Sampling, simulate
+from ._forms import recognise
 
 __all__ = ["Scenario", "Context", "build_context", "file_unknown_params", "file_true_parameters"]
 
@@ -217,16 +219,17 @@ def _jacobians(system: System, s: Mapping[str, np.ndarray]) -> np.ndarray:
     return np.asarray(out, dtype=float).reshape(n, N, n).transpose(1, 0, 2)
 
 
-def _time_scales(system: System, s: Mapping[str, np.ndarray], t_final: float) -> tuple[float, str]:
+def _time_scales(system: System, s: Mapping[str, np.ndarray], t_final: float, scale: np.ndarray) -> tuple[float, str]:
     J = _jacobians(system, s)
     J = J[np.all(np.isfinite(J), axis=(1, 2))]
     if not J.size:
         return 3.0 / t_final, "the Jacobian is not finite along the run"
     rho = float(np.max(np.abs(np.linalg.eigvals(J)), initial=0.0))
-    norm = float(np.max(np.linalg.norm(J, 2, axis=(1, 2)), initial=0.0))
+    Js = J * scale[None, None, :] / scale[None, :, None]         # D⁻¹JD, D = diag(scale): in the states' own units
+    norm = float(np.max(np.linalg.norm(Js, 2, axis=(1, 2)), initial=0.0))
     omega = max(rho, 0.2 * norm, 3.0 / t_final)
-    why = (f"ω_p = {omega:.3g} s⁻¹ (largest |eig ∂f/∂x| on the run {rho:.3g}, ‖∂f/∂x‖₂ up to {norm:.3g}, "
-           f"floor 3/t_final = {3.0 / t_final:.3g})")
+    why = (f"ω_p = {omega:.3g} s⁻¹ (largest |eig ∂f/∂x| on the run {rho:.3g}, ‖D⁻¹ ∂f/∂x D‖₂ up to {norm:.3g} with D the "
+           f"states' scales, floor 3/t_final = {3.0 / t_final:.3g})")
     return omega, why
 
 
@@ -328,10 +331,9 @@ def _xhat0(x0: np.ndarray, run: Run | None, scale: np.ndarray, estimated: Sequen
         if i in estimated:
             continue
         keeps = run is not None and (np.all(run.x[:, i] > 0) or np.all(run.x[:, i] < 0))
-        if keeps:
+        out[i] = x0[i] + 0.5 * scale[i] * sign
+        if keeps and out[i] * x0[i] <= 0:  # a state that keeps its sign on the run (a level, a concentration) keeps it
             out[i] = x0[i] * (1.5 if sign > 0 else 0.5)
-        else:
-            out[i] = x0[i] + 0.5 * scale[i] * sign
         sign = -sign
     for i, g in zip(estimated, guesses):
         out[i] = g
@@ -381,18 +383,20 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
     if nominal is not None:
         s = {"t": nominal.t, "x": nominal.x, "u": nominal.u}
         k = np.unique(np.linspace(0, nominal.t.size - 1, 200).astype(int))
-        omega_p, scale_note = _time_scales(system, {key: v[k] for key, v in s.items()}, t_final)
         span = nominal.x.max(axis=0) - nominal.x.min(axis=0)
         mag = np.abs(nominal.x).max(axis=0)
-        scale = np.maximum.reduce([span, 0.5 * mag, np.full(system.n_states, 1e-6)])
+        # a state's scale: its range on the run; for a state that barely moves (< 5 % of its size), half its size
+        scale = np.where(span > 0.05 * mag, span, 0.5 * mag)
+        scale = np.maximum(scale, 1e-6)
         for j, k_ in enumerate(unknown):  # a constant parameter: its uncertainty, not its (zero) range
             i = model.n_states + j
             scale[i] = max(0.5 * abs(float(model.params[k_])), abs(truth[k_] - float(model.params[k_])), 1e-3)
         region = _region(system, nominal, model.inputs)
+        omega_p, scale_note = _time_scales(system, {key: v[k] for key, v in s.items()}, t_final, scale)
     else:
         pts = {"t": np.zeros(1), "x": np.zeros((1, system.n_states)), "u": np.zeros((1, system.n_inputs))}
-        omega_p, scale_note = _time_scales(system, pts, t_final)
         scale = np.ones(system.n_states)
+        omega_p, scale_note = _time_scales(system, pts, t_final, scale)
         region = {}
     sc = scen
     limit = np.inf
@@ -440,7 +444,7 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
                   P0, noise_note, notes=notes, recording=recording)
     blockers, info = _unobservable(model, rep, nominal, unknown)
     ctx.detectability = info
-    ctx.forms = recognise_forms(system)
+    ctx.forms = recognise(system)
     badp = [k for k in unknown if k not in rep.identifiable_params]
     if badp:
         blockers.append(f"the unknown parameter(s) {', '.join(badp)} {'is' if len(badp) == 1 else 'are'} not identifiable from "
@@ -453,7 +457,7 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
         ctx.notes.append(f"with the simulation's input ({rep_sig.inputs}) {', '.join(lost)} {'is' if len(lost) == 1 else 'are'} "
                          "not observable (a singular input): the comparison run cannot show convergence in "
                          f"{'it' if len(lost) == 1 else 'them'}; choose a richer [simulation] input")
-    if rep.symmetries:
+    if rep.symmetries and rep.observable:
         ctx.notes.append("only locally observable: the output is invariant under "
                          + "; ".join(str(s) for s in rep.symmetries) + "; estimates can converge to the mirror image")
     return ctx

@@ -244,9 +244,10 @@ def _chains(ctx: Context) -> tuple[Any, list[list[str]] | None, str]:
     try:
         return triangular_chains(ctx.system, caller="high_gain"), None, ""
     except (FormError, PreconditionError) as first:
-        alt = find_chains(ctx.system)
+        reason: list[str] = []
+        alt = find_chains(ctx.system, reason)
         if alt is None:
-            return None, None, _clean(first)
+            return None, None, (f"not in triangular form: {reason[0]}" if reason else _clean(first))
         try:
             return triangular_chains(ctx.system, alt, caller="high_gain"), alt, ""
         except (FormError, PreconditionError) as e:
@@ -300,7 +301,7 @@ def _high_gain(ctx: Context) -> Candidate:
         means = {id(a): float(np.mean(col)) for (_, _, a), col in zip(varying, vals.T)}
         K0 = []
         for c in chs:
-            cpl = [means.get(id(a), float(a)) if a.free_symbols else float(a) for a in c.couplings]
+            cpl = [means[id(a)] if a.free_symbols else float(a) for a in c.couplings]
             K0.extend(chain_gain(cpl, np.full(len(c.states), -1.0 + 0j)).tolist())
         theta = float(min(max(ctx.omega_o, 1.0), limit))
         opts.update({"theta": round(theta, 6), "K0": K0})
@@ -352,7 +353,7 @@ def _high_gain_derivatives(ctx: Context) -> Candidate:
     if psi is None:
         return t.needs(f"xhat = Ψ(D0_y, D1_y, ...): {why}", xhat="expressions of the output derivatives D{i}_{output}")
     theta = float(min(max(ctx.omega_o, 1.0), ctx.step_limit()))
-    dens = sorted({sp.fraction(sp.together(e))[1] for e in psi.values()} - {sp.S.One}, key=str)
+    dens = sorted({d for e in psi.values() for d in [sp.fraction(sp.together(e))[1]] if d.free_symbols}, key=str)
     extra = ""
     if dens:
         extra = f"Ψ is singular where {', '.join(map(str, dens))} = 0"
@@ -437,23 +438,84 @@ def _gpebo_common(ctx: Context, t: _Trial) -> tuple[dict[str, Any] | None, str, 
     A, C = parts.A, parts.C
     opts: dict[str, Any] = {}
     note = ""
-    if not A.free_symbols:
+    varying = sorted(s.name for s in A.free_symbols)
+    if C.free_symbols:
+        return opts, "C depends on u or t: no output injection is tried; assumption 5 is checked by the run", None
+    Cn = np.array(C, dtype=float)
+    if not varying:
         An = np.array(A, dtype=float)
         eig = np.linalg.eigvals(An)
-        if eig.real.max() > 1e-9 or _jordan_on_axis(An):
-            from ..design import observer_gain
+        if not (eig.real.max() > 1e-9 or _jordan_on_axis(An)):
+            return opts, "", None
+        L, bad = _injection(An, Cn, ctx, "A", t)
+        if bad is not None:
+            return None, "", bad
+        opts["L"] = _round(L)
+        return opts, (f"A has an unstable or a repeated mode on the imaginary axis, so Φ_A grows ({cite('000')} assumption 5): "
+                      f"output injection L puts eig(A − LCᵀ) at {_fmt(_poles(ctx.n, ctx.omega_o))}"), None
+    if ctx.nominal is None:
+        return opts, (f"A depends on {', '.join(varying)}: assumption 5 (Φ_A bounded) is not decidable symbolically; a run "
+                      "shows it"), None
+    # A(u, y, t): assumption 5 is checked along the run, where Φ_A is integrated on the nominal signals
+    At = evaluate(list(A.T), ctx.system, ctx.samples(2001)).reshape(-1, ctx.n, ctx.n).transpose(0, 2, 1)
+    tt = ctx.samples(2001)["t"]
+    peak, end = _phi_growth(At, tt)
+    grows = "without bound (beyond 1e12)" if not np.isfinite(peak) else f"to {peak:.3g}"
+    if peak < 1e3 and end < 2.0:
+        return opts, (f"A depends on {', '.join(varying)}: along the run ‖Φ_A‖ stays ≤ {peak:.3g} ({cite('000')} assumption 5 "
+                      "holds there)"), None
+    L, bad = _injection(np.mean(At, axis=0), Cn, ctx, "the run's mean of A", t)
+    if bad is not None:
+        return None, "", bad
+    peak2, end2 = _phi_growth(At - (L @ Cn)[None], tt)
+    if peak2 < 1e3 and end2 < 2.0:
+        opts["L"] = _round(L)
+        return opts, (f"along the run ‖Φ_A‖ grows {grows} ({cite('000')} assumption 5 fails there): output injection L "
+                      f"from the run's mean A (eig(mean A − LCᵀ) at {_fmt(_poles(ctx.n, ctx.omega_o))}) keeps ‖Φ_(A−LCᵀ)‖ ≤ "
+                      f"{peak2:.3g} along the run"), None
+    grows2 = "without bound" if not np.isfinite(peak2) else f"to {peak2:.3g}"
+    return None, "", t.fail(f"the homogeneous part is not uniformly stable along the run ({cite('000')} assumption 5): ‖Φ_A‖ grows "
+                            f"{grows}, and an output injection from the run's mean A leaves ‖Φ‖ growing {grows2}; give `L`")
 
-            try:
-                L, _, _ = observer_gain(An, np.array(C, dtype=float), poles=_poles(ctx.n, ctx.omega_o), caller="gpebo")
-            except (PreconditionError, ValueError) as e:
-                return None, "", t.fail(f"A is not uniformly stable ({cite('000')} assumption 5) and no output injection fixes it: "
-                                        f"{_clean(e)}")
-            opts["L"] = _round(L)
-            note = f"A has an unstable or Jordan mode on the axis: output injection L puts eig(A − LCᵀ) at {_fmt(_poles(ctx.n, ctx.omega_o))}"
-    else:
-        note = (f"A depends on {', '.join(sorted(s.name for s in A.free_symbols))}: assumption 5 (Φ_A bounded) is not decidable "
-                "symbolically; a run shows it")
-    return opts, note, None
+
+def _injection(A: np.ndarray, C: np.ndarray, ctx: Context, what: str, t: _Trial) -> tuple[np.ndarray | None, Candidate | None]:
+    from ..design import observer_gain
+
+    try:
+        L, _, _ = observer_gain(A, C, poles=_poles(ctx.n, ctx.omega_o), caller="gpebo")
+    except (PreconditionError, ValueError) as e:
+        return None, t.fail(f"{what} is not uniformly stable ({cite('000')} assumption 5) and no output injection fixes it: "
+                            f"{_clean(e)}")
+    return L, None
+
+
+def _phi_growth(At: np.ndarray, t: np.ndarray) -> tuple[float, float]:
+    """max ‖Φ(t)‖ of Φ' = A(t)Φ, Φ(0) = I on the grid (A held over each interval), and ‖Φ(T)‖ / max over the first half
+    (> 1: still growing at the end)."""
+    n = At.shape[1]
+    h = np.diff(t)
+    M = At[:-1] * h[:, None, None]
+    # exp(M) for the whole stack: scaling and squaring with a degree-6 Taylor polynomial (‖M/2^s‖ ≤ 1/4)
+    s = max(0, int(np.ceil(np.log2(max(float(np.max(np.linalg.norm(M, 1, axis=(1, 2)))), 1e-300) / 0.25))))
+    X = M / 2.0 ** s
+    E = np.broadcast_to(np.eye(n), M.shape).copy()
+    term = E.copy()
+    for j in range(1, 7):
+        term = term @ X / j
+        E = E + term
+    for _ in range(s):
+        E = E @ E
+    Phi = np.eye(n)
+    norms = [1.0]
+    for k in range(len(h)):
+        Phi = E[k] @ Phi
+        nm = float(np.abs(Phi).sum(axis=0).max())          # ‖Φ‖₁: cheap, and equivalent to ‖Φ‖₂ within √n
+        if not np.isfinite(nm) or nm > 1e12:
+            return np.inf, np.inf
+        norms.append(nm)
+    norms_a = np.array(norms)
+    half = max(1, len(norms_a) // 2)
+    return float(norms_a.max()), float(norms_a[-1] / max(norms_a[:half].max(), 1e-300))
 
 
 def _jordan_on_axis(A: np.ndarray) -> bool:
@@ -471,10 +533,24 @@ def _gpebo_2gd(ctx: Context) -> Candidate:
     opts, note, bad = _gpebo_common(ctx, t)
     if bad is not None:
         return bad
-    gg = float(min(5.0 * ctx.omega_o, ctx.step_limit()))
-    opts.update({"gamma_g": round(gg, 6), "gamma": round(10.0 * gg, 6)})
-    return t.design(opts, f"state-affine; γ_g = {gg:.3g} (5 ω_o), γ = 10 γ_g; observable on an interval suffices (no UCO)",
-                    extra=note)
+    lim = ctx.step_limit()
+    psi2, peak = _regressor_level(ctx)
+    gg = float(min(5.0 * ctx.omega_o / psi2, 0.5 * lim / peak))   # the gradient stage acts at γ_g‖ψ‖²
+    gm = float(min(10.0 * gg, lim))                                  # the mixed stage at γΔ² ≤ γ (0 ≤ Δ ≤ 1)
+    opts.update({"gamma_g": float(f"{gg:.6g}"), "gamma": float(f"{gm:.6g}")})
+    return t.design(opts, f"state-affine; γ_g = {gg:.3g} (5 ω_o / mean ‖ψ‖², ‖ψ‖² up to {peak:.3g} on the run), γ = {gm:.3g} "
+                    "(10 γ_g; both within the step limit); observable on an interval suffices (no UCO)", extra=note)
+
+
+def _regressor_level(ctx: Context) -> tuple[float, float]:
+    """mean and peak ‖ψ‖² of the GPEBO regressor ψ = Φ_Aᵀ C along the run (d/dt trace W(0, t) = ‖ψ‖²; at least 1)."""
+    info = ctx.uco or {}
+    mean = peak = 1.0
+    if info.get("gramian_trace") and info.get("horizon"):
+        mean = max(1.0, float(info["gramian_trace"]) / float(info["horizon"]))
+    if info.get("regressor_peak"):
+        peak = max(1.0, float(info["regressor_peak"]))
+    return mean, max(mean, peak)
 
 
 def _gpebo(ctx: Context) -> Candidate:
@@ -617,9 +693,18 @@ def _cascade(ctx: Context) -> Candidate:
     if part is None:
         return t.fail(f"not in the class of {cite('004', 'Proposition 7')}: {why}")
     alpha = round(float(min(ctx.omega_o, ctx.step_limit())), 6)
-    opts = {**part, "alpha": alpha, "estimator": {"kind": "gradient", "gamma": round(float(ctx.omega_o), 6)}}
+    gamma = float(ctx.omega_o)
+    if ctx.nominal is not None:  # the gradient acts at the rate γ‖F[b]‖²: scale γ by the regressor b along the run
+        f, _ = ctx.system.substituted()
+        fk = f[ctx.system.states.index(part["k"])]
+        b = [sp.diff(fk, sp.Symbol(v, real=True)) for v in part["x4"]]
+        vals = evaluate(b, ctx.system, ctx.samples(300))
+        b2 = np.sum(vals ** 2, axis=1)
+        if np.all(np.isfinite(b2)) and b2.max() > 0:
+            gamma = float(min(ctx.omega_o / max(b2.mean(), 1e-300), ctx.step_limit() / b2.max()))
+    opts = {**part, "alpha": alpha, "estimator": {"kind": "gradient", "gamma": float(f"{gamma:.6g}")}}
     return t.design(opts, f"blocks found: x2 = {part['x2']}, x3 = {part['x3']}, x4 = {part['x4']}, k = {part['k']}; "
-                    "θ converges if b is persistently exciting")
+                    f"gradient gain γ = {gamma:.3g} = ω_o / mean ‖b‖² on the run; θ converges if b is persistently exciting")
 
 
 def _needs(kind: str, what: str, **opts: Any) -> Callable[[Context], Candidate]:

@@ -85,7 +85,9 @@ def model_report(adv: Advice, *, source: str = "") -> str:
     """The HTML text of the report of one :class:`~nlobs.advise.Advice` (with or without a run)."""
     rep = adv.observability
     body: list[str] = []
-    cited_text: list[str] = []
+    cited_text: list[str] = [adv.description]
+    if adv.description:
+        body.append(f"<p>{_esc(adv.description)}</p>")
     # -- observability
     verdict = "observable" if rep.observable else "NOT observable"
     cls = "ok" if rep.observable and not rep.symmetries else ("warn" if rep.observable else "fail")
