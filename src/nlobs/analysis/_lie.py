@@ -26,7 +26,7 @@ from ..model._expr import ExpressionError, parse_expression
 from ..model._system import ExprLike, exact, to_expr
 from ._modular import RowEchelon, random_prime
 from ._reports import FunctionCheck, ObservabilityReport, Symmetry
-from ._series import FloatField, ModField, Node, Program, Resample, SeriesRun, build_program
+from ._series import AffineJets, FloatField, ModField, Node, Program, Resample, SeriesRun, affine_structure, build_program
 from ..references import cite
 
 __all__ = ["analyze", "observable_function", "InputClass"]
@@ -148,6 +148,7 @@ class _Setup:
     unknown_inputs: dict[str, int]
     node_of: dict[str, int]
     param_values: dict[str, float]
+    affine: Any = None  # (A, B, C, D) when f and h are affine in the unknowns with constant coefficients
 
 
 def _setup(system: System, params_unknown: tuple[str, ...], classes: dict[str, InputClass],
@@ -172,8 +173,21 @@ def _setup(system: System, params_unknown: tuple[str, ...], classes: dict[str, I
     coeffs = tuple(f"{k}_{d}" for k, deg in unknown_inputs.items() for d in range(deg + 1))
     node_of = {s.name: i for i, s in enumerate(leaves)}  # the builder pushes the leaves first, in this order
     unknowns = (*system.states, *params_unknown, *coeffs)
+    affine = None if unknown_inputs else affine_structure(f, h, system.x, [symbol(k) for k in params_unknown])
     return _Setup(prog, unknowns, system.n_states, len(params_unknown), classes, unknown_inputs, node_of,
-                  dict(system.params))
+                  dict(system.params), affine)
+
+
+def _jets(st: _Setup, system: System, field: Any, rng: np.random.Generator, N: int, x0: Any, coef: Any,
+          keep: Sequence[int]) -> Any:
+    """The run that produces the output jets' gradient rows: the affine shortcut or the power series."""
+    if st.affine is not None:
+        return AffineJets(st.affine, field, st.n, st.q, st.prog.h)
+    M = len(st.unknowns)
+    support = {st.node_of[k]: c.degree + 1 for k, c in st.classes.items() if c.kind == "polynomial"}
+    support.update({st.node_of[k]: d + 1 for k, d in st.unknown_inputs.items()})
+    return SeriesRun(st.prog, field, M, x0, [st.node_of[s] for s in system.states], coef, rng, keep=keep,
+                     leaf_support=support)
 
 
 def _leaf_coefficients(st: _Setup, system: System, field: Any, rng: np.random.Generator, N: int,
@@ -243,18 +257,22 @@ def _mod_run(st: _Setup, system: System, rng: np.random.Generator) -> _ModResult
         F = ModField(p)
         try:
             x0, coef = _leaf_coefficients(st, system, F, rng, N, None, True)
-            run = SeriesRun(st.prog, F, M, x0, [st.node_of[s] for s in system.states], coef, rng)
+            run = _jets(st, system, F, rng, N, x0, coef, [*st.prog.h, *st.prog.extra])
+            if st.prog.extra:
+                extra_run = SeriesRun(st.prog, F, M, x0, [st.node_of[s] for s in system.states], coef, rng, keep=st.prog.extra)
+                extra_run.step()
+                frows = [extra_run.row(e, 0)[1:].copy() for e in st.prog.extra]
+            else:
+                frows = []
             ech = RowEchelon(M, p)
             pivots: list[tuple[int, int]] = []
             degrees: list[int] = []
             for k in range(N + 1):
                 run.step()
                 for j, hj in enumerate(st.prog.h):
-                    degrees.append(run.deg[hj][k])
-                    if ech.add(run.S[hj][k, 1:]):
+                    degrees.append(run.degree(hj, k))
+                    if ech.add(run.row(hj, k)[1:]):
                         pivots.append((j, k))
-                if k == 0:
-                    frows = [run.S[e][0, 1:].copy() for e in st.prog.extra]
                 if ech.rank == M:
                     break
             return _ModResult(ech.rank, ech, pivots, degrees, run.extra_degree, p, frows, k)
@@ -279,12 +297,12 @@ def _float_kernel(st: _Setup, system: System, res: _ModResult, rng: np.random.Ge
         F = FloatField()
         try:
             x0, coef = _leaf_coefficients(st, system, F, rng, kmax, use_at, False)
-            run = SeriesRun(st.prog, F, M, x0, [st.node_of[s] for s in system.states], coef, rng)
+            run = _jets(st, system, F, rng, kmax, x0, coef, st.prog.h)
             for _ in range(kmax + 1):
                 run.step()
         except Resample:
             continue
-        J = np.array([run.S[st.prog.h[j]][k, 1:] for j, k in res.pivot_rows], dtype=float)
+        J = np.array([run.row(st.prog.h[j], k)[1:] for j, k in res.pivot_rows], dtype=float)
         if not np.all(np.isfinite(J)):
             continue
         norms = np.linalg.norm(J, axis=1)
@@ -322,11 +340,15 @@ def _real_point(st: _Setup, system: System, rng: np.random.Generator, at: Mappin
 
 
 def _sign_symmetries(system: System, st: _Setup, params_unknown: tuple[str, ...], rng: np.random.Generator,
-                     budget: int = 4096) -> tuple[tuple[Symmetry, ...], str]:
+                     budget: int = 4096, max_proofs: int = 64) -> tuple[tuple[Symmetry, ...], str]:
     """Sign changes of unknowns that leave the model invariant: f(σz) = σ f(z), h(σz) = h(z).
 
-    Screened numerically at a random point for all sign patterns (up to `budget`), then proved
-    symbolically. Each one gives pairs of indistinguishable states (001 §IV-C: x2 -> -x2 when c = 0).
+    Screened numerically at a random point, then proved symbolically. With at most 12 unknowns
+    every sign pattern is screened (up to `budget`); beyond, the sign changes of one or two
+    unknowns. Screening is sparse: an expression is evaluated only on the patterns that flip one
+    of its variables (or its own state), since every other pattern leaves it unchanged, so the
+    cost grows like m · Σ|vars of f_i|² rather than m² · (size of f). Each symmetry gives pairs of
+    indistinguishable states (001 §IV-C: x2 -> -x2 when c = 0).
     """
     from ..model._translate import NUMPY, translate
 
@@ -335,43 +357,82 @@ def _sign_symmetries(system: System, st: _Setup, params_unknown: tuple[str, ...]
     h = [e.xreplace(known) for e in system.h]
     syms = [*system.x, *[symbol(k) for k in params_unknown]]
     m = len(syms)
-    if m <= 12 and 2**m - 1 <= budget:
+    index = {s: i for i, s in enumerate(syms)}
+    exhaustive = m <= 12 and 2**m - 1 <= budget
+    if exhaustive:
         patterns = np.array([[(1 - 2 * ((b >> i) & 1)) for i in range(m)] for b in range(1, 2**m)], dtype=float)
         searched = f"all {2**m - 1} sign changes of the unknowns were screened"
     else:
-        rows = []
-        for i in range(m):
-            for j in range(i, m):
-                r = np.ones(m)
-                r[i] = r[j] = -1
-                rows.append(r)
-        patterns = np.array(rows)
-        searched = f"the {len(rows)} sign changes of one or two unknowns were screened"
-    P = patterns.shape[0]
+        pairs = [(i, j) for i in range(m) for j in range(i, m)]
+        searched = f"the {len(pairs)} sign changes of one or two unknowns were screened"
     z = rng.uniform(0.5, 1.5, size=m)
-    leaves: dict[sp.Symbol, Any] = {s: patterns[:, i] * z[i] for i, s in enumerate(syms)}
-    base: dict[sp.Symbol, Any] = {s: np.full(P, z[i]) for i, s in enumerate(syms)}
-    for s in system.u:
-        v = rng.uniform(-1, 1)
-        leaves[s] = base[s] = np.full(P, v)
-    leaves[TIME] = base[TIME] = np.full(P, rng.uniform(0, 1))
-    ok = np.ones(P, dtype=bool)
+    fixed: dict[sp.Symbol, float] = {s: float(rng.uniform(-1, 1)) for s in system.u}
+    fixed[TIME] = float(rng.uniform(0, 1))
+    exprs = [(e, i) for i, e in enumerate(f)] + [(e, None) for e in h]
+    if exhaustive:
+        ok = np.ones(patterns.shape[0], dtype=bool)
+    else:
+        failed = np.zeros((m, m), dtype=bool)  # failed[i, j] (i <= j): flipping unknowns i and j breaks an equation
     with np.errstate(all="ignore"):
-        for i, e in enumerate((*f, *h)):
+        for e, own in exprs:
+            deps = sorted(index[s] for s in e.free_symbols if s in index)
+            touch = sorted(set(deps) | ({own} if own is not None else set()))
+            if not touch:
+                continue
+            if exhaustive:
+                cols = {i: patterns[:, i] for i in touch}
+                P = patterns.shape[0]
+            else:  # the patterns (a, b), a <= b, with a or b in `touch`
+                js = np.arange(m)
+                codes = np.unique(np.concatenate([np.minimum(t, js) * m + np.maximum(t, js) for t in touch]))
+                lo, hi = codes // m, codes % m
+                cols = {i: np.where((lo == i) | (hi == i), -1.0, 1.0) for i in touch}
+                P = codes.size
+            leaves: dict[sp.Symbol, Any] = {syms[i]: cols[i] * z[i] for i in deps}
+            base: dict[sp.Symbol, Any] = {syms[i]: z[i] for i in deps}
+            leaves.update(fixed)
+            base.update(fixed)
             a = np.broadcast_to(np.asarray(translate(e, leaves, NUMPY), dtype=float), (P,))
-            b = np.broadcast_to(np.asarray(translate(e, base, NUMPY), dtype=float), (P,))
-            if i < len(f):
-                b = b * patterns[:, i]
-            ok &= np.isfinite(a) & np.isclose(a, b, rtol=1e-9, atol=1e-12)
+            b = float(np.asarray(translate(e, base, NUMPY), dtype=float))
+            bb = b * cols[own] if own is not None else np.full(P, b)
+            good = np.isfinite(a) & np.isclose(a, bb, rtol=1e-9, atol=1e-12)
+            if exhaustive:
+                ok &= good
+            else:
+                failed[lo[~good], hi[~good]] = True
+    if exhaustive:
+        survivors: Any = sorted(patterns[ok], key=lambda r: int(np.sum(r < 0)))
+        n_survivors = len(survivors)
+    else:
+        passed = np.triu(~failed)
+        ii, jj = np.nonzero(passed)
+        order = np.argsort(ii != jj, kind="stable")  # single flips first, then pairs
+        n_survivors = int(ii.size)
+
+        def pattern(k: int) -> np.ndarray:
+            r = np.ones(m)
+            r[ii[k]] = r[jj[k]] = -1
+            return r
+
+        survivors = (pattern(k) for k in order)
     found: list[np.ndarray] = []
     group: set[tuple[int, ...]] = set()
-    for r in sorted(patterns[ok], key=lambda r: int(np.sum(r < 0))):
+    proofs = 0
+    for r in survivors:
         key = tuple(int(v) for v in r)
         if key in group:
             continue
+        if proofs >= max_proofs:
+            searched += (f"; further candidates passed the screening ({n_survivors} in all) but were not proved "
+                         f"(limit {max_proofs})")
+            break
+        proofs += 1
         sub = {s: -s for s, v in zip(syms, r) if v < 0}
-        proved = all(sp.simplify(e.xreplace(sub) - sgn * e) == 0 for e, sgn in zip(f, r[: len(f)])) and all(
-            sp.simplify(e.xreplace(sub) - e) == 0 for e in h)
+        flipped = set(sub)
+        # only the equations that involve a flipped unknown, or whose own state flips, can change
+        proved = all(sp.simplify(e.xreplace(sub) - sgn * e) == 0 for e, sgn in zip(f, r[: len(f)])
+                     if sgn < 0 or e.free_symbols & flipped) and all(
+            sp.simplify(e.xreplace(sub) - e) == 0 for e in h if e.free_symbols & flipped)
         if not proved:
             continue
         found.append(r)

@@ -89,13 +89,23 @@ def root(a: int, r: int, p: int) -> int | None:
     return out
 
 
+def _matvec_mod(c: np.ndarray, B: np.ndarray, p: int) -> np.ndarray:
+    """(c @ B) mod p for reduced c (length r) and B (r x n), in chunks that cannot overflow int64."""
+    out = np.zeros(B.shape[1], dtype=np.int64)
+    for i in range(0, c.shape[0], MAX_TERMS):
+        out = (out + (c[i:i + MAX_TERMS] @ B[i:i + MAX_TERMS]) % p) % p
+    return out
+
+
 class RowEchelon:
-    """Incremental row reduction over GF(p): add rows one at a time, keep a reduced basis.
+    """Incremental row reduction over GF(p): add rows one at a time, keep a fully reduced basis.
+
+    The basis is stored as one matrix whose rows each have a leading 1 at their pivot column and
+    zeros in every other pivot column, so reducing a row is one product ``v - v[pivots] @ B`` and
+    adding a row one rank-1 update: O(rank · ncols) vectorised work per row.
 
     Attributes
     ----------
-    basis : list of numpy.ndarray
-        Reduced rows, each with a leading 1 at its pivot column, zero in every other pivot column.
     pivots : list of int
         Pivot column of each basis row.
     """
@@ -103,22 +113,28 @@ class RowEchelon:
     def __init__(self, ncols: int, p: int):
         self.ncols = ncols
         self.p = p
-        self.basis: list[np.ndarray] = []
+        self._B = np.zeros((min(ncols, 8), ncols), dtype=np.int64)
         self.pivots: list[int] = []
 
     @property
     def rank(self) -> int:
         return len(self.pivots)
 
+    @property
+    def basis(self) -> np.ndarray:
+        """The reduced rows, shape (rank, ncols)."""
+        return self._B[: self.rank]
+
     def reduce(self, row: np.ndarray) -> np.ndarray:
         """`row` minus its projection on the basis (zero iff `row` is in the row space)."""
         p = self.p
         v = np.asarray(row, dtype=np.int64) % p
-        for b, j in zip(self.basis, self.pivots):
-            c = int(v[j])
-            if c:
-                v = (v - c * b) % p
-        return v
+        if not self.pivots:
+            return v
+        c = v[self.pivots]
+        if not c.any():
+            return v
+        return (v - _matvec_mod(c, self.basis, p)) % p
 
     def contains(self, row: np.ndarray) -> bool:
         return not np.any(self.reduce(row))
@@ -132,21 +148,30 @@ class RowEchelon:
             return False
         j = int(nz[0])
         v = v * inv(int(v[j]), p) % p
-        for k, b in enumerate(self.basis):  # keep the basis fully reduced
-            c = int(b[j])
-            if c:
-                self.basis[k] = (b - c * v) % p
-        self.basis.append(v)
+        r = self.rank
+        if r:  # keep the basis fully reduced: clear column j in the other rows
+            B = self._B[:r]
+            col = B[:, j].copy()
+            rows = np.flatnonzero(col)
+            if rows.size:
+                B[rows] = (B[rows] - (col[rows, None] * v[None, :]) % p) % p
+        if r == self._B.shape[0]:
+            grown = np.zeros((min(self.ncols, 2 * r), self.ncols), dtype=np.int64)
+            grown[:r] = self._B[:r]
+            self._B = grown
+        self._B[r] = v
         self.pivots.append(j)
         return True
 
     def kernel(self) -> np.ndarray:
         """A basis of the right kernel {z : row·z = 0 for every row}, one vector per free column."""
         p = self.p
-        free = [j for j in range(self.ncols) if j not in self.pivots]
+        piv = set(self.pivots)
+        free = [j for j in range(self.ncols) if j not in piv]
         out = np.zeros((len(free), self.ncols), dtype=np.int64)
-        for i, j in enumerate(free):
-            out[i, j] = 1
-            for b, piv in zip(self.basis, self.pivots):
-                out[i, piv] = (-int(b[j])) % p
+        if not free:
+            return out
+        out[np.arange(len(free)), free] = 1
+        if self.pivots:
+            out[:, self.pivots] = (-self.basis[:, free].T) % p
         return out

@@ -368,6 +368,198 @@ class FloatField:
 # ----------------------------------------------------------------------------------------------
 # evaluation
 # ----------------------------------------------------------------------------------------------
+#: Longest linear combination inlined into the nodes that use it (larger ones are computed once).
+_INLINE = 32
+#: Most terms of one row of a linear map evaluated in one product: 256 products of two reduced
+#: values (< 2**27 each) stay below 2**62, so int64 cannot overflow; longer rows are split.
+_ROW_TERMS = 256
+
+
+@dataclass
+class _Schedule:
+    """How a program is run, one coefficient order at a time (computed once per program).
+
+    Linear nodes (``add``, ``scale``) are flattened into linear combinations of the nodes that
+    are actually stored ("materialised": leaves, non-linear nodes, and the linear nodes that are
+    read again or too large to inline). Materialised nodes are sorted into levels (a node's level
+    exceeds those of the nodes its current coefficient depends on); in each level the linear
+    ones are evaluated together as one sparse product, the non-linear ones (``mul``, ``recip``,
+    ``aux``) one by one. The next state coefficients x_{k+1} = f_k / (k+1) come from one more
+    sparse product. Only the nodes whose earlier coefficients are read again keep a history
+    (``hist``), so memory is O(nodes · M + history nodes · K · M), not O(nodes · K · M).
+    """
+
+    levels: list[list[tuple[str, Any]]]  # ("linear", (nodes, expansions, constants)) or ("node", index)
+    hist: frozenset[int]
+    scalar: dict[int, tuple[int, int]]  # mul nodes with a constant-in-t factor: (constant, series)
+    leaves: list[int]
+    f_rows: list[tuple[dict[int, sp.Rational], sp.Rational]]  # each f as a combination of stored nodes
+
+
+_UNBOUNDED = 1 << 40
+
+
+def _supports(nodes: Sequence[Node], leaf_support: Mapping[int, int]) -> list[int]:
+    """How many leading coefficients of each node's series can be nonzero (static bound)."""
+    sup = [_UNBOUNDED] * len(nodes)
+    for i, nd in enumerate(nodes):
+        op = nd.op
+        if op in ("theta", "const", "cfree"):
+            sup[i] = 1
+        elif op == "t":
+            sup[i] = 2
+        elif op in ("u", "w"):
+            sup[i] = leaf_support.get(i, _UNBOUNDED)
+        elif op in ("add",):
+            sup[i] = max(sup[a] for a in nd.args)
+        elif op == "scale":
+            sup[i] = sup[nd.args[0]]
+        elif op == "mul":
+            sa, sb = (sup[a] for a in nd.args)
+            sup[i] = min(_UNBOUNDED, sa + sb - 1)
+        elif op in ("recip", "aux"):
+            sup[i] = 1 if sup[nd.args[0]] == 1 else _UNBOUNDED
+    return sup
+
+
+def _schedule(prog: Program, keep: Sequence[int], leaf_support: Mapping[int, int] | None = None) -> _Schedule:
+    nodes = prog.nodes
+    hist = set(keep)
+    must = set(keep)
+    sup = _supports(nodes, leaf_support or {})
+    scalar: dict[int, tuple[int, int]] = {}  # mul by a series that is constant in t: (constant arg, series arg)
+    for i, nd in enumerate(nodes):
+        if nd.op == "mul" and min(sup[a] for a in nd.args) == 1:
+            a, b = nd.args
+            c, other = (a, b) if sup[a] == 1 else (b, a)
+            scalar[i] = (c, other)
+            must.update((c, other))  # stored (the series argument needs only its current coefficient)
+        elif nd.op == "mul":
+            hist.update(nd.args)
+        elif nd.op == "recip":
+            hist.update((i, nd.args[0]))
+        elif nd.op == "aux":
+            hist.update((i, nd.args[0], nd.w))
+            if nd.pair >= 0:
+                hist.add(nd.pair)
+            if nd.data[0] == "atan" and nd.data[1] is not None:
+                must.update(nd.data[1])
+    must |= hist
+    linear = {"add", "scale"}
+    stored = [nd.op not in linear for nd in nodes]
+    expansion: list[tuple[dict[int, sp.Rational], sp.Rational]] = []
+    computing: dict[int, tuple[dict[int, sp.Rational], sp.Rational]] = {}
+
+    def combine(i: int) -> tuple[dict[int, sp.Rational], sp.Rational]:
+        nd = nodes[i]
+        terms: dict[int, sp.Rational] = {}
+        if nd.op == "add":
+            const = sp.Rational(nd.data)
+            parts = [(a, sp.Integer(1)) for a in nd.args]
+        else:
+            const = sp.Integer(0)
+            parts = [(nd.args[0], sp.Rational(nd.data))]
+        for a, c in parts:
+            sub, sc = expansion[a]
+            const += c * sc
+            for j, v in sub.items():
+                terms[j] = terms.get(j, 0) + c * v
+        return {j: v for j, v in terms.items() if v != 0}, const
+
+    for i, nd in enumerate(nodes):
+        if stored[i]:
+            expansion.append(({i: sp.Integer(1)}, sp.Integer(0)))
+            continue
+        terms, const = combine(i)
+        if i not in must and len(terms) <= _INLINE:
+            expansion.append((terms, const))
+            continue
+        stored[i] = True
+        computing[i] = (terms, const)
+        expansion.append(({i: sp.Integer(1)}, sp.Integer(0)))
+    level = [0] * len(nodes)
+    for i, nd in enumerate(nodes):
+        if not stored[i] or nd.op in ("x", "theta", "u", "w", "t", "const", "cfree"):
+            continue
+        if i in computing:
+            refs = computing[i][0] or {}
+            level[i] = 1 + max((level[j] for j in refs), default=0)
+        elif nd.op == "aux":  # coefficient k uses g up to k and w up to k - 1 only
+            level[i] = 1 + level[nd.args[0]]
+            if nd.data[0] == "atan" and nd.data[1] is not None:
+                level[i] = max(level[i], 1 + max(level[j] for j in nd.data[1]))
+        else:
+            level[i] = 1 + max(level[a] for a in nd.args)
+    by_level: dict[int, list[int]] = {}
+    for i, lv in enumerate(level):
+        if lv:
+            by_level.setdefault(lv, []).append(i)
+    levels = []
+    for lv in sorted(by_level):
+        items: list[tuple[str, Any]] = []
+        lin = [i for i in by_level[lv] if i in computing]
+        if lin:
+            items.append(("linear", (lin, [computing[i][0] for i in lin], [computing[i][1] for i in lin])))
+        sc = [i for i in by_level[lv] if i in scalar]
+        if sc:
+            items.append(("scalar", sc))
+        items += [("node", i) for i in by_level[lv] if i not in computing and i not in scalar]
+        levels.append(items)
+    leaves = [i for i, nd in enumerate(nodes) if nd.op in ("x", "theta", "u", "w", "t", "const", "cfree")]
+    return _Schedule(levels, frozenset(hist), scalar, leaves, [expansion[fi] for fi in prog.f])
+
+
+class _LinearMap:
+    """Rows of linear combinations of stored nodes, evaluated as sparse products in a field."""
+
+    def __init__(self, field: Any, n_nodes: int, rows: Sequence[Mapping[int, sp.Rational]], consts: Sequence[sp.Rational]):
+        import scipy.sparse
+
+        self.field = field
+        parts: list[tuple[list[int], list[int], list[Any]]] = []
+        refs_r, refs_c = [], []
+        for r, terms in enumerate(rows):
+            for t, (j, v) in enumerate(sorted(terms.items())):
+                b = t // _ROW_TERMS
+                while len(parts) <= b:
+                    parts.append(([], [], []))
+                parts[b][0].append(r), parts[b][1].append(j), parts[b][2].append(field.num(v))
+                refs_r.append(r), refs_c.append(j)
+        shape = (len(rows), n_nodes)
+        self.parts = [scipy.sparse.csr_matrix((np.array(v, dtype=field.dtype), (rr, cc)), shape=shape) for rr, cc, v in parts]
+        self.base = [m.data.copy() for m in self.parts]
+        self.const = np.array([field.num(c) for c in consts], dtype=field.dtype)
+        # which stored nodes each row reads (for the degree bound: the largest degree among them)
+        order = np.lexsort((refs_c, refs_r)) if refs_r else np.zeros(0, dtype=np.int64)
+        self.ref_rows = np.array(refs_r, dtype=np.int64)[order]
+        self.ref_cols = np.array(refs_c, dtype=np.int64)[order]
+        counts = np.bincount(self.ref_rows, minlength=len(rows)) if refs_r else np.zeros(len(rows), dtype=np.int64)
+        self.starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+        self.nonempty = counts > 0
+
+    def scaled(self, c: Any) -> None:
+        """Multiply every coefficient by `c` (a field element), from the original coefficients."""
+        F = self.field
+        for m, b in zip(self.parts, self.base):
+            m.data = F.red(b * c)
+
+    def apply(self, cur: np.ndarray, dcur: np.ndarray, first: bool, c: Any = None) -> tuple[np.ndarray, np.ndarray]:
+        F = self.field
+        if not self.parts:
+            out = np.zeros((self.const.shape[0], cur.shape[1]), dtype=F.dtype)
+        else:
+            out = F.red(self.parts[0] @ cur)
+            for m in self.parts[1:]:
+                out = F.red(out + F.red(m @ cur))
+        if first:
+            out[:, 0] = F.red(out[:, 0] + (self.const if c is None else F.red(self.const * c)))
+        deg = np.zeros(self.const.shape[0], dtype=np.int64)
+        if self.ref_cols.size:
+            d = np.maximum.reduceat(dcur[self.ref_cols], self.starts[self.nonempty])
+            deg[self.nonempty] = d
+        return out, deg
+
+
 @dataclass
 class SeriesRun:
     r"""Run a program on truncated power series with gradients.
@@ -381,10 +573,17 @@ class SeriesRun:
     x0 : sequence
         Initial state values (field elements); state i has gradient :math:`e_{i}` if
         ``state_cols[i] >= 0``.
-    leaf_series : mapping node index -> function k -> (value, gradient column or -1)
+    state_nodes : sequence of int
+        The program's node of each state.
+    leaf_coef : mapping node index -> function k -> (value, gradient column or -1, degree)
         Values of the other leaves' coefficients.
     rng : numpy.random.Generator
         For the free initial values of auxiliary series.
+    keep : sequence of int
+        Nodes whose every coefficient the caller reads after the run (:meth:`row`,
+        :meth:`degree`); other nodes may keep only their current coefficient, or none.
+    leaf_support : mapping node index -> int
+        For input leaves with finitely many nonzero coefficients (polynomial inputs), how many.
     """
 
     prog: Program
@@ -394,26 +593,75 @@ class SeriesRun:
     state_nodes: Sequence[int]
     leaf_coef: Mapping[int, Any]
     rng: np.random.Generator
-    S: list[np.ndarray] = field(default_factory=list)
-    deg: list[list[int]] = field(default_factory=list)
+    keep: Sequence[int] = ()
+    leaf_support: Mapping[int, int] = field(default_factory=dict)
     order: int = -1
     extra_degree: int = 0
 
     def __post_init__(self) -> None:
         self.K = 0
-        self.S = [np.zeros((0, self.M + 1), dtype=self.field.dtype) for _ in self.prog.nodes]
-        self.deg = [[] for _ in self.prog.nodes]
+        nodes = self.prog.nodes
+        F = self.field
+        self.sched = _schedule(self.prog, self.keep, self.leaf_support)
+        self.cur = np.zeros((len(nodes), self.M + 1), dtype=F.dtype)
+        self.dcur = np.zeros(len(nodes), dtype=np.int64)
+        self.H = {i: np.zeros((0, self.M + 1), dtype=F.dtype) for i in self.sched.hist}
+        self.DH = {i: np.zeros(0, dtype=np.int64) for i in self.sched.hist}
+        # the highest order with a nonzero coefficient, per history node: convolutions skip the zero
+        # terms (a parameter times a state costs one product per order, not k)
+        self.last = {i: -1 for i in self.sched.hist}
         self.state_index = {nd: i for i, nd in enumerate(self.state_nodes)}
+        self._next = np.zeros((len(self.state_nodes), self.M + 1), dtype=F.dtype)
+        self._next_deg = np.zeros(len(self.state_nodes), dtype=np.int64)
+        self._state_nodes = np.array(self.state_nodes, dtype=np.int64)
+        self._state_hist = [i for i in self.state_nodes if i in self.H]
+        self._other_leaves = [i for i in self.sched.leaves if nodes[i].op != "x"]
+        self._lin = []
+        self._scalar = []
+        for items in self.sched.levels:
+            for kind, what in items:
+                if kind == "scalar":
+                    idx = np.array(what, dtype=np.int64)
+                    cs = np.array([self.sched.scalar[i][0] for i in what], dtype=np.int64)
+                    ss = np.array([self.sched.scalar[i][1] for i in what], dtype=np.int64)
+                    self._scalar.append([idx, cs, ss, None, None, [(r, i) for r, i in enumerate(what) if i in self.H]])
+                if kind == "linear":
+                    idx, rows, consts = what
+                    self._lin.append((np.array(idx), _LinearMap(F, len(nodes), rows, consts),
+                                      [(r, i) for r, i in enumerate(idx) if i in self.H]))
+        self._f = _LinearMap(F, len(nodes), [t for t, _ in self.sched.f_rows], [c for _, c in self.sched.f_rows])
 
+    # -- reading the results --------------------------------------------------------------------
+    def row(self, i: int, k: int) -> np.ndarray:
+        """Coefficient k of node i (value in column 0, gradient in 1:); node i must be kept."""
+        return self.H[i][k]
+
+    def degree(self, i: int, k: int) -> int:
+        """Degree bound of coefficient k of node i (see ``degree_factor`` in ``_lie.py``)."""
+        return int(self.DH[i][k])
+
+    # -- internals ------------------------------------------------------------------------------
     def _grow(self, K: int) -> None:
         if K <= self.K:
             return
         newK = max(K, 2 * self.K, 8)
-        for i, s in enumerate(self.S):
+        for i, s in self.H.items():
             g = np.zeros((newK, self.M + 1), dtype=self.field.dtype)
             g[: s.shape[0]] = s
-            self.S[i] = g
+            self.H[i] = g
+            d = np.zeros(newK, dtype=np.int64)
+            d[: self.DH[i].shape[0]] = self.DH[i]
+            self.DH[i] = d
         self.K = newK
+
+    def _set(self, i: int, k: int, row: np.ndarray, deg: int) -> None:
+        self.cur[i] = row
+        self.dcur[i] = deg
+        if i in self.H:
+            self.H[i][k] = row
+            self.DH[i][k] = deg
+            if row.any():
+                self.last[i] = k
 
     # dual-number helpers on rows (value in column 0, gradient in 1:)
     def _dual_mul(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -438,85 +686,125 @@ class SeriesRun:
         out[0] = F.dot(A[:, 0], B[:, 0])
         return out
 
+    def _leaf(self, i: int, k: int) -> None:
+        nd = self.prog.nodes[i]
+        if nd.op == "x":
+            if k == 0:
+                row = np.zeros(self.M + 1, dtype=self.field.dtype)
+                row[0] = self.x0[nd.data]
+                col = self.leaf_coef[i]
+                if col >= 0:
+                    row[1 + col] = 1
+                self._set(i, 0, row, 1)
+            else:
+                j = self.state_index[i]
+                self._set(i, k, self._next[j], int(self._next_deg[j]))
+            return
+        val, col, d = self.leaf_coef[i](k)
+        row = np.zeros(self.M + 1, dtype=self.field.dtype)
+        row[0] = val
+        if col >= 0:
+            row[1 + col] = 1
+        self._set(i, k, row, d)
+
     def step(self) -> int:
         """Compute coefficient k = order + 1 of every node; return k."""
         k = self.order + 1
         self._grow(k + 2)
         F = self.field
         nodes = self.prog.nodes
-        S, D = self.S, self.deg
-        for i, nd in enumerate(nodes):
-            op = nd.op
-            row = S[i]
-            if op == "x":
-                if k == 0:
-                    row[0, 0] = self.x0[nd.data]
-                    col = self.leaf_coef[i]
-                    if col >= 0:
-                        row[0, 1 + col] = 1
-                    D[i].append(1)
-                # k >= 1 is filled in at the end of the previous step
-            elif op in ("theta", "u", "w", "t", "const", "cfree"):
-                val, col, d = self.leaf_coef[i](k)
-                row[k, 0] = val
-                if col >= 0:
-                    row[k, 1 + col] = 1
-                D[i].append(d)
-            elif op == "add":
-                acc = S[nd.args[0]][k].copy()
-                for a in nd.args[1:]:
-                    acc += S[a][k]
-                if k == 0 and nd.data != 0:
-                    acc[0] += F.num(nd.data)
-                row[k] = F.red(acc)
-                D[i].append(max(D[a][k] for a in nd.args))
-            elif op == "scale":
-                row[k] = F.red(S[nd.args[0]][k] * F.num(nd.data))
-                D[i].append(D[nd.args[0]][k])
-            elif op == "mul":
-                a, b = S[nd.args[0]], S[nd.args[1]]
-                row[k] = self._conv(a[: k + 1], b[k::-1])
-                da, db = D[nd.args[0]], D[nd.args[1]]
-                D[i].append(max(da[j] + db[k - j] for j in range(k + 1)))
-            elif op == "recip":
-                a = S[nd.args[0]]
-                if k == 0:
-                    row[0] = self._dual_inv(a[0])
-                else:
-                    s = self._conv(a[1: k + 1], row[k - 1:: -1][:k])
-                    row[k] = self._dual_mul(F.red(-s), row[0])
-                da = D[nd.args[0]]
-                if k == 0:  # 1/a(0) counts as a new variable r with r·a(0) = 1 (see `degree_factor`)
-                    D[i].append(1)
-                    self.extra_degree += da[0]
-                else:
-                    D[i].append(D[i][0] + max(da[j] + D[i][k - j] for j in range(1, k + 1)))
-            elif op == "aux":
-                g = S[nd.args[0]]
-                if k == 0:
-                    self._aux_init(i, nd)
-                else:
-                    weights = np.arange(1, k + 1, dtype=F.dtype)
-                    Ag = F.red(g[1: k + 1] * weights[:, None])
-                    s = self._conv(Ag, S[nd.w][k - 1:: -1][:k])
-                    row[k] = F.red(s * F.num(sp.Rational(1, k)))
-                    dg, dw = D[nd.args[0]], D[nd.w]
-                    D[i].append(max(dg[j] + dw[k - j] for j in range(1, k + 1)))
+        H, DH = self.H, self.DH
+        if k == 0:
+            for i in self.sched.leaves:
+                self._leaf(i, 0)
+        else:
+            sn = self._state_nodes
+            self.cur[sn] = self._next
+            self.dcur[sn] = self._next_deg
+            for i in self._state_hist:
+                H[i][k] = self.cur[i]
+                DH[i][k] = self.dcur[i]
+                if H[i][k].any():
+                    self.last[i] = k
+            for i in self._other_leaves:
+                self._leaf(i, k)
+        lin = iter(self._lin)
+        scal = iter(self._scalar)
+        for items in self.sched.levels:
+            for kind, what in items:
+                if kind == "scalar":  # c(t) = c0 constant: coefficient k of c·s is c0 ⊗ s_k
+                    group = next(scal)
+                    idx, cs, ss, C0, D0, kept = group
+                    if k == 0:
+                        group[3] = C0 = self.cur[cs].copy()
+                        group[4] = D0 = self.dcur[cs].copy()
+                    S_ = self.cur[ss]
+                    block = F.red(C0[:, :1] * S_ + S_[:, :1] * C0)
+                    block[:, 0] = F.red(C0[:, 0] * S_[:, 0])
+                    deg = D0 + self.dcur[ss]
+                    self.cur[idx] = block
+                    self.dcur[idx] = deg
+                    for r, i in kept:
+                        H[i][k] = block[r]
+                        DH[i][k] = deg[r]
+                        if block[r].any():
+                            self.last[i] = k
+                    continue
+                if kind == "linear":
+                    idx, lmap, kept = next(lin)
+                    block, deg = lmap.apply(self.cur, self.dcur, k == 0)
+                    self.cur[idx] = block
+                    self.dcur[idx] = deg
+                    for r, i in kept:
+                        H[i][k] = block[r]
+                        DH[i][k] = deg[r]
+                        if block[r].any():
+                            self.last[i] = k
+                    continue
+                i = what
+                nd = nodes[i]
+                if nd.op == "mul":
+                    a, b = nd.args
+                    lo, hi = max(0, k - self.last[b]), min(k, self.last[a])  # a_j b_(k-j) = 0 outside
+                    row = self._conv(H[a][lo: hi + 1], H[b][k - lo:: -1][: max(0, hi + 1 - lo)])
+                    deg = int(np.max(DH[a][: k + 1] + DH[b][k::-1]))
+                    self._set(i, k, row, deg)
+                elif nd.op == "recip":
+                    a = H[nd.args[0]]
+                    da = DH[nd.args[0]]
+                    if k == 0:
+                        # 1/a(0) counts as a new variable r with r·a(0) = 1 (see `degree_factor`)
+                        self._set(i, 0, self._dual_inv(a[0]), 1)
+                        self.extra_degree += int(da[0])
+                    else:
+                        lo, hi = max(1, k - self.last[i]), min(k, self.last[nd.args[0]])
+                        s = self._conv(a[lo: hi + 1], H[i][k - lo:: -1][: max(0, hi + 1 - lo)])
+                        deg = int(DH[i][0] + np.max(da[1: k + 1] + DH[i][k - 1:: -1][:k]))
+                        self._set(i, k, self._dual_mul(F.red(-s), H[i][0]), deg)
+                elif nd.op == "aux":
+                    if k == 0:
+                        self._aux_init(i, nd)
+                    else:
+                        g = H[nd.args[0]]
+                        lo, hi = max(1, k - self.last[nd.w]), min(k, self.last[nd.args[0]])
+                        weights = np.arange(lo, hi + 1, dtype=F.dtype)
+                        Ag = F.red(g[lo: hi + 1] * weights[:, None]) if hi >= lo else g[0:0]
+                        s = self._conv(Ag, H[nd.w][k - lo:: -1][: max(0, hi + 1 - lo)])
+                        dg, dw = DH[nd.args[0]], DH[nd.w]
+                        deg = int(np.max(dg[1: k + 1] + dw[k - 1:: -1][:k]))
+                        self._set(i, k, F.red(s * F.num(sp.Rational(1, k))), deg)
         # the state coefficients of the next order: x_{k+1} = f_k / (k+1)
         c = F.num(sp.Rational(1, k + 1))
-        for nd_idx, fi in zip(self.state_nodes, self.prog.f):
-            S[nd_idx][k + 1] = F.red(S[fi][k] * c)
-            D[nd_idx].append(D[fi][k])
+        self._f.scaled(c)
+        self._next, self._next_deg = self._f.apply(self.cur, self.dcur, k == 0, c)
         self.order = k
         return k
 
     def _aux_init(self, i: int, nd: Node) -> None:
         F = self.field
-        g0 = self.S[nd.args[0]][0]
+        g0 = self.H[nd.args[0]][0]
         kind, extra = nd.data
         gv = g0[0]
-        row = self.S[i]
-        D = self.deg
         if kind == "cos":  # initialised together with its sin partner
             return
         if F.exact:
@@ -545,7 +833,7 @@ class SeriesRun:
                     v0 = math.log(gv) if gv > 0 else math.nan
                 elif kind == "atan":
                     if extra is not None:
-                        v0 = math.atan2(float(self.S[extra[0]][0, 0]), float(self.S[extra[1]][0, 0]))
+                        v0 = math.atan2(float(self.cur[extra[0], 0]), float(self.cur[extra[1], 0]))
                     else:
                         v0 = math.atan(gv)
                 elif kind == "sin":
@@ -557,14 +845,16 @@ class SeriesRun:
                     else:
                         v0 = math.copysign(abs(gv) ** float(a), gv if a.p % 2 else 1.0)
         # value of w at order 0 (v' = w g'), for the chain rule ∂v0 = w0 ∂g0
+        row = np.zeros(self.M + 1, dtype=F.dtype)
         if kind == "sin":
             co = nd.pair
-            row[0, 0] = s0
-            self.S[co][0, 0] = c0
-            row[0, 1:] = F.red(g0[1:] * c0)
-            self.S[co][0, 1:] = F.red(-g0[1:] * s0)
-            D[i].append(1)
-            D[co].append(1)
+            row[0] = s0
+            row[1:] = F.red(g0[1:] * c0)
+            other = np.zeros(self.M + 1, dtype=F.dtype)
+            other[0] = c0
+            other[1:] = F.red(-g0[1:] * s0)
+            self._set(i, 0, row, 1)
+            self._set(co, 0, other, 1)
             self.extra_degree += 2
             return
         if not F.exact and not math.isfinite(v0):
@@ -577,8 +867,147 @@ class SeriesRun:
             w0 = F.inv(F.smul(gv, gv) + 1)
         else:  # pow
             w0 = F.smul(F.smul(F.num(extra), v0), F.inv(gv))
-        row[0, 0] = v0
-        row[0, 1:] = F.red(g0[1:] * w0)
-        D[i].append(1)
+        row[0] = v0
+        row[1:] = F.red(g0[1:] * w0)
+        self._set(i, 0, row, 1)
         if kind == "pow":
-            self.extra_degree += (int(extra.q) - 1) * D[nd.args[0]][0]
+            self.extra_degree += (int(extra.q) - 1) * int(self.DH[nd.args[0]][0])
+
+
+# ----------------------------------------------------------------------------------------------
+# systems affine in the unknowns: the jets' Jacobian without power series
+# ----------------------------------------------------------------------------------------------
+def affine_structure(f: Sequence[sp.Expr], h: Sequence[sp.Expr], x: Sequence[sp.Symbol],
+                     theta: Sequence[sp.Symbol]) -> tuple[dict[tuple[int, int], sp.Rational], ...] | None:
+    """The constant matrices of f = A x + B θ + g(u, t), h = C x + D θ + g₂(u, t), or None.
+
+    Returned as sparse maps ``{(row, col): coefficient}`` (A, B, C, D). None when an expression
+    is not affine in the unknowns (x, θ) or a coefficient is not a constant (depends on u or t).
+    """
+    unknown = [*x, *theta]
+    index = {s: i for i, s in enumerate(unknown)}
+    n = len(x)
+    A: dict[tuple[int, int], sp.Rational] = {}
+    B: dict[tuple[int, int], sp.Rational] = {}
+    C: dict[tuple[int, int], sp.Rational] = {}
+    D: dict[tuple[int, int], sp.Rational] = {}
+    def terms_of(e: sp.Expr, deps: list[sp.Symbol]) -> dict[sp.Symbol, sp.Rational] | None:
+        # fast path: a flat sum of (rational) * (unknown) and unknown-free terms
+        out: dict[sp.Symbol, sp.Rational] = {}
+        for term in sp.Add.make_args(e):
+            c, m = term.as_coeff_Mul()
+            if m in index and c.is_Rational:
+                out[m] = out.get(m, 0) + c
+            elif m.free_symbols & set(deps):
+                break
+        else:
+            return out
+        # general path: polynomial of degree one with constant coefficients
+        if not e.is_polynomial(*deps):
+            return None
+        out = {}
+        for s in deps:
+            c = sp.diff(e, s)
+            if not c.is_Rational:
+                return None  # non-constant (depends on x, θ, u or t) or irrational coefficient
+            out[s] = c
+        return out
+
+    for exprs, (X, T) in ((f, (A, B)), (h, (C, D))):
+        for r, e in enumerate(exprs):
+            deps = [s for s in e.free_symbols if s in index]
+            if not deps:
+                continue
+            coeffs = terms_of(e, deps)
+            if coeffs is None:
+                return None
+            for s, c in coeffs.items():
+                if c != 0:
+                    j = index[s]
+                    (X if j < n else T)[(r, j if j < n else j - n)] = sp.Rational(c)
+    return A, B, C, D
+
+
+class AffineJets:
+    r"""The rows of the output-jet Jacobian of an affine system, without power series.
+
+    For :math:`\dot x = A x + B θ + g(u, t)`, :math:`y = C x + D θ + g_2(u, t)`, the k-th Taylor
+    coefficient of y has the gradient :math:`(C A^k,\; C A^{k-1} B)/k!` with respect to (x(0), θ)
+    (and :math:`(C, D)` for k = 0), independent of the point; the rows are computed as
+    :math:`V_{k+1} = V_k A` (one sparse product of a p×n block per order: O(nnz(A)) per output)
+    instead of O(nnz · M) for the dual-number series. The factor 1/k! is dropped (it does not
+    change the rank or the row space). The interface mirrors :class:`SeriesRun` for the outputs.
+    """
+
+    def __init__(self, structure: tuple[dict[tuple[int, int], sp.Rational], ...], field: Any, n: int, q: int,
+                 h_nodes: Sequence[int]):
+        import scipy.sparse
+
+        A, B, C, D = structure
+        self.field, self.n, self.q = field, n, q
+        p = len(h_nodes)
+        self.out_index = {node: j for j, node in enumerate(h_nodes)}
+
+        def parts(terms: Mapping[tuple[int, int], sp.Rational], shape: tuple[int, int], transpose: bool) -> list[Any]:
+            rows: dict[int, list[tuple[int, Any]]] = {}
+            for (r, c), v in terms.items():
+                rr, cc = (c, r) if transpose else (r, c)
+                rows.setdefault(rr, []).append((cc, field.num(v)))
+            out: list[tuple[list[int], list[int], list[Any]]] = []
+            for rr, items in rows.items():
+                for t, (cc, v) in enumerate(items):
+                    b = t // _ROW_TERMS
+                    while len(out) <= b:
+                        out.append(([], [], []))
+                    out[b][0].append(rr), out[b][1].append(cc), out[b][2].append(v)
+            shp = (shape[1], shape[0]) if transpose else shape
+            return [scipy.sparse.csr_matrix((np.array(v, dtype=field.dtype), (r, c)), shape=shp) for r, c, v in out]
+
+        self.At = parts(A, (n, n), True)  # V A = (Aᵀ Vᵀ)ᵀ
+        self.Bt = parts(B, (n, q), True)
+        self.V = np.zeros((p, n), dtype=field.dtype)
+        for (r, c), v in C.items():
+            self.V[r, c] = field.num(v)
+        self.Dm = np.zeros((p, q), dtype=field.dtype)
+        for (r, c), v in D.items():
+            self.Dm[r, c] = field.num(v)
+        self.rows: list[np.ndarray] = []  # per order: (p, 1 + n + q), column 0 unused (no values)
+        self.order = -1
+        self.extra_degree = 0
+
+    def _times(self, mats: Sequence[Any], V: np.ndarray, width: int) -> np.ndarray:
+        F = self.field
+        if not mats:
+            return np.zeros((V.shape[0], width), dtype=F.dtype)
+        out = F.red(mats[0] @ V.T)
+        for m in mats[1:]:
+            out = F.red(out + F.red(m @ V.T))
+        return out.T
+
+    def step(self) -> int:
+        k = self.order + 1
+        F = self.field
+        p = self.V.shape[0]
+        row = np.zeros((p, 1 + self.n + self.q), dtype=F.dtype)
+        if k == 0:
+            row[:, 1:1 + self.n] = self.V
+            row[:, 1 + self.n:] = self.Dm
+        else:
+            prev = self.V
+            self.V = self._times(self.At, prev, self.n)
+            if not F.exact:  # keep the float rows in range (only directions matter)
+                scale = np.abs(self.V).max(initial=0.0)
+                if scale > 0:
+                    self.V = self.V / scale
+                    prev = prev / scale
+            row[:, 1:1 + self.n] = self.V
+            row[:, 1 + self.n:] = self._times(self.Bt, prev, self.q)
+        self.rows.append(row)
+        self.order = k
+        return k
+
+    def row(self, node: int, k: int) -> np.ndarray:
+        return self.rows[k][self.out_index[node]]
+
+    def degree(self, node: int, k: int) -> int:
+        return 1
