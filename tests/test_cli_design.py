@@ -72,3 +72,21 @@ def test_report_writes_a_self_contained_page(tmp_path, capsys):
 def test_bundled_names_work_in_every_command(cmd, capsys):
     assert main(cmd) == 0
     assert json.loads(capsys.readouterr().out)
+
+
+def test_design_ranks_on_a_recording(tmp_path, capsys):
+    import numpy as np
+
+    import nlobs
+
+    mf = load_model("dc_motor")
+    run = nlobs.simulate(mf.system, None, t_final=5.0, dt=1e-3, x0=[0.5, 0.2], inputs={"V": "1 + 0.5*sin(2*t)"},
+                         noise=nlobs.Noise.gaussian(0.001), sampling=nlobs.Sampling(0.01), seed=3)
+    k = np.arange(0, run.t.size, 10)
+    csv = tmp_path / "rec.csv"
+    np.savetxt(csv, np.column_stack([run.t[k], run.y[k, 0], run.u[k, 0]]), delimiter=",", header="t,y,V", comments="")
+    assert main(["design", "dc_motor", "--data", str(csv), "--json", "--kind", "luenberger", "--kind", "ekf",
+                 "--engine", "vm"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert sorted(out["ranking"]) == ["ekf", "luenberger"] and out["scenario"].startswith("the recording (501 samples")
+    assert all(s["detail"] == "output residual (no true state)" and s["rms_error"] < 0.01 for s in out["scores"])

@@ -222,3 +222,15 @@ def test_model_report_has_the_table_the_runs_and_the_bibliography(tmp_path):
     for kind in ("gpebo_2gd", "kalman_like", "banks", "kkl"):
         assert f">{kind}<" in text
     assert text.count("data:image/png") >= 2 and "Wang, Ortega &amp; Bobtsov" in text and "References" in text
+
+
+def test_mhe_runs_on_its_own_and_joins_the_ranking():
+    # MHE's update is an NLP: it runs in its own simulation on the same measurements (same seed), the others
+    # keep the compiled joint step; both end up in one ranking and one Run
+    sim = _sim([1.0, 0.0], {"u": "sin(t)"}, noise={"y": 0.01}, t_final=2.0, sample_period=0.02)
+    adv = advise(msd(), simulation=sim, kinds=["mhe", "ekf"], run=True)
+    assert adv.candidate("mhe").runnable and set(adv.ranking) == {"mhe", "ekf"}
+    assert set(adv.run.observers) == {"mhe", "ekf"}
+    long = _sim([1.0, 0.0], {"u": "sin(t)"}, noise={"y": 0.01}, t_final=10.0, sample_period=0.01)
+    c = advise(msd(), simulation=long, kinds=["mhe"]).candidate("mhe")
+    assert c.applies and not c.runnable and "left out of --run: 1000 measurement updates" in c.why

@@ -181,6 +181,9 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
     t_ctx = time.perf_counter()
     ctx = build_context(system, model_file=mf, unknown_params=unknown_params or (), simulation=simulation, recording=recording,
                         true_parameters=true_parameters, xhat0=xhat0, seed=seed)
+    if run and ctx.recording is None and ctx.scenario is None:
+        raise ModelError(f"advise: nothing to run on: {system.name!r} has no [simulation] x0 and no recording was given; "
+                         "add [simulation] x0 = [...] (with t_final, inputs, noise) or pass a recording (--data)")
     forms = tuple(str(c) for c in ctx.forms.checks)
     extra: dict[str, Any] = {}
     if ctx.detectability:
@@ -201,9 +204,6 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
     scores = runres = None
     scenario = ""
     if run:
-        if ctx.recording is None and ctx.scenario is None:
-            raise ModelError(f"advise: nothing to run on: {system.name!r} has no [simulation] x0 and no recording was given; "
-                             "add [simulation] x0 = [...] (with t_final, inputs, noise) or pass a recording (--data)")
         if say:
             n_run = sum(c.applies and c.runnable for c in candidates)
             say(f"advise {system.name}: running {n_run} design(s) ...")

@@ -29,7 +29,7 @@ from ..engine import to_casadi
 from ..errors import FormError, PreconditionError
 from ..model import TIME, System, symbol
 
-__all__ = ["find_chains", "derivative_map", "exact_output_injection", "kkl_linear", "pebo_linear", "banks_gain", "banks_necessary",
+__all__ = ["jacobians_at", "find_chains", "derivative_map", "exact_output_injection", "kkl_linear", "pebo_linear", "banks_gain", "banks_necessary",
            "cascade_partition", "rational"]
 
 
@@ -222,6 +222,19 @@ def pebo_linear(system: System) -> tuple[dict[str, Any] | None, str, sp.Matrix |
             "B": [str(e) for e in Bx]}, "", b
 
 
+def jacobians_at(system: System, t: np.ndarray, x: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """∂f/∂x and ∂h/∂x at N points (t (N,), x (N, n), u (N, m)): arrays (N, n, n) and (N, p, n)."""
+    from ..engine import compile_system
+
+    comp = compile_system(system)
+    N, n, p = x.shape[0], system.n_states, system.n_outputs
+    args = (ca.DM(np.asarray(t, dtype=float)).T, ca.DM(x.T), ca.DM(u.T) if system.n_inputs else ca.DM(0, N),
+            ca.repmat(ca.DM(system.param_values), 1, N))
+    F = np.asarray(comp.f_x.map(N)(*args), dtype=float).reshape(n, N, n).transpose(1, 0, 2)
+    H = np.asarray(comp.h_x.map(N)(*args), dtype=float).reshape(p, N, n).transpose(1, 0, 2)
+    return F, H
+
+
 def banks_gain(system: System, samples: np.ndarray, u: np.ndarray, t: np.ndarray, *, limit: float = np.inf,
                iterations: int = 200) -> tuple[np.ndarray | None, float, str]:
     r"""A gain P (n × p) with :math:`\max_k \lambda(\partial f/\partial x(x_k) + P\,\partial h/\partial x(x_k)) < 0`
@@ -230,14 +243,8 @@ def banks_gain(system: System, samples: np.ndarray, u: np.ndarray, t: np.ndarray
     """
     import scipy.optimize
 
-    from ..engine import compile_system
-
-    comp = compile_system(system)
-    N, n, p = samples.shape[0], system.n_states, system.n_outputs
-    pv = ca.DM(system.param_values)
-    args = (ca.DM(t).T, ca.DM(samples.T), ca.DM(u.T) if system.n_inputs else ca.DM(0, N), ca.repmat(pv, 1, N))
-    F = np.asarray(comp.f_x.map(N)(*args), dtype=float).reshape(n, N, n).transpose(1, 0, 2)
-    H = np.asarray(comp.h_x.map(N)(*args), dtype=float).reshape(p, N, n).transpose(1, 0, 2)
+    n, p = system.n_states, system.n_outputs
+    F, H = jacobians_at(system, t, samples, u)
     ok = np.all(np.isfinite(F), axis=(1, 2)) & np.all(np.isfinite(H), axis=(1, 2))
     F, H = F[ok], H[ok]
     if not len(F):
@@ -285,14 +292,8 @@ def banks_necessary(system: System, samples: np.ndarray, u: np.ndarray, t: np.nd
     \partial f/\partial x\, v` whatever P is: the matrix measure is at least the largest eigenvalue of the symmetric
     part of ∂f/∂x restricted to that kernel. If it is ≥ 0 at a point of the region, the condition fails for every P.
     """
-    from ..engine import compile_system
-
-    comp = compile_system(system)
-    N, n, p = samples.shape[0], system.n_states, system.n_outputs
-    pv = ca.DM(system.param_values)
-    args = (ca.DM(t).T, ca.DM(samples.T), ca.DM(u.T) if system.n_inputs else ca.DM(0, N), ca.repmat(pv, 1, N))
-    F = np.asarray(comp.f_x.map(N)(*args), dtype=float).reshape(n, N, n).transpose(1, 0, 2)
-    H = np.asarray(comp.h_x.map(N)(*args), dtype=float).reshape(p, N, n).transpose(1, 0, 2)
+    N = samples.shape[0]
+    F, H = jacobians_at(system, t, samples, u)
     worst, where = -np.inf, None
     for k in range(N):
         if not (np.all(np.isfinite(F[k])) and np.all(np.isfinite(H[k]))):

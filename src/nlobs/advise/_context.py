@@ -27,14 +27,12 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-import casadi as ca
 import numpy as np
 import sympy as sp
 
 from ..analysis import ObservabilityReport, analyze, matrix_measure, pbh_test
-from ..engine import compile_system, to_casadi
 from ..errors import FiniteEscapeError, FormError, ModelError
-from ..model import LTI, TIME, ModelFile, System
+from ..model import LTI, ModelFile, System
 from ..simulate import Noise, ProcessNoise, Recording, Run, Sampling, simulate
 from ._forms import recognise
 
@@ -157,15 +155,12 @@ class Context:
     @property
     def output_gain(self) -> float:
         """max ‖∂h/∂x‖₂ on the run (1 without a run)."""
+        from ._constructions import jacobians_at
+
         if self.nominal is None:
             return 1.0
         pts = self.samples(50)
-        comp = compile_system(self.system)
-        N = pts["t"].size
-        H = np.asarray(comp.h_x.map(N)(ca.DM(pts["t"]).T, ca.DM(pts["x"].T),
-                                         ca.DM(pts["u"].T) if self.system.n_inputs else ca.DM(0, N),
-                                         ca.repmat(ca.DM(self.system.param_values), 1, N)), dtype=float)
-        H = H.reshape(self.p, N, self.n).transpose(1, 0, 2)
+        H = jacobians_at(self.system, pts["t"], pts["x"], pts["u"])[1]
         H = H[np.all(np.isfinite(H), axis=(1, 2))]
         return float(np.max(np.linalg.norm(H, 2, axis=(1, 2)), initial=1e-12)) if H.size else 1.0
 
@@ -209,17 +204,13 @@ def _scenario(mf: ModelFile | None, simulation: Any, system: System) -> Scenario
 
 
 def _jacobians(system: System, s: Mapping[str, np.ndarray]) -> np.ndarray:
-    comp = compile_system(system)
-    F = comp.f_x
-    N = s["t"].size
-    pv = ca.DM(system.param_values)
-    Fm = F.map(N)
-    out = Fm(ca.DM(s["t"]).T, ca.DM(s["x"].T), ca.DM(s["u"].T) if system.n_inputs else ca.DM(0, N), ca.repmat(pv, 1, N))
-    n = system.n_states
-    return np.asarray(out, dtype=float).reshape(n, N, n).transpose(1, 0, 2)
+    from ._constructions import jacobians_at
+
+    return jacobians_at(system, s["t"], s["x"], s["u"])[0]
 
 
-def _time_scales(system: System, s: Mapping[str, np.ndarray], t_final: float, scale: np.ndarray) -> tuple[float, str]:
+def _time_scales(system: System, s: Mapping[str, np.ndarray], t_final: float, scale: np.ndarray,
+                 where: str = "on the run") -> tuple[float, str]:
     J = _jacobians(system, s)
     J = J[np.all(np.isfinite(J), axis=(1, 2))]
     if not J.size:
@@ -228,7 +219,7 @@ def _time_scales(system: System, s: Mapping[str, np.ndarray], t_final: float, sc
     Js = J * scale[None, None, :] / scale[None, :, None]         # D⁻¹JD, D = diag(scale): in the states' own units
     norm = float(np.max(np.linalg.norm(Js, 2, axis=(1, 2)), initial=0.0))
     omega = max(rho, 0.2 * norm, 3.0 / t_final)
-    why = (f"ω_p = {omega:.3g} s⁻¹ (largest |eig ∂f/∂x| on the run {rho:.3g}, ‖D⁻¹ ∂f/∂x D‖₂ up to {norm:.3g} with D the "
+    why = (f"ω_p = {omega:.3g} s⁻¹ (largest |eig ∂f/∂x| {where} {rho:.3g}, ‖D⁻¹ ∂f/∂x D‖₂ up to {norm:.3g} with D the "
            f"states' scales, floor 3/t_final = {3.0 / t_final:.3g})")
     return omega, why
 
@@ -284,18 +275,13 @@ def _detectability(model: System, bad: Sequence[str], obs: Sequence[str], nomina
     if nominal is None or nominal.x is None:
         return {"detectable": None, "text": "detectability not checked (no [simulation] run to check the unobservable part's "
                 "contraction on)"}
-    leaves = {TIME: ca.SX.sym("t")}
-    xsym = ca.SX.sym("x", model.n_states)
-    usym = ca.SX.sym("u", model.n_inputs)
-    leaves.update({s: xsym[i] for i, s in enumerate(model.x)})
-    leaves.update({s: usym[i] for i, s in enumerate(model.u)})
-    Gf = ca.Function("G", [leaves[TIME], xsym, usym], [ca.reshape(to_casadi(list(G.T), leaves), G.shape[0], G.shape[1])])
+    from ._constructions import jacobians_at
+
     k = np.unique(np.linspace(0, nominal.t.size - 1, 300).astype(int))
-    mus = []
-    for j in k:
-        Gj = np.array(Gf(nominal.t[j], nominal.x[j], nominal.u[j] if model.n_inputs else []), dtype=float)
-        mus.append(matrix_measure(Gj))
-    mu = float(np.max(mus))
+    F, _ = jacobians_at(model, nominal.t[k], nominal.x[k, :model.n_states], nominal.u[k])
+    Gk = F[:, idx][:, :, idx]                            # ∂f/∂x restricted to the unobservable states
+    Gk = Gk[np.all(np.isfinite(Gk), axis=(1, 2))]
+    mu = float(np.max(matrix_measure(Gk))) if len(Gk) else np.inf
     if mu < 0:
         return {"detectable": True, "rate": -mu,
                 "text": (f"detectable along the run: the unobservable part is driven by the observable one and contracts "
@@ -396,7 +382,7 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
     else:
         pts = {"t": np.zeros(1), "x": np.zeros((1, system.n_states)), "u": np.zeros((1, system.n_inputs))}
         scale = np.ones(system.n_states)
-        omega_p, scale_note = _time_scales(system, pts, t_final, scale)
+        omega_p, scale_note = _time_scales(system, pts, t_final, scale, "at x = 0, u = 0")
         region = {}
     sc = scen
     limit = np.inf
@@ -417,7 +403,8 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
         sig = np.maximum(1e-3 * yspan, 1e-6)
         if sc is not None and sc.noise_std is not None:
             sig = np.where(sc.noise_std > 0, sc.noise_std, sig)
-        noise_note = "no (or zero) output noise declared: R from σ = 0.1 % of each output's range on the run"
+        noise_note = ("no (or zero) output noise declared: R from σ = 0.1 % of each output's range on the run" if nominal is not None
+                      else "no output noise declared and no run: R from σ = 1e-3")
     period = (sc.sample_period or sc.dt) if sc is not None else 1e-2
     R = np.diag(sig ** 2)
     R_rate = R * period

@@ -31,7 +31,7 @@ from ._context import Context
 __all__ = ["TRIALS", "REFERENCES", "try_kind", "MHE_SAMPLE_BUDGET"]
 
 #: The largest number of measurement updates `--run` gives a moving-horizon estimator (one NLP each).
-MHE_SAMPLE_BUDGET = 600
+MHE_SAMPLE_BUDGET = 200
 
 #: The work each kind implements, as a user reads it.
 REFERENCES: dict[str, str] = {
@@ -272,6 +272,14 @@ def _theta_star(chs: Any, gamma: float, n: int) -> float:
     return max(1.0, 2.0 * np.sqrt(n) * gamma * float(np.linalg.eigvalsh((P0 + P0.T) / 2).max()))
 
 
+def _saturation(ctx: Context) -> dict[str, float]:
+    """Khalil's remedy against peaking: the estimate fed to the model is clipped to twice the largest magnitude each
+    state reaches on the run."""
+    if not ctx.region:
+        return {}
+    return {s: float(f"{2.0 * max(abs(ctx.region[s][0]), abs(ctx.region[s][1])):.4g}") for s in ctx.system.states}
+
+
 def _high_gain(ctx: Context) -> Candidate:
     t = _Trial(ctx, "high_gain")
     chs, alt, why = _chains(ctx)
@@ -280,7 +288,12 @@ def _high_gain(ctx: Context) -> Candidate:
     opts: dict[str, Any] = {}
     if alt is not None:
         opts["chains"] = alt
+    sat = _saturation(ctx)
+    if sat:
+        opts["saturation"] = sat
     order = "; ".join(" -> ".join(ctx.system.states[j] for j in c.states) for c in chs)
+    if sat:
+        order += " (estimate saturated at twice the run's magnitudes, against peaking)"
     limit = ctx.step_limit()
     varying = [(c, i, a) for c in chs for i, a in enumerate(c.couplings) if a.free_symbols]
     if varying:
@@ -353,7 +366,8 @@ def _high_gain_derivatives(ctx: Context) -> Candidate:
     if psi is None:
         return t.needs(f"xhat = Ψ(D0_y, D1_y, ...): {why}", xhat="expressions of the output derivatives D{i}_{output}")
     theta = float(min(max(ctx.omega_o, 1.0), ctx.step_limit()))
-    dens = sorted({d for e in psi.values() for d in [sp.fraction(sp.together(e))[1]] if d.free_symbols}, key=str)
+    dens = sorted({d.as_coeff_Mul()[1] for e in psi.values() for d in [sp.fraction(sp.together(e))[1]] if d.free_symbols},
+                  key=str)
     extra = ""
     if dens:
         extra = f"Ψ is singular where {', '.join(map(str, dens))} = 0"
@@ -558,8 +572,8 @@ def _gpebo(ctx: Context) -> Candidate:
     opts, note, bad = _gpebo_common(ctx, t)
     if bad is not None:
         return bad
-    lim = ctx.step_limit()
-    P0 = np.minimum(np.diag(ctx.P0) * ctx.omega_o, lim / max(ctx.output_gain ** 2, 1e-12))
+    _, peak = _regressor_level(ctx)
+    P0 = np.minimum(np.diag(ctx.P0) * ctx.omega_o, 0.5 * ctx.step_limit() / peak)   # the LS gain acts at ‖P‖‖ψ‖²
     opts["estimator"] = {"kind": "least_squares", "P0": _sq(np.diag(P0))}
     return t.design(opts, "state-affine; least-squares estimator of θ = x(0) − ξ(0) with P(0) = ω_o·diag(range²) (capped at "
                     "the step limit)", extra=note)

@@ -12,6 +12,7 @@ candidates are then ranked by the RMS output residual y − h(x̂) over the last
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -79,10 +80,25 @@ def rank(scores: Sequence[Score]) -> list[Score]:
 def compare(ctx: Context, candidates: Sequence[Candidate], *, progress: bool | Callable[[float], None] | None = None,
             engine: str = "auto") -> tuple[list[Score], Run | None]:
     """Run every runnable applicable candidate on the context's scenario; return the ranked scores and the run."""
-    sc, rec = ctx.scenario, ctx.recording
     designs = {c.kind: c.design for c in candidates if c.applies and c.runnable and c.design is not None}
-    failed: list[Score] = []
+    # designs that are not plain SX (MHE embeds an NLP solver) would put the whole joint step on CasADi's virtual
+    # machine: they run on their own, on the same measurements (same seed), so the others keep the compiled step
+    heavy = {k: d for k, d in designs.items() if d.needs_mx}
+    light = {k: d for k, d in designs.items() if k not in heavy}
+    scores: list[Score] = []
     run = None
+    for group in (light, *({k: d} for k, d in heavy.items())):
+        part, done = _run_group(ctx, group, engine, progress)
+        scores += done
+        if part is not None:
+            run = part if run is None else _merge(run, part)
+    return rank(scores), run
+
+
+def _run_group(ctx: Context, designs: dict[str, Any], engine: str, progress: Any) -> tuple[Run | None, list[Score]]:
+    """One simulation of `designs` together; a design that blows up is reported and the rest run again without it."""
+    sc, rec = ctx.scenario, ctx.recording
+    failed: list[Score] = []
     while designs:
         try:
             if rec is not None:
@@ -91,15 +107,19 @@ def compare(ctx: Context, candidates: Sequence[Candidate], *, progress: bool | C
                 run = simulate(ctx.system, designs, t_final=sc.t_final, dt=sc.dt, x0=sc.x0, inputs=sc.inputs, noise=sc.noise,
                                process_noise=sc.process_noise, sampling=sc.sampling, seed=sc.seed, engine=engine,
                                progress=progress)
-            break
+            return run, [_score(run, k, ctx) for k in designs] + failed
         except FiniteEscapeError as e:
             name = _culprit(e, designs)
             if name is None:
                 raise
             failed.append(Score(name, "diverged", detail=f"blew up after t = {e.t:.4g}"))
             designs = {k: v for k, v in designs.items() if k != name}
-    scores = [_score(run, k, ctx) for k in designs] if run is not None else []
-    return rank(scores + failed), run
+    return None, failed
+
+
+def _merge(a: Run, b: Run) -> Run:
+    """The observers of two runs on the same measurements in one Run."""
+    return replace(a, observers={**a.observers, **b.observers})
 
 
 def _culprit(e: FiniteEscapeError, designs: Mapping[str, Any]) -> str | None:

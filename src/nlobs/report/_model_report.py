@@ -49,35 +49,23 @@ def parameter_estimates(adv: Advice) -> list[dict[str, Any]]:
     return rows
 
 
-def _error_figure(adv: Advice, kinds: Sequence[str]) -> Figure:
-    run = adv.run
-    fig = Figure(figsize=(8, 3.6), layout="constrained")
-    ax = fig.subplots()
-    for j, k in enumerate(kinds):
-        e = run.error_norm(k)
-        ax.semilogy(run.t, np.maximum(e, 1e-16), lw=1.1, color=f"C{j % 10}", ls="-" if j < 10 else "--", label=k)
-    ax.set_xlabel("t")
-    ax.set_ylabel("‖x̂ − x‖")
-    ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize="small", ncol=3)
-    ax.set_title("estimation error of every candidate that ran (log scale)")
-    return fig
-
-
-def _residual_figure(adv: Advice, kinds: Sequence[str]) -> Figure:
+def _errors_figure(adv: Advice, kinds: Sequence[str]) -> Figure:
+    """‖x̂ − x‖ of every candidate on a log scale; on recorded data (no true state), ‖y − h(x̂)‖."""
     from ..advise._rank import residuals
 
     run = adv.run
+    truth = run.x is not None
     fig = Figure(figsize=(8, 3.6), layout="constrained")
     ax = fig.subplots()
     for j, k in enumerate(kinds):
-        r = np.linalg.norm(residuals(run, k, adv.system), axis=1)
-        ax.semilogy(run.t, np.maximum(r, 1e-16), lw=1.0, color=f"C{j % 10}", label=k)
+        e = run.error_norm(k) if truth else np.linalg.norm(residuals(run, k, adv.system), axis=1)
+        ax.semilogy(run.t, np.maximum(e, 1e-16), lw=1.1, color=f"C{j % 10}", ls="-" if j < 10 else "--", label=k)
     ax.set_xlabel("t")
-    ax.set_ylabel("‖y − h(x̂)‖")
+    ax.set_ylabel("‖x̂ − x‖" if truth else "‖y − h(x̂)‖")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize="small", ncol=3)
-    ax.set_title("output residual of every candidate (recorded data: no true state)")
+    ax.set_title("estimation error of every candidate that ran (log scale)" if truth else
+                 "output residual of every candidate (recorded data: no true state)")
     return fig
 
 
@@ -138,10 +126,7 @@ def model_report(adv: Advice, *, source: str = "") -> str:
         ok = [s.kind for s in adv.scores if s.status == "ok"]
         run = adv.run
         if run is not None and ok:
-            if run.x is not None:
-                body.append(img(_error_figure(adv, ok), "error norms"))
-            else:
-                body.append(img(_residual_figure(adv, ok), "output residuals"))
+            body.append(img(_errors_figure(adv, ok), "error norms"))
             figs = []
             for k in ok[:TOP]:
                 fig = run.plot(observers=[k])
