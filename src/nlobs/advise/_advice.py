@@ -143,6 +143,11 @@ class Advice:
         With a run: every runnable candidate, best first.
     run : Run or None
         The comparison run (all candidates that did not diverge).
+    scenario : str
+        What the run was (horizon, step, sampling, noise, x̂(0)), or the recording.
+    seconds : float
+    description : str
+        The model file's description (it cites the model's source).
     """
 
     model: str

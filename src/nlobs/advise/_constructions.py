@@ -236,7 +236,7 @@ def jacobians_at(system: System, t: np.ndarray, x: np.ndarray, u: np.ndarray) ->
 
 
 def banks_gain(system: System, samples: np.ndarray, u: np.ndarray, t: np.ndarray, *, limit: float = np.inf,
-               iterations: int = 200) -> tuple[np.ndarray | None, float, str]:
+               iterations: int = 150) -> tuple[np.ndarray | None, float, str]:
     r"""A gain P (n × p) with :math:`\max_k \lambda(\partial f/\partial x(x_k) + P\,\partial h/\partial x(x_k)) < 0`
     over the given points (Banks (1980) Theorem 2.6 with f2 = 0), by Nelder–Mead on the largest matrix measure
     from the sign-flipped pole-placement gain of the linearisation at the centre. Returns (P, best value, how).

@@ -16,7 +16,8 @@ Automatic tuning rules (each one reported with the candidate that uses it):
   output's range (said so in the tuning). Declared process noise σ_w gives :math:`Q = \sigma_w^2`;
   otherwise :math:`Q = (0.01\,s_i)^2\omega_p` per state (s_i its scale, below), a small model-error allowance.
 * **Initial estimate.** x̂(0) is x(0) moved by half of each state's scale s_i (its range on the run; half its
-  largest magnitude for a state that moves less than 5 % of it), with alternating signs (a state that keeps its
+  largest magnitude for a state that moves less than 5 % of it; no more than max(|x_i(0)|, s_i/10) for a state that
+  travels far from where it starts), with alternating signs (a state that keeps its
   sign on the run keeps it: ×1.5 or ×0.5 where the move would flip it); unknown parameters start at the file's
   value (the initial guess). P(0) = diag(max(s_i, |x̂_i(0) − x_i(0)|)²).
 """
@@ -132,25 +133,45 @@ class Context:
             lim = min(lim, 0.5 / self.scenario.sample_period)
         return lim
 
-    def riccati_weights(self, W: np.ndarray, M0: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, str]:
-        """An output weight W that a continuous-time Riccati observer can be integrated with on this run.
+    def riccati_weights(self, W: np.ndarray, M0: np.ndarray, Q: np.ndarray, C: np.ndarray | None = None,
+                        CA: float = 0.0) -> tuple[np.ndarray, np.ndarray, str]:
+        """W and M(0) of a continuous-time Riccati observer that the run can integrate.
 
-        The correction M Cᵀ W⁻¹ C M acts at the rate λmax(M)‖C‖²/λmin(W) (initially with M = M0) and, in steady
-        state, at about √(q/W); explicit RK4 on held samples needs both below the step limit ω_lim. So
-        W ≥ max(σ²T_s, 2λmax(M0)‖C‖²/ω_lim, max(q)‖C‖²/ω_lim²): continuous-time filters on sampled data are
-        detuned where the data are very precise (a continuous-discrete filter, ekf, uses R = σ² directly).
+        With explicit RK4 on held samples, every rate of the filter must stay below the step limit ω_lim:
+
+        - the steady gain, about √(q/W)‖C‖: W ≥ max(q)‖C‖²/ω_lim²;
+        - the gain on the unmeasured states, about √(λmax(M)/W)‖CA‖ (they reach the output through A): W ≥
+          λmax(M0)‖CA‖²/ω_lim² (`CA` is the largest ‖CA(u, y, t)‖ on the run);
+        - the first correction, λmax(C M0 Cᵀ W⁻¹): met by shrinking M(0) along the measured directions only (the
+          first samples fix those anyway), keeping the prior of the unmeasured ones.
+
+        W starts from the noise intensity σ²T_s and is raised only as far as these need.
         """
         lim = self.step_limit()
-        if not np.isfinite(lim):
-            return W, ""
-        c2 = self.output_gain ** 2
         W2 = np.array(W, dtype=float)
-        floor = max(2.0 * float(np.linalg.eigvalsh(M0).max()) * c2 / lim, float(np.max(np.diag(Q))) * c2 / lim ** 2)
+        M = np.array(M0, dtype=float)
+        if not np.isfinite(lim):
+            return W2, M, ""
+        notes = []
+        c2 = self.output_gain ** 2
+        floor = max(float(np.max(np.diag(Q))) * c2, float(np.linalg.eigvalsh(M).max()) * CA ** 2) / lim ** 2
         if np.any(np.diag(W2) < floor):
             W2[np.diag_indices_from(W2)] = np.maximum(np.diag(W2), floor)
-            return W2, (f"W raised from σ²T_s to {floor:.3g} so that the Riccati gain stays below the step limit "
-                        f"{lim:.3g} s⁻¹ (a continuous-time filter cannot use gains faster than the samples)")
-        return W2, ""
+            notes.append(f"W raised from σ²T_s to {floor:.3g} so that the filter's gains stay below the step limit "
+                         f"{lim:.3g} s⁻¹ (a continuous-time filter cannot be faster than the samples)")
+        if C is not None and C.size:
+            rate = float(np.max(np.linalg.eigvals(C @ M @ C.T @ np.linalg.inv(W2)).real))
+            if rate > 0.5 * lim:
+                _, sv, Vt = np.linalg.svd(C)
+                Vm = Vt[: int(np.sum(sv > 1e-12))].T                   # measured directions (row space of C)
+                Pm = Vm @ Vm.T
+                Pu = np.eye(M.shape[0]) - Pm
+                shrink = 0.5 * lim / rate
+                M = Pu @ M @ Pu + shrink * (Pm @ M @ Pm)
+                M = (M + M.T) / 2 + 1e-9 * float(np.abs(M).max()) * np.eye(M.shape[0])
+                notes.append(f"M(0) shrunk ×{shrink:.2g} along the measured direction(s) so that the first correction stays "
+                             "below the step limit (the unmeasured prior is kept)")
+        return W2, M, "; ".join(notes)
 
     @property
     def output_gain(self) -> float:
@@ -317,7 +338,10 @@ def _xhat0(x0: np.ndarray, run: Run | None, scale: np.ndarray, estimated: Sequen
         if i in estimated:
             continue
         keeps = run is not None and (np.all(run.x[:, i] > 0) or np.all(run.x[:, i] < 0))
-        out[i] = x0[i] + 0.5 * scale[i] * sign
+        # half the state's scale, but no more than its initial size (or a tenth of its range) for a state that grows
+        # far from where it starts
+        s0 = min(scale[i], max(abs(x0[i]), 0.1 * scale[i]))
+        out[i] = x0[i] + 0.5 * s0 * sign
         if keeps and out[i] * x0[i] <= 0:  # a state that keeps its sign on the run (a level, a concentration) keeps it
             out[i] = x0[i] * (1.5 if sign > 0 else 0.5)
         sign = -sign

@@ -424,13 +424,29 @@ def _state_affine(ctx: Context) -> tuple[Any, str]:
         return None, _clean(e)
 
 
+def _CA(ctx: Context, CA: sp.Matrix) -> float:
+    """max ‖C A(u, y, t)‖₂ on the run (how strongly the unmeasured states reach the output's derivative)."""
+    if not CA.free_symbols:
+        return float(np.linalg.norm(np.array(CA, dtype=float), 2))
+    if ctx.nominal is None:
+        return 0.0
+    vals = evaluate(list(CA.T), ctx.system, ctx.samples(300)).reshape(-1, CA.shape[1], CA.shape[0]).transpose(0, 2, 1)
+    vals = vals[np.all(np.isfinite(vals), axis=(1, 2))]
+    return float(np.max(np.linalg.norm(vals, 2, axis=(1, 2)))) if len(vals) else 0.0
+
+
+def _constant_C(parts: Any) -> np.ndarray | None:
+    C = parts.C
+    return None if C.free_symbols else np.array(C, dtype=float)
+
+
 def _kalman_bucy(ctx: Context) -> Candidate:
     t = _Trial(ctx, "kalman_bucy")
     parts, why = _state_affine(ctx)
     if parts is None:
         return t.fail(why)
-    W, note = ctx.riccati_weights(ctx.R_rate, ctx.P0, ctx.Q)
-    return t.design({"Q": _sq(ctx.Q), "R": _sq(W), "P0": _sq(ctx.P0)},
+    W, M0, note = ctx.riccati_weights(ctx.R_rate, ctx.P0, ctx.Q, _constant_C(parts), _CA(ctx, parts.C * parts.A))
+    return t.design({"Q": _sq(ctx.Q), "R": _sq(W), "P0": _sq(M0)},
                     f"state-affine ẋ = A(u, y, t)x + b; Q, R as intensities ({ctx.noise_note})", extra=note)
 
 
@@ -440,8 +456,8 @@ def _kalman_like(ctx: Context) -> Candidate:
     if parts is None:
         return t.fail(why)
     delta = round(float(ctx.omega_p), 6)
-    W, note = ctx.riccati_weights(ctx.R_rate, ctx.P0, ctx.Q)
-    return t.design({"W": _sq(W), "V": _sq(ctx.Q), "delta": delta, "M0": _sq(ctx.P0)},
+    W, M0, note = ctx.riccati_weights(ctx.R_rate, ctx.P0, ctx.Q, _constant_C(parts), _CA(ctx, parts.C * parts.A))
+    return t.design({"W": _sq(W), "V": _sq(ctx.Q), "delta": delta, "M0": _sq(M0)},
                     f"state-affine; W = R, V = Q, forgetting δ = ω_p = {delta:.3g}", extra=note)
 
 
@@ -662,11 +678,17 @@ def _kkl_learned(ctx: Context) -> Candidate:
                               "that holds for every input, or a constant input")
         consts[k] = val
     box = [list(ctx.region[s]) for s in ctx.system.states]
-    opts: dict[str, Any] = {"region": box, "n_trajectories": 40, "t_final": 25.0}
+    # Λ on the observer's time scale: the data start after the ξ transient (16/min|λ|) and cover ~10 plant time constants
+    lam = [float(f"{-ctx.omega_o * (1 + k / ctx.n):.6g}") for k in range(ctx.n + 1)]
+    t_final = 16.0 / ctx.omega_o + 10.0 / ctx.omega_p
+    dt = min(ctx.scenario.dt if ctx.scenario is not None else 0.01, 0.05 / abs(lam[-1]))
+    t_final = float(f"{max(t_final, 20 * dt):.6g}")
+    dt = t_final / max(1, round(t_final / dt))
+    opts: dict[str, Any] = {"region": box, "eigenvalues": lam, "n_trajectories": 40, "t_final": t_final, "dt": dt}
     if consts:
         opts["inputs"] = consts
-    return t.design(opts, "φᴸ learned by least squares on 40 simulated runs from the visited box (polynomial features of "
-                    "degree 3); valid inside the box")
+    return t.design(opts, f"φᴸ learned by least squares on 40 simulated runs from the visited box (polynomial features of "
+                    f"degree 3), Λ = −ω_o·diag(1, ..., 2); valid inside the box")
 
 
 def _augmented(ctx: Context) -> Candidate:
@@ -693,10 +715,15 @@ def _augmented(ctx: Context) -> Candidate:
     if ctx.nominal is None:
         return t.needs("Q and R for the Kalman–Bucy filter on the augmented system, and a run to scale them", **opts)
     W = evaluate(list(aug.T), ctx.system, ctx.samples(300))
-    sw = np.maximum(W.max(axis=0) - W.min(axis=0), 1e-3 * np.maximum(np.abs(W).max(axis=0), 1e-3))
+    span, mag = W.max(axis=0) - W.min(axis=0), np.abs(W).max(axis=0)
+    sw = np.maximum(np.where(span > 0.05 * mag, span, 0.5 * mag), 1e-6)        # the states' scale rule, for w = T(x)
+    for i, e in enumerate(aug.T):                                                 # components that are states: their P(0)
+        if e in ctx.system.x:
+            sw[i] = float(np.sqrt(ctx.P0[ctx.system.x.index(e), ctx.system.x.index(e)]))
     Qw = np.diag((0.01 * sw) ** 2 * ctx.omega_p)
-    W, note = ctx.riccati_weights(ctx.R_rate, np.diag(sw ** 2), Qw)
-    opts.update({"Q": _sq(Qw), "R": _sq(W), "P0": _sq(np.diag(sw ** 2))})
+    Cw = np.array(aug.C.xreplace(params), dtype=float) if not aug.C.xreplace(params).free_symbols else None
+    W, M0, note = ctx.riccati_weights(ctx.R_rate, np.diag(sw ** 2), Qw, Cw, _CA(ctx, (aug.C * aug.A).xreplace(params)))
+    opts.update({"Q": _sq(Qw), "R": _sq(W), "P0": _sq(M0)})
     return t.design(opts, tuning + "; A(u, y, t) varies: Kalman–Bucy filter on the augmented system, Q, R as for kalman_bucy",
                     extra=note)
 
