@@ -84,14 +84,17 @@ def test_estimate_from_csv(tmp_path, capsys):
     assert main(["estimate", PEND, str(data), "--observer", "injection", "--skip-missing", "--json", "--output", str(out_csv)]) == 0
     out = json.loads(capsys.readouterr().out)
     assert np.allclose(out["observers"]["injection"]["final_estimate"], run.x[-1], atol=0.05)
-    est = np.loadtxt(out_csv, delimiter=",", skiprows=1)
-    assert est.shape == (rec.t.size, 3)
+    header = out_csv.read_text().splitlines()[0]
+    assert header == "t,u,y,injection.x1,injection.x2"
+    back = Recording.from_csv(out_csv, mf.system)  # what estimate writes, estimate reads
+    assert np.isnan(back.y[7, 0]) and np.array_equal(back.t, rec.t)
 
 
 def test_demo_only_writes_the_report(tmp_path, capsys):
     assert main(["demo", "--only", "002-pendulum", "--out", str(tmp_path), "--quiet"]) == 0
     html = (tmp_path / "index.html").read_text()
     assert "robot arm" in html and "data:image/png;base64," in html
+    assert "twice the steady-state error" in html and "2 % of its initial value" not in html  # the rule the numbers follow
     assert "claims 3/3 hold" in capsys.readouterr().out
     assert main(["demo", "--only", "nope", "--out", str(tmp_path)]) == 1
 
@@ -107,3 +110,161 @@ def test_errors_under_json_are_one_json_object(capsys):
     err = json.loads(captured.err)
     assert captured.out == "" and err["error"]["type"] == "KeyError"
     assert "no observer 'nope'" in err["error"]["message"]
+
+
+# -- simulate / estimate / fit workflow ------------------------------------------------------------------
+
+
+def test_simulate_output_round_trips_through_estimate(tmp_path, capsys):
+    """simulate --output writes what a data logger would record (the sample instants of a sampled run), with the true
+    states; estimate reads it back and gets nearly the same estimates and metrics (nearly: the simulation saw the
+    input sin(t) continuously, the recording holds it between samples)."""
+    sim_csv = tmp_path / "sim.csv"
+    assert main(["simulate", PEND, "--t-final", "4", "--output", str(sim_csv), "--json"]) == 0
+    sim = json.loads(capsys.readouterr().out)
+    lines = sim_csv.read_text().splitlines()
+    assert lines[0] == "t,u,y,x1,x2,injection.x1,injection.x2,ekf.x1,ekf.x2" and len(lines) == 1 + 401  # 100 Hz samples
+    assert "e+" not in lines[1] and "000000000" not in lines[2]  # shortest exact floats, not %.18e
+    assert main(["estimate", PEND, str(sim_csv), "--observer", "ekf", "--json"]) == 0
+    est = json.loads(capsys.readouterr().out)
+    data = np.genfromtxt(sim_csv, delimiter=",", names=True)
+    assert np.allclose([data["ekfx1"][-1], data["ekfx2"][-1]], est["observers"]["ekf"]["final_estimate"], atol=5e-3)
+    s, e = sim["observers"]["ekf"], est["observers"]["ekf"]
+    assert e["final_error"] == pytest.approx(s["final_error"], abs=5e-3)
+    assert e["convergence_time"] == pytest.approx(s["convergence_time"], abs=0.05) and e["convergence_time"] < 0.5
+    assert list(est["observers"]["ekf"]["estimate"]) == ["x1", "x2"]
+    # the floats read back to the same doubles
+    from nlobs import Recording, load_model
+
+    back = Recording.from_csv(sim_csv, load_model(PEND).system)
+    assert np.array_equal(back.x[:, 0], data["x1"])
+
+
+def test_estimate_without_states_reports_innovations_and_takes_initial_conditions(tmp_path, capsys):
+    sim_csv = tmp_path / "sim.csv"
+    assert main(["simulate", PEND, "--t-final", "6", "--output", str(sim_csv), "--json"]) == 0
+    capsys.readouterr()
+    data = np.genfromtxt(sim_csv, delimiter=",", names=True)
+    rec = tmp_path / "rec.csv"
+    with rec.open("w") as fh:
+        fh.write("time,level,force\n")
+        for t, y, u in zip(data["t"], data["y"], data["u"]):
+            fh.write(f"{float(t)!r},{float(y)!r},{float(u)!r}\n")
+    args = ["estimate", PEND, str(rec), "--observer", "ekf", "--column", "time=t,level=y", "--column", "force=u"]
+    assert main(args) == 0
+    text = capsys.readouterr().out
+    assert "innovations" in text and "Ljung-Box" in text and "(no true state)" not in text
+    assert main(args + ["--json", "--xhat0", "x1=1", "--P0", "1e-4,1"]) == 0
+    out = json.loads(capsys.readouterr().out)["observers"]["ekf"]
+    w = out["innovations"]["y"]
+    assert isinstance(w["white"], bool) and 0 <= w["p_value"] <= 1 and w["rms"] == pytest.approx(0.01, rel=0.3)
+    assert set(out["estimate"]) == {"x1", "x2"}
+    # --xhat0 and --P0 reach the filter
+    from nlobs import Recording, estimate, load_model
+    from nlobs.cli._common import designs_of
+
+    mf = load_model(PEND)
+    d = designs_of(mf, ["ekf"], overrides={"P0": np.diag([1e-4, 1.0])})["ekf"]
+    ref = estimate(d, Recording.from_csv(rec, mf.system, columns={"time": "t", "level": "y", "force": "u"}), xhat0=[1.0, 0.0])
+    assert out["estimate"]["x2"] == pytest.approx(ref.observers["ekf"].xhat[-1, 1], abs=1e-12)
+    assert main(["estimate", PEND, str(rec), "--observer", "injection", "--column", "time=t,level=y,force=u", "--P0", "1"]) == 1
+    assert "observer 'injection' (kind 'output_injection') has no option P0; kinds that take it: " in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["simulate", PEND, "--t-final", "0"], "--t-final: expected a positive number"),
+    (["simulate", PEND, "--dt", "0"], "--dt: expected a positive number"),
+    (["simulate", PEND, "--tol", "-1"], "--tol: expected a positive number"),
+    (["estimate", PEND, "x.csv", "--observer", "ekf", "--max-step", "0"], "--max-step: expected a positive number"),
+])
+def test_zero_and_negative_options_are_refused_not_replaced(argv, message, capsys):
+    """`--t-final 0` / `--dt 0` were silently replaced by the file's values; `--tol -1` was accepted."""
+    with pytest.raises(SystemExit) as info:
+        main(argv)
+    assert info.value.code == 2 and message in capsys.readouterr().err
+
+
+def test_simulate_from_a_recorded_input_with_x0_and_parameters(tmp_path, capsys):
+    """Validation of a model on a recording: the recorded input drives the plant from x0, with chosen parameter values,
+    and the simulated outputs are compared with the recorded ones."""
+    from nlobs import Recording, load_model, simulate
+    from nlobs.model import Sampled
+
+    mf = load_model(PEND)
+    t = np.round(np.arange(0, 5.0001, 0.05), 10)
+    u = np.cos(1.3 * t)
+    truth = simulate(mf.system.with_params(a2=0.8), t_final=5.0, dt=1e-3, x0=[0.5, 0.0], inputs={"u": Sampled(t, u)})
+    y = truth.y[::50, 0]
+    rec = tmp_path / "rec.csv"
+    with rec.open("w") as fh:
+        fh.write("t,u,y\n")
+        for row in zip(t, u, y):
+            fh.write(",".join(repr(float(v)) for v in row) + "\n")
+    argv = ["simulate", PEND, "--input", str(rec), "--x0", "x1=0.5,x2=0", "--param", "a2=0.8", "--observer", "ekf",
+            "--dt", "0.001", "--json"]
+    assert main(argv) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["t_final"] == 5.0 and out["validation"]["y"]["rmse"] < 1e-12 and out["validation"]["y"]["fit_percent"] > 99.99
+    assert main(argv[:-1] + ["--param", "a1=9"]) == 0  # a wrong gravity shows in the fit
+    assert "simulated vs recorded outputs" in capsys.readouterr().out
+    assert main(["simulate", PEND, "--param", "zz=1"]) == 1
+    assert "--param: 'zz' is not one of a1, a2, b" in capsys.readouterr().err
+
+
+def test_fit_command(tmp_path, capsys):
+    from nlobs import load_model, simulate
+    from nlobs.model import Sampled
+
+    mf = load_model(PEND)
+    t = np.round(np.arange(0, 8.0001, 0.02), 10)
+    u = np.sign(np.sin(1.1 * t))
+    truth = simulate(mf.system.with_params(a2=0.8), t_final=8.0, dt=1e-3, x0=[0.5, 0.0], inputs={"u": Sampled(t, u)})
+    rec = tmp_path / "rec.csv"
+    with rec.open("w") as fh:
+        fh.write("t,u,y\n")
+        for row in zip(t, u, truth.y[::20, 0]):
+            fh.write(",".join(repr(float(v)) for v in row) + "\n")
+    out_csv = tmp_path / "fit.csv"
+    assert main(["fit", PEND, str(rec), "--param", "a2", "--x0", "0.5,0", "--max-step", "0.005", "--bound", "a2=0:",
+                 "--output", str(out_csv), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["parameters"]["a2"]["estimate"] == pytest.approx(0.8, rel=1e-6) and out["success"]
+    assert out_csv.read_text().splitlines()[0] == "t,y,y.fit"
+    assert main(["fit", PEND, str(rec), "--param", "a2", "--x0", "0.5,0", "--bound", "a2=x"]) == 1
+    assert "--bound: expected NAME=LO:HI" in capsys.readouterr().err
+
+
+def test_help_texts_explain_engine_and_hold_and_cite_no_paper_numbers(capsys):
+    import re
+
+    for cmd in ("simulate", "estimate", "fit"):
+        with pytest.raises(SystemExit):
+            main([cmd, "--help"])
+        text = " ".join(capsys.readouterr().out.split())
+        assert not re.search(r"\b00[0-4]\b", text)
+        if cmd != "fit":
+            assert "(default: auto)" in text and "virtual machine" in text and "compiles" in text
+        if cmd != "simulate":
+            assert "(default: zoh)" in text and "interpolates" in text
+
+
+def test_vector_and_matrix_options():
+    from nlobs.cli._common import parse_columns, parse_matrix, parse_vector
+
+    names = ("x1", "x2")
+    assert parse_vector("1, -2", names, "--x0").tolist() == [1.0, -2.0]
+    assert parse_vector("x2=3", names, "--xhat0", [0.5, 0.0]).tolist() == [0.5, 3.0]
+    for text, message in (("1", "1 value\\(s\\) for 2 state"), ("x1=1", "no value for x2"), ("x1=1,2", "mix of named"),
+                          ("x3=1,x1=0,x2=0", "'x3' is not one of x1, x2"), ("1,nan", "not a finite number"),
+                          ("x1=1,x1=2,x2=0", "'x1' is given twice"), ("a,b", "'a' is not a number")):
+        with pytest.raises(ValueError, match=message):
+            parse_vector(text, names, "--x0")
+    assert np.array_equal(parse_matrix("2", 2, "--P0"), 2 * np.eye(2))
+    assert np.array_equal(parse_matrix("1,4", 2, "--P0"), np.diag([1.0, 4.0]))
+    assert np.array_equal(parse_matrix("[[1, 0.5], [0.5, 2]]", 2, "--P0"), [[1, 0.5], [0.5, 2]])
+    for text, message in (("1,2,3", "got 3 numbers"), ("[[1]]", "expected 2×2"), ("[[1, 2], [3", "not a JSON list")):
+        with pytest.raises(ValueError, match=message):
+            parse_matrix(text, 2, "--P0")
+    assert parse_columns(["time=t,level=y", "force=u"]) == {"time": "t", "level": "y", "force": "u"}
+    with pytest.raises(ValueError, match="expected CSV_NAME=MODEL_NAME"):
+        parse_columns(["time"])

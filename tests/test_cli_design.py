@@ -89,4 +89,4 @@ def test_design_ranks_on_a_recording(tmp_path, capsys):
                  "--engine", "vm"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert sorted(out["ranking"]) == ["ekf", "luenberger"] and out["scenario"].startswith("the recording (501 samples")
-    assert all(s["detail"] == "output residual (no true state)" and s["rms_error"] < 0.01 for s in out["scores"])
+    assert all(s["detail"] == "innovation RMS (no true state)" and s["rms_error"] < 0.01 for s in out["scores"])

@@ -21,6 +21,7 @@ from .design import design_output_injection as design_output_injection
 from .errors import ConvergenceWarning as ConvergenceWarning
 from .errors import DataError as DataError
 from .errors import FiniteEscapeError as FiniteEscapeError
+from .errors import SolverError as SolverError
 from .errors import FormError as FormError
 from .errors import ModelError as ModelError
 from .errors import ModelFileError as ModelFileError
@@ -42,6 +43,7 @@ from .simulate import Recording as Recording
 from .simulate import Run as Run
 from .simulate import Sampling as Sampling
 from .simulate import estimate as estimate
+from .simulate import fit_parameters as fit_parameters
 from .simulate import montecarlo as montecarlo
 from .simulate import simulate as simulate
 from .design import DREM as DREM

@@ -25,6 +25,7 @@ __all__ = [
     "DataError",
     "EngineError",
     "FiniteEscapeError",
+    "SolverError",
     "ConvergenceWarning",
 ]
 
@@ -89,19 +90,38 @@ class FiniteEscapeError(NlobsError, RuntimeError):
     x : numpy.ndarray
         The state at that time.
     where : str
-        Which system blew up (``"plant"`` or the observer's name).
+        Which system blew up (``"plant"``, ``"the plant's output"`` or the observer's name).
+
+    `message` replaces the default text when the caller knows more (the sample, the data).
     """
 
-    def __init__(self, where: str, t: float, x: np.ndarray, names: Sequence[str], bound: float):
+    def __init__(self, where: str, t: float, x: np.ndarray, names: Sequence[str], bound: float, *, message: str | None = None):
         shown = ", ".join(f"{n}={v:.6g}" for n, v in zip(names, np.asarray(x, dtype=float)))
-        super().__init__(
+        super().__init__(message or (
             f"{where} blew up after t = {t:.6g}: the state left |x| <= {bound:g} or became "
             f"non-finite in the next step; last finite state: {shown}. "
             "Check the model and the initial state, or reduce `dt`."
-        )
+        ))
         self.where = where
         self.t = float(t)
         self.x = np.asarray(x, dtype=float)
+
+
+class SolverError(NlobsError, RuntimeError):
+    """An optimisation solved inside an estimator failed (e.g. the NLP of a moving-horizon window).
+
+    Attributes
+    ----------
+    window : tuple of float
+        The time span (first and last sample time) of the data the solver was given.
+    status : str
+        What the solver(s) reported.
+    """
+
+    def __init__(self, message: str, *, window: tuple[float, float], status: str):
+        super().__init__(message)
+        self.window = (float(window[0]), float(window[1]))
+        self.status = status
 
 
 class ConvergenceWarning(UserWarning):

@@ -41,7 +41,7 @@ CASES = {
     "banks": (OSC, dict(P=[[-2.0], [-1.0]]), [1.0, 0.0], [0.0, 0.0], 15.0, 1e-3),
     "ukf": (PEND, dict(Q=np.eye(2) * 1e-3, R=[[1e-4]]), [1.0, 0.0], [0.0, 0.0], 8.0, 1e-4),
     # sampled every dt = 1e-3 here (continuous measurements): a short window of many samples, IPOPT at each
-    "mhe": (OSC, dict(horizon=5, R=[[1e-4]], P_arrival=np.eye(2) * 1e-3), [1.0, 0.0], [0.0, 0.0], 2.0, 1e-3),
+    "mhe": (OSC, dict(horizon=5, R=[[1e-4]], P0=np.eye(2) * 1e-3), [1.0, 0.0], [0.0, 0.0], 2.0, 1e-3),
 }
 
 # Parameter-estimation based designs (issue 4; 000 and 004). Regression plant: θ' = 0, Y = ψ(t)ᵀθ with a regressor

@@ -43,10 +43,46 @@ def test_online_observer_checks_time_and_handles_missing_outputs():
     online.update(0.01, [np.nan], [0.0])  # missing: prediction only
     pred = Observer(d).step(before, 0.0, 0.01, [0.0], [0.2])
     assert np.allclose(online.z, pred)
-    with pytest.raises(DataError, match="time went backwards"):
+    with pytest.raises(DataError, match="time must increase .* got t = 0.005 after t = 0.01"):
         online.update(0.005, [0.2], [0.0])
     with pytest.raises(DataError, match="must be finite"):
         online.update(0.02, [np.inf], [0.0])
+
+
+def test_online_observer_refuses_the_same_time_twice():
+    """estimate() refuses duplicate times; so does the online path: a second update at the same t would count the
+    measurement twice (the EKF's P shrank at every repetition)."""
+    d = design_ekf(PEND, Q=np.eye(2) * 1e-3, R=[[1e-4]])
+    online = Observer(d).start()
+    online.update(0.0, [0.2], [0.0])
+    online.update(0.01, [0.2], [0.0])
+    z = online.z.copy()
+    with pytest.raises(DataError, match="the same time again: a second update would count the measurement twice"):
+        online.update(0.01, [0.2], [0.0])
+    assert np.array_equal(online.z, z) and online.t == 0.01  # nothing changed
+    with pytest.raises(DataError, match="`t` must be a number"):
+        online.update("soon", [0.2], [0.0])  # type: ignore[arg-type]
+    with pytest.raises(DataError, match="the input u = .* must be finite"):
+        online.update(0.02, [0.2], [np.nan])
+
+
+def test_online_observer_options_and_non_finite_states():
+    d = design_ekf(PEND, Q=np.eye(2) * 1e-3, R=[[1e-4]])
+    for bad in (0, -1e-3, np.inf):
+        with pytest.raises(ValueError, match="`max_step` must be a positive number"):
+            Observer(d).start(max_step=bad)
+    with pytest.raises(TypeError, match="needs an observer"):
+        from nlobs import OnlineObserver
+
+        OnlineObserver(d)  # type: ignore[arg-type]
+    online = Observer(d).start(max_step=1e-3)
+    online.update(0.0, [0.2], [0.0])
+    z = online.z.copy()
+    from nlobs import FiniteEscapeError
+
+    with pytest.raises(FiniteEscapeError, match="became .* at t = 0.01 .*the state before this sample is kept"):
+        online.update(0.01, [1e308], [0.0])
+    assert np.array_equal(online.z, z) and online.t == 0.0
 
 
 def test_observer_needs_a_design():

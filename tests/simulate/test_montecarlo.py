@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from nlobs import Noise, ShapeError, System, design_ekf, design_output_injection, montecarlo, simulate
-from nlobs.simulate import convergence_time
+from nlobs.simulate import error_metrics
 
 PEND = System(states=["x1", "x2"], f=["x2", "-a*sin(x1) - 0.5*x2 + u"], inputs=["u"], outputs=["y"], h=["x1"],
               params={"a": 9.81}, name="pend")
@@ -36,9 +36,12 @@ def test_statistics_match_the_per_run_numbers(mc):
     o = mc.observers["inj"]
     assert o.error_norm.shape == (12, 401) and mc.t[-1] == pytest.approx(4.0)
     e0 = np.linalg.norm(X0, axis=1)  # x̂(0) = 0
-    for j in range(12):
-        tc = convergence_time(mc.t, o.error_norm[j], 0.02 * e0[j])
+    for j in range(12):  # the band of each run as in Run.metrics (the same rule, on the saved grid)
+        tc = error_metrics(mc.t, o.error_norm[j], e0=e0[j]).convergence_time
         assert (np.isnan(o.convergence_time[j]) and tc is None) or o.convergence_time[j] == tc
+    # a run that starts on the true state has converged at t = 0, which is not "never" (NaN)
+    exact = montecarlo(PEND, {"ekf": EKF}, t_final=1.0, dt=1e-3, x0=X0[:3], xhat0=X0[:3], inputs={"u": "sin(t)"}, seed=5)
+    assert np.array_equal(exact.observers["ekf"].convergence_time, np.zeros(3))
     s = mc.stats("inj")
     assert s["runs"] == 12 and s["failed"] == 0
     assert s["rms_error_median"] == pytest.approx(np.median(o.rms_error))
@@ -88,3 +91,8 @@ def test_dask_cluster_gives_the_same_numbers():
     assert np.array_equal(local.x, remote.x)
     for name in ("inj", "ekf"):
         assert np.array_equal(local.observers[name].xhat, remote.observers[name].xhat)
+
+
+def test_a_tolerance_must_be_positive():
+    with pytest.raises(ValueError, match="`tol` must be a positive number"):
+        montecarlo(PEND, {"ekf": EKF}, t_final=0.1, dt=1e-2, x0=X0[:2], tol=-1.0)

@@ -166,3 +166,84 @@ def test_linear_hold_interpolates_the_input_too():
     trapezoid = np.r_[0.0, np.cumsum((u[1:] + u[:-1]) / 2 * np.diff(t))]
     left = np.r_[0.0, np.cumsum(u[:-1] * np.diff(t))]
     assert np.allclose(lin, trapezoid, atol=1e-14) and np.allclose(zoh, left, atol=1e-14)
+
+
+# -- hostile and real-world files: every case ends in a result or an error naming the cause -----------------
+
+
+def _write(path, header, rows):
+    with open(path, "w", encoding="utf-8") as fh:
+        fh.write(header + "\n")
+        for r in rows:
+            fh.write(",".join(repr(float(v)) for v in r) + "\n")
+
+
+def test_csv_encodings_duplicates_and_column_mapping(tmp_path, recorded):
+    _, rec = recorded
+    rows = np.column_stack([rec.t, rec.u, rec.y])
+    plain = tmp_path / "plain.csv"
+    _write(plain, "t,u,y", rows)
+    bom = tmp_path / "bom.csv"
+    bom.write_bytes(b"\xef\xbb\xbf" + plain.read_bytes())  # Excel's "CSV UTF-8"
+    back = Recording.from_csv(bom, PEND)
+    assert np.array_equal(back.y, rec.y) and np.array_equal(back.u, rec.u)
+    latin = tmp_path / "latin.csv"
+    latin.write_bytes(plain.read_bytes().replace(b"t,u,y", "t,u,y,température".encode("latin-1"), 1).replace(b"\n", b",1\n"))
+    with pytest.raises(DataError, match=r"latin\.csv: not a UTF-8 text file \(byte 0xe9 at offset"):
+        Recording.from_csv(latin, PEND)
+    dup = tmp_path / "dup.csv"
+    _write(dup, "t,y,u,y", np.column_stack([rec.t, rec.y, rec.u, rec.y + 1]))
+    with pytest.raises(DataError, match=r"column 'y' appears twice in the header \(columns 2 and 4\)"):
+        Recording.from_csv(dup, PEND)
+    named = tmp_path / "named.csv"
+    _write(named, "time,level,u", np.column_stack([rec.t, rec.y, rec.u]))
+    with pytest.raises(DataError, match=r"lacks column\(s\) t, y.*--column CSV=MODEL"):
+        Recording.from_csv(named, PEND)
+    mapped = Recording.from_csv(named, PEND, columns={"time": "t", "level": "y"})
+    assert np.array_equal(mapped.y, rec.y) and np.array_equal(mapped.t, rec.t)
+    with pytest.raises(DataError, match="the column mapping names 'tim', which is not in the header"):
+        Recording.from_csv(named, PEND, columns={"tim": "t"})
+    with pytest.raises(DataError, match="sends 'level' to 'z', which is not t, an output, an input or a state"):
+        Recording.from_csv(named, PEND, columns={"level": "z"})
+    with pytest.raises(DataError, match=r"appears twice in the header after the column mapping"):
+        Recording.from_csv(plain, PEND, columns={"u": "y"})
+    # a text column the model does not use is ignored; a long bad cell is cut in the message
+    extra = tmp_path / "extra.csv"
+    extra.write_text("t,u,y,note\n0,0,1,start\n0.1,0,0.9,x\n")
+    assert Recording.from_csv(extra, PEND).t.size == 2
+    extra.write_text("t,u,y\n0,0,1\n0.1,0," + "9" * 500 + "z\n")
+    with pytest.raises(DataError, match=r"is not a number") as info:
+        Recording.from_csv(extra, PEND)
+    assert len(str(info.value)) < 300
+
+
+def test_huge_values_and_times_stop_with_the_sample_instead_of_nan_estimates(recorded):
+    _, rec = recorded
+    d = design_ekf(PEND, Q=np.eye(2) * 1e-3, R=[[2.5e-5]])
+    y = rec.y.copy()
+    y[100] = 1e308
+    from nlobs import FiniteEscapeError
+
+    with pytest.raises(FiniteEscapeError, match=r"observer 'ekf' .* from the sample at t = 1 \(row 100; y = 1e\+308"):
+        estimate(d, Recording.from_arrays(PEND, rec.t, y, rec.u))
+    t = rec.t.copy()
+    t[0] = -1e300
+    with pytest.raises(FiniteEscapeError, match=r"a step of 1e\+300 s"):
+        estimate(design_output_injection(PEND, poles=[-2, -3]), Recording.from_arrays(PEND, t, rec.y, rec.u))
+    with pytest.raises(DataError, match="overflows"):
+        Recording.from_arrays(PEND, [-1.7e308, 1.7e308], [0, 0], [0, 0])
+
+
+def test_estimate_options_are_checked(recorded):
+    _, rec = recorded
+    d = design_output_injection(PEND, poles=[-2, -3])
+    for bad in (0, -1.0, np.nan, np.inf):
+        with pytest.raises(ValueError, match="`max_step` must be a positive number"):
+            estimate(d, rec, max_step=bad)
+    assert estimate(d, rec, max_step=np.float32(0.005)).info["substeps"] >= 2  # NumPy numbers are numbers
+    with pytest.raises(TypeError, match="`recording` must be an nlobs.Recording"):
+        estimate(d, {"t": rec.t})  # type: ignore[arg-type]
+    y = rec.y.copy()
+    y[3] = np.nan
+    with pytest.raises(DataError, match=r"on_missing='skip' \(command line: --skip-missing\)"):
+        estimate(d, Recording.from_arrays(PEND, rec.t, y, rec.u))

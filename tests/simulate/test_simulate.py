@@ -202,3 +202,38 @@ def test_adaptive_cvodes_matches_a_tight_scipy_reference():
         Adaptive(rtol=0)
     with pytest.raises(TypeError, match="must be an nlobs.Adaptive"):
         simulate(VDP, t_final=1.0, dt=0.1, x0=[1.0, 0.0], integrator="cvodes")  # type: ignore[arg-type]
+
+
+def test_a_plant_output_that_becomes_nan_is_the_plants_not_the_observers():
+    """y = sqrt(x) with x(t) = 1 - t: the output is undefined from t = 1 on; the observers that receive it stop,
+    but the failure is the plant's output map, reported with its time and state."""
+    from nlobs import design_ekf
+
+    plant = System(states=["x"], f=["-1"], outputs=["y"], h=["sqrt(x)"], name="drain")
+    ekf = design_ekf(plant, Q=[[1e-3]], R=[[1e-4]], xhat0=[1.0])
+    for sampling in (None, Sampling(0.05)):
+        with pytest.raises(FiniteEscapeError, match=r"the plant's output y = sqrt\(x\) is nan at t = 1(\.\d*)? \(plant state x=") \
+                as info:
+            simulate(plant, {"ekf": ekf}, t_final=2.0, dt=1e-2, x0=[1.0], sampling=sampling)
+        assert info.value.where == "the plant's output" and 0.99 <= info.value.t <= 1.06
+    # an observer that blows up on a well-defined output is still the observer's failure (see above)
+
+
+def test_numpy_numbers_are_numbers():
+    run = simulate(PEND, t_final=np.float32(1.0), dt=np.float32(0.1), x0=[1.0, 0.0], sampling=Sampling(np.float32(0.2)))
+    assert len(run.t) == 11
+    run = simulate(PEND, t_final=np.int64(1), dt=np.float64(0.5), x0=[1.0, 0.0])
+    assert len(run.t) == 3
+    with pytest.raises(ShapeError, match="`dt` must be a positive number"):
+        simulate(PEND, t_final=1.0, dt=True, x0=[1.0, 0.0])  # type: ignore[arg-type]
+
+
+def test_a_held_input_switching_on_the_grid_never_leaks_into_the_previous_step():
+    """t_k + dt can exceed t_{k+1} by an ulp (0.059 + 0.001 > 0.06): the last RK4 stage of step k then saw the new
+    value of a held input switching at t_{k+1} (111 of 400 switches here). The integral of a held input is exact."""
+    integ = System(states=["x"], f=["u"], inputs=["u"], outputs=["y"], h=["x"])
+    t = np.round(np.arange(0, 8.0001, 0.02), 10)
+    u = np.sign(np.sin(1.1 * t))
+    run = simulate(integ, t_final=8.0, dt=1e-3, x0=[0.0], inputs={"u": Sampled(t, u)})
+    exact = np.r_[0.0, np.cumsum(u[:-1] * 0.02)]
+    assert np.max(np.abs(run.x[::20, 0] - exact)) < 1e-12

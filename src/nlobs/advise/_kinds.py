@@ -163,14 +163,39 @@ def _output_injection(ctx: Context) -> Candidate:
 
 
 # -- filters on the full model --------------------------------------------------------------------------------------
+def _domain_bounds(ctx: Context) -> dict[str, list[float | None]]:
+    """Bounds where the model's own domain needs them: a state under a square root (or another fractional power)
+    or a logarithm, which keeps its sign along the run, is kept on that side of 0 (tank levels ≥ 0)."""
+    if ctx.nominal is None:
+        return {}
+    f, h = ctx.system.substituted()
+    args = [a for e in (*f, *h) for a in e.atoms(sp.Pow, sp.log)
+            if isinstance(a, sp.log) or (isinstance(a, sp.Pow) and not a.exp.is_integer)]
+    out: dict[str, list[float | None]] = {}
+    for i, (name, sym) in enumerate(zip(ctx.system.states, ctx.system.x)):
+        if not any(sym in a.args[0].free_symbols for a in args):
+            continue
+        col = ctx.nominal.x[:, i]
+        if np.all(col > 0):
+            out[name] = [0.0, None]
+        elif np.all(col < 0):
+            out[name] = [None, 0.0]
+    return out
+
+
 def _filters(ctx: Context, kind: str) -> Candidate:
     t = _Trial(ctx, kind)
     opts: dict[str, Any] = {"Q": _sq(ctx.Q), "R": _sq(ctx.R), "P0": _sq(ctx.P0)}
     if kind == "ekf":
         opts["mode"] = "continuous-discrete"
+    bounds = _domain_bounds(ctx)
+    if bounds:
+        opts["bounds"] = bounds
     local = "locally observable (generic rank condition)" if ctx.report.observable else "observability not established"
+    extra = (f"bounds {', '.join(f'{k} ≥ 0' if v[0] == 0 else f'{k} ≤ 0' for k, v in bounds.items())} where the model's "
+             "square roots / logarithms need them") if bounds else ""
     return t.design(opts, f"{local}; {ctx.noise_note}; P(0) = diag(range²). A local method: it converges from an "
-                    "x̂(0) close enough, with no global certificate")
+                    "x̂(0) close enough, with no global certificate", extra=extra)
 
 
 def _mhe(ctx: Context) -> Candidate:
@@ -181,8 +206,12 @@ def _mhe(ctx: Context) -> Candidate:
     runnable = sc is not None and sc.samples <= MHE_SAMPLE_BUDGET
     note = "" if runnable or sc is None else (f"left out of --run: {sc.samples} measurement updates, each an NLP solve (budget "
                                               f"{MHE_SAMPLE_BUDGET}); run it with `nlobs simulate` on a sampled model")
-    return t.design({"horizon": horizon, "R": _sq(ctx.R), "P_arrival": _sq(ctx.P0)},
-                    f"window of {horizon} samples (≈ 2/ω_p); R = σ², arrival cost P(0)", runnable=runnable, extra=note)
+    opts: dict[str, Any] = {"horizon": horizon, "R": _sq(ctx.R), "Q": _sq(ctx.Q), "P0": _sq(ctx.P0)}
+    bounds = _domain_bounds(ctx)
+    if bounds:
+        opts["bounds"] = bounds
+    return t.design(opts, f"window of {horizon} samples (≈ 2/ω_p); R = σ², Q and P(0) as for the EKF", runnable=runnable,
+                    extra=note)
 
 
 def _lipschitz(ctx: Context) -> Candidate:

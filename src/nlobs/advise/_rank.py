@@ -6,7 +6,8 @@ reported as diverged, with the time, and the others are run again without it.
 Ranking: by the error after convergence — the RMS of ‖x̂ − x‖ over the last 20 % of the run
 (:meth:`nlobs.Run.metrics`) — and, among errors within a factor 1.25 of each other (a tie at the
 precision such a run has), by the convergence time. On a recording there is no true state; the
-candidates are then ranked by the RMS output residual y − h(x̂) over the last 20 %.
+candidates are then ranked by the RMS of their innovations y_k − h(x̂_k⁻) over the last 20 % (what
+:func:`nlobs.estimate` records; y − h(x̂) for an observer without them).
 """
 
 from __future__ import annotations
@@ -43,23 +44,26 @@ def _score(run: Run, name: str, ctx: Context) -> Score:
     if run.x is not None:
         m = run.metrics(name)
         return Score(name, "ok", m.rms_error, m.convergence_time, m.final_error, parameters=params)
-    resid = residuals(run, name, ctx.system)
+    resid, what = residuals(run, name, ctx.system)
     tail = run.t >= run.t[-1] - 0.2 * (run.t[-1] - run.t[0])
-    rms = float(np.sqrt(np.mean(np.sum(resid[tail] ** 2, axis=1))))
-    return Score(name, "ok", rms, None, float(np.linalg.norm(resid[-1])), detail="output residual (no true state)",
-                 parameters=params)
+    ok = np.all(np.isfinite(resid), axis=1) & tail
+    rms = float(np.sqrt(np.mean(np.sum(resid[ok] ** 2, axis=1)))) if ok.any() else float("nan")
+    return Score(name, "ok", rms, None, float(np.linalg.norm(resid[-1])), detail=f"{what} (no true state)", parameters=params)
 
 
-def residuals(run: Run, name: str, system: System) -> np.ndarray:
-    """y − h(x̂) along a run, shape (N, p) (on recorded data, the only error there is)."""
+def residuals(run: Run, name: str, system: System) -> tuple[np.ndarray, str]:
+    """The output error along a run, shape (N, p), and what it is: the innovations y_k − h(x̂_k⁻) that
+    :func:`nlobs.estimate` records (each sample against the prediction made before it was used), else y − h(x̂)."""
     import casadi as ca
 
     tr = run.observers[name]
+    if getattr(tr, "innovation", None) is not None:
+        return run.innovations(name), "innovation RMS"
     comp = compile_system(system)
     N = run.t.size
     h = comp.h.map(N)(ca.DM(run.t).T, ca.DM(tr.xhat.T), ca.DM(run.u.T) if system.n_inputs else ca.DM(0, N),
                       ca.repmat(ca.DM(system.param_values), 1, N))
-    return run.y - np.asarray(h, dtype=float).T
+    return run.y - np.asarray(h, dtype=float).T, "output residual RMS"
 
 
 def rank(scores: Sequence[Score]) -> list[Score]:

@@ -2,11 +2,24 @@
 
 from __future__ import annotations
 
+import argparse
+import json
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
-__all__ = ["designs_of", "clean", "error_message"]
+import numpy as np
+
+__all__ = ["designs_of", "clean", "error_message", "positive_float", "parse_vector", "parse_assignments", "parse_matrix",
+           "parse_columns", "HELP_ENGINE", "HELP_HOLD"]
+
+#: Help texts shared by the commands that integrate.
+HELP_ENGINE = ("numeric backend (default: auto): 'c' generates C from the model, compiles it with the system's C compiler and "
+               "caches it on disk (fast for long runs); 'vm' runs on CasADi's virtual machine (no compiler, slower per step); "
+               "'auto' compiles long runs when a compiler exists and uses the virtual machine otherwise")
+HELP_HOLD = ("how outputs and inputs are held between samples (default: zoh): 'zoh' keeps the last sample until the next "
+             "(causal, as in a real loop); 'linear' interpolates to the next sample (offline only; more accurate when the "
+             "signals change fast between samples)")
 
 
 def error_message(e: BaseException) -> str:
@@ -15,9 +28,14 @@ def error_message(e: BaseException) -> str:
     return (str(text).splitlines() or [type(e).__name__])[0]
 
 
-def designs_of(model_file: Any, names: Sequence[str] | None) -> dict[str, Any]:
-    """The designs of the observers `names` configured in `model_file` (all when `names` is empty)."""
-    from ..design import design_from_config
+def designs_of(model_file: Any, names: Sequence[str] | None, *, overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """The designs of the observers `names` configured in `model_file` (all when `names` is empty).
+
+    `overrides` replace design options of every chosen observer (e.g. ``{"P0": ...}`` from the
+    command line); an observer whose kind does not take an option is refused with the kinds that do.
+    """
+    from ..design import DESIGNS, design_from_config
+    from ..design._registry import options_of
 
     configured = model_file.observers
     if names:
@@ -25,8 +43,114 @@ def designs_of(model_file: Any, names: Sequence[str] | None) -> dict[str, Any]:
         if unknown:
             raise KeyError(f"{model_file.path}: no observer {unknown[0]!r}; configured: {', '.join(configured) or '(none)'}")
     chosen = names or list(configured)
-    return {n: design_from_config(model_file.system, configured[n].kind, configured[n].options,
-                                  where=f"{model_file.path}: observers.{n}") for n in chosen}
+    out = {}
+    for n in chosen:
+        kind, options = configured[n].kind, dict(configured[n].options)
+        for key, value in (overrides or {}).items():
+            if kind in DESIGNS and key not in options_of(DESIGNS[kind]):
+                takes = sorted(k for k, fn in DESIGNS.items() if key in options_of(fn))
+                raise ValueError(f"--{key}: observer {n!r} (kind {kind!r}) has no option {key}; "
+                                 f"kinds that take it: {', '.join(takes)}")
+            options[key] = value
+        out[n] = design_from_config(model_file.system, kind, options, where=f"{model_file.path}: observers.{n}")
+    return out
+
+
+def positive_float(text: str) -> float:
+    """argparse type: a finite number > 0."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number (finite and > 0), got {text!r}")
+    return v
+
+
+def _number(text: str, what: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise ValueError(f"{what}: {text.strip()!r} is not a number") from None
+    if not math.isfinite(v):
+        raise ValueError(f"{what}: {text.strip()!r} is not a finite number")
+    return v
+
+
+def parse_vector(text: str, names: Sequence[str], what: str, default: Sequence[float] | None = None) -> np.ndarray:
+    """One number per name: ``"1,0"`` (in order) or ``"x1=1,x2=0"`` (by name; names left out keep `default`)."""
+    items = [p.strip() for p in text.split(",") if p.strip()]
+    if items and all("=" in p for p in items):
+        values = parse_assignments(items, names, what)
+        missing = [n for n in names if n not in values]
+        if missing and default is None:
+            raise ValueError(f"{what}: no value for {', '.join(missing)}; give one per state ({', '.join(names)})")
+        base = np.asarray(default if default is not None else np.zeros(len(names)), dtype=float).copy()
+        for i, n in enumerate(names):
+            if n in values:
+                base[i] = values[n]
+        return base
+    if any("=" in p for p in items):
+        raise ValueError(f"{what}: mix of named and unnamed values in {text!r}; write either '1,0' or '{names[0]}=1,...'")
+    v = np.array([_number(p, what) for p in items])
+    if v.size != len(names):
+        raise ValueError(f"{what}: {v.size} value(s) for {len(names)} state(s) ({', '.join(names)}); "
+                         f"give one per state in order, or NAME=VALUE pairs")
+    return v
+
+
+def _pairs(items: Sequence[str] | None, what: str, form: str) -> dict[str, str]:
+    """``["a=1", "b=2,c=3"]`` -> ``{"a": "1", "b": "2", "c": "3"}``: repeatable and comma-separated NAME=VALUE pairs."""
+    out: dict[str, str] = {}
+    for item in items or ():
+        for part in (p.strip() for p in item.split(",")):
+            if not part:
+                continue
+            if "=" not in part:
+                raise ValueError(f"{what}: expected {form}, got {part!r}")
+            k, v = (s.strip() for s in part.split("=", 1))
+            if k in out:
+                raise ValueError(f"{what}: {k!r} is given twice")
+            out[k] = v
+    return out
+
+
+def parse_assignments(items: Sequence[str], names: Sequence[str], what: str) -> dict[str, float]:
+    """``["a=1", "b=2,c=3"]`` -> ``{"a": 1.0, ...}``, each name one of `names`."""
+    out = _pairs(items, what, "NAME=VALUE")
+    for k in out:
+        if k not in names:
+            raise ValueError(f"{what}: {k!r} is not one of {', '.join(names) or '(none)'}")
+    return {k: _number(v, f"{what} {k}") for k, v in out.items()}
+
+
+def parse_matrix(text: str, n: int, what: str) -> np.ndarray:
+    """An n×n matrix: one number (that times the identity), n numbers (the diagonal) or a JSON list of rows."""
+    text = text.strip()
+    if text.startswith("["):
+        try:
+            m = np.asarray(json.loads(text), dtype=float)
+        except (ValueError, TypeError):
+            raise ValueError(f"{what}: {text[:60]!r} is not a JSON list of {n} rows of {n} numbers") from None
+        if m.shape != (n, n):
+            raise ValueError(f"{what}: expected {n}×{n}, got shape {m.shape}")
+    else:
+        v = np.array([_number(p, what) for p in text.split(",") if p.strip()])
+        if v.size == 1:
+            m = v[0] * np.eye(n)
+        elif v.size == n:
+            m = np.diag(v)
+        else:
+            raise ValueError(f"{what}: give one number (times the identity), {n} numbers (the diagonal) or a JSON matrix; "
+                             f"got {v.size} numbers")
+    if not np.all(np.isfinite(m)):
+        raise ValueError(f"{what}: entries must be finite")
+    return m
+
+
+def parse_columns(items: Sequence[str] | None) -> dict[str, str]:
+    """``["time=t", "h2=y"]`` (CSV name = model name) -> ``{"time": "t", "h2": "y"}``."""
+    return _pairs(items, "--column", "CSV_NAME=MODEL_NAME")
 
 
 def clean(value: Any) -> Any:

@@ -6,19 +6,35 @@ import argparse
 import json
 from typing import Any
 
-from ._common import clean, designs_of
+from ._common import (HELP_ENGINE, HELP_HOLD, clean, designs_of, parse_columns, parse_matrix, parse_vector,
+                      positive_float)
 
 
 def add_parser(sub: Any) -> None:
-    e = sub.add_parser("estimate", help="run an observer on recorded data (CSV with t, outputs, inputs)")
+    e = sub.add_parser("estimate", help="run an observer on recorded data (CSV with t, outputs, inputs)",
+                       description="Run observers configured in a model file on a recording. Without true states in "
+                                   "the file, the report shows what the data can tell: the innovations (each sample "
+                                   "against the output predicted before it) and whether they are white.")
     e.add_argument("model", help="model file (TOML)")
-    e.add_argument("data", help="CSV whose header names t, the outputs and the inputs (and optionally the states)")
-    e.add_argument("--observer", action="append", metavar="NAME", required=True, help="observer configured in the file")
+    e.add_argument("data", help="CSV whose header names t, the outputs and the inputs (and optionally the states); "
+                                "other columns are ignored")
+    e.add_argument("--observer", action="append", metavar="NAME", required=True,
+                   help="observer configured in the file (repeatable)")
+    e.add_argument("--column", action="append", metavar="CSV=MODEL",
+                   help="map a CSV column to a model name, e.g. 'time=t' or 'level_2=y' (repeatable, or comma-separated)")
+    e.add_argument("--xhat0", metavar="VALUES",
+                   help="initial estimate, '0.1,2' or 'x1=0.1,x2=2' (named: the others keep the observer's own)")
+    e.add_argument("--P0", metavar="MATRIX",
+                   help="initial covariance of covariance-carrying observers (ekf, ukf, kalman_bucy, ...): one number "
+                        "(times the identity), one number per state (the diagonal) or a JSON matrix '[[..], [..]]'")
     e.add_argument("--skip-missing", action="store_true", help="leave empty/NaN output samples out of the update")
-    e.add_argument("--hold", choices=("zoh", "linear"), default="zoh", help="measurement hold between samples")
-    e.add_argument("--max-step", type=float, help="largest integration step between samples")
-    e.add_argument("--engine", choices=("auto", "vm", "c"), default="auto", help="numeric backend")
-    e.add_argument("--output", metavar="FILE", help="write t and the estimates to this CSV")
+    e.add_argument("--hold", choices=("zoh", "linear"), default="zoh", help=HELP_HOLD)
+    e.add_argument("--max-step", type=positive_float, metavar="SECONDS",
+                   help="largest integration step between samples (default: one step per sample interval)")
+    e.add_argument("--engine", choices=("auto", "vm", "c"), default="auto", help=HELP_ENGINE)
+    e.add_argument("--output", metavar="FILE",
+                   help="write t, the inputs, the outputs, the states (when recorded) and each observer's estimate "
+                        "(NAME.STATE) to this CSV")
     e.add_argument("--json", action="store_true", help="print one JSON object")
     e.set_defaults(run=run)
 
@@ -28,19 +44,23 @@ def run(args: argparse.Namespace) -> int:
     from ..simulate import Recording, estimate
 
     mf = load_model(args.model)
-    rec = Recording.from_csv(args.data, mf.system)
-    run_ = estimate(designs_of(mf, args.observer), rec, on_missing="skip" if args.skip_missing else "error", hold=args.hold,
+    system = mf.system
+    overrides = {} if args.P0 is None else {"P0": parse_matrix(args.P0, system.n_states, "--P0")}
+    designs = designs_of(mf, args.observer, overrides=overrides)
+    xhat0 = None
+    if args.xhat0 is not None:
+        xhat0 = {n: parse_vector(args.xhat0, system.states, "--xhat0", d.xhat0) for n, d in designs.items()}
+    rec = Recording.from_csv(args.data, system, columns=parse_columns(args.column))
+    run_ = estimate(designs, rec, xhat0=xhat0, on_missing="skip" if args.skip_missing else "error", hold=args.hold,
                     max_step=args.max_step, engine=args.engine)
     if args.output:
-        import numpy as np
-
-        cols = ["t"] + [f"{name}.{s}" for name in run_.observers for s in run_.state_names]
-        data = np.column_stack([run_.t] + [tr.xhat for tr in run_.observers.values()])
-        np.savetxt(args.output, data, delimiter=",", header=",".join(cols), comments="")
+        run_.to_csv(args.output)
     if args.json:
         print(json.dumps(clean(run_.summary_dict())))
     else:
         print(run_.summary())
         for name, tr in run_.observers.items():
             print(f"{name}: final estimate " + ", ".join(f"{s}={v:.6g}" for s, v in zip(run_.state_names, tr.xhat[-1])))
+        if args.output:
+            print(f"estimates: {args.output}")
     return 0

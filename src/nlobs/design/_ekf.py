@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any, Literal
 
 import casadi as ca
@@ -10,7 +11,8 @@ import numpy as np
 from ..engine import compile_system
 from ..errors import PreconditionError
 from ..model import System
-from ._base import Certificate, Check, ObserverDesign, Symbols
+from ._base import Certificate, Check, ObserverDesign, Symbols, check_vector
+from ._bounds import POLICY, bounds_check, check_start, clip_const, parse_bounds
 from ._checks import check_matrix
 
 __all__ = ["design_ekf"]
@@ -24,7 +26,8 @@ def _sym(M: ca.SX) -> ca.SX:
 
 
 def design_ekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None,
-               mode: Literal["continuous", "continuous-discrete"] = "continuous-discrete") -> ObserverDesign:
+               mode: Literal["continuous", "continuous-discrete"] = "continuous-discrete",
+               bounds: Mapping[str, Any] | None = None) -> ObserverDesign:
     r"""Extended Kalman filter, with exact Jacobians from automatic differentiation.
 
     Continuous-discrete (the default, ``mode="continuous-discrete"``): between samples
@@ -64,6 +67,12 @@ def design_ekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
     xhat0 : array_like of shape (n,), optional
         Default initial estimate (zeros).
     mode : {"continuous-discrete", "continuous"}
+    bounds : mapping of state name to (lo, hi), optional
+        State bounds, e.g. ``{"x1": (0, None)}`` (None: no bound on that side). Policy: f, h and
+        their Jacobians are evaluated at the estimate clipped to the bounds; the estimate is
+        projected onto the bounds (clipped) after each measurement update, and the reported
+        estimate is the clipped one; P is left as the update made it (estimate projection with
+        the identity weight, Simon 2010). Without bounds the filter is unchanged.
 
     Raises
     ------
@@ -77,14 +86,22 @@ def design_ekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
     Qm = check_matrix(Q, n, n, "Q", caller, definite="semidefinite")
     Rm = check_matrix(R, p, p, "R", caller, definite="positive")
     P0m = np.eye(n) if P0 is None else check_matrix(P0, n, n, "P0", caller, definite="positive")
+    box = parse_bounds(system, bounds, caller)
+    x0v = check_vector(np.zeros(n) if xhat0 is None else xhat0, n, "xhat0", caller)
+    evidence = check_start(system, box, np.array(x0v), caller)
     f, h = compile_system(system).bind()
     s = Symbols.make(system, n + n * n)
     xh = s.z[:n]
     P = _sym(ca.reshape(s.z[n:], n, n))
-    fx = f(s.t, xh, s.u)
-    hx = h(s.t, xh, s.u)
-    F = ca.jacobian(fx, xh)
-    H = ca.jacobian(hx, xh)
+    if box is None:
+        fx = f(s.t, xh, s.u)
+        hx = h(s.t, xh, s.u)
+        F = ca.jacobian(fx, xh)
+        H = ca.jacobian(hx, xh)
+    else:  # the model and its Jacobians at the estimate clipped to the bounds
+        xv = ca.SX.sym("xv", n)
+        fv, hv = f(s.t, xv, s.u), h(s.t, xv, s.u)
+        fx, hx, F, H = ca.substitute([fv, hv, ca.jacobian(fv, xv), ca.jacobian(hv, xv)], [xv], [clip_const(xh, box)])
     Qd, Rd = ca.DM(Qm), ca.DM(Rm)
     update = None
     if mode == "continuous":
@@ -100,18 +117,20 @@ def design_ekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
         Rmask = Mdiag @ Rd @ Mdiag + ca.diag(1 - s.m)  # unmeasured outputs: decoupled unit block, zero gain
         S = _sym(Hm @ P @ Hm.T + Rmask)
         K = ca.solve(S, Hm @ P).T
-        x_plus = xh + K @ (s.m * (s.y - hx))
+        x_plus = clip_const(xh + K @ (s.m * (s.y - hx)), box)  # projected onto the bounds (identity without)
         IKH = ca.DM.eye(n) - K @ Hm
         P_plus = _sym(IKH @ P @ IKH.T + K @ Rmask @ K.T)
         update = ca.vertcat(x_plus, ca.vec(P_plus))
     x0 = ca.SX.sym("xhat0", n)
-    cert = Certificate(
-        f"Extended Kalman filter ({mode})", REF_EKF,
-        (Check("Q positive semidefinite", True, f"min eig {np.linalg.eigvalsh(Qm).min():.3g}"),
-         Check("R positive definite", True, f"min eig {np.linalg.eigvalsh(Rm).min():.3g}"),
-         Check("P0 positive definite", True, f"min eig {np.linalg.eigvalsh(P0m).min():.3g}")),
-        {"Q": Qm, "R": Rm, "P0": P0m})
+    checks = [Check("Q positive semidefinite", True, f"min eig {np.linalg.eigvalsh(Qm).min():.3g}"),
+              Check("R positive definite", True, f"min eig {np.linalg.eigvalsh(Rm).min():.3g}"),
+              Check("P0 positive definite", True, f"min eig {np.linalg.eigvalsh(P0m).min():.3g}")]
+    values: dict[str, Any] = {"Q": Qm, "R": Rm, "P0": P0m}
+    if box is not None:
+        checks.append(bounds_check(box, evidence))
+        values.update({"bounds": box.describe(), "bounds policy": POLICY})
+    cert = Certificate(f"Extended Kalman filter ({mode})", REF_EKF, tuple(checks), values)
     names = [f"xhat_{v}" for v in system.states] + [f"P_{i}_{j}" for j in range(n) for i in range(n)]
-    return ObserverDesign.build("ekf", system, s, z_names=names, flow=ca.vertcat(dx, ca.vec(dP)), xhat=xh,
+    return ObserverDesign.build("ekf", system, s, z_names=names, flow=ca.vertcat(dx, ca.vec(dP)), xhat=clip_const(xh, box),
                                 xhat0_sym=x0, z0=ca.vertcat(x0, ca.DM(P0m.reshape(-1, order="F"))),
                                 xhat0=np.zeros(n) if xhat0 is None else xhat0, certificate=cert, update=update)

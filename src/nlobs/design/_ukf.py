@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 import casadi as ca
@@ -10,7 +11,8 @@ import numpy as np
 from ..engine import compile_system
 from ..errors import PreconditionError
 from ..model import System
-from ._base import Certificate, Check, ObserverDesign, Symbols
+from ._base import Certificate, Check, ObserverDesign, Symbols, check_vector
+from ._bounds import POLICY, bounds_check, check_start, clip_const, parse_bounds
 from ._checks import check_matrix
 
 __all__ = ["design_ukf", "unscented_weights"]
@@ -37,7 +39,7 @@ def _sym(M: ca.SX) -> ca.SX:
 
 
 def design_ukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None, alpha: float = 1.0,
-               beta: float = 0.0, kappa: float = 0.0) -> ObserverDesign:
+               beta: float = 0.0, kappa: float = 0.0, bounds: Mapping[str, Any] | None = None) -> ObserverDesign:
     r"""Continuous-discrete unscented Kalman filter.
 
     Sigma points :math:`\mathcal X = m + \sqrt{c}\,[0, L, -L]` with :math:`P = LL^\top` (Cholesky).
@@ -64,6 +66,12 @@ def design_ukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
         Covariance of one measurement sample, positive definite.
     P0 : array_like of shape (n, n), optional
         Initial covariance (identity), positive definite.
+    bounds : mapping of state name to (lo, hi), optional
+        State bounds, e.g. ``{"x1": (0, None)}`` (None: no bound on that side). Policy: f and h are
+        evaluated at the sigma points clipped to the bounds (the spreads in the covariance sums are
+        the unclipped ones); the mean is projected onto the bounds (clipped) after each update and
+        the reported estimate is the clipped mean; P is left as the update made it (Simon 2010,
+        estimate projection with the identity weight). Without bounds the filter is unchanged.
 
     Other Parameters
     ----------------
@@ -87,6 +95,8 @@ def design_ukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
     Rm = check_matrix(R, p, p, "R", caller, definite="positive")
     P0m = np.eye(n) if P0 is None else check_matrix(P0, n, n, "P0", caller, definite="positive")
     wm, wc, c = unscented_weights(n, float(alpha), float(beta), float(kappa))
+    box = parse_bounds(system, bounds, caller)
+    evidence = check_start(system, box, np.array(check_vector(np.zeros(n) if xhat0 is None else xhat0, n, "xhat0", caller)), caller)
     f, h = compile_system(system).bind()
     s = Symbols.make(system, n + n * n)
     m = s.z[:n]
@@ -97,30 +107,33 @@ def design_ukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
         return [mean] + [mean + L[:, i] for i in range(n)] + [mean - L[:, i] for i in range(n)]
 
     X = sigma(m, P)
-    F = [f(s.t, xi, s.u) for xi in X]
+    F = [f(s.t, clip_const(xi, box), s.u) for xi in X]
     fbar = sum((float(wm[i]) * F[i] for i in range(2 * n + 1)), ca.SX.zeros(n))
     cross = sum((float(wc[i]) * (X[i] - m) @ (F[i] - fbar).T for i in range(2 * n + 1)), ca.SX.zeros(n, n))
     dP = _sym(cross + cross.T + ca.DM(Qm))
-    Y = [h(s.t, xi, s.u) for xi in X]
+    Y = [h(s.t, clip_const(xi, box), s.u) for xi in X]
     yhat = sum((float(wm[i]) * Y[i] for i in range(2 * n + 1)), ca.SX.zeros(p))
     S = sum((float(wc[i]) * (Y[i] - yhat) @ (Y[i] - yhat).T for i in range(2 * n + 1)), ca.SX.zeros(p, p)) + ca.DM(Rm)
     Cxy = sum((float(wc[i]) * (X[i] - m) @ (Y[i] - yhat).T for i in range(2 * n + 1)), ca.SX.zeros(n, p))
     Md = ca.diag(s.m)
     Sm = _sym(Md @ S @ Md + ca.diag(1 - s.m))  # unmeasured outputs: decoupled unit block, zero gain
     K = ca.solve(Sm, (Cxy @ Md).T).T
-    m_plus = m + K @ (s.m * (s.y - yhat))
+    m_plus = clip_const(m + K @ (s.m * (s.y - yhat)), box)  # projected onto the bounds (identity without)
     P_plus = _sym(P - K @ Sm @ K.T)
     x0 = ca.SX.sym("xhat0", n)
-    cert = Certificate(
-        "Unscented Kalman filter (continuous-discrete)", REF,
-        (Check("Q positive semidefinite", True, f"min eig {np.linalg.eigvalsh(Qm).min():.3g}"),
-         Check("R positive definite", True, f"min eig {np.linalg.eigvalsh(Rm).min():.3g}"),
-         Check("P0 positive definite", True, f"min eig {np.linalg.eigvalsh(P0m).min():.3g}"),
-         Check("sigma-point spread n + λ > 0", True, f"{c:g}")),
-        {"Q": Qm, "R": Rm, "P0": P0m, "alpha": float(alpha), "beta": float(beta), "kappa": float(kappa),
-         "weights_mean": wm, "weights_cov": wc})
+    checks = [Check("Q positive semidefinite", True, f"min eig {np.linalg.eigvalsh(Qm).min():.3g}"),
+              Check("R positive definite", True, f"min eig {np.linalg.eigvalsh(Rm).min():.3g}"),
+              Check("P0 positive definite", True, f"min eig {np.linalg.eigvalsh(P0m).min():.3g}"),
+              Check("sigma-point spread n + λ > 0", True, f"{c:g}")]
+    values: dict[str, Any] = {"Q": Qm, "R": Rm, "P0": P0m, "alpha": float(alpha), "beta": float(beta), "kappa": float(kappa),
+                              "weights_mean": wm, "weights_cov": wc}
+    if box is not None:
+        checks.append(bounds_check(box, evidence))
+        values.update({"bounds": box.describe(), "bounds policy": POLICY})
+    cert = Certificate("Unscented Kalman filter (continuous-discrete)", REF, tuple(checks), values)
     names = [f"xhat_{v}" for v in system.states] + [f"P_{i}_{j}" for j in range(n) for i in range(n)]
-    return ObserverDesign.build("ukf", system, s, z_names=names, flow=ca.vertcat(fbar, ca.vec(dP)), xhat=m, xhat0_sym=x0,
+    return ObserverDesign.build("ukf", system, s, z_names=names, flow=ca.vertcat(fbar, ca.vec(dP)), xhat=clip_const(m, box),
+                                xhat0_sym=x0,
                                 z0=ca.vertcat(x0, ca.DM(P0m.reshape(-1, order="F"))),
                                 xhat0=np.zeros(n) if xhat0 is None else xhat0, certificate=cert,
                                 update=ca.vertcat(m_plus, ca.vec(P_plus)))

@@ -11,8 +11,12 @@ from ._codegen import cache_dir as cache_dir
 from ._codegen import compile_c as compile_c
 from ._codegen import find_compiler as find_compiler
 from ._codegen import resolve_backend as resolve_backend
+from ._deferred import clear_deferred as clear_deferred
+from ._deferred import defer_error as defer_error
+from ._deferred import raise_deferred as raise_deferred
 from ._integrate import DEFAULT_CHUNK as DEFAULT_CHUNK
 from ._integrate import StepRunner as StepRunner
 from ._integrate import rk4_step as rk4_step
 from ._integrate import run_batch as run_batch
 from ._integrate import saved_steps as saved_steps
+from ._nlp import compiled_nlpsol as compiled_nlpsol

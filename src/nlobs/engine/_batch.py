@@ -8,6 +8,8 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from ._deferred import raise_deferred
+
 __all__ = ["evaluate_many"]
 
 CHUNK = 4096
@@ -51,5 +53,6 @@ def evaluate_many(fn: ca.Function, *args: np.ndarray) -> np.ndarray:
         res = out[k:k + K]
         buf.set_res(0, memoryview(res))
         ev()
+        raise_deferred()
         k += K
     return out

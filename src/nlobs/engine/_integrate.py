@@ -15,6 +15,7 @@ import casadi as ca
 import numpy as np
 
 from ._codegen import Backend, CompiledBatch, CompiledLoop, resolve_backend
+from ._deferred import raise_deferred
 from ._simd import CompiledSimdBatch, simd_supported
 
 __all__ = ["rk4_step", "StepRunner", "DEFAULT_CHUNK", "run_batch", "saved_steps"]
@@ -129,6 +130,7 @@ class StepRunner:
                 if self.no:
                     buf.set_res(1, memoryview(oblock))
                 ev()
+                raise_deferred()  # an error recorded by a Python callback in the step (e.g. MHE's solver)
                 bad = (~(np.abs(block) <= bound)).any(axis=1)  # NaN counts as bad
                 done = int(np.argmax(bad)) if bad.any() else n
             if done < n:

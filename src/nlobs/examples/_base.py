@@ -57,6 +57,10 @@ class ExampleResult:
     systems : mapping of label to System
         The example's models; the demo reports the observability verdict of each
         (:func:`nlobs.analysis.analyze`).
+    convergence_rule : str
+        What the table's ``convergence_time`` and errors mean when the example measures them its own
+        way (default "": the rule of :meth:`nlobs.Run.metrics`, :data:`nlobs.simulate.CONVERGENCE_RULE`,
+        and RMS over the last 20 % of the run).
     """
 
     key: str
@@ -71,6 +75,7 @@ class ExampleResult:
     figures: Mapping[str, Any] = field(default_factory=dict)
     notes: Sequence[str] = ()
     systems: Mapping[str, System] = field(default_factory=dict)
+    convergence_rule: str = ""
 
     @property
     def ok(self) -> bool:
@@ -100,7 +105,11 @@ def register(key: str, title: str, order: int) -> Callable[[Callable[[], Example
 
 
 def rows_from_run(label: str, run: Run, *, tol: float | None = None, **extra: Any) -> list[dict[str, Any]]:
-    """Summary-table rows (one per observer) from a run with known true state."""
+    """Summary-table rows (one per observer) from a run with known true state.
+
+    The convergence time is :meth:`nlobs.Run.metrics`'s: the time after which the error stays
+    within its band (`tol`, else the rule of :data:`nlobs.simulate.CONVERGENCE_RULE`).
+    """
     rows = []
     for name in run.observers:
         m = run.metrics(name, tol=tol)

@@ -18,9 +18,9 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from ..design import ObserverDesign
-from ..engine import compile_system, rk4_step
-from ..errors import DataError, ShapeError
+from ..design import ObserverDesign, check_positive
+from ..engine import compile_system, raise_deferred, rk4_step
+from ..errors import DataError, FiniteEscapeError, ShapeError
 
 __all__ = ["AbstractObserver", "Observer", "OnlineObserver", "as_observer"]
 
@@ -73,9 +73,9 @@ class AbstractObserver(ABC):
         x0 = self.design.xhat0 if xhat0 is None else _vec(xhat0, self.system.n_states, "xhat0")
         return np.asarray(self.design.initial(x0), dtype=float).reshape(-1)
 
-    def start(self, xhat0: Any = None) -> OnlineObserver:
+    def start(self, xhat0: Any = None, *, max_step: float | None = None) -> OnlineObserver:
         """An online estimator fed one sample at a time (see :class:`OnlineObserver`)."""
-        return OnlineObserver(self, xhat0)
+        return OnlineObserver(self, xhat0, max_step=max_step)
 
 
 class Observer(AbstractObserver):
@@ -113,7 +113,9 @@ class Observer(AbstractObserver):
         if self._design.update is None:
             return _vec(z, self.n_z, "z").copy()
         m = np.ones(self.system.n_outputs) if mask is None else _vec(mask, self.system.n_outputs, "mask")
-        return np.asarray(self._design.update(*self._io(t, z, u, y), m), dtype=float).reshape(-1)
+        out = np.asarray(self._design.update(*self._io(t, z, u, y), m), dtype=float).reshape(-1)
+        raise_deferred()  # an update that runs Python (MHE's solver) reports its failure here, with its own error
+        return out
 
     def step_function(self, substeps: int = 1) -> ca.Function:
         """``(z, t, dt, u, y) -> z(t + dt)``: `substeps` RK4 steps of the flow with u, y held."""
@@ -172,6 +174,10 @@ class OnlineObserver:
     """
 
     def __init__(self, observer: AbstractObserver, xhat0: Any = None, *, max_step: float | None = None):
+        if not isinstance(observer, AbstractObserver):
+            raise TypeError(f"OnlineObserver needs an observer (nlobs.Observer(design)), got {type(observer).__name__}")
+        if max_step is not None:
+            max_step = check_positive(max_step, "max_step", "OnlineObserver")
         self.observer = observer
         self.z = observer.initial_state(xhat0)
         self.t: float | None = None
@@ -190,24 +196,42 @@ class OnlineObserver:
         obs, sys_ = self.observer, self.observer.system
         y = _vec(y, sys_.n_outputs, "y")
         u = _vec(u, sys_.n_inputs, "u")
+        try:
+            t = float(t)
+        except (TypeError, ValueError):
+            raise DataError(f"OnlineObserver.update: `t` must be a number, got {t!r}") from None
         if np.any(np.isinf(y)) or not np.isfinite(t):
             raise DataError(f"OnlineObserver.update: t = {t} and y = {y} must be finite (NaN marks a missing output)")
+        if not np.all(np.isfinite(u)):
+            raise DataError(f"OnlineObserver.update: the input u = {u} at t = {t:g} must be finite")
         if self.t is not None:
-            dt = float(t) - self.t
-            if dt < 0:
-                raise DataError(f"OnlineObserver.update: time went backwards, from {self.t:g} to {t:g}")
-            if dt > 0:
-                n = 1 if not self.max_step else max(1, int(np.ceil(dt / self.max_step - 1e-9)))
-                self.z = obs.step(self.z, self.t, dt, self._u, self._y, substeps=n)
+            dt = t - self.t
+            if not dt > 0:
+                raise DataError(f"OnlineObserver.update: time must increase from one sample to the next; got t = {t:g} after "
+                                f"t = {self.t:g}" + (" (the same time again: a second update would count the measurement twice)"
+                                                     if dt == 0 else "") + "; give each sample once, in time order")
+            n = 1 if not self.max_step else max(1, int(np.ceil(dt / self.max_step - 1e-9)))
+            z_pred = obs.step(self.z, self.t, dt, self._u, self._y, substeps=n)
+        else:
+            z_pred = self.z
         mask = np.isfinite(y)
         if not mask.all():
-            yhat = self._predicted_output(float(t), u)
+            yhat = self._predicted_output(t, z_pred, u)
             y = np.where(mask, y, yhat)
-        self.z = obs.update(t, self.z, u, y, mask.astype(float))
-        self.t, self._u, self._y = float(t), u, y
+        z = obs.update(t, z_pred, u, y, mask.astype(float))
+        if not np.all(np.isfinite(z)):
+            bad = int(np.flatnonzero(~np.isfinite(z))[0])
+            label = f"observer {getattr(obs, 'name', obs.design.method)!r}"
+            raise FiniteEscapeError(label, t, self.z, obs.design.z_names, np.inf,
+                                    message=f"OnlineObserver.update: the observer's state {obs.design.z_names[bad]} became "
+                                            f"{z[bad]} "
+                                            f"at t = {t:g} (y = {y}, u = {u}); the state before this sample is kept. Check the "
+                                            "sample (units, outliers, a long gap) or give a smaller max_step")
+        self.z = z
+        self.t, self._u, self._y = t, u, y
         return obs.estimate(self.t, self.z, u, y)
 
-    def _predicted_output(self, t: float, u: np.ndarray) -> np.ndarray:
-        xhat = self.observer.estimate(t, self.z, u, self._y)
+    def _predicted_output(self, t: float, z: np.ndarray, u: np.ndarray) -> np.ndarray:
+        xhat = self.observer.estimate(t, z, u, self._y)
         _, h = compile_system(self.observer.system).bind()
         return np.asarray(h(t, xhat, u), dtype=float).reshape(-1)

@@ -445,6 +445,11 @@ def export_c(observer: AbstractObserver | ObserverDesign, directory: str | os.Pa
         raise TypeError(f"export_c: needs an Observer built from an ObserverDesign (CasADi equations), "
                         f"got {type(obs).__name__}; pass the design returned by a design_* function")
     design = obs.design
+    if design.update is not None and isinstance(design.update, ca.Callback):
+        raise PreconditionError(
+            f"export_c: the {design.method!r} observer cannot be exported as dependency-free C: its update runs a numerical "
+            "solver from Python at each sample (the NLP solved by MHE). Export an observer whose equations are closed-form "
+            "(EKF, UKF, Luenberger, output injection, ...)")
     name = _check_name(_default_name(design) if name is None else name)
     if max_step is not None:
         max_step = check_positive(max_step, "max_step", "export_c")

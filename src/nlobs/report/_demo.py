@@ -15,6 +15,7 @@ from typing import TextIO
 from .. import __version__
 from ..analysis import analyze
 from ..examples import EXAMPLES, ExampleResult
+from ..simulate import CONVERGENCE_RULE
 from ._html import fmt, img, page, table
 
 __all__ = ["run_demo", "DemoOutcome"]
@@ -75,7 +76,8 @@ def _print_summary(results: Sequence[ExampleResult], failed: Sequence[tuple[str,
         for row in r.table:
             w(f"{r.key:<14} {str(row['run'])[:14]:<14} {str(row['observer'])[:28]:<28} {fmt(row['convergence_time']):>10} "
               f"{fmt(row['rms_error']):>10} {fmt(row['final_error']):>10}\n")
-    w("\n")
+    w(f"conv. time: the time after which the error stays within its band, max(2 % of the initial error, 2 × the "
+      f"steady-state error), at most 20 % of the initial error (— : not within the run); see the report\n\n")
     for r in results:
         n_ok = sum(c.holds for c in r.claims)
         w(f"{r.key:<14} claims {n_ok}/{len(r.claims)} hold" + ("" if r.ok else "  <-- see the report") + "\n")
@@ -85,6 +87,13 @@ def _print_summary(results: Sequence[ExampleResult], failed: Sequence[tuple[str,
     for key, err in failed:
         w(f"{key:<14} CRASHED: {err.splitlines()[0]}\n")
     w(f"\nreport: {report.resolve()}  ({seconds:.1f} s)\n")
+
+
+def _convergence_note(r: ExampleResult) -> str:
+    """What the convergence-time column of an example means (its own rule, or the rule of nlobs.simulate)."""
+    if r.convergence_rule:
+        return r.convergence_rule
+    return f"{CONVERGENCE_RULE[0].upper() + CONVERGENCE_RULE[1:]} (— : not within the run). RMS over the last 20 % of the run."
 
 
 def _section(r: ExampleResult, seconds: float) -> str:
@@ -119,8 +128,7 @@ def _section(r: ExampleResult, seconds: float) -> str:
             parts.append("<details><summary>Observability reports</summary>" + "".join(details) + "</details>")
     if r.table:
         parts.append("<h3>Convergence and accuracy</h3>" + table(r.table, COLUMNS)
-                     + "<p class='note'>Convergence time: first time after which ‖x̂ − x‖ stays below 2 % of its initial "
-                       "value (— : not within the run). RMS over the last 20 % of the run.</p>")
+                     + f"<p class='note'>{html.escape(_convergence_note(r))}</p>")
     if r.runs:
         parts.append("<div class='runs'>" + "".join(
             f"<figure><figcaption>{html.escape(label)}</figcaption>{img(run.plot(), f'{r.key} {label}')}</figure>"

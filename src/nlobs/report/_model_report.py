@@ -58,14 +58,14 @@ def _errors_figure(adv: Advice, kinds: Sequence[str]) -> Figure:
     fig = Figure(figsize=(8, 3.6), layout="constrained")
     ax = fig.subplots()
     for j, k in enumerate(kinds):
-        e = run.error_norm(k) if truth else np.linalg.norm(residuals(run, k, adv.system), axis=1)
+        e = run.error_norm(k) if truth else np.linalg.norm(residuals(run, k, adv.system)[0], axis=1)
         ax.semilogy(run.t, np.maximum(e, 1e-16), lw=1.1, color=f"C{j % 10}", ls="-" if j < 10 else "--", label=k)
     ax.set_xlabel("t")
-    ax.set_ylabel("‖x̂ − x‖" if truth else "‖y − h(x̂)‖")
+    ax.set_ylabel("‖x̂ − x‖" if truth else "‖innovation‖")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize="small", ncol=3)
     ax.set_title("estimation error of every candidate that ran (log scale)" if truth else
-                 "output residual of every candidate (recorded data: no true state)")
+                 "innovations y − h(x̂⁻) of every candidate (recorded data: no true state)")
     return fig
 
 

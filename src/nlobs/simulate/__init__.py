@@ -1,6 +1,9 @@
 """Simulate: run plants and observers on the same measurements; recorded data; results and metrics."""
 
+from ._metrics import CONVERGENCE_RULE as CONVERGENCE_RULE
 from ._metrics import Metrics as Metrics
+from ._metrics import convergence_band as convergence_band
+from ._metrics import steady_state_error as steady_state_error
 from ._metrics import convergence_time as convergence_time
 from ._metrics import error_metrics as error_metrics
 from ._options import Adaptive as Adaptive
@@ -9,8 +12,12 @@ from ._options import ProcessNoise as ProcessNoise
 from ._options import Sampling as Sampling
 from ._results import ObserverTrace as ObserverTrace
 from ._results import Run as Run
+from ._whiteness import Whiteness as Whiteness
+from ._whiteness import ljung_box as ljung_box
 from ._run import simulate as simulate
 from ._recorded import Recording as Recording
 from ._recorded import estimate as estimate
 from ._montecarlo import MonteCarloResult as MonteCarloResult
 from ._montecarlo import montecarlo as montecarlo
+from ._fit import FitResult as FitResult
+from ._fit import fit_parameters as fit_parameters

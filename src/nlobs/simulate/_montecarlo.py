@@ -16,10 +16,11 @@ from typing import Any
 import numpy as np
 
 from .._progress import as_progress
+from ..design import check_positive
 from ..engine import Backend, evaluate_many, run_batch, saved_steps
 from ..errors import FiniteEscapeError, ShapeError
 from ..model import System
-from ._metrics import convergence_time
+from ._metrics import convergence_band, convergence_time
 from ._options import Noise, ProcessNoise, Sampling
 from ._results import Run
 from ._run import Prepared, prepare, simulate
@@ -245,7 +246,9 @@ def montecarlo(
     save_every : int, optional
         Keep every k-th step (default: about 1,000 saved times); the final time is always kept.
     tol : float, optional
-        Convergence tolerance (default: 2 % of each run's initial error ‖x̂(0⁻) − x(0)‖).
+        Absolute convergence tolerance (default: each run's band as in :meth:`Run.metrics`, the larger
+        of 2 % of its initial error ‖x̂(0⁻) − x(0)‖ and twice its steady-state error, at most 20 % of
+        the initial error; see :data:`nlobs.simulate.CONVERGENCE_RULE`).
     engine : {"auto", "vm", "c"}
     scheduler : str or dask.distributed.Client, optional
         Run the chunks on a Dask cluster (its address, or a client); needs ``nlobs[dask]``.
@@ -259,6 +262,8 @@ def montecarlo(
     -------
     MonteCarloResult
     """
+    if tol is not None:
+        tol = check_positive(tol, "tol", "montecarlo")
     prep = prepare(plant, observers, t_final=t_final, dt=dt, inputs=inputs, params=None, noise=noise,
                    process_noise=process_noise, sampling=sampling, caller="montecarlo")
     plant, n = prep.plant, prep.plant.n_states
@@ -349,9 +354,12 @@ def _result(spec: _Spec, S: np.ndarray, O: np.ndarray, status: np.ndarray, tol: 
         e = np.linalg.norm(xhat - x, axis=2)
         prior = evaluate_many(o.design.output, np.zeros((spec.x0.shape[0], 1)), evaluate_many(o.design.initial, spec.xhat0[name]),
                               np.zeros(prep.plant.n_inputs), np.zeros(prep.plant.n_outputs))
-        tols = np.full(e.shape[0], tol) if tol is not None else 0.02 * np.linalg.norm(prior - spec.x0, axis=1)
-        conv = np.array([np.nan if not np.all(np.isfinite(row)) else (convergence_time(t, row, max(tl, 1e-300)) or np.nan)
-                         for row, tl in zip(e, tols)], dtype=float)
+        e0 = np.linalg.norm(prior - spec.x0, axis=1)
+        conv = np.full(e.shape[0], np.nan)
+        for j, (row, e0j) in enumerate(zip(e, e0)):
+            if np.all(np.isfinite(row)):  # the band of each run as in Run.metrics (CONVERGENCE_RULE)
+                tc = convergence_time(t, row, convergence_band(t, row, e0=e0j, tol=tol).tol)
+                conv[j] = np.nan if tc is None else tc
         with np.errstate(invalid="ignore"):
             stats[name] = ObserverStats(name, xhat, e, conv, np.sqrt(np.nanmean(e[:, tail] ** 2, axis=1)), e[:, -1],
                                         np.nanmax(e, axis=1))

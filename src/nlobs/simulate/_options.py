@@ -29,8 +29,9 @@ class Sampling:
 
     def every(self, dt: float) -> int:
         """Steps of size `dt` per sample."""
-        m = self.period / dt
-        if abs(m - round(m)) > 1e-9 * max(1.0, m) or round(m) < 1:
+        rel = max([1e-9] + [4 * float(np.finfo(v.dtype).eps) for v in (self.period, dt) if isinstance(v, np.floating)])
+        m = float(self.period) / float(dt)
+        if abs(m - round(m)) > rel * max(1.0, m) or round(m) < 1:
             raise ValueError(f"Sampling: the period {self.period:g} must be a whole multiple of dt = {dt:g}")
         return int(round(m))
 

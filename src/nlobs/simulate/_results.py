@@ -8,9 +8,21 @@ from typing import Any
 
 import numpy as np
 
-from ._metrics import Metrics, error_metrics
+from ._metrics import CONVERGENCE_RULE, Metrics, error_metrics
+from ._whiteness import Whiteness, ljung_box
 
-__all__ = ["ObserverTrace", "Run"]
+__all__ = ["ObserverTrace", "Run", "write_csv"]
+
+
+def write_csv(path: Any, header: Sequence[str], data: np.ndarray) -> None:
+    """A CSV of `data` under `header`: floats in their shortest exact form (``repr``), NaN as an empty cell."""
+    import csv
+
+    with open(path, "w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(header)
+        w.writerows([("" if v != v else repr(v)) for v in row] for row in data.tolist())
+
 
 
 @dataclass(frozen=True, eq=False)
@@ -25,6 +37,10 @@ class ObserverTrace:
         Internal state at each time (after the sample-time update, for sampled observers).
     xhat : numpy.ndarray of shape (N, n)
         The estimate.
+    xhat_prior : numpy.ndarray of shape (n,), optional
+        The initial estimate before any measurement.
+    innovation : numpy.ndarray of shape (N, p), optional
+        Output prediction errors y_k − h(x̂_k⁻) on recorded data (see :meth:`Run.whiteness`).
     """
 
     name: str
@@ -33,6 +49,9 @@ class ObserverTrace:
     z: np.ndarray
     xhat: np.ndarray
     xhat_prior: np.ndarray | None = None  #: the initial estimate before any measurement (sets the default tolerance)
+    #: y_k − h(x̂_k⁻): each output sample against the output predicted before the sample was used
+    #: (shape (N, p), NaN where missing); set by :func:`nlobs.estimate`.
+    innovation: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -77,14 +96,18 @@ class Run:
     def metrics(self, name: str | None = None, *, tol: float | None = None, tail: float = 0.2) -> Metrics:
         """Convergence time, RMS and peak errors of one observer (see :class:`Metrics`).
 
-        The default tolerance is 2 % of the initial error before any measurement,
-        ‖x̂(0⁻) − x(0)‖ (a settling criterion that filters updating at t = 0 cannot game).
+        The convergence band is `tol` when given, else the larger of 2 % of the initial error
+        before any measurement, ‖x̂(0⁻) − x(0)‖ (which filters updating at t = 0 cannot game),
+        and twice the steady-state error (the noise floor), at most 20 % of the initial error
+        (:data:`nlobs.simulate.CONVERGENCE_RULE`). It does not depend on the run length, beyond
+        the slow growth of the largest noise peak with it.
         """
         trace = self._trace(name)
-        if tol is None and trace.xhat_prior is not None and self.x is not None:
+        e = self.error_norm(name)
+        e0 = None
+        if trace.xhat_prior is not None and self.x is not None:
             e0 = float(np.linalg.norm(trace.xhat_prior - self.x[0]))
-            tol = 0.02 * e0 if e0 > 0 else None
-        return error_metrics(self.t, self.error_norm(name), tol=tol, tail=tail)
+        return error_metrics(self.t, e, tol=tol, e0=e0, tail=tail)
 
     def noise_gain(self, name: str | None = None, *, tail: float = 0.2) -> float:
         """RMS estimation error over the last `tail` of the run divided by the RMS of the
@@ -98,17 +121,63 @@ class Run:
             raise ValueError("noise_gain: this run has no measurement noise")
         return float(np.sqrt(np.mean(self.error_norm(name)[sel] ** 2)) / noise_rms)
 
-    def summary(self, *, tol: float | None = None) -> str:
-        """A text table of every observer's metrics."""
-        head = f"{'observer':<18} {'final err':>10} {'RMS (last 20%)':>15} {'peak err':>10} {'conv. time':>11}"
-        lines = [f"{self.model}: t in [{self.t[0]:g}, {self.t[-1]:g}], {len(self.t)} samples", head, "-" * len(head)]
-        for name in self.observers:
-            if self.x is None:
-                lines.append(f"{name:<18} (no true state)")
+    def innovations(self, name: str | None = None) -> np.ndarray:
+        """y_k − h(x̂_k⁻) of one observer, shape (N, p), NaN where a sample is missing. Needs a run
+        of :func:`nlobs.estimate` (recorded data)."""
+        tr = self._trace(name)
+        if tr.innovation is None:
+            raise ValueError("innovations are recorded by nlobs.estimate (observers on recorded data); this run has none")
+        return tr.innovation
+
+    def whiteness(self, name: str | None = None, *, lags: int | None = None, alpha: float = 0.05,
+                  burn_in: float = 0.1) -> dict[str, Whiteness]:
+        """Ljung–Box test of each output's innovations (see :func:`nlobs.simulate.ljung_box`): an
+        observer that uses all the information in the data leaves white innovations.
+
+        The first `burn_in` fraction of the samples (default 10 %) is left out: the initial
+        transient from a wrong x̂0 is not noise, and its large values would hide correlation.
+        Returns one :class:`Whiteness` per output name (mean, RMS and the test, over the rest).
+        """
+        if not 0 <= burn_in < 1:
+            raise ValueError(f"whiteness: `burn_in` must be a fraction in [0, 1), got {burn_in!r}")
+        inn = self.innovations(name)
+        start = int(np.ceil(burn_in * inn.shape[0]))
+        return {o: ljung_box(inn[start:, j], lags=lags, alpha=alpha) for j, o in enumerate(self.output_names)}
+
+    def residual_table(self) -> str:
+        """Per observer and output: the innovations' mean and RMS and the Ljung–Box whiteness test."""
+        head = f"{'observer':<18} {'output':<10} {'mean':>10} {'RMS':>10} {'Ljung-Box Q':>12} {'lags':>5} {'p':>7}  white?"
+        lines = ["innovations y_k − h(x̂_k⁻) (each sample against the output predicted before it was used), "
+                 "after the first 10 % of the samples:", head, "-" * len(head)]
+        for name, tr in self.observers.items():
+            if tr.innovation is None:
+                lines.append(f"{name:<18} (no innovations recorded)")
                 continue
+            for o, w in self.whiteness(name).items():
+                white = "—" if w.p_value is None else ("yes" if w.white else "no")
+                q = "—" if w.q is None else f"{w.q:.3g}"
+                p = "—" if w.p_value is None else f"{w.p_value:.3g}"
+                lines.append(f"{name:<18} {o:<10} {w.mean:>10.3g} {w.rms:>10.3g} {q:>12} {w.lags:>5} {p:>7}  {white}")
+        lines.append("white?: Ljung–Box test at the 5 % level; 'no' means the innovations are correlated in time: "
+                     "the model, the tuning (Q, R) or the data leave information unused")
+        return "\n".join(lines)
+
+    def summary(self, *, tol: float | None = None) -> str:
+        """A text table of every observer's metrics (with the convergence band of each); for
+        recorded data without true states, the innovations and their whiteness instead (see
+        :meth:`innovations` and :meth:`whiteness`)."""
+        lines = [f"{self.model}: t in [{self.t[0]:g}, {self.t[-1]:g}], {len(self.t)} samples"]
+        if self.x is None:
+            return "\n".join(lines + [self.residual_table()])
+        head = f"{'observer':<18} {'final err':>10} {'RMS (last 20%)':>15} {'peak err':>10} {'conv. time':>11} {'band':>9}"
+        lines += [head, "-" * len(head)]
+        for name in self.observers:
             m = self.metrics(name, tol=tol)
             tc = "never" if m.convergence_time is None else f"{m.convergence_time:.3g}"
-            lines.append(f"{name:<18} {m.final_error:>10.3g} {m.rms_error:>15.3g} {m.peak_error:>10.3g} {tc:>11}")
+            lines.append(f"{name:<18} {m.final_error:>10.3g} {m.rms_error:>15.3g} {m.peak_error:>10.3g} {tc:>11} {m.tol:>9.2g}")
+        lines.append("band: " + ("the tolerance given" if tol is not None else
+                                 "max(2 % of the initial error, 2 × steady-state error), at most 20 % of the initial error")
+                     + "; conv. time: from then on the error stays within it")
         return "\n".join(lines)
 
     # -- export -------------------------------------------------------------------------
@@ -145,16 +214,53 @@ class Run:
         return pd.DataFrame(cols, index=pd.Index(self.t, name="t"))
 
     def summary_dict(self, *, tol: float | None = None) -> dict[str, Any]:
-        """``{"model": str, "observers": {NAME: {"final_error", "rms_error", "convergence_time", ...}}}``."""
+        """``{"model", "t_final", "samples", "convergence_rule", "observers": {NAME: {...}}}``.
+
+        Per observer: ``method``, ``estimate`` (the final estimate by state name),
+        ``final_estimate`` (the same as a list); with true states the :class:`Metrics`
+        (``final_error``, ``rms_error``, ``convergence_time`` with its band ``tol``, ...); on
+        recorded data the ``innovations`` per output (mean, RMS, Ljung–Box test).
+        """
         obs: dict[str, Any] = {}
         for name, tr in self.observers.items():
-            entry: dict[str, Any] = {"method": tr.method, "final_estimate": tr.xhat[-1].tolist()}
+            entry: dict[str, Any] = {"method": tr.method,
+                                     "estimate": {s: float(v) for s, v in zip(self.state_names, tr.xhat[-1])},
+                                     "final_estimate": tr.xhat[-1].tolist()}
             if self.x is not None:
                 entry.update(self.metrics(name, tol=tol).to_dict())
                 if self.y_true is not None and not np.array_equal(self.y, self.y_true):
                     entry["noise_gain"] = self.noise_gain(name)
+            if tr.innovation is not None:
+                entry["innovations"] = {o: w.to_dict() for o, w in self.whiteness(name).items()}
             obs[name] = entry
-        return {"model": self.model, "t_final": float(self.t[-1]), "samples": int(self.t.size), "observers": obs}
+        out = {"model": self.model, "t_final": float(self.t[-1]), "samples": int(self.t.size), "observers": obs}
+        if self.x is not None:
+            given = "convergence time: the first time after which ‖x̂ − x‖ stays within `tol`"
+            out["convergence_rule"] = given if tol is not None else CONVERGENCE_RULE
+        return out
+
+    def to_csv(self, path: Any, *, every: int = 1) -> None:
+        """Write the run as a CSV that :meth:`nlobs.Recording.from_csv` (and ``nlobs estimate``) reads back.
+
+        Columns: ``t``, the inputs, the measured outputs, the true states (when known), then
+        ``NAME.STATE`` for each observer's estimate. Numbers are written in their shortest form
+        that reads back to the same double (Python's ``repr``); missing values as empty cells.
+        `every` keeps rows 0, k, 2k, ... (e.g. only the sample instants of a sampled run).
+        """
+        every = int(every)
+        if every < 1:
+            raise ValueError(f"to_csv: `every` must be a positive whole number of rows, got {every!r}")
+        keep = np.arange(0, self.t.size, every)
+        header = ["t", *self.input_names, *self.output_names]
+        blocks = [self.t[:, None], self.u, self.y]
+        if self.x is not None:
+            header += list(self.state_names)
+            blocks.append(self.x)
+        for name, tr in self.observers.items():
+            header += [f"{name}.{s}" for s in self.state_names]
+            blocks.append(tr.xhat)
+        data = np.hstack([np.asarray(b, dtype=float).reshape(self.t.size, -1) for b in blocks])[keep]
+        write_csv(path, header, data)
 
     def plot(self, path: str | None = None, *, observers: Sequence[str] | None = None) -> Any:
         """States vs estimates, and the error norms on a log scale; saved to `path` if given.

@@ -12,6 +12,7 @@ compiled through CasADi (see :mod:`nlobs.engine`). Two measurement modes:
 
 from __future__ import annotations
 
+import numbers
 from collections import OrderedDict
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -70,8 +71,12 @@ def stage_inputs(plant: System, inputs: Any, params: Mapping[str, float], t: np.
     signals = input_signals(plant, inputs, params)
     N, nu = t.size, plant.n_inputs
     out = np.empty((N, 3 * nu))
+    # the end of step k is the next grid time: t_k + dt can exceed t_{k+1} by an ulp (0.059 + 0.001 > 0.06), and a
+    # held signal switching at t_{k+1} would then leak its new value into the last stage of step k
+    t_end = t + dt
+    t_end[:-1] = np.where(np.abs(t_end[:-1] - t[1:]) <= 4 * np.spacing(np.abs(t[1:])), t[1:], t_end[:-1])
     for j, sig in enumerate(signals):
-        end = np.nextafter(t + dt, -np.inf) if sig.held else t + dt
+        end = np.nextafter(t_end, -np.inf) if sig.held else t_end
         for k, times in enumerate((t, t + dt / 2, end)):
             v = sig(times)
             bad = np.flatnonzero(~np.isfinite(v))
@@ -173,12 +178,38 @@ def simulate(
         r = done
         col = int(np.flatnonzero(~(np.abs(S[r + 1]) <= escape_bound))[0])
         where, sl, names = layout.owner(col)
-        err = FiniteEscapeError(where, float(t[r]), S[r, sl], names, escape_bound)
         O[r] = runner.outputs(S[r:r + 1], A[r:r + 1], c)[0]
+        err = _plant_output_failure(plant, S, A, c, layout, runner, r) if where != "plant" else None
+        if err is None:
+            err = FiniteEscapeError(where, float(t[r]), S[r, sl], names, escape_bound)
         err.partial = _assemble(plant, obs, layout, S[:r + 1], O[:r + 1], t[:r + 1], A[:r + 1], info)
         raise err
     O[N] = runner.outputs(S[N:], A[N:], c)[0]  # measurements and estimates at t_final
     return _assemble(plant, obs, layout, S, O, t, A, info)
+
+
+def _plant_output_failure(plant: System, S: np.ndarray, A: np.ndarray, c: np.ndarray, layout: _Layout, runner: _Runner,
+                          r: int) -> FiniteEscapeError | None:
+    """When an observer's state became non-finite in step r, but what it was fed — the plant's output at
+    the start or the end of the step — was already non-finite, the error belongs to the plant's output map."""
+    n = layout.n
+    for row in (r, r + 1):
+        if row >= A.shape[0] or not np.all(np.isfinite(S[row, :n])):
+            continue
+        probe = S[row:row + 1].copy()
+        probe[:, n:] = np.where(np.isfinite(probe[:, n:]), probe[:, n:], 0.0)  # the outputs do not depend on the observers
+        y = runner.outputs(probe, A[row:row + 1], c)[0, layout.y_true]
+        bad = np.flatnonzero(~np.isfinite(y))
+        if bad.size:
+            j = int(bad[0])
+            x = ", ".join(f"{s}={v:.6g}" for s, v in zip(plant.states, S[row, :n]))
+            expr = str(plant.h[j]) if len(str(plant.h[j])) <= 80 else str(plant.h[j])[:68] + " ..."
+            return FiniteEscapeError(
+                "the plant's output", float(A[row, 0]), S[row, :n], plant.states, np.inf,
+                message=(f"the plant's output {plant.outputs[j]} = {expr} is {y[j]} at t = {A[row, 0]:.6g} (plant state "
+                         f"{x}): the output map is not defined there (e.g. sqrt or log of a negative number, division by zero), "
+                         "and the observers cannot use it. Check the output equations, the initial state or the inputs"))
+    return None
 
 
 @dataclass(frozen=True, eq=False)
@@ -236,11 +267,14 @@ def prepare(plant: System, observers: Any, *, t_final: float, dt: float, inputs:
     """Validate the arguments shared by simulate and montecarlo and build the compiled joint step."""
     if not isinstance(plant, System):
         raise TypeError(f"{caller}: `plant` must be an nlobs.System, got {type(plant).__name__}")
-    for label, v in (("t_final", t_final), ("dt", dt)):
-        if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
+    for label, v in (("t_final", t_final), ("dt", dt)):  # Python and NumPy numbers (np.float32 too), not bool
+        if not (isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_)) and np.isfinite(v) and v > 0):
             raise ShapeError(f"{caller}: `{label}` must be a positive number, got {v!r}")
+    # a single-precision number (np.float32(0.1)) is only that precise: compare the grid at its precision
+    rel = max([1e-9] + [4 * float(np.finfo(v.dtype).eps) for v in (t_final, dt) if isinstance(v, np.floating)])
+    t_final, dt = float(t_final), float(dt)
     N = int(round(t_final / dt))
-    if N < 1 or abs(N * dt - t_final) > 1e-9 * max(1.0, t_final):
+    if N < 1 or abs(N * dt - t_final) > rel * max(1.0, t_final):
         raise ShapeError(f"{caller}: t_final = {t_final:g} must be a whole multiple of dt = {dt:g}")
     plant = plant.with_params(**params) if params else plant
     obs = named_observers(observers)

@@ -1,0 +1,88 @@
+"""``nlobs fit``: unknown parameters of a model file from a recording, by simulation-error least squares."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from typing import Any
+
+import numpy as np
+
+from ._common import HELP_HOLD, clean, parse_assignments, parse_columns, parse_vector, positive_float
+
+
+def add_parser(sub: Any) -> None:
+    f = sub.add_parser("fit", help="fit unknown parameters to a recording (simulation-error least squares)",
+                       description="Fit unknown parameters (and initial states) of a model file to a recording: the model "
+                                   "is simulated over the whole recording, driven by its input, and the unknowns minimise "
+                                   "the output error (a batch alternative to estimating them with an observer). Prints the "
+                                   "estimates with standard errors from the Jacobian at the optimum.")
+    f.add_argument("model", help="model file (TOML)")
+    f.add_argument("data", help="CSV whose header names t, the outputs and the inputs")
+    f.add_argument("--param", action="append", metavar="NAME", required=True,
+                   help="an unknown parameter (repeatable, or comma-separated); its value in the file is the initial guess")
+    f.add_argument("--fit-x0", action="append", metavar="STATE", help="a state whose initial value is unknown too (repeatable)")
+    f.add_argument("--x0", metavar="VALUES",
+                   help="the state at the recording's first time, '1,0' or 'x1=1,x2=0' (default: the file's [simulation] x0)")
+    f.add_argument("--initial", action="append", metavar="NAME=VALUE", help="initial guess of an unknown (repeatable)")
+    f.add_argument("--bound", action="append", metavar="NAME=LO:HI",
+                   help="bounds of an unknown, e.g. 'k=0:' (k ≥ 0) or 'c=0.1:10' (repeatable)")
+    f.add_argument("--output-std", action="append", metavar="OUTPUT=STD",
+                   help="measurement noise std of an output, to weight it (default: each output scaled by its spread)")
+    f.add_argument("--column", action="append", metavar="CSV=MODEL", help="map a CSV column to a model name (repeatable)")
+    f.add_argument("--max-step", type=positive_float, metavar="SECONDS",
+                   help="largest integration step (default: one RK4 step per sample interval; the report says how much "
+                        "halving it changes the outputs)")
+    f.add_argument("--hold", choices=("zoh", "linear"), default="zoh", help=HELP_HOLD)
+    f.add_argument("--output", metavar="CSV", help="write t, the recorded and the fitted outputs to this CSV")
+    f.add_argument("--json", action="store_true", help="print one JSON object")
+    f.set_defaults(run=run)
+
+
+def _names(items: list[str] | None) -> list[str]:
+    return [p.strip() for item in items or () for p in item.split(",") if p.strip()]
+
+
+def _bounds(items: list[str] | None) -> dict[str, tuple[float | None, float | None]]:
+    out: dict[str, tuple[float | None, float | None]] = {}
+    for item in items or ():
+        if "=" not in item or ":" not in item.split("=", 1)[1]:
+            raise ValueError(f"--bound: expected NAME=LO:HI (either side may be empty), got {item!r}")
+        name, rng = (s.strip() for s in item.split("=", 1))
+        lo, hi = (s.strip() for s in rng.split(":", 1))
+        try:
+            out[name] = (float(lo) if lo else None, float(hi) if hi else None)
+        except ValueError:
+            raise ValueError(f"--bound {name}: {rng!r} is not LO:HI with numbers") from None
+    return out
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..model import load_model
+    from ..simulate import Recording, fit_parameters
+    from ..simulate._results import write_csv
+
+    mf = load_model(args.model)
+    system = mf.system
+    rec = Recording.from_csv(args.data, system, columns=parse_columns(args.column))
+    params, fit_x0 = _names(args.param), _names(args.fit_x0)
+    unknown_names = params + [f"{s}(t0)" for s in fit_x0]
+    x0 = None
+    if args.x0 is not None:
+        x0 = parse_vector(args.x0, system.states, "--x0", mf.simulation.x0)
+    elif rec.x is None and mf.simulation.x0 is not None:
+        x0 = mf.simulation.x0
+    output_std = parse_assignments(args.output_std or [], system.outputs, "--output-std")
+    initial = parse_assignments(args.initial or [], unknown_names, "--initial")
+    res = fit_parameters(system, rec, params, x0=x0, fit_x0=fit_x0, initial=initial, bounds=_bounds(args.bound),
+                         output_std=output_std or None, max_step=args.max_step, hold=args.hold)
+    if args.output:
+        header = ["t", *(f"{o}" for o in res.output_names), *(f"{o}.fit" for o in res.output_names)]
+        write_csv(args.output, header, np.column_stack([res.t, res.y, res.y_fit]))
+    if args.json:
+        print(json.dumps(clean({"model": system.name, "data": args.data, **res.to_dict()})))
+    else:
+        print(res.summary())
+        if args.output:
+            print(f"fitted outputs: {args.output}")
+    return 0 if res.success else 1
