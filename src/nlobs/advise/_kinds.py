@@ -176,10 +176,11 @@ def _domain_bounds(ctx: Context) -> dict[str, list[float | None]]:
         if not any(sym in a.args[0].free_symbols for a in args):
             continue
         col = ctx.nominal.x[:, i]
+        edge = float(f"{1e-3 * float(np.min(np.abs(col))):.3g}")   # just inside the domain: √ has an infinite slope at 0
         if np.all(col > 0):
-            out[name] = [0.0, None]
+            out[name] = [edge, None]
         elif np.all(col < 0):
-            out[name] = [None, 0.0]
+            out[name] = [None, -edge]
     return out
 
 
@@ -192,8 +193,8 @@ def _filters(ctx: Context, kind: str) -> Candidate:
     if bounds:
         opts["bounds"] = bounds
     local = "locally observable (generic rank condition)" if ctx.report.observable else "observability not established"
-    extra = (f"bounds {', '.join(f'{k} ≥ 0' if v[0] == 0 else f'{k} ≤ 0' for k, v in bounds.items())} where the model's "
-             "square roots / logarithms need them") if bounds else ""
+    extra = (f"bounds {', '.join(f'{k} ≥ {v[0]:g}' if v[0] is not None else f'{k} ≤ {v[1]:g}' for k, v in bounds.items())} "
+             "(just inside the domain of the model's square roots / logarithms)") if bounds else ""
     return t.design(opts, f"{local}; {ctx.noise_note}; P(0) = diag(range²). A local method: it converges from an "
                     "x̂(0) close enough, with no global certificate", extra=extra)
 
