@@ -33,6 +33,7 @@ from .model import StateAffine as StateAffine
 from .model import System as System
 from .model import load_model as load_model
 from .model import loads_model as loads_model
+from .observer import CompiledObserver as CompiledObserver
 from .observer import Observer as Observer
 from .observer import OnlineObserver as OnlineObserver
 from .simulate import Adaptive as Adaptive
@@ -42,6 +43,7 @@ from .simulate import ProcessNoise as ProcessNoise
 from .simulate import Recording as Recording
 from .simulate import Run as Run
 from .simulate import Sampling as Sampling
+from .simulate import Simulation as Simulation
 from .simulate import estimate as estimate
 from .simulate import fit_parameters as fit_parameters
 from .simulate import montecarlo as montecarlo

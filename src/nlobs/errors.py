@@ -15,10 +15,13 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ._text import shorten
+
 __all__ = [
     "NlobsError",
     "ModelError",
     "ModelFileError",
+    "SymbolicBudgetError",
     "FormError",
     "ShapeError",
     "PreconditionError",
@@ -52,12 +55,20 @@ class ModelFileError(ModelError):
     """
 
     def __init__(self, message: str, *, path: str = "<string>", key: str = "", text: str = ""):
-        where = path + (f", key `{key}`" if key else "")
-        shown = f": {text!r}" if text else ""
+        # user text is quoted short (a repr, so control characters show escaped): the reason must not
+        # drown behind a 50 MB line; the attributes keep the full values
+        where = path if len(path) <= 200 and path.isprintable() else shorten(path, 200)
+        if key:
+            where += f", key `{key if len(key) <= 80 and key.isprintable() else shorten(key, 80)}`"
+        shown = f": {shorten(text)}" if text else ""
         super().__init__(f"{where}{shown}: {message}")
         self.path = path
         self.key = key
         self.text = text
+
+
+class SymbolicBudgetError(ModelError):
+    """Symbolic work on a model's expressions exceeded its size or time budget (see ``nlobs.model.symbolic_budget``)."""
 
 
 class FormError(NlobsError, ValueError):
@@ -95,13 +106,19 @@ class FiniteEscapeError(NlobsError, RuntimeError):
     `message` replaces the default text when the caller knows more (the sample, the data).
     """
 
-    def __init__(self, where: str, t: float, x: np.ndarray, names: Sequence[str], bound: float, *, message: str | None = None):
+    def __init__(self, where: str, t: float, x: np.ndarray, names: Sequence[str], bound: float, *,
+                 message: str | None = None, hint: str = ""):
         shown = ", ".join(f"{n}={v:.6g}" for n, v in zip(names, np.asarray(x, dtype=float)))
-        super().__init__(message or (
-            f"{where} blew up after t = {t:.6g}: the state left |x| <= {bound:g} or became "
-            f"non-finite in the next step; last finite state: {shown}. "
-            "Check the model and the initial state, or reduce `dt`."
-        ))
+        if message:
+            text = message
+        elif hint:  # where exactly, when the "next step" is not one step (e.g. between two recorded samples)
+            text = (f"{where} blew up after t = {t:.6g}: its state became non-finite {hint}; last finite state: {shown}. "
+                    "Check the model, the initial estimate and the tuning, or pass a smaller `max_step`.")
+        else:
+            text = (f"{where} blew up after t = {t:.6g}: the state left |x| <= {bound:g} or became "
+                    f"non-finite in the next step; last finite state: {shown}. "
+                    "Check the model and the initial state, or reduce `dt`.")
+        super().__init__(text)
         self.where = where
         self.t = float(t)
         self.x = np.asarray(x, dtype=float)

@@ -58,3 +58,64 @@ def test_bad_gain_is_refused_with_the_point():
         design_banks(KOU, P=[[1.0], [1.0]], region={"x2": (-2.0, 2.0)})
     with pytest.raises(PreconditionError, match="region"):
         design_banks(KOU, P=[[-2.0], [1.0]])
+
+
+def test_constant_jacobian_is_decided_exactly():
+    # LTI model: Df1 + P·DB = A + PC is constant, so ε = -λ(A + PC) exactly (no region needed, evidence "exact")
+    lti = nlobs.System(states=["x1", "x2"], f=["-x1 + 3*x2", "-2*x2"], outputs=["y"], h=["x1"])
+    d = design_banks(lti, P=[[-1.0], [0.0]])
+    M = np.array([[-2.0, 3.0], [0.0, -2.0]])                      # A + PC
+    assert d.certificate.values["epsilon"] == pytest.approx(-np.linalg.eigvalsh((M + M.T) / 2).max(), abs=1e-12)
+    assert d.certificate.values["epsilon"] == pytest.approx(0.5, abs=1e-12)   # -(-2 + 3/2)
+    first = d.certificate.checks[0]
+    assert first.holds and first.evidence == "exact (constant matrix)"
+
+
+def test_input_in_the_jacobian_ranges_over_the_region():
+    # Df1 + P·DB = [[-2, u], [0, -3]] (y = x1, P = (-1, 0)): λ = (-5 + sqrt(1 + u²))/2, largest at |u| = 1:
+    # ε = (5 - √2)/2 over u in [-1, 1] (closed form); the evidence says the sup was sampled
+    s = nlobs.System(states=["x1", "x2"], f=["-x1 + u*x2", "-3*x2"], inputs=["u"], outputs=["y"], h=["x1"])
+    d = design_banks(s, P=[[-1.0], [0.0]], region={"u": (-1.0, 1.0)})
+    assert d.certificate.values["epsilon"] == pytest.approx((5 - np.sqrt(2)) / 2, abs=1e-9)
+    assert "sampled" in d.certificate.checks[0].evidence
+    d2 = design_banks(s, P=[[-1.0], [0.0]], region={"u": (-3.0, 3.0)})
+    assert d2.certificate.values["epsilon"] == pytest.approx((5 - np.sqrt(10)) / 2, abs=1e-9)
+
+
+def test_perturbation_is_taken_out_of_the_jacobian_and_measured_in_the_2_norm():
+    # Theorem 2.6 splits f = f1 + f2: the certificate's Jacobian is Df1 + P·DB (f2 removed), and K = sup‖Df2‖₂
+    # (the spectral norm: for Df2 = [[0, 0.3], [0.4, 0]] it is 0.4, the Frobenius norm would be 0.5)
+    sys = nlobs.System(states=["x1", "x2"], f=["-2*x1 + 0.3*x2", "0.4*x1 - 2*x2"], outputs=["y"], h=["x1"])
+    d = design_banks(sys, P=[[0.0], [0.0]], perturbation=["0.3*x2", "0.4*x1"])
+    assert d.certificate.values["jacobian"] == "[[-2, 0], [0, -2]]"
+    assert d.certificate.values["K"] == pytest.approx(0.4, abs=1e-12) and d.certificate.values["epsilon"] == pytest.approx(2.0)
+    nl = nlobs.System(states=["x1", "x2"], f=["-2*x1 + 0.3*sin(x2)", "0.4*sin(x1) - 2*x2"], outputs=["y"], h=["x1"])
+    d2 = design_banks(nl, P=[[0.0], [0.0]], perturbation=["0.3*sin(x2)", "0.4*sin(x1)"], region={"x1": (-1, 1), "x2": (-1, 1)})
+    assert d2.certificate.values["K"] == pytest.approx(0.4, abs=1e-9)          # at x = 0
+    assert "sampled" in d2.certificate.checks[1].evidence
+
+
+def test_theorem_2_6_boundaries_are_strict():
+    # ε must be > 0 and K < ε strictly (003 Theorem 2.6); the refusal names the worst point
+    zero = nlobs.System(states=["x1", "x2"], f=["0*x1", "-x2"], outputs=["y"], h=["x2"])
+    with pytest.raises(PreconditionError, match=r"λ\(Df1 \+ P·DB\) = 0 >= 0"):
+        design_banks(zero, P=[[0.0], [0.0]])
+    with pytest.raises(PreconditionError, match=r"K = 1 is not below ε = 1"):
+        design_banks(KOU, P=[[-2.0], [1.0]], region={"x2": (-2.0, 40.0)}, perturbation=["0", "0"], perturbation_bound=1.0)
+    with pytest.raises(PreconditionError, match=r"at \{'x2': "):
+        design_banks(KOU, P=[[1.0], [1.0]], region={"x2": (-2.0, 2.0)})
+    for bad in (-0.1, float("inf"), float("nan")):
+        with pytest.raises(PreconditionError, match="perturbation_bound"):
+            design_banks(KOU, P=[[-2.0], [1.0]], region={"x2": (-2.0, 40.0)}, perturbation=["0", "0"], perturbation_bound=bad)
+    d = design_banks(KOU, P=[[-2.0], [1.0]], region={"x2": (-2.0, 40.0)}, perturbation=["0", "0"], perturbation_bound=0.5)
+    assert d.certificate.values["guaranteed_rate"] == pytest.approx(0.5, abs=1e-9)
+
+
+def test_certificate_lists_what_is_assumed():
+    d = design_banks(KOU, P=[[-2.0], [1.0]], region={"x2": (-2.0, 40.0)}, perturbation=["0", "0"], perturbation_bound=0.5)
+    cert = d.certificate
+    assert cert.method == "Banks exponential observer" and "Banks (1980)" in cert.reference
+    assumed = [c.condition for c in cert.checks if c.status == "assumed"]
+    assert any("stay in the convex region" in a for a in assumed) and any("K = 0.5 given" in a for a in assumed)
+    lti = nlobs.System(states=["x1", "x2"], f=["-x1 + 3*x2", "-2*x2"], outputs=["y"], h=["x1"])
+    assert not any(c.status == "assumed" for c in design_banks(lti, P=[[-1.0], [0.0]]).certificate.checks)

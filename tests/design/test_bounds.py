@@ -64,9 +64,9 @@ def test_ekf_update_is_projected_onto_the_bounds():
 
 def test_ukf_needs_the_bounds_on_the_tanks(tank_data):
     # P0 = 4 on x1 = 1 puts sigma points at 1 - sqrt(2·4) < 0: sqrt of a negative level. Without bounds the UKF is NaN
-    # from the first prediction on (estimate stops there: it never returns NaN estimates); with the bounds the model is
-    # evaluated inside them and the filter runs.
-    with pytest.raises(nlobs.FiniteEscapeError, match=r"observer 'ukf' .* became nan in the step from the sample at t = 0 "):
+    # from the first prediction on (estimate stops there, naming the samples, rather than returning NaN estimates);
+    # with the bounds the model is evaluated inside them and the filter runs.
+    with pytest.raises(nlobs.FiniteEscapeError, match=r"observer 'ukf' .* became non-finite in the step from the sample at t = 0 "):
         nlobs.estimate(design_ukf(TANKS, **TUNING, xhat0=_x0(tank_data)), tank_data, max_step=0.5)
     boxed = nlobs.estimate(design_ukf(TANKS, **TUNING, xhat0=_x0(tank_data), bounds=LEVELS), tank_data, max_step=0.5)
     xh = boxed.observers["ukf"].xhat

@@ -73,3 +73,72 @@ def test_a_depending_on_the_output_uses_the_measurement():
     flow = np.asarray(d.flow(0.0, np.arange(d.n_z, dtype=float) * 0.1, [], [2.0])).ravel()
     # ξ' = A(y)ξ with ξ = (0, 0.1) and y = 2: (0.1, -4·0.1)
     assert np.allclose(flow[:2], [0.1, -0.4])
+
+
+def test_refusal_names_the_unstable_eigenvalue_and_the_matrix():
+    # assumption (5) of 000: the message names the eigenvalue with the largest real part (3, not -1) and which
+    # matrix has it (A without injection, A - LCᵀ with one), with the matching next step
+    sa = StateAffine([[-1, 0], [0, 3]], [0, 0], [[1], [1]])
+    with pytest.raises(PreconditionError, match=r"A has the eigenvalue 3\+0j .*choose an output injection `L`"):
+        design_2gd(sa)
+    with pytest.raises(PreconditionError, match=r"A - LCᵀ has the eigenvalue 3\+0j .*choose another `L`"):
+        design_2gd(sa, L=[[0.5], [0.0]])      # A - LCᵀ = [[-1.5, -0.5], [0, 3]]: 3 stays
+
+
+def test_2gd_documented_defaults_and_initial_estimate():
+    # design_2gd's defaults are γ_g = γ = 1 (its signature and docstring); x̂(0) is the xhat0 given (ξ(0) = x̂0, θ̂(0) = 0)
+    d = design_2gd(OSC, xhat0=[0.25, -0.75])
+    assert d.certificate.values["gd.gamma_g"] == 1.0 and d.certificate.values["gd.gamma"] == 1.0
+    run = simulate(OSC.to_system(), {"o": d}, t_final=0.01, dt=1e-3, x0=[1.0, -0.5], inputs={"u": "0"})
+    assert np.array_equal(run.observers["o"].xhat[0], [0.25, -0.75])
+
+
+ROT = [[0, 1], [-1, 0]]
+
+
+@pytest.mark.parametrize("A, ok", [
+    (np.block([[np.array(ROT), np.zeros((2, 2))], [np.zeros((2, 2)), np.array(ROT)]]), True),   # ±i twice, semisimple
+    (np.block([[np.array(ROT), np.eye(2)], [np.zeros((2, 2)), np.array(ROT)]]), False),          # ±i with Jordan blocks
+    (np.block([[np.array(ROT), np.zeros((2, 1))], [np.zeros((1, 3))]]), True),                   # ±i and 0, semisimple
+    (np.diag([-1e6, 1e-7]), True),     # 1e-7 is round-off next to 1e6 (tolerance 1e-9·max|A|): on the axis, simple
+    (np.diag([-1.0, 1e-7]), False),    # next to 1, 1e-7 is a real unstable eigenvalue
+])
+def test_uniform_stability_of_000_assumption_5_on_the_imaginary_axis(A, ok):
+    # assumption (5): Φ_A bounded iff every eigenvalue has Re < 0, or Re = 0 and is semisimple (no Jordan block)
+    n = A.shape[0]
+    sa = StateAffine(A.tolist(), [0] * n, np.eye(n)[:, :1].tolist())
+    if ok:
+        d = design_2gd(sa)
+        assert any("assumption 5" in c.condition and c.holds for c in d.certificate.checks)
+    else:
+        with pytest.raises(PreconditionError, match=r"^design_gpebo: the homogeneous part is not uniformly stable"):
+            design_2gd(sa)
+
+
+def test_injection_gain_may_use_parameters_and_is_checked():
+    # L in the model's parameters is the same observer as L in numbers; a wrong shape names `L`
+    sa = StateAffine([[0, 1], [2, 0]], [0, 0], [[1], [0]], params={"l1": 3.0, "l2": 4.0})
+    d_sym = design_2gd(sa, gamma_g=5.0, gamma=50.0, L=[["l1"], ["l2"]])
+    d_num = design_2gd(sa, gamma_g=5.0, gamma=50.0, L=[[3], [4]])
+    z = np.linspace(0.1, 1.4, d_num.n_z)
+    assert np.allclose(np.asarray(d_sym.flow(0.3, z, [], [0.7])), np.asarray(d_num.flow(0.3, z, [], [0.7])), atol=0, rtol=0)
+    with pytest.raises(ValueError, match="`L`"):
+        design_2gd(sa, L=[[1, 2]])
+
+
+def test_gpebo_default_estimator_is_gd_with_unit_gains():
+    d = design_gpebo(OSC)
+    assert d.certificate.values["gd.gamma_g"] == 1.0 and d.certificate.values["gd.gamma"] == 1.0
+
+
+def test_method_certificate_and_reference_name_what_was_built():
+    gd = design_2gd(OSC)
+    assert gd.method == "gpebo_2gd" and gd.certificate.method == "2G+D observer"
+    assert "Wang, Ortega & Bobtsov" in gd.certificate.reference and "(16)-(17)" in gd.certificate.reference
+    g = design_gpebo(OSC, estimator=Gradient(1.0))
+    assert g.method == "gpebo" and g.certificate.method == "GPEBO observer with Gradient estimator"
+    assert "gradient estimator" in g.certificate.reference
+    sa = StateAffine([[0, 1], [2, 0]], [0, 0], [[1], [0]])
+    assert design_2gd(sa, L=[[3], [4]]).certificate.method == "2G+D observer and output injection"
+    with pytest.raises(PreconditionError, match=r"^design_gpebo: .*not state-affine"):
+        design_gpebo(System(states=["x1", "x2"], f=["x2**2", "0"], outputs=["y"], h=["x1"]))

@@ -97,3 +97,32 @@ def test_high_gain_kalman_converges_and_faster_with_larger_lambda():
     broken = nlobs.System(states=["x1", "x2"], f=["x2**2", "x1"], outputs=["y"], h=["x1"])
     with pytest.raises(FormError, match="not linear in x2"):
         design_high_gain_kalman(broken, lam=2.0, delta=1.0)
+
+
+def test_high_gain_kalman_riccati_and_gain_follow_002():
+    # 002 "LTV-like with structured NL": x̂' = A0 x̂ + φ(x̂, u) - diag(λ, λ²) K (C x̂ - y), K = M Cᵀ W⁻¹,
+    # M' = λ[M A0ᵀ + A0 M - M Cᵀ W⁻¹ C M + δ M]. For x1' = 1.5 x2, x2' = -x1 - 0.2 x2 + u (A0 = [[0, 1.5], [0, 0]],
+    # φ linear) the error obeys e' = (A0 + Dφ - diag(λ, λ²) K C) e: M and e are integrated here independently.
+    from scipy.integrate import solve_ivp
+
+    sys = nlobs.System(states=["x1", "x2"], f=["1.5*x2", "-x1 - 0.2*x2 + u"], inputs=["u"], outputs=["y"], h=["x1"])
+    lam, delta, W = 3.0, 4.0, 0.5
+    d = design_high_gain_kalman(sys, lam=lam, delta=delta, W=[[W]], M0=np.diag([1.0, 2.0]))
+    run = nlobs.simulate(sys, d, t_final=3.0, dt=1e-4, x0=[1.0, -1.0], inputs={"u": "sin(t)"}, xhat0=[0.0, 0.0], engine="vm")
+    A0 = np.array([[0.0, 1.5], [0.0, 0.0]])
+    Dphi = np.array([[0.0, 0.0], [-1.0, -0.2]])
+    C = np.array([[1.0, 0.0]])
+    Lam = np.diag([lam, lam**2])
+
+    def rhs(t, z):
+        M, e = z[:4].reshape(2, 2), z[4:]
+        K = M @ C.T / W
+        dM = lam * (M @ A0.T + A0 @ M - K @ C @ M + delta * M)
+        return np.concatenate([dM.ravel(), (A0 + Dphi - Lam @ K @ C) @ e])
+
+    t = run.t[::100]
+    sol = solve_ivp(rhs, (0.0, 3.0), np.concatenate([np.diag([1.0, 2.0]).ravel(), [-1.0, 1.0]]), t_eval=t, rtol=1e-12,
+                    atol=1e-14, method="DOP853")
+    M = covariances(run, "high_gain_kalman", 2)[::100]
+    assert np.max(np.abs(M - sol.y[:4].T.reshape(-1, 2, 2))) < 1e-8 * np.abs(sol.y[:4]).max()
+    assert np.max(np.abs(run.error()[::100] - sol.y[4:].T)) < 1e-8

@@ -178,3 +178,52 @@ def test_estimators_from_model_file_tables():
     assert d.certificate.values["gd.gamma"] == 3.0
     with pytest.raises(ModelError, match="unknown option"):
         design_from_config(s, "gd", {"gamma_gg": 2.0})
+
+
+def test_gd_error_law_000_lemma_2_proof():
+    # The proof of 000 Lemma 2: with Y = Δθ (eq. 19), (16c) gives θ̃_i' = -γΔ²θ̃_i, so
+    # θ̂(t) = θ + (θ̂(0) - θ) exp(-γ ∫Δ²). Ω' = -γ_g ψψᵀΩ, Ω(0) = I (eqs. 16b, 17a) and Δ = det(I - Ω) (17b-c)
+    # are integrated here independently (scipy, ψ = (sin t, cos 2t) in closed form).
+    from scipy.integrate import solve_ivp
+
+    gg, g, T = 3.0, 2.0, 4.0
+    d = design_gd(TWO, gamma_g=gg, gamma=g)
+    run = simulate(TWO.to_system(), {"gd": d}, t_final=T, dt=1e-3, x0=THETA, inputs={"psi1": "sin(t)", "psi2": "cos(2*t)"},
+                   xhat0=[0.5, 0.5])
+
+    def rhs(s, z):
+        Om = z[:4].reshape(2, 2)
+        psi = np.array([np.sin(s), np.cos(2 * s)])
+        return np.concatenate([(-gg * np.outer(psi, psi) @ Om).ravel(), [np.linalg.det(np.eye(2) - Om) ** 2]])
+
+    t = run.t[::100]
+    sol = solve_ivp(rhs, (0.0, T), np.concatenate([np.eye(2).ravel(), [0.0]]), t_eval=t, rtol=1e-12, atol=1e-15, method="DOP853")
+    expected = np.array(THETA) + (np.array([0.5, 0.5]) - np.array(THETA)) * np.exp(-g * sol.y[4])[:, None]
+    got = run.observers["gd"].xhat[::100]
+    assert np.max(np.abs(got - expected)) < 1e-9
+    assert np.max(np.abs(expected - np.array(THETA))) > 0.1      # the test sees the transient, not only the limit
+    # and Δ itself (the mixed regressor the estimator reports) equals det(I - Ω) of the independent Ω
+    rep = excitation_report(d, run.t, run.observers["gd"].z, run.u, run.y)
+    Om_ref = sol.y[:4].T.reshape(-1, 2, 2)
+    assert np.allclose(rep.delta[::100], np.linalg.det(np.eye(2) - Om_ref), atol=1e-10)
+
+
+def test_drem_error_law():
+    # DREM with the Kreisselmeier extension: Ψe' = -aΨe + ψψᵀ, Ye' = -aYe + ψY, Ψe(0) = 0, Ye(0) = 0, so Ye = Ψe θ
+    # exactly, and θ̃_i' = -γΔ²θ̃_i with Δ = det Ψe: θ̂ = θ + (θ̂0 - θ) exp(-γ ∫Δ²), integrated independently here
+    from scipy.integrate import solve_ivp
+
+    a, g, T = 1.5, 20.0, 4.0
+    d = design_drem(TWO, gamma=g, kreisselmeier=a)
+    run = simulate(TWO.to_system(), {"drem": d}, t_final=T, dt=1e-3, x0=THETA, inputs={"psi1": "sin(t)", "psi2": "cos(2*t)"})
+
+    def rhs(s, z):
+        Pe = z[:4].reshape(2, 2)
+        psi = np.array([np.sin(s), np.cos(2 * s)])
+        return np.concatenate([(-a * Pe + np.outer(psi, psi)).ravel(), [np.linalg.det(Pe) ** 2]])
+
+    t = run.t[::100]
+    sol = solve_ivp(rhs, (0.0, T), np.zeros(5), t_eval=t, rtol=1e-12, atol=1e-15, method="DOP853")
+    expected = np.array(THETA) * (1 - np.exp(-g * sol.y[4]))[:, None]        # θ̂(0) = 0
+    assert np.max(np.abs(run.observers["drem"].xhat[::100] - expected)) < 1e-9
+    assert np.max(np.abs(expected - np.array(THETA))) > 0.1

@@ -125,3 +125,37 @@ def test_compiled_models_are_cached_on_disk(tmp_path, monkeypatch):
     assert loop(np.array([1.0]), np.full((3, 1), 0.5), np.array([1.0]), out) == 3
     assert np.allclose(out.ravel(), [0.5, 0.25, 0.125])
     assert not os.listdir(tmp_path) == []
+
+
+def test_auto_chooses_by_measured_cost(monkeypatch):
+    """Compile once the VM time spent on a function (plus this call's) reaches the measured compile time;
+    at once when the build is already cached; never for "vm"; $NLOBS_ENGINE overrides."""
+    from nlobs.engine._codegen import COSTS, choose_backend
+
+    monkeypatch.delenv("NLOBS_ENGINE", raising=False)
+    if find_compiler() is None:
+        pytest.skip("no C compiler on this machine: auto always uses the VM (tested above)")
+    monkeypatch.setattr(COSTS, "_data", {"compile_a": 0.5, "compile_b": 0.0, "vm_per_instr": 1e-9})
+    monkeypatch.setattr(COSTS, "spent", {})
+    kw = dict(n_instr=100, signature="sig")
+    assert choose_backend("auto", ready=False, vm_instr=1e8, **kw) == "vm"   # 0.1 s < 0.5 s
+    assert choose_backend("auto", ready=False, vm_instr=6e8, **kw) == "c"    # 0.6 s >= 0.5 s
+    COSTS.spent["sig"] = 0.45
+    assert choose_backend("auto", ready=False, vm_instr=1e8, **kw) == "c"    # 0.45 s spent + 0.1 s
+    assert choose_backend("auto", ready=True, vm_instr=1.0, signature="other", n_instr=100) == "c"
+    assert choose_backend("vm", ready=True, vm_instr=1e12, **kw) == "vm"
+    monkeypatch.setenv("NLOBS_ENGINE", "vm")
+    assert choose_backend("auto", ready=True, vm_instr=1e12, **kw) == "vm"
+
+
+def test_a_cached_build_is_found_by_signature_without_generating_code(monkeypatch, tmp_path):
+    import nlobs.engine._codegen as cg
+
+    monkeypatch.setenv("NLOBS_CACHE_DIR", str(tmp_path))
+    step = _vdp_step()
+    loop = cg.CompiledLoop(step) if find_compiler() is not None else None
+    if loop is None:
+        pytest.skip("needs a C compiler")
+    monkeypatch.setattr(cg, "_generate", lambda *fns: (_ for _ in ()).throw(AssertionError("generated again")))
+    again = cg.CompiledLoop(step)  # found on disk by the step's signature: no code generation, no compile
+    assert again.path == loop.path

@@ -234,3 +234,54 @@ def test_default_name_and_summary(tmp_path):
     assert {p.name for p in tmp_path.iterdir()} == {"pendulum_output_injection.c", "pendulum_output_injection.h", "main.c"}
     text = str(exp)
     assert "one RK4 step per sample interval" in text and "cc -std=c99 -O2" in text
+
+
+# A model name that closes the comment it is copied into and defines a constructor that runs before main():
+# unescaped, compiling and running the exported example (as the README says) would create the file PWNED.
+HOSTILE = ('pend */ __attribute__((constructor)) static void pwn(void) { FILE *f = fopen("PWNED", "w"); if (f) fclose(f); } '
+           '/* ??/\n */ #include <stdio.h>\n\u202e')
+
+
+def _hostile_design():
+    d = design_output_injection(PEND.system, poles=[-2.0, -3.0])
+    object.__setattr__(d.system, "_name", HOSTILE)   # whatever the model layer accepts, the C writer must be safe
+    return d
+
+
+def test_hostile_model_name_cannot_inject_code(tmp_path):
+    d = _hostile_design()
+    exp = export_c(d, tmp_path / "out", name="safe_obs")
+    for path in (exp.source, exp.header, exp.example):
+        text = path.read_text()
+        assert "*/ __attribute__" not in text and "??/" not in text and "\u202e" not in text
+        # every comment opened is closed by nlobs' own text: the name adds no comment delimiter
+        assert text.count("/*") == text.count("*/")
+    if CC is None:
+        pytest.skip("no C compiler: the generated text was checked, not compiled")
+    exe = _build_program(exp, tmp_path)
+    rec = _recording(t_final=0.5, every=10)
+    proc = subprocess.run([exe], input=_csv(rec.t, rec.u, rec.y), capture_output=True, text=True, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert not (tmp_path / "PWNED").exists()
+    assert proc.stdout.splitlines()[0] == "t,xhat_theta,xhat_omega" or proc.stdout.startswith("t,xhat_")
+
+
+def test_c_text_helpers_escape_everything_that_could_end_a_comment_or_string():
+    from nlobs.observer._export import _c_comment, _c_string
+
+    nasty = 'a*/b/*c//d\\\ne??/f"g%s\u202eh\x00'
+    out = _c_comment(nasty)
+    assert not any(tok in out for tok in ("*/", "/*", "//", "\\", "?", "\n", "\x00", "\u202e"))
+    assert len(_c_comment("x" * 10_000)) <= 160
+    lit = _c_string(nasty)
+    assert all(ch.isalnum() or ch in "_,\\" for ch in lit)      # only escapes and plain characters
+    # the literal decodes back to the original bytes (C octal escapes are the same as Python's)
+    assert lit.encode().decode("unicode_escape").encode("latin-1") == nasty.encode("utf-8")
+
+
+@pytest.mark.parametrize("bad", ["abc\n", "a b", "*/x", "int", "a" * 41, "1abc", "é"])
+def test_export_name_must_be_a_c_identifier_exactly(bad, tmp_path):
+    with pytest.raises(ValueError, match="C identifier") as info:
+        export_c(design_output_injection(PEND.system, poles=[-2.0, -3.0]), tmp_path, name=bad)
+    assert len(str(info.value)) < 300
+    assert not any(tmp_path.iterdir())

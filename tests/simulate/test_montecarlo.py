@@ -96,3 +96,21 @@ def test_dask_cluster_gives_the_same_numbers():
 def test_a_tolerance_must_be_positive():
     with pytest.raises(ValueError, match="`tol` must be a positive number"):
         montecarlo(PEND, {"ekf": EKF}, t_final=0.1, dt=1e-2, x0=X0[:2], tol=-1.0)
+
+
+def test_metrics_are_computed_only_when_read(monkeypatch):
+    """A Monte Carlo run that reads only the final states does no per-run metric work."""
+    import importlib
+
+    mcm = importlib.import_module("nlobs.simulate._montecarlo")
+
+    calls = []
+    real = mcm.convergence_time
+    monkeypatch.setattr(mcm, "convergence_time", lambda *a, **k: calls.append(1) or real(*a, **k))
+    sys_ = System(states=["x"], f=["-x"], outputs=["y"], h=["x"], name="decay")
+    obs = design_output_injection(sys_, poles=[-3])
+    mc = montecarlo(sys_, {"o": obs}, t_final=2.0, dt=0.01, x0=np.linspace(-1, 1, 12)[:, None], engine="vm")
+    assert mc.observers["o"].xhat[:, -1].shape == (12, 1) and calls == []
+    conv = mc.observers["o"].convergence_time
+    assert len(calls) == 12 and conv.shape == (12,)
+    assert mc.observers["o"].convergence_time is conv and len(calls) == 12  # computed once

@@ -237,3 +237,16 @@ def test_a_held_input_switching_on_the_grid_never_leaks_into_the_previous_step()
     run = simulate(integ, t_final=8.0, dt=1e-3, x0=[0.0], inputs={"u": Sampled(t, u)})
     exact = np.r_[0.0, np.cumsum(u[:-1] * 0.02)]
     assert np.max(np.abs(run.x[::20, 0] - exact)) < 1e-12
+
+
+def test_a_prepared_simulation_runs_many_times_like_simulate():
+    from nlobs import Simulation
+
+    sys_ = System(states=["x1", "x2"], f=["x2", "-x1 - 0.3*x2 + u"], inputs=["u"], outputs=["y"], h=["x1"], name="osc")
+    obs = design_output_injection(sys_, poles=[-3, -4])
+    sim = Simulation(sys_, {"o": obs}, t_final=2.0, dt=0.01, inputs={"u": "sin(t)"}, noise=Noise.gaussian(0.01))
+    for x0, seed in (([1.0, 0.0], 1), ([0.0, -1.0], 2)):
+        a = sim.run(x0, seed=seed)
+        b = simulate(sys_, {"o": obs}, t_final=2.0, dt=0.01, x0=x0, inputs={"u": "sin(t)"}, noise=Noise.gaussian(0.01), seed=seed)
+        assert np.array_equal(a.x, b.x) and np.array_equal(a.observers["o"].xhat, b.observers["o"].xhat) and np.array_equal(a.y, b.y)
+    assert sim.t.shape == (201,) and sim.plant is sys_

@@ -1,6 +1,7 @@
 """Analysis: is it possible? Observability, excitation, forms, augmentation.
 
-Structural (generic rank, 002): :func:`analyze` -> :class:`ObservabilityReport`, :func:`observable_function`.
+Structural (generic rank, 002): :func:`analyze` -> :class:`ObservabilityReport`, :func:`observable_function`;
+piecewise models (abs, min, max, sat) one regime at a time: :func:`visited_regimes`.
 Linear: :func:`kalman_rank`, :func:`pbh_test`, :func:`kalman_decomposition`.
 LTV / state-affine along a trajectory (000): :func:`ltv_gramian`, :func:`uco_test`, :func:`state_affine_ltv`.
 Nonlinear along a trajectory (002): :func:`empirical_gramian`, :func:`indistinguishable`.
@@ -9,6 +10,7 @@ Excitation (000 eq. 15, 002): :func:`interval_excitation`, :func:`persistent_exc
 Observer forms (002): :func:`recognise_forms`, :func:`state_affine_form`, :func:`triangular_form`,
 :func:`lipschitz_constant`, :func:`with_params_as_states`.
 Banks (003): :func:`matrix_measure`, :func:`max_slope`, :func:`banks_condition`, :func:`lipschitz_bound`.
+Identities (exact, Schwartz-Zippel): :func:`decide_identity`, :func:`exact_generic_rank`.
 Augmentation (001): :func:`check_mimicking`, :func:`injectivity`, :func:`left_inverse_bounds`,
 :func:`augmented_observability`, :func:`propose_augmentation`.
 """
@@ -21,6 +23,8 @@ from ._linear import pbh_test as pbh_test
 from ._lie import InputClass as InputClass
 from ._lie import analyze as analyze
 from ._lie import observable_function as observable_function
+from ._regimes import Regime as Regime
+from ._regimes import visited_regimes as visited_regimes
 from ._reports import FunctionCheck as FunctionCheck
 from ._reports import ObservabilityReport as ObservabilityReport
 from ._reports import Symmetry as Symmetry
@@ -50,6 +54,10 @@ from ._recognise import recognise_forms as recognise_forms
 from ._recognise import state_affine_form as state_affine_form
 from ._recognise import triangular_form as triangular_form
 from ._recognise import with_params_as_states as with_params_as_states
+from ._identity import ExactRank as ExactRank
+from ._identity import Identity as Identity
+from ._identity import decide_identity as decide_identity
+from ._identity import exact_generic_rank as exact_generic_rank
 from ._conditions import BanksCheck as BanksCheck
 from ._conditions import LipschitzEstimate as LipschitzEstimate
 from ._conditions import SlopeResult as SlopeResult

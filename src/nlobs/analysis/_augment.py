@@ -33,8 +33,9 @@ import sympy as sp
 from ..errors import FormError, ModelError, ShapeError
 from ..model import TIME, System, symbol
 from ..model._forms import matrix_of
-from ..model._system import ExprLike
+from ..model._system import ExprLike, exact
 from ._gramian import GramianResult, ltv_gramian
+from ._identity import decide_identity, exact_generic_rank
 from ._reports import clean_direction, fmt_vec
 from ..references import cite
 
@@ -48,14 +49,6 @@ def _known(system: System) -> dict[str, sp.Symbol]:
     out = {k: symbol(k) for k in (*system.inputs, *system.outputs, *system.params)}
     out["t"] = TIME
     return out
-
-
-def _zero(e: sp.Expr) -> bool:
-    e = sp.together(sp.expand(e))
-    num, _ = sp.fraction(e)
-    if sp.expand(num) == 0:
-        return True
-    return sp.simplify(e) == 0
 
 
 @dataclass(frozen=True, eq=False)
@@ -87,15 +80,35 @@ class Augmentation:
 
 @dataclass(frozen=True)
 class MimickingCheck:
-    """Whether (A, b, C) mimics the model through T (001 Def. 3), with the failing row if not."""
+    """Whether (A, b, C) mimics the model through T (001 Def. 3), with the failing row if not.
 
-    holds: bool
+    Attributes
+    ----------
+    status : {"holds", "fails", "undecided"}
+        Decided by :func:`nlobs.analysis.decide_identity` row by row.
+    reason : str
+        The failing (or undecided) row and its residual.
+    residuals : tuple of SymPy expressions
+    evidence : str
+        The kind of evidence behind the verdict.
+    """
+
+    status: str
     reason: str
     residuals: tuple[sp.Expr, ...] = ()
+    evidence: str = ""
+
+    @property
+    def holds(self) -> bool:
+        return self.status == "holds"
 
     def __str__(self) -> str:
-        return (f"mimics the model: dT/dt = A T + b along f and C T = h, identically ({cite('001')} Def. 3)" if self.holds
-                else f"does NOT mimic the model: {self.reason}")
+        if self.holds:
+            return (f"mimics the model: dT/dt = A T + b along f and C T = h, identically ({cite('001')} Def. 3; "
+                    f"{self.evidence})")
+        if self.status == "undecided":
+            return f"mimicking NOT decided: {self.reason}"
+        return f"does NOT mimic the model: {self.reason}"
 
 
 def _as_augmentation(system: System, T: Sequence[ExprLike], A: Any, C: Any, b: Any = None, B: Any = None,
@@ -152,18 +165,26 @@ def check_mimicking(system: System, T: Sequence[ExprLike] | Augmentation, A: Any
     lhs = Tm.jacobian(x) * sp.Matrix(system.f)
     rhs = aug.A.xreplace(y_of_x) * Tm + aug.b.xreplace(y_of_x)
     residuals = []
+    verdicts = []
     for i in range(aug.n_w):
         r = lhs[i] - rhs[i]
         residuals.append(r)
-        if not _zero(r):
-            return MimickingCheck(False, f"row {i + 1} (w{i + 1} = {aug.T[i]}): dT/dt - (A T + b) = {sp.simplify(r)}, not 0",
-                                  tuple(residuals))
+        v = decide_identity(r, 0, seed=i)
+        verdicts.append(v)
+        if not v.holds:
+            why = f"row {i + 1} (w{i + 1} = {aug.T[i]}): dT/dt - (A T + b) = {sp.simplify(r)}"
+            return MimickingCheck(v.status, why + (f", not 0{v.where()}" if v.fails else f": {v.method}"), tuple(residuals),
+                                  v.evidence)
     out = aug.C.xreplace(y_of_x) * Tm
     for j, name in enumerate(system.outputs):
-        if not _zero(out[j] - system.h[j]):
-            return MimickingCheck(False, f"C T(x) differs from the output {name} = {system.h[j]} by {sp.simplify(out[j] - system.h[j])}",
-                                  tuple(residuals))
-    return MimickingCheck(True, "", tuple(residuals))
+        v = decide_identity(out[j], system.h[j], seed=j)
+        verdicts.append(v)
+        if not v.holds:
+            return MimickingCheck(v.status, f"C T(x) differs from the output {name} = {system.h[j]} by "
+                                  f"{sp.simplify(out[j] - system.h[j])}{v.where()}", tuple(residuals), v.evidence)
+    bound = sum(v.error_bound for v in verdicts)
+    kinds = ", ".join(sorted({v.evidence.split(" (Schwartz")[0] for v in verdicts}))
+    return MimickingCheck("holds", "", tuple(residuals), kinds + (f"; P(wrong) <= {bound:.0e} (Schwartz-Zippel)" if bound else ""))
 
 
 def _to_signal(e: sp.Expr, system: System) -> sp.Expr:
@@ -377,23 +398,23 @@ def injectivity(system: System, T: Sequence[ExprLike] | Augmentation, *, left_in
         ws = [symbol(f"w{i + 1}") for i in range(len(T))]
         inv = matrix_of(list(left_inverse), system.n_states, 1, {**allowed, **{w.name: w for w in ws}}, name="left_inverse")
         back = inv.xreplace(dict(zip(ws, Tm)))
-        bad = [i for i in range(system.n_states) if not _zero(back[i] - x[i])]
+        verdicts = [decide_identity(back[i], x[i], seed=i) for i in range(system.n_states)]
+        bad = [i for i, v in enumerate(verdicts) if not v.holds]
         if not bad:
-            return InjectivityCheck(True, f"the given left inverse satisfies T'(T(x)) = x identically ({cite('001')} Def. 4)")
-        return InjectivityCheck(None, f"the given left inverse does not recover {system.states[bad[0]]}: T'(T(x)) = {back[bad[0]]}")
-    J = Tm.jacobian(x)
-    rng = np.random.default_rng(seed)
-    pv = {symbol(k): v for k, v in system.params.items()}
-    ranks = []
-    for _ in range(samples):
-        pt = {s: float(v) for s, v in zip(x, rng.uniform(-2, 2, size=len(x)))}
-        Jn = np.array(J.xreplace(pv).xreplace(pt).evalf(), dtype=float)
-        ranks.append(np.linalg.matrix_rank(Jn))
-    if max(ranks) < len(x):
-        return InjectivityCheck(False, f"∂T/∂x has rank {max(ranks)} < {len(x)} at every sampled point: T collapses a "
+            kinds = ", ".join(sorted({v.evidence for v in verdicts}))
+            return InjectivityCheck(True, f"the given left inverse satisfies T'(T(x)) = x identically ({cite('001')} Def. 4; "
+                                    f"{kinds})")
+        v = verdicts[bad[0]]
+        return InjectivityCheck(None, f"the given left inverse does not recover {system.states[bad[0]]}: T'(T(x)) = {back[bad[0]]}"
+                                + (v.where() if v.fails else f" ({v.method})"))
+    pv = {symbol(k): exact(v) for k, v in system.params.items()}
+    J = Tm.jacobian(x).xreplace(pv)
+    gr = exact_generic_rank(J, seed=seed, tries=max(1, min(samples, 5)))
+    if gr.rank < len(x):
+        return InjectivityCheck(False, f"∂T/∂x has generic rank {gr.rank} < {len(x)} ({gr.evidence}): T collapses a "
                                 "direction and cannot be injective")
-    return InjectivityCheck(None, "∂T/∂x has full rank (T is an immersion), which proves local, not global, injectivity; "
-                            "give a left inverse to prove injectivity")
+    return InjectivityCheck(None, f"∂T/∂x has full rank ({gr.evidence}; T is an immersion), which proves local, not global, "
+                            "injectivity; give a left inverse to prove injectivity")
 
 
 @dataclass(frozen=True)

@@ -33,6 +33,10 @@ __all__ = ["check_box", "matrix_measure", "box_sup", "SlopeResult", "max_slope",
 
 REF = f"{cite('003')}"
 
+#: The kind of evidence behind every supremum over a box in this module (see :func:`box_sup`).
+SAMPLED = ("sampled over the box ({n} random points, corners, centre, then L-BFGS-B from the best {r}): "
+           "a lower bound of the supremum, not a proof")
+
 
 def check_box(box: Any, n: int, name: str, caller: str) -> np.ndarray:
     """A box as an array (n, 2) of finite [low, high] bounds with low <= high.
@@ -180,11 +184,17 @@ class SlopeResult:
     variables: tuple[str, ...]
     dissipative: bool
     tol: float
+    samples: int = 2000
 
     def __str__(self) -> str:
         where = fmt_point(self.variables, self.worst_point)
         verdict = "dissipative (Lemma 2.3)" if self.dissipative else "NOT dissipative"
-        return f"maximum slope μ_N ≈ {self.mu:.4g} over the box, at ({where}): {verdict} ({cite('003')})"
+        return f"maximum slope μ_N ≈ {self.mu:.4g} over the box, at ({where}): {verdict} ({cite('003')}; {self.evidence})"
+
+    @property
+    def evidence(self) -> str:
+        """A "NOT dissipative" verdict has a witness point; "dissipative" rests on sampling (a lower bound of μ_N)."""
+        return "witness point" if not self.dissipative else SAMPLED.format(n=self.samples, r=3)
 
 
 def max_slope(exprs: Any, variables: Sequence[str], box: Any, *, samples: int = 2000, seed: int = 0,
@@ -226,7 +236,7 @@ def max_slope(exprs: Any, variables: Sequence[str], box: Any, *, samples: int = 
     b = check_box(box, len(variables), "box", caller)
     jac = _jacobian_fn(ex, variables)
     mu, x = box_sup(lambda P: _sym_max(jac(P)), b, samples=samples, seed=seed)
-    return SlopeResult(mu, x, variables, mu <= tol, tol)
+    return SlopeResult(mu, x, variables, mu <= tol, tol, samples)
 
 
 @dataclass(frozen=True, eq=False)
@@ -239,6 +249,12 @@ class BanksCheck:
     epsilon: float
     holds: bool
     P: np.ndarray
+    samples: int = 2000
+
+    @property
+    def evidence(self) -> str:
+        """A failure has a witness point; "holds" rests on sampling (the max of λ is estimated from below)."""
+        return "witness point" if not self.holds else SAMPLED.format(n=self.samples, r=3)
 
     @property
     def margin(self) -> float:
@@ -251,7 +267,7 @@ class BanksCheck:
         if self.holds:
             return (f"Banks' condition holds: max over the region of λ(Df1 + P·DB) = {self.lam_max:.4g} {bound} "
                     f"(worst point {where}); any Lipschitz perturbation with K < {self.margin:.4g} keeps an exponential "
-                    f"observer ({cite('003')} Thm 2.6)")
+                    f"observer ({cite('003')} Thm 2.6). Evidence: {self.evidence}")
         return (f"Banks' condition FAILS: λ(Df1 + P·DB) reaches {self.lam_max:.4g}, not {bound}, at {where}; "
                 f"choose another injection gain P or a smaller region ({cite('003')} Thm 2.6)")
 
@@ -311,7 +327,7 @@ def banks_condition(f1: Any, B: Any, P: Any, variables: Sequence[str], region: A
     jb = _jacobian_fn(b, variables)
     lam, x = box_sup(lambda X: _sym_max(jf(X) + Pm @ jb(X)), box, samples=samples, seed=seed)
     eps = 0.0 if epsilon is None else float(epsilon)
-    return BanksCheck(lam, x, variables, eps, lam <= -eps and (epsilon is not None or lam < 0), Pm)
+    return BanksCheck(lam, x, variables, eps, lam <= -eps and (epsilon is not None or lam < 0), Pm, samples)
 
 
 @dataclass(frozen=True, eq=False)
@@ -330,8 +346,11 @@ class LipschitzEstimate:
 
     def __str__(self) -> str:
         return (f"Lipschitz constant of {self.what} over the box: γ ≈ {self.gamma:.4g} (largest ‖D{self.what.split()[0]}‖₂, at "
-                f"{fmt_point(self.variables, self.worst_point)}; {self.samples} samples + local refinement; a lower estimate "
-                "of the true sup)")
+                f"{fmt_point(self.variables, self.worst_point)}; {self.evidence})")
+
+    @property
+    def evidence(self) -> str:
+        return SAMPLED.format(n=self.samples, r=3)
 
 
 def lipschitz_bound(exprs: Any, variables: Sequence[str], box: Any, *, wrt: int | None = None, samples: int = 2000,

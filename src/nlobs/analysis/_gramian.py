@@ -162,6 +162,12 @@ class GramianResult:
     t_full_rank: float | None
     rtol: float
 
+    @property
+    def evidence(self) -> str:
+        """What kind of evidence the rank verdict is: a floating-point Gramian on the time grid, with a threshold."""
+        return (f"floating point: Gramian by quadrature on {self.timepts.size} grid points; eigenvalues of the Jacobi-scaled W "
+                f"below {self.rtol:g}·λ_max count as zero (a threshold, not a proof)")
+
     def __str__(self) -> str:
         n = self.W.shape[0]
         t0, t1 = self.timepts[0], self.timepts[-1]
@@ -273,15 +279,25 @@ class UCOResult:
     worst_start: float
     given_threshold: bool
 
+    @property
+    def evidence(self) -> str:
+        """What kind of evidence the verdict is: a finite-horizon check on a grid of windows against a threshold
+        (a heuristic one, 1e-3 of the largest δ, unless δ was given)."""
+        thr = "the δ given" if self.given_threshold else "a heuristic threshold (1e-3 of the largest δ on the grid)"
+        return (f"floating point: {self.starts.size} windows on a finite horizon compared with {thr}; uniformity beyond the "
+                "horizon is not checked")
+
     def __str__(self) -> str:
         head = (f"UCO test with T = {self.window:g} on {self.starts.size} windows from t = {self.starts[0]:g} to "
                 f"{self.starts[-1]:g}: δ(t) = λ_min W(t, t+T) ranges over [{self.delta.min():.3g}, {self.delta.max():.3g}]")
         how = f"δ = {self.threshold:.3g}" if self.given_threshold else f"{self.threshold:.3g} (1e-3 of its maximum)"
         if self.uniform:
-            return head + f"; W(t, t+T) ≥ {how}·I on every window: uniformly observable on this horizon ({cite('000')} eq. 4)"
+            return (head + f"; W(t, t+T) ≥ {how}·I on every window: uniformly observable on this horizon ({cite('000')} eq. 4)"
+                    + ("" if self.given_threshold else "; heuristic threshold"))
         first = float(self.starts[np.argmax(self.delta < self.threshold)])
         return (head + f"; NOT uniformly observable: δ(t) falls below {how} from t = {first:g} on "
-                f"(smallest at t = {self.worst_start:g}): excitation is lost ({cite('000')} eq. 4)")
+                f"(smallest at t = {self.worst_start:g}): excitation is lost ({cite('000')} eq. 4)"
+                + ("" if self.given_threshold else "; heuristic threshold"))
 
 
 def uco_test(A: Any, C: Any, timepts: Any, window: float, *, delta: float | None = None, stride: int = 1,

@@ -13,7 +13,7 @@ taken over GF(p).
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -21,7 +21,10 @@ import numpy as np
 import sympy as sp
 
 from ..errors import ModelError
+from ._identity import decide_identity
 from ..model import TIME, System, symbol
+from ..model._budget import symbolic_budget
+from ..model._translate import NUMPY, translate
 from ..model._expr import ExpressionError, parse_expression
 from ..model._system import ExprLike, exact, to_expr
 from ._modular import RowEchelon, random_prime
@@ -152,7 +155,8 @@ class _Setup:
 
 
 def _setup(system: System, params_unknown: tuple[str, ...], classes: dict[str, InputClass],
-           unknown_inputs: dict[str, int], functions: list[tuple[str, sp.Expr]]) -> _Setup:
+           unknown_inputs: dict[str, int], functions: list[tuple[str, sp.Expr]],
+           regime: Callable[[sp.Expr], float] | None = None) -> _Setup:
     known = {symbol(k): exact(v) for k, v in system.params.items() if k not in params_unknown}
     signals = {symbol(k): c.expr for k, c in classes.items() if c.kind == "signal"}
     f = [e.xreplace(known).xreplace(signals) for e in system.f]
@@ -169,7 +173,7 @@ def _setup(system: System, params_unknown: tuple[str, ...], classes: dict[str, I
         elif classes[k].kind != "signal":
             leaves[symbol(k)] = Node("u", data=i)
     leaves[TIME] = Node("t")
-    prog = build_program(f, h, leaves, extra)
+    prog = build_program(f, h, leaves, extra, regime)
     coeffs = tuple(f"{k}_{d}" for k, deg in unknown_inputs.items() for d in range(deg + 1))
     node_of = {s.name: i for i, s in enumerate(leaves)}  # the builder pushes the leaves first, in this order
     unknowns = (*system.states, *params_unknown, *coeffs)
@@ -343,8 +347,8 @@ def _sign_symmetries(system: System, st: _Setup, params_unknown: tuple[str, ...]
                      budget: int = 4096, max_proofs: int = 64) -> tuple[tuple[Symmetry, ...], str]:
     """Sign changes of unknowns that leave the model invariant: f(σz) = σ f(z), h(σz) = h(z).
 
-    Screened numerically at a random point, then proved symbolically. With at most 12 unknowns
-    every sign pattern is screened (up to `budget`); beyond, the sign changes of one or two
+    Screened numerically at a random point, then decided exactly (:func:`decide_identity`). With at
+    most 12 unknowns every sign pattern is screened (up to `budget`); beyond, the sign changes of one or two
     unknowns. Screening is sparse: an expression is evaluated only on the patterns that flip one
     of its variables (or its own state), since every other pattern leaves it unchanged, so the
     cost grows like m · Σ|vars of f_i|² rather than m² · (size of f). Each symmetry gives pairs of
@@ -430,9 +434,9 @@ def _sign_symmetries(system: System, st: _Setup, params_unknown: tuple[str, ...]
         sub = {s: -s for s, v in zip(syms, r) if v < 0}
         flipped = set(sub)
         # only the equations that involve a flipped unknown, or whose own state flips, can change
-        proved = all(sp.simplify(e.xreplace(sub) - sgn * e) == 0 for e, sgn in zip(f, r[: len(f)])
+        proved = all(decide_identity(e.xreplace(sub), sgn * e).holds for e, sgn in zip(f, r[: len(f)])
                      if sgn < 0 or e.free_symbols & flipped) and all(
-            sp.simplify(e.xreplace(sub) - e) == 0 for e in h if e.free_symbols & flipped)
+            decide_identity(e.xreplace(sub), e).holds for e in h if e.free_symbols & flipped)
         if not proved:
             continue
         found.append(r)
@@ -444,9 +448,44 @@ def _sign_symmetries(system: System, st: _Setup, params_unknown: tuple[str, ...]
     return tuple(Symmetry(tuple(n for n, v in zip(names, r) if v < 0)) for r in found), searched
 
 
+def _regime_evaluator(system: System, regime: Mapping[str, float] | None,
+                      classes: Mapping[str, InputClass]) -> Callable[[sp.Expr], float] | None:
+    """A function evaluating an expression of the model at the regime point (None without one)."""
+    if regime is None:
+        return None
+    if not isinstance(regime, Mapping):
+        raise ModelError(f"`regime` must be a mapping {{name: value}} of the states (and optionally inputs, parameters, t), "
+                         f"got {type(regime).__name__}")
+    names = (*system.states, *system.inputs, *system.params, "t")
+    bad = [k for k in regime if k not in names]
+    if bad:
+        raise ModelError(f"`regime` names {', '.join(map(repr, bad[:3]))}, not a state, input, parameter or t of {system.name!r}")
+    missing = [k for k in system.states if k not in regime]
+    if missing:
+        raise ModelError(f"`regime` needs a value for every state (it is a point of the state space); missing: {', '.join(missing)}")
+    values: dict[sp.Symbol, Any] = {symbol(k): float(v) for k, v in system.params.items()}
+    values.update({symbol(k): 0.0 for k in system.inputs})
+    values[TIME] = 0.0
+    for k, v in regime.items():
+        fv = float(v)
+        if not np.isfinite(fv):
+            raise ModelError(f"`regime[{k!r}]` must be finite, got {v!r}")
+        values[TIME if k == "t" else symbol(k)] = fv
+
+    def evaluate(e: sp.Expr) -> float:
+        with np.errstate(all="ignore"):
+            v = float(np.asarray(translate(e, values, NUMPY), dtype=float))
+        if not np.isfinite(v):
+            raise ModelError(f"`regime`: the expression {e} is not finite at the regime point {dict(regime)}; choose another point")
+        return v
+
+    return evaluate
+
+
 def analyze(system: System, *, unknown_params: Any = (), inputs: Any = "generic",
             unknown_inputs: Mapping[str, int] | None = None, functions: Sequence[ExprLike] = (),
-            at: Mapping[str, float] | None = None, symmetries: bool = True, seed: int = 0) -> ObservabilityReport:
+            at: Mapping[str, float] | None = None, symmetries: bool = True, seed: int = 0,
+            regime: Mapping[str, float] | None = None) -> ObservabilityReport:
     r"""Structural observability (and identifiability) of a model by the generic rank.
 
     The rank condition of 002 asks for :math:`\dim d\mathcal O(h)|_x = n`, where the observation
@@ -467,6 +506,12 @@ def analyze(system: System, *, unknown_params: Any = (), inputs: Any = "generic"
     vanishes at the random point: probability at most D/p (Schwartz-Zippel); D is bounded by
     propagating degrees through the evaluation program, and a deficient rank is confirmed at a
     second independent point and prime, so the bound is (D/p)^2.
+
+    *Piecewise models.* ``abs``, ``sign``, ``min``, ``max`` and ``sat`` are analysed on one regime,
+    where each equals one smooth branch, named in the notes: the branch active at the point
+    `regime` (e.g. a state the simulation visits), else abs(g) = g, sign(g) = 1 and the
+    unsaturated branch of min/max/sat. :func:`visited_regimes` finds the regimes a trajectory
+    goes through.
 
     *Local, not global.* The rank condition proves local weak observability (002). When a sign
     change of some unknowns leaves f and h invariant (checked for every sign pattern of up to 12
@@ -498,6 +543,9 @@ def analyze(system: System, *, unknown_params: Any = (), inputs: Any = "generic"
         Search sign symmetries (global non-observability).
     seed : int, default 0
         Seed of the random point, prime and input coefficients.
+    regime : mapping of str to float, optional
+        A point (every state; optionally inputs, parameters, t) that selects the branch of each
+        piecewise function (abs, sign, min, max, sat): the one active there.
 
     Returns
     -------
@@ -524,6 +572,13 @@ def analyze(system: System, *, unknown_params: Any = (), inputs: Any = "generic"
     """
     if not isinstance(system, System):
         raise ModelError(f"analyze: `system` must be an nlobs.System, got {type(system).__name__}")
+    with symbolic_budget(f"analyze {system.name!r}"):
+        return _analyze(system, unknown_params, inputs, unknown_inputs, functions, at, symmetries, seed, regime)
+
+
+def _analyze(system: System, unknown_params: Any, inputs: Any, unknown_inputs: Mapping[str, int] | None,
+             functions: Sequence[ExprLike], at: Mapping[str, float] | None, symmetries: bool, seed: int,
+             regime: Mapping[str, float] | None) -> ObservabilityReport:
     t_start = time.perf_counter()
     rng = np.random.default_rng(seed)
     params_unknown = _unknown_params(system, unknown_params)
@@ -541,7 +596,7 @@ def analyze(system: System, *, unknown_params: Any = (), inputs: Any = "generic"
         if extra_keys:
             raise ModelError(f"`at` names {', '.join(map(repr, extra_keys))}, which is not a state or an unknown parameter of "
                              f"{system.name!r}")
-    st = _setup(system, params_unknown, classes, ui, funcs)
+    st = _setup(system, params_unknown, classes, ui, funcs, _regime_evaluator(system, regime, classes))
     M = len(st.unknowns)
     res = _mod_run(st, system, rng)
     error = 0.0

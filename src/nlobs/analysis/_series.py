@@ -20,7 +20,7 @@ Over floats the true values are used.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -28,6 +28,8 @@ import numpy as np
 import sympy as sp
 
 from ..errors import ModelError
+from ..model._budget import expand as budget_expand
+from ..model._budget import short_str
 from ._modular import MAX_TERMS, inv, root
 
 __all__ = ["Program", "build_program", "SeriesRun", "Resample", "ModField", "FloatField"]
@@ -63,7 +65,8 @@ class Program:
 
 
 class _Builder:
-    def __init__(self, leaves: Mapping[sp.Symbol, Node]):
+    def __init__(self, leaves: Mapping[sp.Symbol, Node], regime: Callable[[sp.Expr], float] | None = None):
+        self.regime = regime  # evaluates an expression at the regime point (None: the default branches)
         self.nodes: list[Node] = []
         self.memo: dict[sp.Basic, int] = {}
         self.leaf: dict[sp.Symbol, int] = {}
@@ -91,7 +94,7 @@ class _Builder:
     @staticmethod
     def _terms(arg: sp.Expr) -> list[tuple[sp.Rational, sp.Expr]]:
         out = []
-        for term in sp.Add.make_args(sp.expand(arg)):
+        for term in sp.Add.make_args(budget_expand(arg, what="analyze (exponential and trigonometric arguments)")):
             c, m = term.as_coeff_Mul()
             c = sp.Rational(repr(float(c))) if isinstance(c, sp.Float) else c
             if not isinstance(c, sp.Rational):
@@ -177,7 +180,7 @@ class _Builder:
             s, co = self.trig_base[m]
             subs[sp.sin(th)], subs[sp.cos(th)] = s, co
             total += int(c * L) * th
-        expanded = sp.expand(sp.expand_trig(fn(total)))
+        expanded = budget_expand(sp.expand_trig(fn(total)), what="analyze (trigonometric expansion)")
         saved = dict(self.memo)
         self.memo.update(subs)
         try:
@@ -264,13 +267,43 @@ class _Builder:
         if isinstance(e, sp.acos):
             a = e.args[0]
             return self.build(sp.pi / 2 - sp.atan(a / sp.sqrt(1 - a**2)))
-        if isinstance(e, sp.Abs):
-            self.notes.add("abs(g) is analysed on the region g > 0 (where it equals g)")
-            return self.build(e.args[0])
-        if isinstance(e, sp.sign):
-            self.notes.add("sign(g) is analysed on the region g > 0 (where it equals 1)")
-            return self.const(sp.Integer(1))
+        if isinstance(e, (sp.Abs, sp.sign, sp.Min, sp.Max)):
+            return self.build(self._branch(e))
         raise ModelError(f"cannot analyse `{e}`: the function `{e.func}` is not supported by the generic-rank test")
+
+    def _branch(self, e: sp.Expr) -> sp.Expr:
+        """The smooth expression a piecewise node (abs, sign, min, max) equals in the analysed regime, with a note.
+
+        With a regime point, the branch active there; without one: abs(g) = g and sign(g) = 1 (g > 0),
+        and min/max equal their argument that is not a constant (the unsaturated regime of sat),
+        else their first argument.
+        """
+        g = e.args[0]
+        if isinstance(e, (sp.Abs, sp.sign)):
+            if self.regime is None:
+                s, why = 1, "assumed; choose the regime with `regime=`"
+            else:
+                v = self.regime(g)
+                s, why = (1 if v >= 0 else -1), f"its argument is {v:.3g} at the regime point"
+            what = "abs" if isinstance(e, sp.Abs) else "sign"
+            value = s * g if what == "abs" else sp.Integer(s)
+            self.notes.add(f"{what}({_short(g)}) is analysed where {_short(g)} {'>' if s > 0 else '<'} 0, as "
+                           f"{_short(value)} ({why})")
+            return value
+        args = list(e.args)
+        if self.regime is None:
+            free = [a for a in args if not a.is_number]
+            pick = free[0] if free else args[0]
+            why = ("the unsaturated branch" if len(free) == 1 else "the first argument; choose the regime with `regime=`")
+        else:
+            vals = [self.regime(a) for a in args]
+            best = min(vals) if isinstance(e, sp.Min) else max(vals)
+            pick = next(a for a, v in zip(args, vals) if v == best and not a.is_number) if any(
+                v == best and not a.is_number for a, v in zip(args, vals)) else args[vals.index(best)]
+            why = "active at the regime point"
+        name = "min" if isinstance(e, sp.Min) else "max"
+        self.notes.add(f"{name}({', '.join(_short(a) for a in args)}) is analysed as {_short(pick)} ({why})")
+        return pick
 
     def _exp_node(self, g: int) -> int:
         v = self.aux("exp", g)
@@ -288,10 +321,25 @@ class _Builder:
         return v
 
 
+def pretty(e: sp.Expr, limit: int = 40) -> str:
+    """An expression as a model file writes it (abs, min, max), shortened for a message."""
+    text = short_str(e, limit).strip("'")
+    for a, b in (("Abs(", "abs("), ("Min(", "min("), ("Max(", "max(")):
+        text = text.replace(a, b)
+    return text
+
+
+_short = pretty
+
+
 def build_program(f: Sequence[sp.Expr], h: Sequence[sp.Expr], leaves: Mapping[sp.Symbol, Node],
-                  extra: Sequence[sp.Expr] = ()) -> Program:
-    """Compile f, h (and `extra` functions) into one straight-line program over the given leaves."""
-    b = _Builder(leaves)
+                  extra: Sequence[sp.Expr] = (), regime: Callable[[sp.Expr], float] | None = None) -> Program:
+    """Compile f, h (and `extra` functions) into one straight-line program over the given leaves.
+
+    Piecewise functions (abs, sign, min, max) are replaced by their branch in the analysed regime:
+    the one active where `regime` (an evaluator at a point) says, else the default branch.
+    """
+    b = _Builder(leaves, regime)
     exprs = [sp.expand_log(e, force=True) for e in (*f, *h, *extra)]
     b.prepass(exprs)
     idx = [b.build(e) for e in exprs]

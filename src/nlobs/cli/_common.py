@@ -29,12 +29,16 @@ def error_message(e: BaseException) -> str:
 
 
 def designs_of(model_file: Any, names: Sequence[str] | None, *, overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
-    """The designs of the observers `names` configured in `model_file` (all when `names` is empty).
+    """The designs of the observers `names` configured in `model_file` (all when `names` is empty),
+    on its observer system (unknown parameters appended to the state), after the identifiability
+    check of those parameters (as ``nlobs.design.designs_from_file``).
 
     `overrides` replace design options of every chosen observer (e.g. ``{"P0": ...}`` from the
     command line); an observer whose kind does not take an option is refused with the kinds that do.
     """
-    from ..design import DESIGNS, design_from_config
+    from dataclasses import replace
+
+    from ..design import DESIGNS, check_identifiable, design_from_config
     from ..design._registry import options_of
 
     configured = model_file.observers
@@ -43,6 +47,7 @@ def designs_of(model_file: Any, names: Sequence[str] | None, *, overrides: Mappi
         if unknown:
             raise KeyError(f"{model_file.path}: no observer {unknown[0]!r}; configured: {', '.join(configured) or '(none)'}")
     chosen = names or list(configured)
+    check_identifiable(model_file.observer_system, where=model_file.path)
     out = {}
     for n in chosen:
         kind, options = configured[n].kind, dict(configured[n].options)
@@ -52,7 +57,7 @@ def designs_of(model_file: Any, names: Sequence[str] | None, *, overrides: Mappi
                 raise ValueError(f"--{key}: observer {n!r} (kind {kind!r}) has no option {key}; "
                                  f"kinds that take it: {', '.join(takes)}")
             options[key] = value
-        out[n] = design_from_config(model_file.system, kind, options, where=f"{model_file.path}: observers.{n}")
+        out[n] = design_from_config(replace(configured[n], options=options), where=f"{model_file.path}: observers.{n}")
     return out
 
 

@@ -45,11 +45,12 @@ def run(args: argparse.Namespace) -> int:
 
     mf = load_model(args.model)
     system = mf.system
-    overrides = {} if args.P0 is None else {"P0": parse_matrix(args.P0, system.n_states, "--P0")}
+    estimated = mf.observer_system  # the states and the unknown parameters the observers estimate
+    overrides = {} if args.P0 is None else {"P0": parse_matrix(args.P0, estimated.n_states, "--P0")}
     designs = designs_of(mf, args.observer, overrides=overrides)
     xhat0 = None
     if args.xhat0 is not None:
-        xhat0 = {n: parse_vector(args.xhat0, system.states, "--xhat0", d.xhat0) for n, d in designs.items()}
+        xhat0 = {n: parse_vector(args.xhat0, estimated.states, "--xhat0", d.xhat0) for n, d in designs.items()}
     rec = Recording.from_csv(args.data, system, columns=parse_columns(args.column))
     run_ = estimate(designs, rec, xhat0=xhat0, on_missing="skip" if args.skip_missing else "error", hold=args.hold,
                     max_step=args.max_step, engine=args.engine)

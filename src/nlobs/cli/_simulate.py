@@ -46,12 +46,12 @@ def add_parser(sub: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..model import Sampled, load_model
-    from ..simulate import Noise, ProcessNoise, Recording, Sampling, simulate
+    from ..simulate import Recording, Sampling, simulate
 
     mf = load_model(args.model)
     system, cfg = mf.system, mf.simulation
     params = parse_assignments(args.param or [], system.param_names, "--param")
-    inputs: dict[str, Any] = dict(cfg.inputs)
+    inputs: dict[str, Any] | None = None  # None: the file's (and the identifiability check runs on them)
     recorded = None
     if args.input_csv:
         recorded = Recording.from_csv(args.input_csv, system, columns=parse_columns(args.column), require_outputs=False)
@@ -74,12 +74,14 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"{mf.path}: no initial state: give --x0 or set [simulation] x0 = [...] ({system.n_states} numbers)")
     else:
         x0 = cfg.x0
-    xhat0 = None if args.xhat0 is None else parse_vector(args.xhat0, system.states, "--xhat0")
-    noise = Noise.per_output(dict(cfg.noise), dict(cfg.noise_bound)) if (cfg.noise or cfg.noise_bound) else None
-    run_ = simulate(system, designs_of(mf, args.observer), t_final=t_final, dt=dt, x0=x0, inputs=inputs, params=params or None,
-                    noise=noise, process_noise=ProcessNoise(dict(cfg.process_noise)) if cfg.process_noise else None,
-                    sampling=Sampling(cfg.sample_period) if cfg.sample_period else None, xhat0=xhat0,
-                    seed=args.seed if args.seed is not None else cfg.seed, engine=args.engine, progress=not args.json)
+    # observers estimate the states and the unknown parameters (their guesses are the default tail of x̂0)
+    est = mf.observer_system.states
+    xhat0 = None if args.xhat0 is None else parse_vector(
+        args.xhat0, est, "--xhat0", [0.0] * system.n_states + list(mf.guesses.values()) if mf.unknown_params else None)
+    # the file's plant (true_parameters), noise, sampling and seed; unknown parameters are checked for
+    # identifiability (also with the file's inputs) before anything runs
+    run_ = simulate(mf, designs_of(mf, args.observer), t_final=t_final, dt=dt, x0=x0, inputs=inputs, params=params or None,
+                    xhat0=xhat0, seed=args.seed, engine=args.engine, progress=not args.json)
     validation = _validation(run_, recorded) if recorded is not None else None
     if args.output:
         every = Sampling(cfg.sample_period).every(dt) if cfg.sample_period else 1

@@ -13,7 +13,10 @@ from ._ekf import design_ekf as design_ekf
 from ._linear import design_luenberger as design_luenberger
 from ._linear import design_output_injection as design_output_injection
 from ._registry import DESIGNS as DESIGNS
+from ._registry import check_identifiable as check_identifiable
 from ._registry import design_from_config as design_from_config
+from ._registry import designs_from_file as designs_from_file
+from ._registry import requires_model as requires_model
 from ._registry import register_design as register_design
 from ._high_gain import design_high_gain as design_high_gain
 from ._high_gain import design_high_gain_derivatives as design_high_gain_derivatives
@@ -48,3 +51,10 @@ from ._regression import design_gradient as design_gradient
 from ._regression import design_least_squares as design_least_squares
 from ._regression import excitation_report as excitation_report
 from ._regression import lowpass as lowpass
+
+# Every public design function checks its model argument (one clear TypeError instead of an
+# AttributeError deep inside) and runs its symbolic work within the budget: wrapped once, here,
+# so nlobs.design and nlobs export the same checked functions.
+for _name in [_n for _n in dir() if _n.startswith("design_") and _n != "design_from_config"]:
+    globals()[_name] = requires_model(globals()[_name])
+del _name

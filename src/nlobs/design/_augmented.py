@@ -14,8 +14,10 @@ from ..errors import PreconditionError
 from ..model import TIME, System, symbol
 from ..model._forms import matrix_of
 from ..model._system import ExprLike, exact
+from ..analysis import decide_identity
+from ._common import require_system
 from ._base import Certificate, Check, ObserverDesign, Symbols
-from ._checks import observer_gain
+from ._checks import identity_check, observer_gain
 from ._kalman import StateAffineParts, _riccati_design
 from ..references import cite
 
@@ -38,7 +40,7 @@ def design_augmented(system: System, *, T: Sequence[ExprLike], A: Any, C: Any, l
 
         \frac{\partial T}{\partial x} f(x, u, t) = A(u, h(x), t)\,T(x) + b(u, h(x), t), \qquad C\,T(x) = h(x).
 
-    Both identities and the left inverse :math:`T^+(T(x)) = x` are checked symbolically before
+    Both identities and the left inverse :math:`T^+(T(x)) = x` are decided exactly (:func:`nlobs.analysis.decide_identity`) before
     the gain is computed; the estimate is :math:`\hat x = T^+(\hat w)` (001 Lemma 1).
 
     - A constant (LTI, 001 §IV-C): Luenberger :math:`\dot{\hat w} = A\hat w + b - L(C\hat w - y)`
@@ -78,6 +80,7 @@ def design_augmented(system: System, *, T: Sequence[ExprLike], A: Any, C: Any, l
     ----------
     001_1b4027b3a70d560f.txt eqs. (2), (15)-(18), (20)-(22), Def. 3, Theorem 1, Lemma 1.
     """
+    require_system(system, "design_augmented")
     caller = "design_augmented"
     n = system.n_states
     params = {symbol(k): exact(v) for k, v in system.params.items()}
@@ -101,25 +104,37 @@ def design_augmented(system: System, *, T: Sequence[ExprLike], A: Any, C: Any, l
     x = sp.Matrix(system.x)
     y_of_x = {symbol(k): h[i] for i, k in enumerate(system.outputs)}
     checks = []
-    residual = (Tm.jacobian(x) * f - (Am.xreplace(y_of_x) * Tm + bm.xreplace(y_of_x))).applyfunc(lambda e: sp.simplify(e))
+    rows = Tm.jacobian(x) * f - (Am.xreplace(y_of_x) * Tm + bm.xreplace(y_of_x))
+    verdicts = []
     for i in range(nw):
-        if residual[i] != 0:
+        v = decide_identity(rows[i], 0, seed=i)
+        if v.fails:
             raise PreconditionError(f"{caller}: the augmented system does not mimic the model: row {i} of dT/dt - (A T + b) is "
-                                    f"{residual[i]}, not 0 ({cite('001')} eq. 2). Check T, A and b.")
-    checks.append(Check(f"mimicking: dT/dt = A(u, h(x), t) T(x) + b along f ({cite('001')} eq. 2, Def. 3)", True, "residual simplifies to 0"))
-    out_res = (Cm * Tm - h).applyfunc(sp.simplify)
+                                    f"{sp.simplify(rows[i])}, not 0{v.where()} ({cite('001')} eq. 2). Check T, A and b.")
+        verdicts.append(v)
+    checks.append(identity_check(f"mimicking: dT/dt = A(u, h(x), t) T(x) + b along f ({cite('001')} eq. 2, Def. 3)", verdicts,
+                                 [f"row {i + 1}" for i in range(nw)]))
+    out_res = Cm * Tm - h
+    verdicts = []
     for i in range(system.n_outputs):
-        if out_res[i] != 0:
-            raise PreconditionError(f"{caller}: C T(x) differs from the output {system.outputs[i]} by {out_res[i]}; C T(x) = h(x) is required")
-    checks.append(Check("output: C T(x) = h(x)", True))
+        v = decide_identity(out_res[i], 0, seed=i)
+        if v.fails:
+            raise PreconditionError(f"{caller}: C T(x) differs from the output {system.outputs[i]} by {sp.simplify(out_res[i])}"
+                                    f"{v.where()}; C T(x) = h(x) is required")
+        verdicts.append(v)
+    checks.append(identity_check("output: C T(x) = h(x)", verdicts, list(system.outputs)))
     wsyms = [symbol(f"w{i + 1}") for i in range(nw)]
     inv = matrix_of(list(left_inverse), n, 1, {**base, **{s.name: s for s in wsyms}}, name="left_inverse").xreplace(params)
-    inv_res = (inv.xreplace(dict(zip(wsyms, Tm))) - x).applyfunc(sp.simplify)
+    inv_res = inv.xreplace(dict(zip(wsyms, Tm))) - x
+    verdicts = []
     for i in range(n):
-        if inv_res[i] != 0:
+        v = decide_identity(inv_res[i], 0, seed=i)
+        if v.fails:
             raise PreconditionError(f"{caller}: the given left inverse does not recover {system.states[i]}: T⁺(T(x)) - x = "
-                                    f"{inv_res[i]}; T must be injective with T⁺(T(x)) = x ({cite('001')} Theorem 1)")
-    checks.append(Check(f"left inverse: T⁺(T(x)) = x, so T is injective ({cite('001')} Theorem 1)", True))
+                                    f"{sp.simplify(inv_res[i])}{v.where()}; T must be injective with T⁺(T(x)) = x ({cite('001')} Theorem 1)")
+        verdicts.append(v)
+    checks.append(identity_check(f"left inverse: T⁺(T(x)) = x, so T is injective ({cite('001')} Theorem 1)", verdicts,
+                                 [f"state {s_}" for s_ in system.states]))
     lin = inv.jacobian(sp.Matrix(wsyms))
     if not lin.free_symbols:
         checks.append(Check(f"left inverse globally Lipschitz ({cite('001')} Lemma 1, eq. 3)", True,

@@ -22,7 +22,7 @@ from ..model._system import ExprLike, exact, to_expr
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import check_matrix
 from ..analysis import matrix_measure
-from ._common import batch, box_of, sup_over_box
+from ._common import batch, box_of, require_system, sup_over_box
 from ..references import cite
 
 __all__ = ["design_banks", "banks_conditions", "BanksConditions"]
@@ -110,7 +110,7 @@ def banks_conditions(system: System, P: np.ndarray, perturbation: Sequence[sp.Ex
         where = dict(zip(names, np.round(arg, 6).tolist()))
     if perturbation_bound is not None:
         K = slope = float(perturbation_bound)
-    elif f2.free_symbols & set(lookup.values()):
+    elif D2.free_symbols & set(lookup.values()):   # Df2 varies (a linear f2 has a constant Df2: exact)
         K, _ = sup_over_box(lambda Q: np.linalg.norm(batch(Df, Q), 2, axis=(1, 2)), lo, hi)
         slope, _ = sup_over_box(lambda Q: matrix_measure(batch(Df, Q)), lo, hi)
     else:
@@ -173,6 +173,7 @@ def design_banks(system: System, *, P: Any, region: Mapping[str, Sequence[float]
     ----------
     003_a2c72ccb4281ea3f.txt, Lemmas 2.3, 2.4, Theorem 2.6, examples 3.1 and 3.2.
     """
+    require_system(system, "design_banks")
     caller = "design_banks"
     n, p = system.n_states, system.n_outputs
     Pm = check_matrix(P, n, p, "P", caller)
@@ -198,10 +199,18 @@ def design_banks(system: System, *, P: Any, region: Mapping[str, Sequence[float]
     f, h = system.substituted()
     J = ((f - sp.Matrix(f2)).jacobian(sp.Matrix(system.x)) + _exact(Pm) * h.jacobian(sp.Matrix(system.x))).applyfunc(sp.simplify)
     how = "exact (constant matrix)" if cond.exact else "sup over the region (grid + local polish)"
-    checks = [Check(f"λ(Df1(x) + P·DB(x)) <= -ε < 0 on Ω ({cite('003')} Lemma 2.3 / Theorem 2.6)", True, f"ε = {cond.epsilon:.6g}, {how}{at}"),
+    sampled = "sampled over Ω (random points, corners, centre, L-BFGS-B): the supremum is estimated from below, not proved"
+    checks = [Check(f"λ(Df1(x) + P·DB(x)) <= -ε < 0 on Ω ({cite('003')} Lemma 2.3 / Theorem 2.6)", True, f"ε = {cond.epsilon:.6g}, {how}{at}",
+                    "exact (constant matrix)" if cond.exact else sampled),
               Check(f"perturbation Lipschitz K < ε ({cite('003')} Theorem 2.6; Lemma 2.4 with slope μ <= K)", True,
                     f"K = {cond.K:.4g}" + (" (given)" if perturbation_bound is not None else " (sup ‖Df2‖₂ over Ω)")
-                    + f", slope μ = {cond.slope:.4g}")]
+                    + f", slope μ = {cond.slope:.4g}",
+                    "K as given, compared exactly" if perturbation_bound is not None else
+                    ("exact (f2 linear)" if not any(e.free_symbols & set(system.x) for e in sp.Matrix(f2).jacobian(sp.Matrix(system.x)))
+                     else sampled))]
+    if perturbation_bound is not None:
+        checks.append(Check.assumed(f"the perturbation f2 is Lipschitz with the constant K = {cond.K:.4g} given",
+                                    "stated by the user (perturbation_bound); not verified"))
     if region is not None:
         checks.append(Check.assumed("x and x̂ stay in the convex region Ω", f"{cite('003')} Theorem 2.6: " +
                             ", ".join(f"{k} in [{v[0]:g}, {v[1]:g}]" for k, v in region.items())))

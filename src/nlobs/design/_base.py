@@ -165,6 +165,10 @@ class ObserverDesign:
     update : casadi.Function or None
         ``(t, z, u, y, m) -> z+``, applied at each sample instant (``m[i] = 1`` when output i
         was measured); None for purely continuous observers.
+    covariance : casadi.Function or None
+        ``(z) -> P``, the n x n covariance of the estimate x̂ that the observer carries (the
+        Kalman filters: EKF, UKF, Kalman-Bucy, Kalman-like without forgetting); None when it
+        carries none. Results report ±2σ of estimated parameters from it.
     """
 
     method: str
@@ -176,12 +180,14 @@ class ObserverDesign:
     xhat0: np.ndarray
     certificate: Certificate
     update: ca.Function | None = None
+    covariance: ca.Function | None = None
 
     @classmethod
     def build(cls, method: str, system: System, s: Symbols, *, z_names: Sequence[str], flow: ca.SX,
               xhat: ca.SX, xhat0_sym: ca.SX, z0: ca.SX, xhat0: Any, certificate: Certificate,
-              update: ca.SX | None = None) -> ObserverDesign:
-        """Assemble a design from SX expressions in the symbols `s` (and `xhat0_sym` for z0)."""
+              update: ca.SX | None = None, covariance: ca.SX | None = None) -> ObserverDesign:
+        """Assemble a design from SX expressions in the symbols `s` (and `xhat0_sym` for z0);
+        `covariance` is the covariance of x̂ as an expression of z alone."""
         ins, names = [s.t, s.z, s.u, s.y], ["t", "z", "u", "y"]
         x0 = check_vector(xhat0, system.n_states, "xhat0", method)
         return cls(
@@ -191,6 +197,7 @@ class ObserverDesign:
             ca.Function(f"{method}_initial", [xhat0_sym], [z0], ["xhat0"], ["z0"]),
             x0, certificate,
             None if update is None else ca.Function(f"{method}_update", [*ins, s.m], [update], [*names, "m"], ["z_plus"]),
+            None if covariance is None else ca.Function(f"{method}_covariance", [s.z], [covariance], ["z"], ["P"]),
         )
 
     @property

@@ -7,15 +7,40 @@ with its numbers, and what to change.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
 from ..analysis import kalman_rank, pbh_test
+from ..analysis._identity import Identity
 from ..errors import PreconditionError, ShapeError
 from ._base import Check
 
-__all__ = ["check_matrix", "check_positive", "observer_gain"]
+__all__ = ["check_matrix", "check_positive", "observer_gain", "identity_check"]
+
+
+def identity_check(condition: str, verdicts: Sequence[Identity], labels: Sequence[str] | None = None) -> Check:
+    """The Check of identities decided by :func:`nlobs.analysis.decide_identity` (none of which failed:
+    the caller refuses a failed one with its residual).
+
+    All hold: ``"holds"`` with the kind of evidence (symbolic, or exact arithmetic with the
+    Schwartz-Zippel bound on the probability of a wrong verdict, summed over the identities).
+    Any undecided: ``"assumed"``, naming which and why. Choice: an identity that cannot be
+    decided (functions whose relations the exact tests do not know, e.g. atan or log
+    identities) does not refuse the design: the user may be right, and the numbers at random
+    points back them; but the certificate says that it was not verified.
+    """
+    labels = list(labels) if labels is not None else [f"identity {k + 1}" for k in range(len(verdicts))]
+    open_ = [(lab, v) for lab, v in zip(labels, verdicts) if not v.holds]
+    if open_:
+        return Check.assumed(condition, "not verified for " + "; ".join(f"{lab} ({v.method})" for lab, v in open_)
+                             + ". The design relies on it: check it by hand")
+    bound = float(sum(v.error_bound for v in verdicts))
+    kinds = sorted({v.evidence.split(" (Schwartz")[0] for v in verdicts})
+    evidence = ", ".join(kinds) + (f"; P(wrong) <= {bound:.0e} (Schwartz-Zippel)" if bound > 0 else "")
+    n = len(verdicts)
+    return Check(condition, "holds", f"{n} identit{'y' if n == 1 else 'ies'} decided exactly", evidence)
 
 
 def check_matrix(M: Any, rows: int, cols: int, name: str, caller: str, *,

@@ -21,7 +21,15 @@ from ..errors import ModelError, PreconditionError, ShapeError
 from ..model import TIME, System
 from ._base import Symbols
 
-__all__ = ["leaves_of", "to_sx", "measured_states", "chain_gain", "box_of", "sup_over_box", "saturate", "saturation_bounds", "batch"]
+__all__ = ["require_system", "leaves_of", "to_sx", "measured_states", "chain_gain", "box_of", "sup_over_box", "saturate", "saturation_bounds", "batch"]
+
+
+def require_system(system: Any, caller: str) -> System:
+    """`system` if it is an nlobs.System, else a TypeError naming the design (never an AttributeError later)."""
+    if not isinstance(system, System):
+        raise TypeError(f"{caller}: expected an nlobs.System as the model, got {type(system).__name__}"
+                        + (" (a model file's name? load it with nlobs.load_model(path).system)" if isinstance(system, str) else ""))
+    return system
 
 
 def leaves_of(system: System, s: Symbols, x: Any = None) -> dict[sp.Symbol, Any]:

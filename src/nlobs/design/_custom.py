@@ -12,6 +12,7 @@ from ..engine import to_casadi
 from ..errors import ModelError
 from ..model import TIME, System, symbol
 from ..model._system import RESERVED, ExprLike, _equations, exact
+from ._common import require_system
 from ._base import Certificate, Check, ObserverDesign, Symbols
 
 __all__ = ["design_custom"]
@@ -60,6 +61,7 @@ def design_custom(system: System, *, states: Sequence[str], flow: Sequence[ExprL
     >>> obs.z_names
     ('xh1', 'xh2')
     """
+    require_system(system, "design_custom")
     caller = "design_custom"
     names = tuple(states)
     extra = dict(params or {})

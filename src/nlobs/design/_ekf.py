@@ -11,6 +11,7 @@ import numpy as np
 from ..engine import compile_system
 from ..errors import PreconditionError
 from ..model import System
+from ._common import require_system
 from ._base import Certificate, Check, ObserverDesign, Symbols, check_vector
 from ._bounds import POLICY, bounds_check, check_start, clip_const, parse_bounds
 from ._checks import check_matrix
@@ -79,6 +80,7 @@ def design_ekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
     PreconditionError, ShapeError
         For matrices of the wrong shape, not symmetric, or not (semi)definite.
     """
+    require_system(system, "design_ekf")
     caller = "design_ekf"
     if mode not in ("continuous", "continuous-discrete"):
         raise PreconditionError(f"{caller}: `mode` must be 'continuous' or 'continuous-discrete', got {mode!r}")
@@ -133,4 +135,5 @@ def design_ekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
     names = [f"xhat_{v}" for v in system.states] + [f"P_{i}_{j}" for j in range(n) for i in range(n)]
     return ObserverDesign.build("ekf", system, s, z_names=names, flow=ca.vertcat(dx, ca.vec(dP)), xhat=clip_const(xh, box),
                                 xhat0_sym=x0, z0=ca.vertcat(x0, ca.DM(P0m.reshape(-1, order="F"))),
-                                xhat0=np.zeros(n) if xhat0 is None else xhat0, certificate=cert, update=update)
+                                xhat0=np.zeros(n) if xhat0 is None else xhat0, certificate=cert, update=update,
+                                covariance=P)

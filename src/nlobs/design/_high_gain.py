@@ -15,8 +15,10 @@ from ..engine import compile_system
 from ..errors import FormError, PreconditionError, ShapeError
 from ..model import TIME, System, symbol
 from ..model._system import ExprLike, exact, to_expr
+from ..analysis import decide_identity
 from ._base import Certificate, Check, ObserverDesign, Symbols
-from ._common import chain_gain, leaves_of, measured_states, saturate, saturation_bounds, to_sx
+from ._checks import identity_check
+from ._common import chain_gain, leaves_of, measured_states, require_system, saturate, saturation_bounds, to_sx
 from ..references import cite
 
 __all__ = ["design_high_gain", "design_high_gain_derivatives", "triangular_chains", "Chain"]
@@ -274,6 +276,7 @@ def design_high_gain(system: System, *, theta: float | None = None, r: float | N
     >>> d.certificate.values["K0"], round(d.certificate.values["nominal_rate"], 9)
     ([array([2., 1.])], 10.0)
     """
+    require_system(system, "design_high_gain")
     caller = "design_high_gain"
     th = _theta(theta, r, caller)
     try:
@@ -341,7 +344,10 @@ def design_high_gain(system: System, *, theta: float | None = None, r: float | N
                 raise PreconditionError(f"{caller}: theta = {th:.4g} is not above the sufficient bound theta* = max(1, 2√n γ "
                                         f"λmax(P0)) = {theta_min:.4g} (γ = {gam:g}, λmax(P0) = {lmax:.4g}); increase theta")
             rate = (th - 2.0 * np.sqrt(n) * gam * lmax) / (2.0 * lmax)
-            checks.append(Check("theta > theta* (Lyapunov bound in scaled coordinates)", True, f"{th:.4g} > {theta_min:.4g}"))
+            checks.append(Check("theta > theta* (Lyapunov bound in scaled coordinates)", True, f"{th:.4g} > {theta_min:.4g}",
+                                "floating point (Lyapunov equation), with the γ given"))
+            checks.append(Check.assumed(f"the nonlinearity is globally Lipschitz with the γ = {gam:g} given",
+                                        "stated by the user (`lipschitz`); not verified"))
             values.update({"P0": P0, "theta_min": theta_min, "lipschitz": gam, "guaranteed_rate": float(rate)})
     elif lipschitz is not None:
         raise PreconditionError(f"{caller}: the Lipschitz bound needs constant couplings; with a coupling depending on (u, y) "
@@ -446,6 +452,7 @@ def design_high_gain_derivatives(system: System, *, xhat: Mapping[str, ExprLike]
     α1 = α3 = 2, α2 = α4 = 1. (The table prints r1 inside the formula of this observer but lists
     r2 as its parameter; the text assigns r2 = 0.005 to it.)
     """
+    require_system(system, "design_high_gain_derivatives")
     caller = "design_high_gain_derivatives"
     th = _theta(theta, r, caller)
     n, p = system.n_states, system.n_outputs
@@ -498,13 +505,17 @@ def design_high_gain_derivatives(system: System, *, xhat: Mapping[str, ExprLike]
     _, h = system.substituted()
     subs = {dsyms[f"D{i}_{yk}"]: lie[k][i] for k, yk in enumerate(system.outputs) for i in range(rho[k])}
     subs.update({symbol(yk): h[k] for k, yk in enumerate(system.outputs)})
+    verdicts = []
     for j, e in enumerate(psi):
-        res = sp.simplify(e.xreplace(subs) - system.x[j])
-        if res != 0:
+        v = decide_identity(e.xreplace(subs), system.x[j], seed=j)
+        if v.fails:
+            res = sp.simplify(e.xreplace(subs) - system.x[j])
             raise PreconditionError(f"{caller}: xhat[{system.states[j]}] = {psi_in[j]} does not recover {system.states[j]} from the "
-                                    f"output derivatives: with D{{i}}_y = L_f^i h it leaves {res} (inputs held constant). "
-                                    "Check Ψ against the model.")
-    checks = [Check("Ψ(y, ẏ, ...) recovers x from the Lie derivatives of h (inputs held constant)", True),
+                                    f"output derivatives: with D{{i}}_y = L_f^i h it leaves {res}{v.where()} (inputs held "
+                                    "constant). Check Ψ against the model.")
+        verdicts.append(v)
+    checks = [identity_check("Ψ(y, ẏ, ...) recovers x from the Lie derivatives of h (inputs held constant)", verdicts,
+                             [f"state {s_}" for s_ in system.states]),
               Check("α gives Hurwitz injection polynomials", True,
                     "; ".join(f"{yk}: max Re eig = {e.real.max():.4g}" for yk, e in zip(system.outputs, eigs)))]
     names = [f"D{i}_{yk}" for k, yk in enumerate(system.outputs) for i in range(rho[k])]

@@ -14,10 +14,11 @@ import sympy as sp
 
 from ..errors import FormError, PreconditionError
 from ..model import TIME, StateAffine, System, symbol
+from ..model._budget import expand
 from ..model._system import exact
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import check_matrix
-from ._common import box_of, leaves_of, measured_states, sup_over_box, to_sx
+from ._common import box_of, leaves_of, measured_states, require_system, sup_over_box, to_sx
 from ._high_gain import _theta, triangular_chains
 from ..references import cite
 
@@ -63,7 +64,7 @@ def state_affine_parts(model: System | StateAffine, caller: str) -> StateAffineP
     x = sp.Matrix(system.x)
     C = h.jacobian(x)
     for i, name in enumerate(system.outputs):
-        if C.row(i).free_symbols & set(system.x) or sp.expand(h[i] - (C.row(i) * x)[0]) != 0:
+        if C.row(i).free_symbols & set(system.x) or expand(h[i] - (C.row(i) * x)[0], what=caller) != 0:
             raise FormError(f"{caller}: output {name} = {h[i]} is not linear in the state (y = C(u, t)x is required)")
     try:
         meas = measured_states(system, caller)
@@ -77,7 +78,7 @@ def state_affine_parts(model: System | StateAffine, caller: str) -> StateAffineP
 
     # keep the terms already affine in x (so an LTV/LTI model keeps its A); replace the measured
     # states by the outputs only in the others (A(u, y, t) of 002's state-affine form)
-    fy = sp.Matrix([sum((t if affine(t) else t.xreplace(ysub) for t in sp.Add.make_args(sp.expand(e))), sp.S.Zero)
+    fy = sp.Matrix([sp.Add(*(t if affine(t) else t.xreplace(ysub) for t in sp.Add.make_args(expand(e, what=caller))))
                     for e in f])
     A = fy.jacobian(x)
     for i, name in enumerate(system.states):
@@ -86,7 +87,7 @@ def state_affine_parts(model: System | StateAffine, caller: str) -> StateAffineP
             raise FormError(f"{caller}: {system.name!r} is not state-affine: {name}' = {f[i]} is not affine in the unmeasured "
                             f"state(s) (a coefficient depends on {', '.join(sorted(s.name for s in bad))}); "
                             "only the measured outputs, inputs and t may enter A(u, y, t)")
-    b = (fy - A * x).applyfunc(sp.expand)
+    b = (fy - A * x).applyfunc(lambda e: expand(e, what=caller))
     return StateAffineParts(system, A, b, C)
 
 
@@ -142,7 +143,12 @@ def _riccati_design(method: str, title: str, ref: str, parts: StateAffineParts, 
         if d <= 2 * normA:
             raise PreconditionError(f"{caller}: the forgetting factor δ = {d:g} is not above 2 sup‖A‖ = {2 * normA:.4g} ({where}); "
                                     f"take δ > {2 * normA:.4g}, or give V positive definite ({cite('002')}: δ > 2‖A(t)‖ or V > 0)")
-        checks.append(Check(f"δ > 2 sup‖A‖ ({cite('002')})", True, f"{d:g} > {2 * normA:.4g}, {where}"))
+        checks.append(Check(f"δ > 2 sup‖A‖ ({cite('002')})", True, f"{d:g} > {2 * normA:.4g}, {where}",
+                            "exact (A constant)" if not parts.A.free_symbols else
+                            "sampled over the region: sup‖A‖ is estimated from below, not proved"))
+        if parts.A.free_symbols:
+            checks.append(Check.assumed("the inputs and outputs stay in the region where sup‖A‖ was estimated",
+                                        "not checked at design time"))
         values["sup_norm_A"] = normA
     else:
         raise PreconditionError(f"{caller}: neither forgetting nor noise: give δ > 2‖A‖ (`delta`) or V positive definite "
@@ -180,10 +186,13 @@ def _riccati_design(method: str, title: str, ref: str, parts: StateAffineParts, 
     names = first + [f"M_{i}_{j}" for j in range(n) for i in range(n)]
     values.update({"A(u, y, t)": str(parts.A.tolist()), "C": str(parts.C.tolist())})
     cert = Certificate(title, ref, tuple(checks), values)
+    # M is the error covariance (V, W the noise intensities) only for the plain Riccati equation without
+    # forgetting, on the plant's own coordinates: not with δ > 0, the high-gain λ, or an augmentation map
+    cov = M if (d == 0 and lam is None and estimate is None) else None
     return ObserverDesign.build(method, system, s, z_names=names, flow=ca.vertcat(dx, ca.vec(dM)),
                                 xhat=xh if estimate is None else estimate(xh), xhat0_sym=x0,
                                 z0=ca.vertcat(w0, ca.DM(M0m.reshape(-1, order="F"))),
-                                xhat0=np.zeros(nx) if xhat0 is None else xhat0, certificate=cert)
+                                xhat0=np.zeros(nx) if xhat0 is None else xhat0, certificate=cert, covariance=cov)
 
 
 def design_kalman_like(model: System | StateAffine, *, W: Any = None, V: Any = None, delta: float = 0.0, M0: Any = None,
@@ -336,6 +345,7 @@ def design_high_gain_kalman(system: System, *, lam: float, delta: float, W: Any 
     ----------
     002_613af42269ea26a7.txt, "'Non uniformly observable' systems - LTV-like with structured NL".
     """
+    require_system(system, "design_high_gain_kalman")
     caller = "design_high_gain_kalman"
     if system.n_outputs != 1:
         raise PreconditionError(f"{caller}: one output is required ({cite('002')}'s form has y = x1); the model has {system.n_outputs}")

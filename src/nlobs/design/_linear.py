@@ -10,6 +10,7 @@ import numpy as np
 from ..engine import to_casadi
 from ..errors import FormError, PreconditionError
 from ..model import LTI, TIME, OutputInjectionForm, System
+from ._common import require_system
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import observer_gain
 from ..references import cite
@@ -70,6 +71,7 @@ def design_luenberger(system: System, *, poles: Any = None, L: Any = None, Q: An
     >>> [round(float(v), 9) for v in sorted(d.certificate.values["eigenvalues"].real)]
     [-3.0, -2.0]
     """
+    require_system(system, "design_luenberger")
     caller = "design_luenberger"
     try:
         lti = LTI.from_system(system)
@@ -123,6 +125,7 @@ def design_output_injection(system: System, *, poles: Any = None, K: Any = None,
     002_613af42269ea26a7.txt, "Result [Error linearization]" and the robot-arm example
     (x1' = x2, x2' = -a1 sin x1 - a2 x2 + b u, y = x1).
     """
+    require_system(system, "design_output_injection")
     caller = "design_output_injection"
     try:
         form = OutputInjectionForm.from_system(system)

@@ -16,7 +16,7 @@ from ..errors import PreconditionError
 from ..model import TIME, System
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import check_matrix
-from ._common import batch, box_of, sup_over_box
+from ._common import batch, box_of, require_system, sup_over_box
 from ..references import cite
 
 __all__ = ["design_lipschitz", "lipschitz_constant", "thau_margin"]
@@ -206,6 +206,7 @@ def design_lipschitz(system: System, *, gamma: float | None = None, region: Mapp
     ----------
     002_613af42269ea26a7.txt, "LTI + Lipschitz NL", "First idea" (Thau 1973).
     """
+    require_system(system, "design_lipschitz")
     caller = "design_lipschitz"
     n, p = system.n_states, system.n_outputs
     f, h = system.substituted()
@@ -238,12 +239,17 @@ def design_lipschitz(system: System, *, gamma: float | None = None, region: Mapp
                                     "states and inputs) to estimate it over")
         gam, where = lipschitz_constant(system, phi, region, caller=caller)
         checks.append(Check("γ estimated over the region (sup of ‖∂φ/∂x‖₂; valid while x and x̂ stay in it)", True,
-                            f"γ ≈ {gam:.4g} at {where}"))
+                            f"γ ≈ {gam:.4g} at {where}", "sampled over the region: a lower bound of the supremum, not a proof"))
+        checks.append(Check.assumed("x and x̂ stay in the region where γ was estimated",
+                                    ", ".join(f"{k} in [{v[0]:g}, {v[1]:g}]" for k, v in region.items())))
         values["region"] = dict(region)
+        gamma_kind = "with γ sampled from below over the region"
     else:
         gam = float(gamma)
         if not (np.isfinite(gam) and gam >= 0):
             raise PreconditionError(f"{caller}: `gamma` must be a non-negative number, got {gamma}")
+        checks.append(Check.assumed(f"φ = f - Ax is Lipschitz with the γ = {gam:g} given", "stated by the user; not verified"))
+        gamma_kind = "with the γ given"
     if K is not None:
         Km = check_matrix(K, n, p, "K", caller)
         margin, P = thau_margin(Am, C, Km)
@@ -265,7 +271,8 @@ def design_lipschitz(system: System, *, gamma: float | None = None, region: Mapp
     ev = np.linalg.eigvals(Am - Km @ C)
     ev = ev[np.lexsort((ev.imag, ev.real))]
     lam = np.linalg.eigvalsh(P)
-    checks.append(Check("Thau condition eigmin(Q)/(2 eigmax(P)) > γ (Q = I)", True, f"{margin:.4g} > {gam:.4g}"))
+    checks.append(Check("Thau condition eigmin(Q)/(2 eigmax(P)) > γ (Q = I)", True, f"{margin:.4g} > {gam:.4g}",
+                        f"floating point, {gamma_kind}"))
     values.update({"K": Km, "P": P, "Q": np.eye(n), "margin": margin, "gamma": gam, "guaranteed_rate": margin - gam,
                    "overshoot": float(np.sqrt(lam.max() / lam.min())), "eigenvalues": ev})
     s = Symbols.make(system, n)

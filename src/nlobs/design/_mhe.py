@@ -32,6 +32,7 @@ import sympy as sp
 from ..engine import compile_c, compile_system, compiled_nlpsol, defer_error, find_compiler, rk4_step
 from ..errors import EngineError, PreconditionError, SolverError
 from ..model import System
+from ._common import require_system
 from ..references import cite
 from ._base import Certificate, Check, ObserverDesign, check_vector
 from ._bounds import Box, bounds_check, check_start, clip, clip_const, parse_bounds
@@ -209,6 +210,7 @@ def design_mhe(system: System, *, horizon: int = 20, R: Any = None, Q: Any = Non
     002_613af42269ea26a7.txt, "Some observer problem formulations - About methods", approach I;
     Rao, Rawlings & Mayne (2003); Kühl et al. (2011).
     """
+    require_system(system, "design_mhe")
     caller = "design_mhe"
     n, p, nu = system.n_states, system.n_outputs, system.n_inputs
     N = int(horizon) if isinstance(horizon, (int, np.integer)) else -1

@@ -39,12 +39,13 @@ from ..errors import PreconditionError, ShapeError
 from ..model import TIME, System, symbol
 from ..model._forms import matrix_of
 from ..model._system import exact
-from ..model._translate import NUMPY, translate
+from ..analysis import decide_identity
 from ._base import Certificate, Check, ObserverDesign
+from ._checks import identity_check
 from ._regression import ExcitationMonitor, Gradient, Regression, StateStack, estimator_from, lowpass, sx_matrix
 from ..references import cite
 
-__all__ = ["design_kkl", "design_pebo", "design_kkl_pebo", "WindowedNLS", "vanishes"]
+__all__ = ["design_kkl", "design_pebo", "design_kkl_pebo", "WindowedNLS"]
 
 REF_KKL = f"{cite('004')} Proposition 1: PDE (4), left inverse (5), observer (6)"
 REF_PEBO = f"{cite('004')} Proposition 2: eqs. (7)-(13); regression (11) filtered as in (37)"
@@ -54,30 +55,6 @@ REF_KKLPEBO = f"{cite('004')} Proposition 3: eqs. (14)-(15), remarks R4-R5; regr
 # ---------------------------------------------------------------------------------------------
 # Symbolic helpers
 # ---------------------------------------------------------------------------------------------
-def vanishes(lhs: sp.Expr, rhs: sp.Expr = sp.S.Zero, *, samples: int = 12, seed: int = 0) -> tuple[bool, str]:
-    """Whether lhs - rhs is identically zero.
-
-    First by :func:`sympy.simplify`; when that does not reach 0 (it cannot prove every identity
-    with exp/log), by evaluating both sides at random points in (0.1, 0.9) for every symbol and
-    requiring agreement to 1e-9 relative. Returns the verdict and how it was reached.
-    """
-    diff = sp.expand(lhs - rhs)
-    if diff == 0 or sp.cancel(diff) == 0 or sp.simplify(diff) == 0:
-        return True, "simplifies to 0"
-    syms = sorted(diff.free_symbols | lhs.free_symbols | rhs.free_symbols, key=lambda s: s.name)
-    if not diff.free_symbols:
-        return False, f"a non-zero constant {sp.nsimplify(diff)}"
-    rng = np.random.default_rng(seed)
-    pts = {s: rng.uniform(0.1, 0.9, samples) for s in syms}
-    with np.errstate(all="ignore"):
-        a = np.broadcast_to(np.asarray(translate(lhs, pts, NUMPY), dtype=float), (samples,))
-        b = np.broadcast_to(np.asarray(translate(rhs, pts, NUMPY), dtype=float), (samples,))
-    ok = np.isfinite(a) & np.isfinite(b)
-    if ok.sum() >= 3 and np.all(np.abs(a[ok] - b[ok]) <= 1e-9 * (1 + np.abs(a[ok]) + np.abs(b[ok]))):
-        return True, f"simplify could not reach 0; both sides agree to 1e-9 at {int(ok.sum())} random points"
-    return False, "does not vanish"
-
-
 def _pde_hint(phi_i: sp.Expr, drift_i: sp.Expr) -> str:
     """Which λ would make component i satisfy its PDE, when one exists (drift = ∇φ_iᵀf - B_i)."""
     if phi_i == 0:
@@ -136,16 +113,16 @@ def _parse_maps(system: System, phi: Any, left_inverse: Any, B: Any, Lambda: Any
 def _check_left_inverse(system: System, m: _Maps, caller: str) -> Check:
     _, h = system.substituted()
     subs = {**dict(zip(m.xi, m.phi)), **{symbol(k): h[i] for i, k in enumerate(system.outputs)}}
-    hows = set()
+    verdicts = []
     for i, x in enumerate(system.x):
-        ok, how = vanishes(m.left[i].xreplace(subs), x)
-        hows.add(how)
-        if not ok:
+        v = decide_identity(m.left[i].xreplace(subs), x, seed=i)
+        if v.fails:
             raise PreconditionError(
                 f"{caller}: `left_inverse` is not a left inverse of φ ({cite('004')} eq. 5): φ^L(φ(x), h(x)) gives "
-                f"{sp.simplify(m.left[i].xreplace(subs))} for {system.states[i]}, not {system.states[i]}. φ must be injective "
-                "(given y) and φ^L must invert it.")
-    return Check(f"φ^L(φ(x), h(x)) = x ({cite('004')} eq. 5)", True, "; ".join(sorted(hows)))
+                f"{sp.simplify(m.left[i].xreplace(subs))} for {system.states[i]}, not {system.states[i]}{v.where()}. "
+                "φ must be injective (given y) and φ^L must invert it.")
+        verdicts.append(v)
+    return identity_check(f"φ^L(φ(x), h(x)) = x ({cite('004')} eq. 5)", verdicts, [f"state {s_}" for s_ in system.states])
 
 
 def _check_pde(system: System, m: _Maps, caller: str, what: str) -> Check:
@@ -153,12 +130,12 @@ def _check_pde(system: System, m: _Maps, caller: str, what: str) -> Check:
     B_hx = m.B.xreplace({symbol(k): h[i] for i, k in enumerate(system.outputs)})
     drift = m.phi.jacobian(sp.Matrix(system.x)) * f - B_hx
     diagonal = all(m.Lam[i, j] == 0 for i in range(m.Lam.shape[0]) for j in range(m.Lam.shape[1]) if i != j)
-    how_all = []
+    verdicts = []
     for i in range(m.phi.shape[0]):
         rhs = (m.Lam * m.phi)[i]
-        ok, how = vanishes(drift[i], rhs)
-        if ok:
-            how_all.append(how)
+        v = decide_identity(drift[i], rhs, seed=i)
+        verdicts.append(v)
+        if not v.fails:
             continue
         resid = sp.simplify(drift[i] - rhs)
         states = sorted(s.name for s in resid.free_symbols if s in set(system.x))
@@ -167,9 +144,9 @@ def _check_pde(system: System, m: _Maps, caller: str, what: str) -> Check:
         lam = f"λ = {m.Lam[i, i]}" if diagonal else "Λ"
         raise PreconditionError(
             f"{caller}: the {what} PDE ∇φᵀf = Λφ + B(h(x), u) ({cite('004')} eq. 4) fails for component {i + 1} "
-            f"(φ_{i + 1} = {m.phi[i]}, {lam}): the residual is {resid}, not 0{dep}.{hint}")
-    note = "simplify" if all(h_ == "simplifies to 0" for h_ in how_all) else "simplify and random-point evaluation"
-    return Check(f"{what} PDE ∇φᵀf = Λφ + B(h(x), u) ({cite('004')} eq. 4)", True, f"all {m.phi.shape[0]} components ({note})")
+            f"(φ_{i + 1} = {m.phi[i]}, {lam}): the residual is {resid}, not 0{v.where()}{dep}.{hint}")
+    return identity_check(f"{what} PDE ∇φᵀf = Λφ + B(h(x), u) ({cite('004')} eq. 4)", verdicts,
+                          [f"component {i + 1}" for i in range(m.phi.shape[0])])
 
 
 def _partition(Lam: sp.Matrix, caller: str) -> tuple[sp.Matrix, sp.Matrix, list[sp.Expr], list[int], list[int], list[Check]]:
@@ -364,7 +341,9 @@ def _kkl_pebo(system: System, *, phi: Any, left_inverse: Any, B: Any, Lambda: An
                                 "not decidable symbolically")
     for i in kkl:
         if not lam[i].free_symbols:
-            checks.append(Check(f"KKL component {i + 1}: λ = {lam[i]} < 0 ({cite('004')} A1)", True))
+            checks.append(Check(f"KKL component {i + 1}: λ = {lam[i]} < 0 ({cite('004')} A1)", bool(lam[i] < 0), "", "exact"))
+    if assumed:
+        checks.append(Check.assumed(f"input-dependent λ negative along the input ({cite('004')} A1)", values["assumption"]))
 
     theta_hat = ca.SX(0, 1)
     n_th = len(pebo)
@@ -423,8 +402,9 @@ def _theta_estimator(system: System, maps: _Maps, stack: StateStack, xi: ca.SX, 
             fns.append(ca.Function("g", [T, X, stack.y, stack.u], [to_casadi([exprs[k] for k in rows], lv)]) if rows else None)
         theta_hat = _build_nls(stack, nls, xi, fns[0], der_rows, fns[1], alg_rows, n_th, np.zeros(n_th))
         values.update(nls.describe())
-        checks.append(Check("θ estimated by windowed nonlinear least squares on the regression (11)", True,
-                            f"{n_th} parameter(s)"))
+        checks.append(Check.assumed("θ identifiable from the window: the nonlinear least-squares fit of the regression (11) "
+                                    "has a unique minimiser", f"{n_th} parameter(s); depends on the data, not checked at "
+                                    "design time"))
         return theta_hat, values, checks
     est = estimator_from(estimator, default=Gradient(1.0), caller=caller)
     alpha = float(alpha)
@@ -438,12 +418,16 @@ def _theta_estimator(system: System, maps: _Maps, stack: StateStack, xi: ca.SX, 
     if Theta is not None:
         Th_of = matrix_of(Theta, n_th, 1, {s.name: s for s in th}, name="Theta")
         th_of = matrix_of(theta_from_Theta, n_th, 1, {s.name: s for s in Th}, name="theta_from_Theta")
+        verdicts = []
         for k in range(n_th):
-            ok, _ = vanishes(th_of[k].xreplace(dict(zip(Th, Th_of))), th[k])
-            if not ok:
+            v = decide_identity(th_of[k].xreplace(dict(zip(Th, Th_of))), th[k], seed=k)
+            if v.fails:
                 raise PreconditionError(f"{caller}: `theta_from_Theta` does not invert `Theta`: θ(Θ(θ))_{k + 1} = "
-                                        f"{sp.simplify(th_of[k].xreplace(dict(zip(Th, Th_of))))}, not theta{k + 1}")
-        checks.append(Check("reparametrisation θ(Θ(θ)) = θ", True, f"Θ = {list(Th_of)}"))
+                                        f"{sp.simplify(th_of[k].xreplace(dict(zip(Th, Th_of))))}, not theta{k + 1}"
+                                        f"{v.where()}")
+            verdicts.append(v)
+        chk = identity_check(f"reparametrisation θ(Θ(θ)) = θ, Θ = {list(Th_of)}", verdicts, [f"theta{k + 1}" for k in range(n_th)])
+        checks.append(chk)
     else:
         Th_of, th_of = sp.Matrix(th), sp.Matrix(Th)
     to_Th = dict(zip(th, th_of))
@@ -487,7 +471,9 @@ def _theta_estimator(system: System, maps: _Maps, stack: StateStack, xi: ca.SX, 
                    "regressor psi": f"F[b_k], b = {[list(b.xreplace(shown)) for b in b_rows]}",
                    "alpha": alpha, **est.describe(), "excitation monitor": ExcitationMonitor.of(stack, out, est)})
     checks.append(Check("regression (11) linear in " + ("Θ" if Theta is not None else "θ") + f"; filtered with F, W ({cite('004')} eq. 37)",
-                        True, f"{len(a_rows)} row(s), {n_th} parameter(s); {est.reference}"))
+                        True, f"{len(a_rows)} row(s), {n_th} parameter(s); {est.reference}", "symbolic (Jacobian in θ free of θ)"))
+    checks.append(Check.assumed("the regressor F[b] is exciting enough for the estimator (PE, or interval excitation for G+D)",
+                                "depends on the trajectory; measure it with nlobs.design.excitation_report after a run"))
     return theta_hat, values, checks
 
 

@@ -11,6 +11,7 @@ import numpy as np
 from ..engine import compile_system
 from ..errors import PreconditionError
 from ..model import System
+from ._common import require_system
 from ._base import Certificate, Check, ObserverDesign, Symbols, check_vector
 from ._bounds import POLICY, bounds_check, check_start, clip_const, parse_bounds
 from ._checks import check_matrix
@@ -89,6 +90,7 @@ def design_ukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
     ----------
     Särkkä (2007); Julier & Uhlmann (2004); the continuous-discrete EKF of this package for comparison.
     """
+    require_system(system, "design_ukf")
     caller = "design_ukf"
     n, p = system.n_states, system.n_outputs
     Qm = check_matrix(Q, n, n, "Q", caller, definite="semidefinite")
@@ -136,4 +138,4 @@ def design_ukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
                                 xhat0_sym=x0,
                                 z0=ca.vertcat(x0, ca.DM(P0m.reshape(-1, order="F"))),
                                 xhat0=np.zeros(n) if xhat0 is None else xhat0, certificate=cert,
-                                update=ca.vertcat(m_plus, ca.vec(P_plus)))
+                                update=ca.vertcat(m_plus, ca.vec(P_plus)), covariance=P)

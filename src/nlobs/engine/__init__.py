@@ -8,6 +8,7 @@ from ._casadi import rows as rows
 from ._casadi import to_casadi as to_casadi
 from ._codegen import Backend as Backend
 from ._codegen import cache_dir as cache_dir
+from ._codegen import choose_backend as choose_backend
 from ._codegen import compile_c as compile_c
 from ._codegen import find_compiler as find_compiler
 from ._codegen import resolve_backend as resolve_backend

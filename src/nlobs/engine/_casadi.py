@@ -10,6 +10,7 @@ import casadi as ca
 import sympy as sp
 
 from ..model import TIME, System, translate
+from ..model._translate import piecewise_table
 
 __all__ = ["CASADI", "to_casadi", "rows", "CompiledSystem", "compile_system"]
 
@@ -19,6 +20,7 @@ CASADI: Mapping[Any, Any] = {
     sp.asin: ca.asin, sp.acos: ca.acos, sp.atan: ca.atan, sp.atan2: ca.atan2,
     sp.sinh: ca.sinh, sp.cosh: ca.cosh, sp.tanh: ca.tanh,
     sp.exp: ca.exp, sp.log: ca.log, sp.Abs: ca.fabs, sp.sign: ca.sign,
+    **piecewise_table(ca.fmin, ca.fmax, ca.sign, lambda x: x == 0),  # min, max, sat: exact, no smoothing
     "sqrt": ca.sqrt,
 }
 

@@ -9,15 +9,19 @@ warning when C was asked for explicitly.
 
 from __future__ import annotations
 
+import atexit
 import ctypes
 import functools
 import hashlib
+import json
 import os
 import platform
 import shutil
 import subprocess
 import tempfile
+import time
 import warnings
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Literal
 
@@ -26,11 +30,14 @@ import numpy as np
 
 from ..errors import ConvergenceWarning, EngineError
 
-__all__ = ["Backend", "CompiledBatch", "CompiledLoop", "cache_dir", "find_compiler", "compile_c", "resolve_backend"]
+__all__ = ["Backend", "COSTS", "choose_backend", "signature_of", "built_path", "CompiledBatch", "CompiledLoop", "cache_dir", "find_compiler", "compile_c", "resolve_backend"]
 
 Backend = Literal["auto", "vm", "c"]
 
-CFLAGS = ("-O3", "-march=native", "-shared", "-fPIC")
+# -fno-semantic-interposition lets gcc inline the generated step into the driver loop of the shared object
+# (without it every step is an interposable call through the PLT: measured 1.6x the instructions on P1);
+# -fno-math-errno lets sqrt & co. compile to single instructions (same results, errno is never read)
+CFLAGS = ("-O3", "-march=native", "-shared", "-fPIC", "-fno-semantic-interposition", "-fno-math-errno")
 
 
 def cache_dir() -> Path:
@@ -55,9 +62,8 @@ def _find_compiler(forced: str | None, cc: str | None, path: str) -> str | None:
     return None
 
 
-def resolve_backend(backend: Backend, *, work: int, threshold: int = 200_000) -> Literal["vm", "c"]:
-    """Choose the backend: ``"auto"`` compiles when `work` (steps x states) exceeds `threshold`
-    and a compiler exists. ``$NLOBS_ENGINE`` (vm/c/auto) overrides ``"auto"``."""
+def _forced(backend: Backend) -> Literal["vm", "c"] | None:
+    """The backend an explicit choice (or ``$NLOBS_ENGINE``, or the lack of a compiler) fixes; None for "auto"."""
     if backend == "auto":
         backend = os.environ.get("NLOBS_ENGINE", "auto")  # type: ignore[assignment]
     if backend not in ("auto", "vm", "c"):
@@ -67,11 +73,109 @@ def resolve_backend(backend: Backend, *, work: int, threshold: int = 200_000) ->
     if find_compiler() is None:
         if backend == "c":
             warnings.warn("no C compiler found (set $CC); running on the CasADi virtual machine instead",
-                          ConvergenceWarning, stacklevel=3)
+                          ConvergenceWarning, stacklevel=4)
         return "vm"
-    if backend == "c" or work >= threshold:
+    return "c" if backend == "c" else None
+
+
+def resolve_backend(backend: Backend, *, work: int, threshold: int = 200_000) -> Literal["vm", "c"]:
+    """Choose the backend by size alone: ``"auto"`` compiles when `work` (steps x states) exceeds
+    `threshold` and a compiler exists. ``$NLOBS_ENGINE`` (vm/c/auto) overrides ``"auto"``. The
+    runners use :func:`choose_backend` (by measured cost) instead."""
+    forced = _forced(backend)
+    if forced is not None:
+        return forced
+    return "c" if work >= threshold else "vm"
+
+
+class _Costs:
+    """Measured costs on this machine, kept in ``cache_dir()/costs.json``: seconds per compile
+    (a + b·instructions of the compiled function) and seconds per VM instruction executed.
+    Every compile and every timed VM run updates them (exponential averages)."""
+
+    DEFAULT = {"compile_a": 0.35, "compile_b": 2e-4, "vm_per_instr": 6e-9}
+
+    def __init__(self) -> None:
+        self._data: dict[str, float] | None = None
+        self.spent: dict[str, float] = {}  # VM seconds spent per function signature in this process
+        self._dirty = False
+
+    @property
+    def data(self) -> dict[str, float]:
+        if self._data is None:
+            self._data = dict(self.DEFAULT)
+            try:
+                saved = json.loads((cache_dir() / "costs.json").read_text())
+                self._data.update({k: float(v) for k, v in saved.items() if k in self.DEFAULT and float(v) > 0})
+            except (OSError, ValueError, TypeError, AttributeError):
+                pass
+        return self._data
+
+    def _save(self) -> None:
+        try:
+            cache_dir().mkdir(parents=True, exist_ok=True)
+            tmp = cache_dir() / f"costs.json.{os.getpid()}"
+            tmp.write_text(json.dumps(self.data))
+            os.replace(tmp, cache_dir() / "costs.json")
+        except OSError:  # a read-only cache only loses the calibration
+            pass
+
+    def compile_seconds(self, n_instr: int) -> float:
+        return self.data["compile_a"] + self.data["compile_b"] * n_instr
+
+    def vm_seconds(self, n_instr_executed: float) -> float:
+        return self.data["vm_per_instr"] * n_instr_executed
+
+    def record_compile(self, n_instr: int, seconds: float) -> None:
+        d = self.data  # attribute the time above the fixed part to the size, averaged
+        d["compile_b"] = 0.7 * d["compile_b"] + 0.3 * max(seconds - d["compile_a"], 0.0) / max(n_instr, 1) + 1e-9
+        self._save()
+
+    def record_vm(self, n_instr_executed: float, seconds: float) -> None:
+        if n_instr_executed >= 1e5:  # too short a run says little; saved with the next compile (or at exit)
+            d = self.data
+            d["vm_per_instr"] = 0.7 * d["vm_per_instr"] + 0.3 * seconds / n_instr_executed
+            if not self._dirty:
+                self._dirty = True
+                atexit.register(self._save)
+
+
+COSTS = _Costs()
+
+
+def choose_backend(backend: Backend, *, ready: bool, n_instr: int, vm_instr: float, signature: str) -> Literal["vm", "c"]:
+    """Choose where to run a function by measured cost.
+
+    ``"auto"`` compiles when a compiler exists and either the compiled code is already built
+    (`ready`: loaded in this process or cached on disk), or the predicted VM time of this call
+    (`vm_instr` instructions executed at the measured VM speed), added to the VM time already
+    spent on this function in this process, reaches the predicted compile time of a function of
+    `n_instr` instructions. Like renting skis until their price is reached, this never costs
+    more than twice the better choice made in hindsight; the build is then cached on disk for
+    every later call and process. ``$NLOBS_ENGINE`` (vm/c/auto) overrides ``"auto"``.
+    """
+    forced = _forced(backend)
+    if forced is not None:
+        return forced
+    if ready:
         return "c"
-    return "vm"
+    spent = COSTS.spent.get(signature, 0.0)
+    return "c" if spent + COSTS.vm_seconds(vm_instr) >= COSTS.compile_seconds(n_instr) else "vm"
+
+
+def signature_of(fn: ca.Function) -> str:
+    """A hash of the function's full definition (CasADi serialisation)."""
+    return hashlib.sha256(fn.serialize().encode()).hexdigest()
+
+
+def built_path(tag: str, signature: str, template: str) -> Path | None:
+    """Where the shared object for (`tag`, `signature`, `template`) is cached, or None without a compiler."""
+    cc = find_compiler()
+    if cc is None:
+        return None
+    key = hashlib.sha256("\0".join([tag, signature, template, cc, *CFLAGS, platform.machine(), platform.node(),
+                                     ca.__version__]).encode()).hexdigest()[:32]
+    return cache_dir() / f"{tag}-{key}.so"
 
 
 _DRIVER = r"""
@@ -152,31 +256,67 @@ long long nlobs_batch(const casadi_real* S0, const casadi_real* A, long long a_s
 """
 
 
-def _generate(fn: ca.Function) -> str:
+_ERFINV = r"""
+#include <math.h>
+/* inverse error function: Giles' single-precision approximation refined by two Newton steps on erf */
+static double nlobs_erfinv(double x) {
+  double w, p, y;
+  int i;
+  if (!(x > -1 && x < 1)) return x == 1 ? INFINITY : (x == -1 ? -INFINITY : NAN);
+  w = -log((1 - x) * (1 + x));
+  if (w < 5) {
+    w -= 2.5;
+    p = 2.81022636e-08; p = 3.43273939e-07 + p * w; p = -3.5233877e-06 + p * w; p = -4.39150654e-06 + p * w;
+    p = 0.00021858087 + p * w; p = -0.00125372503 + p * w; p = -0.00417768164 + p * w; p = 0.246640727 + p * w;
+    p = 1.50140941 + p * w;
+  } else {
+    w = sqrt(w) - 3;
+    p = -0.000200214257; p = 0.000100950558 + p * w; p = 0.00134934322 + p * w; p = -0.00367342844 + p * w;
+    p = 0.00573950773 + p * w; p = -0.0076224613 + p * w; p = 0.00943887047 + p * w; p = 1.00167406 + p * w;
+    p = 2.83297682 + p * w;
+  }
+  y = p * x;
+  for (i = 0; i < 2; ++i) y -= (erf(y) - x) / (1.1283791670955126 * exp(-y * y));
+  return y;
+}
+"""
+
+
+def _generate(*fns: ca.Function) -> str:
+    """C for the functions `fns`; CasADi writes erfinv as a call to a C function libm does not have, so one is supplied."""
     with tempfile.TemporaryDirectory(prefix="nlobs-gen-") as tmp:
         gen = ca.CodeGenerator("gen.c", {"with_header": False, "main": False})
-        gen.add(fn)
+        for fn in fns:
+            gen.add(fn)
         gen.generate(tmp + os.sep)
-        return (Path(tmp) / "gen.c").read_text()
+        code = (Path(tmp) / "gen.c").read_text()
+    return _ERFINV + "#define erfinv nlobs_erfinv\n" + code if "erfinv(" in code else code
 
 
-def _build(code: str, tag: str) -> Path:
-    """Compile `code` to a shared object in the cache (once per machine) and return its path."""
+def _build(code: str | Callable[[], str], tag: str, so: Path | None = None, n_instr: int = 0) -> Path:
+    """Compile `code` (or `code()`, generated only when needed) to a shared object in the cache, once per
+    machine, and return its path: `so` when given (keyed by the function's signature), else keyed by the code."""
     cc = find_compiler()
     if cc is None:
         raise EngineError("no C compiler found: install gcc or set $CC, or use the 'vm' backend")
-    key = hashlib.sha256("\0".join([code, cc, *CFLAGS, platform.machine(), platform.node(), ca.__version__]).encode()).hexdigest()[:32]
-    out_dir = cache_dir()
-    so = out_dir / f"{tag}-{key}.so"
+    if so is None:
+        code = code() if callable(code) else code
+        key = hashlib.sha256("\0".join([code, cc, *CFLAGS, platform.machine(), platform.node(), ca.__version__]).encode()).hexdigest()[:32]
+        so = cache_dir() / f"{tag}-{key}.so"
     if not so.exists():
+        code = code() if callable(code) else code
+        out_dir = so.parent
         out_dir.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory(prefix="nlobs-cc-", dir=out_dir) as tmp:
             c_file = Path(tmp) / "gen.c"
             c_file.write_text(code)
             tmp_so = Path(tmp) / "gen.so"
+            t0 = time.perf_counter()
             proc = subprocess.run([cc, *CFLAGS, str(c_file), "-o", str(tmp_so), "-lm"], capture_output=True, text=True)
             if proc.returncode != 0:
                 raise EngineError(f"the C compiler {cc} failed on the generated code for {tag}:\n{proc.stderr[-2000:]}")
+            if n_instr:
+                COSTS.record_compile(n_instr, time.perf_counter() - t0)
             os.replace(tmp_so, so)  # atomic: concurrent builders never see a half-written file
     return so
 
@@ -204,12 +344,12 @@ class CompiledLoop:
     Python work per step.
     """
 
-    def __init__(self, step: ca.Function):
+    def __init__(self, step: ca.Function, sig: str | None = None):
         if step.n_in() != 3 or step.n_out() not in (1, 2):
             raise ValueError("CompiledLoop needs step(s, a, c) -> s_next or -> (s_next, o)")
         self.ns, self.na, self.nc = step.size1_in(0), step.size1_in(1), step.size1_in(2)
         self.no = step.size1_out(1) if step.n_out() == 2 else 0
-        self.path, lib = _compile_driver(step, _DRIVER, "loop", self.no)
+        self.path, lib = _compile_driver(step, _DRIVER, "loop", self.no, sig)
         self._run = lib.nlobs_run
         dbl = ctypes.POINTER(ctypes.c_double)
         self._run.argtypes = [dbl, dbl, dbl, dbl, dbl, ctypes.c_longlong, ctypes.c_double]
@@ -236,11 +376,11 @@ class CompiledBatch:
     See :func:`nlobs.engine.run_batch` for the arguments.
     """
 
-    def __init__(self, step: ca.Function):
+    def __init__(self, step: ca.Function, sig: str | None = None):
         if step.n_in() != 3 or step.n_out() != 2:
             raise ValueError("CompiledBatch needs step(s, a, c) -> (s_next, o)")
         self.ns, self.na, self.nc, self.no = step.size1_in(0), step.size1_in(1), step.size1_in(2), step.size1_out(1)
-        self.path, self._lib = _compile_driver(step, _BATCH, "batch", self.no)
+        self.path, self._lib = _compile_driver(step, _BATCH, "batch", self.no, sig)
         self._run = bind_batch(self._lib)
 
     def __call__(self, S0: np.ndarray, A: np.ndarray, a_stride: int, C: np.ndarray, c_stride: int, Sout: np.ndarray,
@@ -273,20 +413,25 @@ def call_batch(run: Any, S0: np.ndarray, A: np.ndarray, a_stride: int, C: np.nda
         raise EngineError(f"the compiled batch failed in trajectory {rc - 1}")
 
 
-def _compile_driver(step: ca.Function, template: str, tag: str, no: int) -> tuple[Path, ctypes.CDLL]:
+def _compile_driver(step: ca.Function, template: str, tag: str, no: int, sig: str | None = None) -> tuple[Path, ctypes.CDLL]:
     """Generate C for `step` (as ``nlobs_step``), append a driver `template` with its sizes filled in,
-    compile (or reuse the cached build) and load it."""
+    compile (or reuse the cached build, found by the step's signature without generating) and load it."""
     name = "nlobs_step"
-    renamed = _renamed(step, name)
-    defs = {
-        "NLOBS_SZ_ARG": renamed.sz_arg(), "NLOBS_SZ_RES": renamed.sz_res(),
-        "NLOBS_SZ_IW": renamed.sz_iw(), "NLOBS_SZ_W": renamed.sz_w(),
-        "NLOBS_NA": step.size1_in(1), "NLOBS_NS": step.size1_in(0), "NLOBS_NO": no,
-    }
-    driver = template.replace("NLOBS_STEP_work", f"{name}_work").replace("NLOBS_STEP", name)
-    for k, v in defs.items():
-        driver = driver.replace(k, str(int(v)))
-    path = _build(_generate(renamed) + driver, tag)
+
+    def code() -> str:
+        renamed = _renamed(step, name)
+        defs = {
+            "NLOBS_SZ_ARG": renamed.sz_arg(), "NLOBS_SZ_RES": renamed.sz_res(),
+            "NLOBS_SZ_IW": renamed.sz_iw(), "NLOBS_SZ_W": renamed.sz_w(),
+            "NLOBS_NA": step.size1_in(1), "NLOBS_NS": step.size1_in(0), "NLOBS_NO": no,
+        }
+        driver = template.replace("NLOBS_STEP_work", f"{name}_work").replace("NLOBS_STEP", name)
+        for k, v in defs.items():
+            driver = driver.replace(k, str(int(v)))
+        return _generate(renamed) + driver
+
+    so = built_path(tag, sig if sig is not None else signature_of(step), template)
+    path = _build(code, tag, so, n_instr=step.n_instructions() if step.is_a("SXFunction") else 0)
     return path, ctypes.CDLL(str(path))
 
 

@@ -7,30 +7,62 @@ preallocated NumPy array through :meth:`casadi.Function.buffer` (no intermediate
 
 from __future__ import annotations
 
-import hashlib
+import time
 from collections.abc import Callable
 from typing import Any
 
 import casadi as ca
 import numpy as np
 
-from ._codegen import Backend, CompiledBatch, CompiledLoop, resolve_backend
+from ._codegen import _BATCH, _DRIVER, COSTS, Backend, CompiledBatch, CompiledLoop, built_path, choose_backend, signature_of
 from ._deferred import raise_deferred
-from ._simd import CompiledSimdBatch, simd_supported
+from ._simd import _DRIVER as _SIMD_DRIVER
+from ._simd import _KERNEL_VERSION, LANES, CompiledSimdBatch, simd_supported
 
-__all__ = ["rk4_step", "StepRunner", "DEFAULT_CHUNK", "run_batch", "saved_steps"]
+__all__ = ["rk4_step", "rk4_step_rate", "StepRunner", "DEFAULT_CHUNK", "run_batch", "saved_steps"]
 
 DEFAULT_CHUNK = 10_000
 
 
-def rk4_step(rhs: Callable[[Any, Any, int], Any], t: Any, s: Any, dt: Any) -> Any:
+def rk4_step(rhs: Callable[[Any, Any, int], Any], t: Any, s: Any, dt: Any, *, half: Any = None, sixth: Any = None) -> Any:
     """One classical Runge-Kutta 4 step; ``rhs(t, s, stage)`` gets the stage index 0, 1, 1, 2
-    (start, midpoint twice, end) so callers can feed stage-specific inputs."""
+    (start, midpoint twice, end) so callers can feed stage-specific inputs.
+
+    `half` and `sixth` may carry dt/2 and dt/6 precomputed (e.g. as run-time constants), so that
+    the step itself has no division.
+    """
+    return rk4_step_rate(rhs, t, s, dt, half=half, sixth=sixth)[0]
+
+
+def rk4_step_rate(rhs: Callable[[Any, Any, int], Any], t: Any, s: Any, dt: Any, *, half: Any = None,
+                  sixth: Any = None, rate: bool = False) -> tuple[Any, Any]:
+    """One RK4 step and, with ``rate=True``, an estimate of the flow's fastest local rate (1/time).
+
+    The rate is ``‖k3 − k2‖ / ‖Y3 − Y2‖`` for the two stages evaluated at the same time
+    t + dt/2 (Y2 = s + dt/2·k1, Y3 = s + dt/2·k2, so Y3 − Y2 = dt/2·(k2 − k1)): a difference
+    quotient of the vector field along the direction the stages differ in, i.e. ‖J v‖/‖v‖ for
+    the Jacobian J. When the step is too long for a fast (stiff) mode, that mode dominates the
+    stage differences and the quotient approaches its rate (the stiffness detector of Hairer &
+    Wanner, Solving ODEs II, sec. IV.2, applied to the two equal-time stages of RK4). Classical
+    RK4 is stable for dt·|λ| up to about 2.8 on the real and imaginary axes. The quotient is 0
+    when the stages agree to 1e-10 relative (no information; e.g. a flow that depends on t only).
+    """
+    if half is None:
+        half = dt / 2
+    if sixth is None:
+        sixth = dt / 6
     k1 = rhs(t, s, 0)
-    k2 = rhs(t + dt / 2, s + dt / 2 * k1, 1)
-    k3 = rhs(t + dt / 2, s + dt / 2 * k2, 1)
+    y2 = s + half * k1
+    k2 = rhs(t + half, y2, 1)
+    y3 = s + half * k2
+    k3 = rhs(t + half, y3, 1)
     k4 = rhs(t + dt, s + dt * k3, 2)
-    return s + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    s_next = s + sixth * (k1 + 2 * k2 + 2 * k3 + k4)
+    if not rate:
+        return s_next, None
+    den = ca.norm_2(y3 - y2)
+    num = ca.norm_2(k3 - k2)
+    return s_next, ca.if_else(den > 1e-10 * ca.norm_2(s) + 1e-300, num / (den + 1e-300), 0)
 
 
 _VM: dict[tuple[Any, ...], ca.Function] = {}
@@ -39,7 +71,7 @@ _BATCHES: dict[str, CompiledBatch | CompiledSimdBatch] = {}
 
 
 def _signature(fn: ca.Function) -> str:
-    return hashlib.sha256(fn.serialize().encode()).hexdigest()
+    return signature_of(fn)
 
 
 class StepRunner:
@@ -52,7 +84,7 @@ class StepRunner:
         step, `c` is constant; `o` (optional) is a per-step output computed from the state
         *before* the step (measurements, estimates).
     backend : {"auto", "vm", "c"}
-        Where to run; see :func:`nlobs.engine.resolve_backend`.
+        Where to run; ``"auto"`` chooses by measured cost (see :func:`nlobs.engine.choose_backend`).
     chunk : int
         Steps per call when progress is reported (and per VM map); without progress the
         compiled C loop runs the whole horizon in one call.
@@ -86,8 +118,16 @@ class StepRunner:
     def _loop(self) -> CompiledLoop:
         loop = _LOOPS.get(self._sig)
         if loop is None:
-            loop = _LOOPS[self._sig] = CompiledLoop(self.step)
+            loop = _LOOPS[self._sig] = CompiledLoop(self.step, self._sig)
         return loop
+
+    def backend_for(self, n_steps: int) -> str:
+        """Where `n_steps` steps run (see :func:`nlobs.engine.choose_backend`)."""
+        if self.backend == "vm":
+            return "vm"
+        ready = self._sig in _LOOPS or (lambda p: p is not None and p.exists())(built_path("loop", self._sig, _DRIVER))
+        return choose_backend(self.backend, ready=ready, n_instr=self.step.n_instructions(),
+                              vm_instr=float(n_steps) * self.step.n_instructions(), signature=self._sig)
 
     def run(self, s0: np.ndarray, a: np.ndarray, c: np.ndarray, *,
             on_chunk: Callable[[np.ndarray, int], None] | None = None,
@@ -113,7 +153,7 @@ class StepRunner:
         c = np.ascontiguousarray(np.asarray(c, dtype=float).reshape(self.nc))
         state = np.ascontiguousarray(np.asarray(s0, dtype=float).reshape(self.ns)).copy()
         # an MX step (e.g. embedding an NLP solver) cannot be generated as C: always the VM
-        backend = resolve_backend(self.backend, work=N * self.ns) if self.step.is_a("SXFunction") else "vm"
+        backend = self.backend_for(N) if self.step.is_a("SXFunction") else "vm"
         K = min(self.chunk, N) if (backend != "c" or on_chunk is not None) else N
         k = 0
         while k < N:
@@ -122,6 +162,7 @@ class StepRunner:
             if backend == "c":
                 done = self._loop()(state, a[k:k + n], c, block, oblock if self.no else None, bound)
             else:
+                t_vm = time.perf_counter()
                 buf, ev = self._vm_chunk(n).buffer()
                 buf.set_arg(0, memoryview(state))
                 buf.set_arg(1, memoryview(a[k:k + n]))
@@ -131,6 +172,9 @@ class StepRunner:
                     buf.set_res(1, memoryview(oblock))
                 ev()
                 raise_deferred()  # an error recorded by a Python callback in the step (e.g. MHE's solver)
+                spent = time.perf_counter() - t_vm
+                COSTS.spent[self._sig] = COSTS.spent.get(self._sig, 0.0) + spent
+                COSTS.record_vm(float(n) * self.step.n_instructions(), spent)
                 bad = (~(np.abs(block) <= bound)).any(axis=1)  # NaN counts as bad
                 done = int(np.argmax(bad)) if bad.any() else n
             if done < n:
@@ -188,11 +232,15 @@ def run_batch(step: ca.Function, S0: np.ndarray, A: np.ndarray, C: np.ndarray, n
     O = np.full((B, steps.size, no), np.nan)
     status = np.full(B, n_steps, dtype=np.int64)
     work = B * n_steps * ns
-    if resolve_backend(backend, work=work) == "c":
-        sig = _signature(step)
+    sig = _signature(step) if backend != "vm" else ""
+    simd = step.is_a("SXFunction") and simd_supported(step)
+    ready = sig in _BATCHES or (lambda p: p is not None and p.exists())(
+        built_path("simd", sig + f"/{LANES}", _SIMD_DRIVER + _KERNEL_VERSION) if simd else built_path("batch", sig, _BATCH))
+    if backend != "vm" and choose_backend(backend, ready=ready, n_instr=step.n_instructions(), vm_instr=float(work) / max(ns, 1) * step.n_instructions(),
+                                          signature=sig) == "c":
         batch = _BATCHES.get(sig)
         if batch is None:  # lane-parallel (SIMD across trajectories) when every operation allows it
-            batch = _BATCHES[sig] = CompiledSimdBatch(step) if simd_supported(step) else CompiledBatch(step)
+            batch = _BATCHES[sig] = CompiledSimdBatch(step, sig=sig) if simd else CompiledBatch(step, sig)
         batch(S0, A, 0 if shared_a else A.shape[1] * A.shape[2], C, 0 if shared_c else C.shape[1], S, O, n_steps, stride,
               bound, status)
         return S, O, status

@@ -16,17 +16,19 @@ import casadi as ca
 import numpy as np
 
 from ..errors import EngineError
-from ._codegen import _build, bind_batch, call_batch
+from ._codegen import _ERFINV, _build, bind_batch, built_path, call_batch, signature_of
 
 __all__ = ["simd_supported", "CompiledSimdBatch", "LANES"]
 
 LANES = 8
+_KERNEL_VERSION = "fused-lanes-2"  # part of the cache key: bump when _kernel's output changes
 
 _BINARY = {
     ca.OP_ADD: "{a} + {b}", ca.OP_SUB: "{a} - {b}", ca.OP_MUL: "{a} * {b}", ca.OP_DIV: "{a} / {b}",
     ca.OP_POW: "pow({a}, {b})", ca.OP_CONSTPOW: "pow({a}, {b})", ca.OP_ATAN2: "atan2({a}, {b})",
     ca.OP_FMIN: "fmin({a}, {b})", ca.OP_FMAX: "fmax({a}, {b})", ca.OP_FMOD: "fmod({a}, {b})",
-    ca.OP_COPYSIGN: "copysign({a}, {b})", ca.OP_HYPOT: "hypot({a}, {b})",
+    ca.OP_COPYSIGN: "copysign({a}, {b})", ca.OP_HYPOT: "hypot({a}, {b})", ca.OP_REMAINDER: "remainder({a}, {b})",
+    ca.OP_PRINTME: "{a}", ca.OP_LIFT: "{a}",
     ca.OP_LT: "({a} < {b})", ca.OP_LE: "({a} <= {b})", ca.OP_EQ: "({a} == {b})", ca.OP_NE: "({a} != {b})",
     ca.OP_AND: "({a} && {b})", ca.OP_OR: "({a} || {b})", ca.OP_IF_ELSE_ZERO: "({a} ? {b} : 0)",
 }
@@ -37,7 +39,7 @@ _UNARY = {
     ca.OP_ATAN: "atan({a})", ca.OP_SINH: "sinh({a})", ca.OP_COSH: "cosh({a})", ca.OP_TANH: "tanh({a})",
     ca.OP_ASINH: "asinh({a})", ca.OP_ACOSH: "acosh({a})", ca.OP_ATANH: "atanh({a})", ca.OP_FABS: "fabs({a})",
     ca.OP_FLOOR: "floor({a})", ca.OP_CEIL: "ceil({a})", ca.OP_ERF: "erf({a})", ca.OP_EXPM1: "expm1({a})",
-    ca.OP_LOG1P: "log1p({a})", ca.OP_NOT: "(!{a})",
+    ca.OP_LOG1P: "log1p({a})", ca.OP_NOT: "(!{a})", ca.OP_ERFINV: "nlobs_erfinv({a})",
     ca.OP_SIGN: "(({a}) > 0 ? 1.0 : (({a}) < 0 ? -1.0 : 0.0))",
 }
 
@@ -59,32 +61,40 @@ def _literal(v: float) -> str:
 
 
 def _kernel(fn: ca.Function, W: int) -> str:
-    """C for ``void nlobs_step_w(const double **arg, double **res)`` over W lanes ([nz][W] layout)."""
+    """C for ``void nlobs_step_w(const double **arg, double **res)`` over W lanes ([nz][W] layout).
+
+    One loop over the lanes holds every instruction, each CasADi work variable a scalar local of
+    the loop body: the shape of a hand-written structure-of-arrays loop, which the compiler keeps in
+    registers and vectorises across the lanes (``#pragma omp simd``-free: ``restrict`` pointers and
+    ``GCC ivdep`` tell it the lanes are independent).
+    """
     rows = [np.array(fn.sparsity_out(i).row(), dtype=int) for i in range(fn.n_out())]
-    lines = [f"static void nlobs_step_w(const double **arg, double **res) {{",
-             f"  double w[{max(fn.sz_w(), 1)}][{W}];", "  int l;"]
+    head = ["static inline void nlobs_step_w(const double **arg, double **res) {", "  int l;"]
+    head += [f"  const double *restrict in{i} = arg[{i}];" for i in range(fn.n_in())]
+    head += [f"  double *restrict out{i} = res[{i}];" for i in range(fn.n_out())]
     for i in range(fn.n_out()):  # structural zeros of sparse outputs
         dense = fn.size1_out(i) * fn.size2_out(i)
         if dense != fn.nnz_out(i):
-            lines.append(f"  for (l = 0; l < {dense * W}; ++l) res[{i}][l] = 0;")
-    loop = f"  for (l = 0; l < {W}; ++l) "
+            head.append(f"  for (l = 0; l < {dense * W}; ++l) out{i}[l] = 0;")
+    n_w = max(fn.sz_w(), 1)
+    body = ["  #pragma GCC ivdep", f"  for (l = 0; l < {W}; ++l) {{",
+            "    double " + ", ".join(f"w{j}" for j in range(n_w)) + ";"]
     for k in range(fn.n_instructions()):
         op, ins, outs = fn.instruction_id(k), fn.instruction_input(k), fn.instruction_output(k)
         if op == ca.OP_INPUT:
-            lines.append(loop + f"w[{outs[0]}][l] = arg[{ins[0]}][{ins[1] * W} + l];")
+            body.append(f"    w{outs[0]} = in{ins[0]}[{ins[1] * W} + l];")
         elif op == ca.OP_OUTPUT:
-            lines.append(loop + f"res[{outs[0]}][{int(rows[outs[0]][outs[1]]) * W} + l] = w[{ins[0]}][l];")
+            body.append(f"    out{outs[0]}[{int(rows[outs[0]][outs[1]]) * W} + l] = w{ins[0]};")
         elif op == ca.OP_CONST:
-            lines.append(loop + f"w[{outs[0]}][l] = {_literal(fn.instruction_constant(k))};")
+            body.append(f"    w{outs[0]} = {_literal(fn.instruction_constant(k))};")
         elif op in _BINARY:
-            expr = _BINARY[op].format(a=f"w[{ins[0]}][l]", b=f"w[{ins[1]}][l]")
-            lines.append(loop + f"w[{outs[0]}][l] = {expr};")
+            body.append(f"    w{outs[0]} = {_BINARY[op].format(a=f'w{ins[0]}', b=f'w{ins[1]}')};")
         elif op in _UNARY:
-            lines.append(loop + f"w[{outs[0]}][l] = {_UNARY[op].format(a=f'w[{ins[0]}][l]')};")
+            body.append(f"    w{outs[0]} = {_UNARY[op].format(a=f'w{ins[0]}')};")
         else:  # pragma: no cover - guarded by simd_supported
             raise EngineError(f"operation {op} has no lane-parallel form")
-    lines.append("}")
-    return "\n".join(lines)
+    body.append("  }")
+    return "\n".join(head + body + ["}"])
 
 
 _DRIVER = r"""
@@ -92,7 +102,8 @@ _DRIVER = r"""
 long long nlobs_batch(const double* S0, const double* A, long long a_stride, const double* C, long long c_stride,
                       double* Sout, double* Oout, long long n_save, long long n_traj, long long n_steps,
                       long long stride, double bound, long long* status) {
-  double s[NS * W], nxt[NS * W], a[NA * W + 1], c[NC * W + 1], o[NO * W + 1];
+  double buf_s[NS * W], buf_n[NS * W], a[NA * W + 1], c[NC * W + 1], o[NO * W + 1], acc;
+  double *s = buf_s, *nxt = buf_n, *tmp;  /* swapped after each step: no copy */
   const double* arg[3];
   double* res[2];
   long long j0, k, isave, next_save, j;
@@ -105,13 +116,14 @@ long long nlobs_batch(const double* S0, const double* A, long long a_stride, con
       for (i = 0; i < NC; ++i) c[i * W + l] = C[j * c_stride + i];
       if (alive[l]) status[j] = n_steps;
     }
-    arg[0] = s; arg[1] = a; arg[2] = c; res[0] = nxt; res[1] = o;
+    arg[1] = a; arg[2] = c; res[1] = o;
     isave = 0; next_save = 0;
     for (k = 0; k <= n_steps; ++k) {
       for (l = 0; l < W; ++l) {
         j = j0 + l < n_traj ? j0 + l : n_traj - 1;
         for (i = 0; i < NA; ++i) a[i * W + l] = A[j * a_stride + k * NA + i];
       }
+      arg[0] = s; res[0] = nxt;
       nlobs_step_w(arg, res);
       if (k == next_save) {
         for (l = 0; l < W; ++l) {
@@ -124,14 +136,18 @@ long long nlobs_batch(const double* S0, const double* A, long long a_stride, con
         next_save = next_save + stride < n_steps ? next_save + stride : n_steps;
       }
       if (k == n_steps) break;
-      n_alive = 0;
-      for (l = 0; l < W; ++l) {
-        if (!alive[l]) continue;
-        for (i = 0; i < NS; ++i) if (!(nxt[i * W + l] <= bound && nxt[i * W + l] >= -bound)) { alive[l] = 0; status[j0 + l] = k; break; }
-        n_alive += alive[l];
+      acc = 0;
+      for (i = 0; i < NS * W; ++i) acc += fabs(nxt[i]) <= bound ? 0.0 : 1.0;  /* compare + blend + add: SIMD; NaN is bad */
+      if (acc != 0) {
+        n_alive = 0;
+        for (l = 0; l < W; ++l) {
+          if (!alive[l]) continue;
+          for (i = 0; i < NS; ++i) if (!(fabs(nxt[i * W + l]) <= bound)) { alive[l] = 0; status[j0 + l] = k; break; }
+          n_alive += alive[l];
+        }
+        if (!n_alive) break;
       }
-      for (i = 0; i < NS * W; ++i) s[i] = nxt[i];
-      if (!n_alive) break;
+      tmp = s; s = nxt; nxt = tmp;
     }
   }
   return 0;
@@ -145,13 +161,18 @@ class CompiledSimdBatch:
     Same call as :class:`nlobs.engine._codegen.CompiledBatch`.
     """
 
-    def __init__(self, step: ca.Function, lanes: int = LANES):
+    def __init__(self, step: ca.Function, lanes: int = LANES, sig: str | None = None):
         if step.n_in() != 3 or step.n_out() != 2 or not simd_supported(step):
             raise EngineError("CompiledSimdBatch needs an SX step(s, a, c) -> (s_next, o) with supported operations")
         self.ns, self.na, self.nc, self.no = step.size1_in(0), step.size1_in(1), step.size1_in(2), step.size1_out(1)
         sizes = {"NS": self.ns, "NA": self.na, "NC": self.nc, "NO": self.no, "W": lanes}
-        code = "#include <math.h>\n" + "".join(f"#define {k} {v}\n" for k, v in sizes.items()) + _kernel(step, lanes) + _DRIVER
-        self.path = _build(code, "simd")
+
+        def code() -> str:
+            return ("#include <math.h>\n" + "".join(f"#define {k} {v}\n" for k, v in sizes.items()) + _ERFINV
+                    + _kernel(step, lanes) + _DRIVER)
+
+        so = built_path("simd", (sig or signature_of(step)) + f"/{lanes}", _DRIVER + _KERNEL_VERSION)
+        self.path = _build(code, "simd", so, n_instr=step.n_instructions())
         self._lib = ctypes.CDLL(str(self.path))
         self._run = bind_batch(self._lib)
 

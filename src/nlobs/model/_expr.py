@@ -7,7 +7,12 @@ turned into SymPy objects. Nothing is ever evaluated by Python: no ``eval``, ``e
 ``sympify`` or ``parse_expr`` touches the text, so a model file cannot run code.
 
 Limits keep SymPy from doing unbounded work on hostile input: the text length, the nesting
-depth, the size of constant exponents and the magnitude of constant sub-expressions.
+depth, the size of exponents (also once SymPy combines nested powers, ``(x**64)**64 = x**4096``)
+and the magnitude of constant sub-expressions.
+
+``min(a, b)``, ``max(a, b)`` and ``sat(x, lo, hi) = min(max(x, lo), hi)`` are piecewise, like
+``abs`` and ``sign``: numerically exact (CasADi ``fmin``/``fmax``), analysed symbolically on one
+regime at a time (see :func:`nlobs.analyze`).
 """
 
 from __future__ import annotations
@@ -17,6 +22,8 @@ import math
 from collections.abc import Callable, Mapping
 
 import sympy as sp
+
+from .._text import shorten_list
 
 __all__ = ["FUNCTIONS", "CONSTANTS", "ExpressionError", "parse_expression", "MAX_EXPONENT"]
 
@@ -37,6 +44,9 @@ FUNCTIONS: Mapping[str, tuple[Callable[..., sp.Expr], int]] = {
     "sqrt": (sp.sqrt, 1),
     "abs": (sp.Abs, 1),
     "sign": (sp.sign, 1),
+    "min": (lambda a, b: sp.Min(a, b), 2),
+    "max": (lambda a, b: sp.Max(a, b), 2),
+    "sat": (lambda x, lo, hi: _sat(x, lo, hi), 3),
 }
 
 #: Named constants a model expression may use.
@@ -76,15 +86,23 @@ class ExpressionError(ValueError):
     """Raised by :func:`parse_expression`; the caller adds the file and key."""
 
 
-def parse_expression(text: str, symbols: Mapping[str, sp.Symbol]) -> sp.Expr:
+def _sat(x: sp.Expr, lo: sp.Expr, hi: sp.Expr) -> sp.Expr:
+    """sat(x, lo, hi) = min(max(x, lo), hi): x clipped to [lo, hi]."""
+    if lo.is_number and hi.is_number and bool(lo > hi):
+        raise ExpressionError(f"sat(x, lo, hi) needs lo <= hi, got lo = {lo}, hi = {hi}")
+    return sp.Min(sp.Max(x, lo), hi)
+
+
+def parse_expression(text: str, symbols: Mapping[str, sp.Expr]) -> sp.Expr:
     """Parse `text` into a SymPy expression over the declared `symbols`, without evaluating it.
 
     Parameters
     ----------
     text : str
         The expression, in Python syntax (``"mu*(1 - x1**2)*x2 - x1 + u"``).
-    symbols : mapping of str to sympy.Symbol
-        The names the expression may use.
+    symbols : mapping of str to sympy.Expr
+        The names the expression may use: symbols, or expressions (a model file's
+        ``[definitions]``) that replace the name.
 
     Returns
     -------
@@ -131,7 +149,7 @@ def _spine(node: ast.AST, ops: tuple[type, ...]) -> list[tuple[bool, ast.AST]]:
 
 
 class _Walker:
-    def __init__(self, symbols: Mapping[str, sp.Symbol]):
+    def __init__(self, symbols: Mapping[str, sp.Expr]):
         self.symbols = symbols
 
     def expr(self, node: ast.AST, depth: int) -> sp.Expr:
@@ -194,8 +212,8 @@ class _Walker:
             return CONSTANTS[name]
         if name in FUNCTIONS:
             raise ExpressionError(f"`{name}` is a function; call it, as in `{name}(x)`")
-        known = ", ".join(sorted(self.symbols)) or "(none)"
-        raise ExpressionError(f"unknown name `{name}`; the names declared here are: {known}")
+        shown = name if len(name) <= 40 else name[:40] + "…"
+        raise ExpressionError(f"unknown name `{shown}`; the names declared here are: {shorten_list(sorted(self.symbols))}")
 
     def call(self, node: ast.Call, depth: int) -> sp.Expr:
         if not isinstance(node.func, ast.Name):
@@ -203,7 +221,7 @@ class _Walker:
         fname = node.func.id
         if fname not in FUNCTIONS:
             raise ExpressionError(
-                f"`{fname}` is not an allowed function; allowed: {', '.join(FUNCTIONS)}"
+                f"`{fname[:40]}` is not an allowed function; allowed: {', '.join(FUNCTIONS)}"
             )
         if node.keywords or any(isinstance(a, ast.Starred) for a in node.args):
             raise ExpressionError(f"`{fname}` takes positional arguments only")
@@ -232,7 +250,14 @@ class _Walker:
 
     @staticmethod
     def checked(value: sp.Expr) -> sp.Expr:
-        """Reject constant sub-expressions that are infinite, complex or too large."""
+        """Reject constant sub-expressions that are infinite, complex or too large, and powers whose
+        exponent SymPy combined above the limit (``(x**64)**64 = x**4096``, ``x**64*x**64 = x**128``)."""
+        for node in (value, *value.args):
+            if node.is_Pow and node.args[1].is_number:
+                e = complex(node.args[1].evalf(30))
+                if not math.isfinite(e.real) or abs(e.real) > MAX_EXPONENT:
+                    raise ExpressionError(f"a power of exponent {e.real:g} (after combining nested powers and products) "
+                                          f"exceeds {MAX_EXPONENT} in magnitude")
         if value.has(sp.zoo, sp.oo, -sp.oo, sp.nan):
             raise ExpressionError("the expression is undefined (division by zero or infinity)")
         if value.is_number:

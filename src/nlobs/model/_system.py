@@ -12,16 +12,19 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
+from .._text import LabelError, check_label, shorten, shorten_list
 from ..errors import ModelError
+from ._budget import check_tree, short_str
 from ._expr import CONSTANTS, FUNCTIONS, ExpressionError, parse_expression
 
 __all__ = ["System", "TIME", "symbol", "exact", "ExprLike"]
 
 ExprLike = str | sp.Expr | int | float
 
-_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
-#: Names a model may not declare: time, the functions and constants of expressions.
-RESERVED = frozenset({"t", "I", "E", "oo", "nan", "zoo", *FUNCTIONS, *CONSTANTS})
+_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")  # used with fullmatch: `$` would accept a trailing newline
+#: Names a model may not declare: time, the functions and constants of expressions. SymPy's own
+#: names (I, E, N, S, O, Q, beta, ...) are free: expressions are parsed into nlobs's own symbols.
+RESERVED = frozenset({"t", *FUNCTIONS, *CONSTANTS})
 
 #: SymPy function classes the numeric engine can translate (see ``nlobs.engine``).
 SUPPORTED_FUNCTIONS = (
@@ -49,10 +52,11 @@ def _check_names(kind: str, names: Iterable[str]) -> tuple[str, ...]:
         raise ModelError(f"`{kind}` must be a list of names, got the string {names!r}; write [{names!r}]")
     out = tuple(names)
     for n in out:
-        if not isinstance(n, str) or not _NAME.match(n) or keyword.iskeyword(n):
+        if not isinstance(n, str) or not _NAME.fullmatch(n) or keyword.iskeyword(n):
             raise ModelError(
-                f"{kind[:-1] if kind.endswith('s') else kind} name {n!r} is not valid: names start "
+                f"{kind[:-1] if kind.endswith('s') else kind} name {shorten(n, 40)} is not valid: names start "
                 "with a letter and contain only letters, digits and underscores"
+                + (" (and may not be a Python keyword)" if isinstance(n, str) and keyword.iskeyword(n) else "")
             )
         if n in RESERVED:
             raise ModelError(f"the name `{n}` is reserved (time `t`, functions and constants); rename it")
@@ -144,7 +148,10 @@ class System:
 
         allowed = {n: symbol(n) for n in (*states_, *inputs_, *params_)}
         allowed["t"] = TIME
-        object.__setattr__(self, "_name", str(name))
+        try:
+            object.__setattr__(self, "_name", check_label(name, "model name"))
+        except LabelError as e:
+            raise ModelError(f"{e} (got {shorten(name, 40)})") from None
         object.__setattr__(self, "_states", states_)
         object.__setattr__(self, "_inputs", inputs_)
         object.__setattr__(self, "_outputs", outputs_)
@@ -388,9 +395,9 @@ def to_expr(value: ExprLike, allowed: Mapping[str, sp.Symbol], *, where: str) ->
     """
     if isinstance(value, str):
         try:
-            return parse_expression(value, allowed)
+            return check_tree(parse_expression(value, allowed), where)
         except ExpressionError as e:
-            raise ModelError(f"{where}: {value!r}: {e}") from None
+            raise ModelError(f"{where}: {shorten(value)}: {e}") from None
     if isinstance(value, bool):
         raise ModelError(f"{where}: expected an expression, got {value!r}")
     if isinstance(value, (int, float, np.integer, np.floating)):
@@ -403,14 +410,16 @@ def to_expr(value: ExprLike, allowed: Mapping[str, sp.Symbol], *, where: str) ->
     if not isinstance(expr, sp.Expr):
         raise ModelError(f"{where}: expected a scalar expression, got {type(expr).__name__}")
     subs = {}
+    check_tree(expr, where)
     for s in expr.free_symbols:
         if s.name not in allowed:
-            raise ModelError(f"{where}: unknown symbol `{s.name}` in {expr}; declared names: {', '.join(sorted(allowed))}")
+            raise ModelError(f"{where}: unknown symbol `{s.name[:40]}` in {short_str(expr)}; declared names: "
+                             f"{shorten_list(sorted(allowed))}")
         subs[s] = allowed[s.name]
     expr = expr.xreplace(subs)
     for fn in expr.atoms(sp.Function):
         if isinstance(fn, sp.core.function.AppliedUndef) or not isinstance(fn, SUPPORTED_FUNCTIONS):
             raise ModelError(f"{where}: the function `{fn.func}` is not supported; supported: {', '.join(FUNCTIONS)}")
     if expr.has(sp.zoo, sp.oo, sp.nan, sp.I):
-        raise ModelError(f"{where}: the expression {expr} is infinite, undefined or complex")
+        raise ModelError(f"{where}: the expression {short_str(expr)} is infinite, undefined or complex")
     return expr

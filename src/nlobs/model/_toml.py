@@ -2,17 +2,25 @@
 
 The format (a contract other tools rely on)::
 
-    name = "van_der_pol"
+    name = "tanks"
+    description = "Two cascaded tanks"   # optional; one line, printable characters
     states = ["x1", "x2"]
     inputs = ["u"]            # optional
     outputs = ["y"]
     [parameters]
-    mu = 1.0
+    k1 = 0.5                                # a known value
+    k2 = { value = 0.3, unknown = true }    # unknown: estimated with the states, value = initial guess
+    [definitions]             # optional: named intermediate expressions, in order
+    q1 = "k1*sqrt(max(x1, 0))"              # may use states, inputs, parameters, t, earlier definitions
+    q2 = "k2*sqrt(max(x2, 0))"
     [dynamics]                # one time derivative per state
-    x1 = "x2"
-    x2 = "mu*(1 - x1**2)*x2 - x1 + u"
+    x1 = "-q1 + u"
+    x2 = "q1 - q2"
     [output]
-    y = "x1"
+    y = "sat(x2, 0, 10)"      # min(a, b), max(a, b), sat(x, lo, hi) = min(max(x, lo), hi)
+    [units]                   # optional: per state, input, output, parameter or t (for plots)
+    x1 = "m"
+    t = "s"
     [simulation]              # defaults for `simulate` and the demo
     t_final = 20.0
     dt = 1e-3
@@ -21,18 +29,26 @@ The format (a contract other tools rely on)::
     noise = { y = 0.01 }              # std of Gaussian measurement noise per output
     noise_bound = { y = 0.02 }        # or: bound of uniform noise in [-b, b]
     sample_period = 0.01              # optional: sampled measurements, zero-order hold
+    true_parameters = { k2 = 0.25 }   # the plant's values in a simulation (default: the values above)
     seed = 1
     [observers.ekf]           # named observer configurations: kind + tuning
     kind = "ekf"
-    xhat0 = [0.0, 0.0]
+    xhat0 = [0.0, 0.0]        # with unknown parameters: their initial guesses are appended
 
 A file that tries anything else is rejected with a :class:`~nlobs.errors.ModelFileError`
-naming the file, the key and the offending text.
+naming the file, the key and the offending text (shortened).
+
+With unknown parameters, :attr:`ModelFile.system` is the model with every parameter at its
+file value (the initial guess for unknown ones), and the observers are designed on
+:attr:`ModelFile.observer_system`, the system with the unknown parameters appended to the
+state (:meth:`~nlobs.System.augmented`).
 """
 
 from __future__ import annotations
 
+import ast
 import math
+import re
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -42,20 +58,30 @@ from typing import Any
 
 import sympy as sp
 
+from .._text import LabelError, check_label, shorten, shorten_list
 from ..errors import ModelError, ModelFileError
-from ._expr import ExpressionError, parse_expression
+from ._budget import check_tree
+from ._expr import CONSTANTS, FUNCTIONS, ExpressionError, parse_expression
 from ._library import bundled_path
-from ._system import TIME, System, symbol
+from ._system import _NAME, RESERVED, TIME, System, symbol
 
 __all__ = ["ModelFile", "SimulationConfig", "ObserverConfig", "load_model", "loads_model"]
 
-_TOP = ("name", "description", "states", "inputs", "outputs", "parameters", "dynamics", "output", "simulation", "observers")
-_SIM = ("t_final", "dt", "x0", "inputs", "noise", "noise_bound", "process_noise", "sample_period", "seed")
+_TOP = ("name", "description", "states", "inputs", "outputs", "parameters", "definitions", "dynamics", "output", "units",
+        "simulation", "observers")
+_SIM = ("t_final", "dt", "x0", "inputs", "noise", "noise_bound", "process_noise", "sample_period", "true_parameters", "seed")
+_PARAM_KEYS = ("value", "unknown")
+#: Observer names become JSON keys, CSV column prefixes and C file names: a conservative alphabet.
+_OBSERVER_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_-]{0,59}")
 
 
 @dataclass(frozen=True)
 class SimulationConfig:
-    """The ``[simulation]`` table: defaults for ``simulate`` and the demo (all optional)."""
+    """The ``[simulation]`` table: defaults for ``simulate`` and the demo (all optional).
+
+    `true_parameters` are the plant's parameter values in a simulation when they differ from
+    the file's (so a run can show an unknown parameter being recovered from its initial guess).
+    """
 
     t_final: float | None = None
     dt: float | None = None
@@ -66,30 +92,86 @@ class SimulationConfig:
     process_noise: Mapping[str, float] = field(default_factory=dict)
     sample_period: float | None = None
     seed: int | None = None
+    true_parameters: Mapping[str, float] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
 class ObserverConfig:
-    """One ``[observers.NAME]`` table: the design ``kind`` and its tuning options (raw)."""
+    """One ``[observers.NAME]`` table: the design ``kind`` and its tuning options (raw).
+
+    Attributes
+    ----------
+    name, kind : str
+    options : mapping
+        The table's other keys, as written (strings that mention a ``[definitions]`` name are
+        already expanded into SymPy expressions).
+    system : System or None
+        The system the observer is designed on: the file's :attr:`ModelFile.observer_system`
+        (with the unknown parameters appended to the state). None for a config built by hand
+        without one.
+    guesses : mapping of str to float
+        Initial guesses of the unknown parameters, the default tail of x̂0.
+
+    ``nlobs.design.design_from_config(config)`` designs it; :func:`nlobs.simulate` and
+    :func:`nlobs.estimate` accept configs wherever they accept designs.
+    """
 
     name: str
     kind: str
     options: Mapping[str, Any]
+    system: System | None = None
+    guesses: Mapping[str, float] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
 class ModelFile:
-    """A parsed model file: the system, its simulation defaults and its observer configurations."""
+    """A parsed model file: the system, its simulation defaults and its observer configurations.
+
+    Attributes
+    ----------
+    path : str
+    system : System
+        The model as written, every parameter at its file value (initial guesses for the unknown ones).
+    simulation : SimulationConfig
+    observers : mapping of name to ObserverConfig
+    description : str
+    unknown_params : tuple of str
+        The parameters declared ``unknown = true``, in file order.
+    definitions : mapping of str to sympy.Expr
+        The ``[definitions]``, each with the earlier ones substituted.
+    units : mapping of str to str
+        The ``[units]`` of states, inputs, outputs, parameters and ``t``.
+    """
 
     path: str
     system: System
     simulation: SimulationConfig
     observers: Mapping[str, ObserverConfig]
     description: str = ""
+    unknown_params: tuple[str, ...] = ()
+    definitions: Mapping[str, sp.Expr] = field(default_factory=dict)
+    units: Mapping[str, str] = field(default_factory=dict)
+
+    @property
+    def observer_system(self) -> System:
+        """The system observers are designed on: :attr:`system` with the unknown parameters appended
+        to the state (itself when there are none)."""
+        return self.system.augmented(self.unknown_params)
+
+    @property
+    def true_system(self) -> System:
+        """The plant of a simulation: :attr:`system` with ``[simulation] true_parameters`` applied."""
+        return self.system.with_params(**self.simulation.true_parameters) if self.simulation.true_parameters else self.system
+
+    @property
+    def guesses(self) -> dict[str, float]:
+        """Initial guesses of the unknown parameters (their file values)."""
+        return {k: self.system.params[k] for k in self.unknown_params}
 
 
 def load_model(path: str | Path) -> ModelFile:
-    """Read a TOML model file, or a bundled model by name (``load_model("lorenz")``; see ``nlobs models``).
+    """Read a TOML model file (UTF-8, with or without a byte-order mark), or a bundled model by name
+    (``load_model("lorenz")``; see ``nlobs models``).
 
     A path that exists always wins over a bundled name.
 
@@ -102,23 +184,40 @@ def load_model(path: str | Path) -> ModelFile:
     if not p.exists():  # a bare name of the bundled library (`nlobs models`); an existing path always wins
         p = bundled_path(str(path)) or p
     try:
-        text = p.read_text(encoding="utf-8")
+        text = p.read_bytes().decode("utf-8")
     except OSError as e:
         hint = "; not a bundled model name either (`nlobs models` lists them)" if not p.exists() else ""
         raise ModelFileError(f"cannot read the model file: {e.strerror}{hint}", path=str(p)) from None
-    except UnicodeDecodeError:
-        raise ModelFileError("the model file is not UTF-8 text", path=str(p)) from None
+    except UnicodeDecodeError as e:
+        raise ModelFileError(f"the model file is not UTF-8 text (byte {e.start} cannot be decoded); save it as UTF-8",
+                             path=str(p)) from None
     return loads_model(text, path=str(p), default_name=p.stem)
 
 
 def loads_model(text: str, *, path: str = "<string>", default_name: str = "model") -> ModelFile:
     """Parse model-file `text` (see :func:`load_model`); `path` names it in messages and
     `default_name` is the model's name when the file has no ``name``."""
+    if text.startswith("\ufeff"):  # a byte-order mark, as some editors write it
+        text = text[1:]
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise ModelFileError(f"not valid TOML: {e}", path=path) from None
+    except RecursionError:
+        raise ModelFileError("not valid TOML for nlobs: arrays or tables are nested too deeply", path=path) from None
+    except ValueError as e:  # e.g. an integer of more than 4300 digits
+        raise ModelFileError(f"not valid TOML for nlobs: a value cannot be read ({shorten(str(e), 80)}); "
+                             "numbers must be ordinary floats or integers", path=path) from None
     return _Loader(path).load(doc, default_name)
+
+
+def _names_in(text: str) -> set[str]:
+    """The names an expression text mentions (through ast.parse only; empty if it does not parse)."""
+    try:
+        tree = ast.parse(text.strip(), mode="eval")
+    except (SyntaxError, ValueError, RecursionError, MemoryError):
+        return set()
+    return {n.id for n in ast.walk(tree) if isinstance(n, ast.Name)}
 
 
 class _Loader:
@@ -126,7 +225,8 @@ class _Loader:
         self.path = path
 
     def err(self, message: str, key: str = "", text: Any = "") -> ModelFileError:
-        return ModelFileError(message, path=self.path, key=key, text=text if isinstance(text, str) else repr(text) if text != "" else "")
+        shown = text if isinstance(text, str) else shorten(text, 200) if text != "" else ""
+        return ModelFileError(message, path=self.path, key=key, text=shown)
 
     def names(self, doc: Mapping[str, Any], key: str, required: bool) -> tuple[str, ...]:
         if key not in doc:
@@ -145,13 +245,23 @@ class _Loader:
         return value
 
     def number(self, value: Any, key: str, *, positive: bool = False) -> float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.err("must be a finite number", key, value)
+        if isinstance(value, int) and abs(value) > 10**300:
+            raise self.err("must be a finite number (at most 1e300 in magnitude)", key, value)
+        if not math.isfinite(value):
             raise self.err("must be a finite number", key, value)
         if positive and value <= 0:
             raise self.err("must be positive", key, value)
         return float(value)
 
-    def expr(self, value: Any, key: str, symbols: Mapping[str, sp.Symbol]) -> sp.Expr:
+    def label(self, value: Any, key: str, what: str, max_length: int = 200) -> str:
+        try:
+            return check_label(value, what, max_length=max_length)
+        except LabelError as e:
+            raise self.err(str(e), key, value) from None
+
+    def expr(self, value: Any, key: str, symbols: Mapping[str, sp.Expr]) -> sp.Expr:
         if isinstance(value, bool):
             raise self.err("must be an expression string or a number", key, value)
         if isinstance(value, (int, float)):
@@ -159,51 +269,113 @@ class _Loader:
         if not isinstance(value, str):
             raise self.err("must be an expression string or a number", key, value)
         try:
-            return parse_expression(value, symbols)
+            return check_tree(parse_expression(value, symbols), f"{self.path}, key `{key}`")
         except ExpressionError as e:
             raise self.err(str(e), key, value) from None
 
     def load(self, doc: Mapping[str, Any], default_name: str) -> ModelFile:
         unknown = [k for k in doc if k not in _TOP]
         if unknown:
-            raise self.err(f"unknown key(s) {', '.join(map(repr, unknown))}; allowed top-level keys: {', '.join(_TOP)}", unknown[0])
-        name = doc.get("name", default_name)
-        if not isinstance(name, str):
-            raise self.err("must be a string", "name", name)
-        description = doc.get("description", "")
-        if not isinstance(description, str):
-            raise self.err("must be a string", "description", description)
+            raise self.err(f"unknown key(s) {shorten_list(map(shorten, unknown), 5)}; allowed top-level keys: {', '.join(_TOP)}",
+                           unknown[0])
+        name = self.label(doc.get("name", default_name), "name", "model name")
+        description = self.label(doc.get("description", ""), "description", "description", 2000)
         states = self.names(doc, "states", True)
         inputs = self.names(doc, "inputs", False)
         outputs = self.names(doc, "outputs", True)
-        params = {}
-        for k, v in self.table(doc, "parameters").items():
-            params[k] = self.number(v, f"parameters.{k}")
+        params, unknown_params = self.parameters(doc)
         try:  # validate the names (duplicates, reserved words) before parsing expressions
-            System(states=states, f=[0] * len(states), outputs=outputs, h=[0] * len(outputs), inputs=inputs, params=params)
+            System(states=states, f=[0] * len(states), outputs=outputs, h=[0] * len(outputs), inputs=inputs, params=params,
+                   name=name)
         except ModelError as e:
             raise self.err(str(e)) from None
-        symbols = {n: symbol(n) for n in (*states, *inputs, *params)}
+        symbols: dict[str, sp.Expr] = {n: symbol(n) for n in (*states, *inputs, *params)}
         symbols["t"] = TIME
+        definitions = self.definitions(doc, symbols, taken={*states, *inputs, *outputs, *params})
+        symbols.update(definitions)
         f = self.equations(doc, "dynamics", states, "state", symbols)
         h = self.equations(doc, "output", outputs, "output", symbols)
-        system = System(states=states, f=f, outputs=outputs, h=h, inputs=inputs, params=params, name=name)
-        return ModelFile(self.path, system, self.simulation(doc, system), self.observers(doc), description)
+        try:
+            system = System(states=states, f=f, outputs=outputs, h=h, inputs=inputs, params=params, name=name)
+        except ModelError as e:
+            raise self.err(str(e)) from None
+        units = self.units(doc, system)
+        simulation = self.simulation(doc, system, definitions)
+        observer_system = system.augmented(unknown_params)
+        guesses = {k: params[k] for k in unknown_params}
+        observers = self.observers(doc, definitions, observer_system, guesses)
+        return ModelFile(self.path, system, simulation, observers, description, unknown_params,
+                         MappingProxyType(definitions), MappingProxyType(units))
+
+    def parameters(self, doc: Mapping[str, Any]) -> tuple[dict[str, float], tuple[str, ...]]:
+        params: dict[str, float] = {}
+        unknown: list[str] = []
+        for k, v in self.table(doc, "parameters").items():
+            key = f"parameters.{k}"
+            if isinstance(v, dict):
+                extra = [e for e in v if e not in _PARAM_KEYS]
+                if extra:
+                    raise self.err(f"unknown key `{shorten(extra[0], 40)[1:-1]}`; a parameter table has `value` (a number) and "
+                                   "optionally `unknown` (true: estimated with the states, value = initial guess)",
+                                   f"{key}.{extra[0]}")
+                if "value" not in v:
+                    raise self.err("a parameter table needs `value` (the value, or the initial guess when unknown = true)", key)
+                flag = v.get("unknown", False)
+                if not isinstance(flag, bool):
+                    raise self.err("must be true or false", f"{key}.unknown", flag)
+                params[k] = self.number(v["value"], f"{key}.value")
+                if flag:
+                    unknown.append(k)
+            else:
+                params[k] = self.number(v, key)
+        return params, tuple(unknown)
+
+    def definitions(self, doc: Mapping[str, Any], symbols: Mapping[str, sp.Expr], taken: set[str]) -> dict[str, sp.Expr]:
+        table = self.table(doc, "definitions")
+        out: dict[str, sp.Expr] = {}
+        later = set(table)
+        for k, v in table.items():
+            key = f"definitions.{k}"
+            if not _NAME.fullmatch(k):
+                raise self.err("a definition's name starts with a letter and contains only letters, digits and underscores",
+                               key, k)
+            if k in taken or k in RESERVED:
+                raise self.err(f"the name `{k}` is already declared (as a state, input, output or parameter) or reserved; "
+                               "give the definition its own name", key)
+            later.discard(k)
+            if isinstance(v, str):
+                ahead = sorted(_names_in(v) & later)
+                if ahead:
+                    raise self.err(f"uses `{ahead[0]}`, which is defined further down; definitions are read in order, "
+                                   "so move it above", key, v)
+            out[k] = self.expr(v, key, {**symbols, **out})
+        return out
 
     def equations(self, doc: Mapping[str, Any], key: str, names: tuple[str, ...], what: str,
-                  symbols: Mapping[str, sp.Symbol]) -> list[sp.Expr]:
+                  symbols: Mapping[str, sp.Expr]) -> list[sp.Expr]:
         if key not in doc:
             raise self.err(f"the table [{key}] is required: one expression per {what}")
         table = self.table(doc, key)
         extra = [k for k in table if k not in names]
         if extra:
-            raise self.err(f"`{extra[0]}` is not a declared {what}; declared: {', '.join(names)}", f"{key}.{extra[0]}")
+            raise self.err(f"`{shorten(extra[0], 40)[1:-1]}` is not a declared {what}; declared: {shorten_list(names)}",
+                           f"{key}.{extra[0]}")
         missing = [n for n in names if n not in table]
         if missing:
-            raise self.err(f"no expression for the {what}(s) {', '.join(missing)}; give one per {what}", key)
+            raise self.err(f"no expression for the {what}(s) {shorten_list(missing)}; give one per {what}", key)
         return [self.expr(table[n], f"{key}.{n}", symbols) for n in names]
 
-    def simulation(self, doc: Mapping[str, Any], system: System) -> SimulationConfig:
+    def units(self, doc: Mapping[str, Any], system: System) -> dict[str, str]:
+        allowed = (*system.states, *system.inputs, *system.outputs, *system.params, "t")
+        out = {}
+        for k, v in self.table(doc, "units").items():
+            if k not in allowed:
+                raise self.err(f"`{shorten(k, 40)[1:-1]}` is not a state, input, output, parameter or t",
+                               f"units.{k}")
+            out[k] = self.label(v, f"units.{k}", "unit", 40)
+        return out
+
+    def simulation(self, doc: Mapping[str, Any], system: System, definitions: Mapping[str, sp.Expr]) -> SimulationConfig:
         sim = self.table(doc, "simulation")
         unknown = [k for k in sim if k not in _SIM]
         if unknown:
@@ -215,25 +387,42 @@ class _Loader:
         if "x0" in sim:
             x0 = sim["x0"]
             if not isinstance(x0, list) or len(x0) != system.n_states:
-                raise self.err(f"must be a list of {system.n_states} numbers (one per state: {', '.join(system.states)})", "simulation.x0", x0)
+                raise self.err(f"must be a list of {system.n_states} numbers (one per state: {shorten_list(system.states)})",
+                               "simulation.x0", x0)
             out["x0"] = tuple(self.number(v, "simulation.x0") for v in x0)
         if "seed" in sim:
             seed = sim["seed"]
-            if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-                raise self.err("must be a non-negative integer", "simulation.seed", seed)
+            if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**63:
+                raise self.err("must be a non-negative integer (below 2**63)", "simulation.seed", seed)
             out["seed"] = seed
-        sym_t = {"t": TIME, **{k: symbol(k) for k in system.params}}
+        true = {}
+        for k, v in self.table(sim, "simulation.true_parameters").items():
+            if k not in system.params:
+                raise self.err(f"`{shorten(k, 40)[1:-1]}` is not a parameter; parameters: {shorten_list(system.params)}",
+                               f"simulation.true_parameters.{k}")
+            true[k] = self.number(v, f"simulation.true_parameters.{k}")
+        out["true_parameters"] = MappingProxyType(true)
+        # inputs are signals of time: t, the parameters and the definitions built from those only
+        base = {"t", *system.params}
+        sym_t: dict[str, sp.Expr] = {"t": TIME, **{k: symbol(k) for k in system.params}}
+        sym_t.update({k: e for k, e in definitions.items() if {s.name for s in e.free_symbols} <= base})
         inputs = {}
         for k, v in self.table(sim, "simulation.inputs").items():
+            key = f"simulation.inputs.{k}"
             if k not in system.inputs:
-                raise self.err(f"`{k}` is not an input; inputs: {', '.join(system.inputs) or '(none)'}", f"simulation.inputs.{k}")
-            inputs[k] = self.expr(v, f"simulation.inputs.{k}", sym_t)
+                raise self.err(f"`{shorten(k, 40)[1:-1]}` is not an input; inputs: {shorten_list(system.inputs)}", key)
+            if isinstance(v, str):
+                bad = sorted((_names_in(v) & set(definitions)) - set(sym_t))
+                if bad:
+                    raise self.err(f"the definition `{bad[0]}` depends on states or inputs; an input signal may use only t, "
+                                   "the parameters and definitions built from those", key, v)
+            inputs[k] = self.expr(v, key, sym_t)
         out["inputs"] = MappingProxyType(inputs)
         for key, names in (("noise", system.outputs), ("noise_bound", system.outputs), ("process_noise", system.states)):
             values = {}
             for k, v in self.table(sim, f"simulation.{key}").items():
                 if k not in names:
-                    raise self.err(f"`{k}` is not one of {', '.join(names)}", f"simulation.{key}.{k}")
+                    raise self.err(f"`{shorten(k, 40)[1:-1]}` is not one of {shorten_list(names)}", f"simulation.{key}.{k}")
                 values[k] = self.number(v, f"simulation.{key}.{k}")
                 if values[k] < 0:
                     raise self.err("must be non-negative", f"simulation.{key}.{k}", v)
@@ -243,15 +432,36 @@ class _Loader:
             raise self.err("an output has both Gaussian `noise` and uniform `noise_bound`; choose one", f"simulation.noise.{sorted(both)[0]}")
         return SimulationConfig(**out)
 
-    def observers(self, doc: Mapping[str, Any]) -> Mapping[str, ObserverConfig]:
+    def observers(self, doc: Mapping[str, Any], definitions: Mapping[str, sp.Expr], system: System,
+                  guesses: Mapping[str, float]) -> Mapping[str, ObserverConfig]:
         out = {}
         for name, table in self.table(doc, "observers").items():
             key = f"observers.{name}"
+            if not _OBSERVER_NAME.fullmatch(name):
+                raise self.err("an observer's name starts with a letter and has at most 60 letters, digits, `_` or `-` "
+                               "(it becomes a column name, a JSON key and a file name)", key, name)
             if not isinstance(table, dict):
                 raise self.err("must be a table with at least `kind`", key, table)
             kind = table.get("kind")
             if not isinstance(kind, str):
                 raise self.err("`kind` is required and must be a string (e.g. \"ekf\", \"luenberger\")", f"{key}.kind", kind if kind is not None else "")
-            options = {k: v for k, v in table.items() if k != "kind"}
-            out[name] = ObserverConfig(name, kind, MappingProxyType(options))
+            options = {k: self.with_definitions(v, definitions, f"{key}.{k}") for k, v in table.items() if k != "kind"}
+            out[name] = ObserverConfig(name, kind, MappingProxyType(options), system, MappingProxyType(dict(guesses)))
         return MappingProxyType(out)
+
+    def with_definitions(self, value: Any, definitions: Mapping[str, sp.Expr], key: str) -> Any:
+        """An option value with every string that mentions a definition parsed, the definitions substituted
+        (other names stay symbols, for the design to check); everything else unchanged."""
+        if isinstance(value, list):
+            return [self.with_definitions(v, definitions, key) for v in value]
+        if isinstance(value, dict):
+            return {k: self.with_definitions(v, definitions, key) for k, v in value.items()}
+        if not isinstance(value, str) or not definitions:
+            return value
+        names = _names_in(value)
+        if not names & set(definitions):
+            return value
+        symbols = {n: symbol(n) for n in names if n not in FUNCTIONS and n not in CONSTANTS}
+        symbols.update(definitions)
+        symbols["t"] = TIME
+        return self.expr(value, key, symbols)

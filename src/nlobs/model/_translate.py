@@ -7,6 +7,7 @@ Only the node types a :class:`~nlobs.System` may contain are handled.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
+from functools import reduce
 from typing import Any
 
 import numpy as np
@@ -14,14 +15,28 @@ import sympy as sp
 
 from ..errors import ModelError
 
-__all__ = ["translate", "NUMPY"]
+__all__ = ["translate", "NUMPY", "piecewise_table"]
+
+
+def piecewise_table(fmin: Callable[[Any, Any], Any], fmax: Callable[[Any, Any], Any],
+                    sign: Callable[[Any], Any], is_zero: Callable[[Any], Any]) -> dict[Any, Callable[..., Any]]:
+    """Entries for min, max (any number of arguments, as SymPy flattens them) and the Heaviside step
+    H(x) with H(0) = h0 (SymPy writes it in derivatives of min, max and sat), from a backend's
+    binary min/max, sign and zero test."""
+    return {
+        sp.Min: lambda *a: reduce(fmin, a),
+        sp.Max: lambda *a: reduce(fmax, a),
+        sp.Heaviside: lambda x, h0=0.5: (1 + sign(x)) / 2 + (h0 - 0.5) * is_zero(x),
+    }
+
 
 #: Elementary functions for NumPy arrays.
-NUMPY: Mapping[type, Callable[..., Any]] = {
+NUMPY: Mapping[Any, Callable[..., Any]] = {
     sp.sin: np.sin, sp.cos: np.cos, sp.tan: np.tan,
     sp.asin: np.arcsin, sp.acos: np.arccos, sp.atan: np.arctan, sp.atan2: np.arctan2,
     sp.sinh: np.sinh, sp.cosh: np.cosh, sp.tanh: np.tanh,
     sp.exp: np.exp, sp.log: np.log, sp.Abs: np.abs, sp.sign: np.sign,
+    **piecewise_table(np.minimum, np.maximum, np.sign, lambda x: np.asarray(x) == 0),
     "sqrt": np.sqrt,
 }
 
@@ -68,7 +83,10 @@ def translate(expr: sp.Expr, leaves: Mapping[sp.Symbol, Any], table: Mapping[Any
             else:
                 out = walk(base) ** walk(ex)
         elif e.func in table:
-            out = table[e.func](*[walk(a) for a in e.args])
+            args = [walk(a) for a in e.args]
+            if e.func is sp.Heaviside and len(args) == 2:
+                args[1] = float(e.args[1])  # H(0): a number, not a symbol of the backend
+            out = table[e.func](*args)
         else:
             raise ModelError(f"cannot evaluate `{e}`: `{e.func}` is not supported numerically")
         memo[e] = out

@@ -13,14 +13,16 @@ each sample. Between samples the measurement and the input are held (zero-order 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import Any
+from typing import Any, Literal
 
 import casadi as ca
 import numpy as np
 
-from ..design import ObserverDesign, check_positive
+from ..design import ObserverDesign, check_positive, design_from_config
 from ..engine import compile_system, raise_deferred, rk4_step
 from ..errors import DataError, FiniteEscapeError, ShapeError
+from ..model import ObserverConfig
+from ._compiled import CompiledObserver, compiled_observer
 
 __all__ = ["AbstractObserver", "Observer", "OnlineObserver", "as_observer"]
 
@@ -139,6 +141,20 @@ class Observer(AbstractObserver):
                                             _vec(u, s.n_inputs, "u"), _vec(y, s.n_outputs, "y"))
         return np.asarray(out, dtype=float).reshape(-1)
 
+    def compiled(self, *, hold: Literal["zoh", "linear"] = "zoh") -> CompiledObserver:
+        """This observer prepared to run on sampled data many times (see :class:`CompiledObserver`).
+
+        The functions are built once per design and cached (as :func:`nlobs.estimate` does); the C
+        code is compiled once per machine when worth it and cached on disk.
+
+        Examples
+        --------
+        >>> fast = Observer(design_ekf(model, Q=Q, R=R)).compiled()        # doctest: +SKIP
+        >>> for rec in recordings:                                        # doctest: +SKIP
+        ...     traj = fast.run(rec.t, rec.y, rec.u)                      # doctest: +SKIP
+        """
+        return compiled_observer(self._design, hold)
+
     def __repr__(self) -> str:
         return f"Observer({self.name!r}, method={self._design.method!r}, system={self.system.name!r})"
 
@@ -147,12 +163,16 @@ class Observer(AbstractObserver):
 
 
 def as_observer(obj: Any, name: str | None = None) -> AbstractObserver:
-    """An observer from an observer or a design."""
+    """An observer from an observer, a design, or a model file's observer configuration
+    (:class:`nlobs.model.ObserverConfig`, designed here by :func:`nlobs.design.design_from_config`)."""
     if isinstance(obj, AbstractObserver):
         return obj
     if isinstance(obj, ObserverDesign):
         return Observer(obj, name)
-    raise TypeError(f"expected an observer or an ObserverDesign (from a design_* function), got {type(obj).__name__}")
+    if isinstance(obj, ObserverConfig):
+        return Observer(design_from_config(obj), name or obj.name)
+    raise TypeError(f"expected an observer or an ObserverDesign (from a design_* function), or a model file's "
+                    f"ObserverConfig ([observers.NAME]), got {type(obj).__name__}")
 
 
 class OnlineObserver:

@@ -30,7 +30,7 @@ from ._base import AbstractObserver, Observer, as_observer
 
 __all__ = ["CExport", "export_c"]
 
-_C_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,39}$")
+_C_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,39}")
 _C_KEYWORDS = frozenset(
     "auto break case char const continue default do double else enum extern float for goto if inline int long "
     "register restrict return short signed sizeof static struct switch typedef union unsigned void volatile while "
@@ -84,18 +84,44 @@ def _version() -> str:
         return "(source tree)"
 
 
+# Characters allowed in text copied into generated C comments: printable ASCII without `*`, `/`
+# (no comment ends or starts), `\\` (no line splices) and `?` (no trigraphs such as ??/). Everything
+# else (newlines, control and bidi characters, non-ASCII) becomes `_`. Text reaches C only through
+# _c_comment and _c_string, whatever the model file or the Python caller allowed as a name.
+_COMMENT_SAFE = frozenset("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789 _-+.,:;=()[]<>'!#%&|^~@$\"{}")
+_COMMENT_MAX = 160
+
+
+def _c_comment(text: Any) -> str:
+    """`text` made safe for a C block or line comment (see _COMMENT_SAFE), at most 160 characters."""
+    s = "".join(ch if ch in _COMMENT_SAFE else "_" for ch in str(text))
+    return s if len(s) <= _COMMENT_MAX else s[: _COMMENT_MAX - 3] + "..."
+
+
+def _c_string(text: Any) -> str:
+    """The body of a C string literal that prints `text` verbatim (fputs, not printf): letters, digits,
+    `_` and `,` as they are, every other byte as an octal escape (so no quote, backslash, trigraph or
+    newline can end the literal)."""
+    out = []
+    for b in str(text).encode("utf-8"):
+        ch = chr(b)
+        out.append(ch if (ch.isascii() and (ch.isalnum() or ch in "_,")) else f"\\{b:03o}")
+    return "".join(out)
+
+
 def _default_name(design: ObserverDesign) -> str:
     raw = f"{design.system.name}_{design.method}"
-    name = re.sub(r"[^A-Za-z0-9_]", "_", raw)
+    name = re.sub(r"_+", "_", re.sub(r"[^A-Za-z0-9_]", "_", raw)).strip("_")  # CasADi refuses "__" in names
     if not name[:1].isalpha():
         name = "obs_" + name
-    return name[:40]
+    return name[:40].rstrip("_")
 
 
 def _check_name(name: str) -> str:
-    if not isinstance(name, str) or not _C_NAME.match(name) or name in _C_KEYWORDS or keyword.iskeyword(name):
+    if (not isinstance(name, str) or not _C_NAME.fullmatch(name) or "__" in name or name in _C_KEYWORDS
+            or keyword.iskeyword(name)):
         raise ValueError(f"export_c: `name` must be a C identifier of at most 40 characters (a letter, then letters, "
-                         f"digits or underscores; not a C keyword), got {name!r}")
+                         f"digits or single underscores; not a C keyword), got {repr(name)[:60]}")  # fullmatch: "abc\n" is refused
     return name
 
 
@@ -352,7 +378,7 @@ int main(int argc, char **argv) {{
   {name}_init(xhat0, z);
   for (i = 0; i < {NAME}_NU_ALLOC; ++i) u_prev[i] = 0.0;
   for (i = 0; i < {NAME}_NY_ALLOC; ++i) y_held[i] = 0.0;
-  printf("t,{out_cols}\\n");
+  fputs("t,{out_cols}\\n", stdout);
   while (fgets(line, sizeof line, stdin)) {{
     ++lineno;
     if (strspn(line, " \\t\\r\\n") == strlen(line)) continue;
@@ -461,17 +487,18 @@ def export_c(observer: AbstractObserver | ObserverDesign, directory: str | os.Pa
     NAME = name.upper()
     fill = dict(
         name=name, NAME=NAME, nz=nz, nx=nx, nu=nu, ny=ny, nu_alloc=max(nu, 1), ny_alloc=max(ny, 1),
-        version=_version(), casadi=ca.__version__,
-        title=f"{design.method} observer for the model {s.name!r} ({'continuous-discrete' if design.sampled else 'continuous'})",
-        z_names=", ".join(design.z_names), x_names=", ".join(s.states), u_names=", ".join(s.inputs) or "(none)",
-        y_names=", ".join(s.outputs),
+        version=_c_comment(_version()), casadi=_c_comment(ca.__version__),
+        title=_c_comment(f"{design.method} observer for the model '{s.name}' "
+                         f"({'continuous-discrete' if design.sampled else 'continuous'})"),
+        z_names=_c_comment(", ".join(design.z_names)), x_names=_c_comment(", ".join(s.states)),
+        u_names=_c_comment(", ".join(s.inputs) or "(none)"), y_names=_c_comment(", ".join(s.outputs)),
         max_step_c=repr(max_step) if max_step else "0.0",
         max_step_text=f"max_step = {max_step:g}" if max_step else "max_step = 0: n = 1",
         update_text=" (the continuous-discrete update)" if design.sampled else " (none: a continuous observer)",
         sz_arg=max(max(f.sz_arg() for f in fns), 1), sz_res=max(max(f.sz_res() for f in fns), 1),
         sz_iw=max(max(f.sz_iw() for f in fns), 1), sz_w=max(max(f.sz_w() for f in fns), 1),
         xhat0=_doubles(design.xhat0),
-        in_cols=",".join([*s.inputs, *s.outputs]), out_cols=",".join(f"xhat_{v}" for v in s.states),
+        in_cols=_c_comment(",".join([*s.inputs, *s.outputs])), out_cols=_c_string(",".join(f"xhat_{v}" for v in s.states)),
     )
     header = out / f"{name}.h"
     source = out / f"{name}.c"

@@ -14,6 +14,7 @@ from ._results import ObserverTrace as ObserverTrace
 from ._results import Run as Run
 from ._whiteness import Whiteness as Whiteness
 from ._whiteness import ljung_box as ljung_box
+from ._run import Simulation as Simulation
 from ._run import simulate as simulate
 from ._recorded import Recording as Recording
 from ._recorded import estimate as estimate

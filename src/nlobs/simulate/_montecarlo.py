@@ -9,6 +9,7 @@ the same numbers on both paths.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -32,6 +33,10 @@ __all__ = ["montecarlo", "MonteCarloResult", "ObserverStats"]
 class ObserverStats:
     """Per-trajectory metrics of one observer (arrays of length M; NaN where undefined).
 
+    Only the estimates are stored; every metric is computed on first access (vectorised over the
+    runs where the definition allows), so a Monte Carlo run whose caller reads only the final
+    states does no per-run work for metrics.
+
     Attributes
     ----------
     xhat : numpy.ndarray of shape (M, n_save, n)
@@ -45,11 +50,40 @@ class ObserverStats:
 
     name: str
     xhat: np.ndarray
-    error_norm: np.ndarray
-    convergence_time: np.ndarray
-    rms_error: np.ndarray
-    final_error: np.ndarray
-    peak_error: np.ndarray
+    t: np.ndarray = field(repr=False)
+    x: np.ndarray = field(repr=False)
+    initial_errors: Callable[[], np.ndarray] = field(repr=False)  #: ‖x̂(0⁻) − x(0)‖ of each run, computed on demand
+    tol: float | None = None  #: an absolute convergence tolerance replacing the rule (see ``Run.metrics``)
+
+    @functools.cached_property
+    def error_norm(self) -> np.ndarray:
+        return np.linalg.norm(self.xhat - self.x, axis=2)
+
+    @functools.cached_property
+    def convergence_time(self) -> np.ndarray:
+        t, e = self.t, self.error_norm
+        out = np.full(e.shape[0], np.nan)
+        for j, (row, e0) in enumerate(zip(e, self.initial_errors())):
+            if np.all(np.isfinite(row)):  # the band of each run as in Run.metrics (CONVERGENCE_RULE)
+                tc = convergence_time(t, row, convergence_band(t, row, e0=e0, tol=self.tol).tol)
+                out[j] = np.nan if tc is None else tc
+        return out
+
+    @functools.cached_property
+    def rms_error(self) -> np.ndarray:
+        t = self.t
+        tail = t >= t[-1] - 0.2 * (t[-1] - t[0])
+        with np.errstate(invalid="ignore"):
+            return np.sqrt(np.nanmean(self.error_norm[:, tail] ** 2, axis=1))
+
+    @functools.cached_property
+    def final_error(self) -> np.ndarray:
+        return self.error_norm[:, -1]
+
+    @functools.cached_property
+    def peak_error(self) -> np.ndarray:
+        with np.errstate(invalid="ignore"):
+            return np.nanmax(self.error_norm, axis=1)
 
 
 @dataclass(frozen=True, eq=False)
@@ -175,7 +209,8 @@ class _Spec:
             S0[:, layout.slices[name]] = evaluate_many(o.design.initial, self.xhat0[name][j0:j1])
         if prep.kind.sampled:
             S0[:, layout.held] = 0.0
-        C = np.column_stack([np.full(j1 - j0, prep.dt), self.params[j0:j1]])
+        C = np.tile(prep.constants(), (j1 - j0, 1)) if prep.kind.folded is not None else \
+            np.column_stack([np.tile(prep.constants()[:3], (j1 - j0, 1)), self.params[j0:j1]])
         A = prep.inputs_for(None) if not prep.seeded else np.stack([prep.inputs_for(int(s)) for s in self.seeds[j0:j1]])
         return run_batch(layout.step, S0, A, C, prep.n_steps, stride=self.stride, bound=self.bound, backend=self.engine)
 
@@ -264,8 +299,9 @@ def montecarlo(
     """
     if tol is not None:
         tol = check_positive(tol, "tol", "montecarlo")
+    # parameters nobody varies are compiled in as constants (one build per model and values)
     prep = prepare(plant, observers, t_final=t_final, dt=dt, inputs=inputs, params=None, noise=noise,
-                   process_noise=process_noise, sampling=sampling, caller="montecarlo")
+                   process_noise=process_noise, sampling=sampling, caller="montecarlo", fold_params=not params)
     plant, n = prep.plant, prep.plant.n_states
     sizes = [np.shape(x0)[0]] if np.ndim(x0) == 2 else []
     if isinstance(xhat0, Mapping):
@@ -280,6 +316,9 @@ def montecarlo(
     M = sizes[0]
     if any(s != M for s in sizes):
         raise ShapeError(f"montecarlo: the per-run arguments disagree on the number of runs: {sorted(set(sizes))}")
+    if prep.x0_tail and np.shape(x0)[-1:] == (n - len(prep.x0_tail),):  # estimated parameters: true values appended
+        x0 = np.asarray(x0, dtype=float)
+        x0 = np.concatenate([x0, np.broadcast_to(np.asarray(prep.x0_tail), x0.shape[:-1] + (len(prep.x0_tail),))], axis=-1)
     X0 = _per_run(x0, M, n, "x0")
     XH = {}
     for name, o in prep.obs.items():
@@ -347,22 +386,16 @@ def _result(spec: _Spec, S: np.ndarray, O: np.ndarray, status: np.ndarray, tol: 
     t = steps * prep.dt
     x = S[:, :, :n]
     stats = {}
-    tail = t >= t[-1] - 0.2 * (t[-1] - t[0])
     for name, o in prep.obs.items():
         zsl, xsl = layout.out[name]
         xhat = O[:, :, xsl] if xsl is not None else (O[:, :, zsl] if zsl is not None else S[:, :, layout.slices[name]])[:, :, :n]
-        e = np.linalg.norm(xhat - x, axis=2)
-        prior = evaluate_many(o.design.output, np.zeros((spec.x0.shape[0], 1)), evaluate_many(o.design.initial, spec.xhat0[name]),
-                              np.zeros(prep.plant.n_inputs), np.zeros(prep.plant.n_outputs))
-        e0 = np.linalg.norm(prior - spec.x0, axis=1)
-        conv = np.full(e.shape[0], np.nan)
-        for j, (row, e0j) in enumerate(zip(e, e0)):
-            if np.all(np.isfinite(row)):  # the band of each run as in Run.metrics (CONVERGENCE_RULE)
-                tc = convergence_time(t, row, convergence_band(t, row, e0=e0j, tol=tol).tol)
-                conv[j] = np.nan if tc is None else tc
-        with np.errstate(invalid="ignore"):
-            stats[name] = ObserverStats(name, xhat, e, conv, np.sqrt(np.nanmean(e[:, tail] ** 2, axis=1)), e[:, -1],
-                                        np.nanmax(e, axis=1))
+
+        def initial_errors(o: Any = o, name: str = name) -> np.ndarray:
+            prior = evaluate_many(o.design.output, np.zeros((spec.x0.shape[0], 1)), evaluate_many(o.design.initial, spec.xhat0[name]),
+                                  np.zeros(prep.plant.n_inputs), np.zeros(prep.plant.n_outputs))
+            return np.linalg.norm(prior - spec.x0, axis=1)
+
+        stats[name] = ObserverStats(name, xhat, t, x, initial_errors, tol)
     failures = []
     for j in np.flatnonzero(status < N)[:20]:
         try:

@@ -25,7 +25,7 @@ def plot_run(run: Run, path: str | None = None, *, observers: Sequence[str] | No
     colors = [f"C{i}" for i in range(10)]
     for i, state in enumerate(run.state_names):
         ax = axes[i]
-        if run.x is not None:
+        if run.x is not None and i < run.x.shape[1]:  # recorded truth may lack the estimated parameters
             ax.plot(run.t, run.x[:, i], color="k", lw=1.6, label="true")
         for j, name in enumerate(names):
             ax.plot(run.t, run.observers[name].xhat[:, i], color=colors[j % 10], lw=1.1, ls="--", label=name)

@@ -8,15 +8,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-import casadi as ca
 import numpy as np
 
 from ..design import check_positive
-from ..engine import Backend, StepRunner, compile_system, evaluate_many, rk4_step, rows
+from ..engine import Backend, evaluate_many
 from ..errors import DataError, FiniteEscapeError, ModelError, ShapeError
-from ..model import System
-from ..observer import AbstractObserver
-from ._results import ObserverTrace, Run
+from ..model import ModelFile, System
+from ..observer import AbstractObserver, compiled_observer
+from ._results import ObserverTrace, Run, estimate_std
 from ._run import _xhat0_for, named_observers
 
 __all__ = ["Recording", "estimate"]
@@ -63,17 +62,17 @@ class Recording:
         return rec
 
     @classmethod
-    def from_csv(cls, path: str | Path, system: System, *, columns: Mapping[str, str] | None = None,
+    def from_csv(cls, path: str | Path, system: System | ModelFile, *, columns: Mapping[str, str] | None = None,
                  require_outputs: bool = True) -> Recording:
         """Read a CSV whose header names ``t``, the model's outputs and inputs, and optionally its states.
 
         Empty cells and ``nan`` mark missing output samples. Other columns are ignored. The file
-        must be UTF-8 (a byte-order mark is accepted).
+        must be UTF-8 (a byte-order mark is accepted). A model file stands for its system.
 
         Parameters
         ----------
         path : str or Path
-        system : System
+        system : System or ModelFile
         columns : mapping of CSV column name to model name, optional
             For files whose header does not use the model's names, e.g.
             ``{"time": "t", "level_2": "y2"}``.
@@ -81,6 +80,7 @@ class Recording:
             With False, output columns may be absent (they read as missing): a recorded input
             to drive a simulation.
         """
+        system = system.system if isinstance(system, ModelFile) else system
         p = Path(path)
         try:
             with p.open(newline="", encoding="utf-8-sig") as fh:
@@ -214,9 +214,19 @@ def estimate(
     """Run observers on recorded data.
 
     Between samples each observer integrates its flow with the last sample of u and y held
-    (zero-order hold), in RK4 steps no longer than `max_step` (default: one step per sample
-    interval); at each sample the continuous-discrete observers apply their update.
-    Irregular sample times are allowed.
+    (zero-order hold), in RK4 steps chosen per interval at run time: no longer than `max_step`,
+    and short enough that h·ρ ≤ 1 for the fastest rate ρ of the observer's flow, measured as the
+    run goes (the default time scale: 1/ρ, with ρ at the start the spectral radius of ∂F/∂z at the
+    initial estimate). An interval whose steps turn out too long for the rate met inside it (a
+    stiff covariance equation, a fast transient) is integrated again with shorter steps, so the
+    state cannot inflate silently between samples; a gap needing more than 10⁸ steps is refused.
+    At each sample the continuous-discrete observers apply their update. Irregular sample times
+    are allowed. ``Run.info["integration"]`` reports, per observer, the RK4 steps taken, the most
+    in one interval, the fastest rate met, and the engine.
+
+    The observer's functions are built once per design (and their C code compiled once per
+    machine), so repeated calls only run; :meth:`nlobs.Observer.compiled` gives the same prepared
+    observer as an object.
 
     Parameters
     ----------
@@ -225,7 +235,7 @@ def estimate(
     xhat0 : mapping of name to vector, or one vector, optional
         Initial estimates (default: each design's).
     max_step : float, optional
-        Largest RK4 step between samples.
+        Largest RK4 step between samples (default: set by the observer's own time scale, above).
     on_missing : {"error", "skip"}
         With ``"skip"``, NaN output samples are left out of the update (the prediction carries
         on; a continuous observer sees its own predicted output for the missing component).
@@ -246,7 +256,8 @@ def estimate(
     Raises
     ------
     DataError
-        For NaN/inf in the data (with the row and column) unless skipped, or non-increasing time.
+        For NaN/inf in the data (with the row and column) unless skipped, or non-increasing time;
+        for a gap that would need more than 10⁸ RK4 steps (with its time and length).
     FiniteEscapeError
         When an observer's state becomes non-finite: with the observer, the two samples and
         the step where it happened (never NaN estimates in a result).
@@ -271,124 +282,55 @@ def estimate(
     mask = recording.check_finite(on_missing)
     y0 = np.where(mask > 0, recording.y, 0.0)
     t, u = recording.t, recording.u
-    dts = np.diff(t)
-    n_sub = 1 if max_step is None else max(1, int(np.ceil(dts.max() / max_step - 1e-9)))
-    step, fill = _estimation_step(obs, n_sub, linear=hold == "linear")
-    A = np.hstack([t[:-1, None], dts[:, None], u[:-1], y0[:-1], mask[:-1], u[1:], y0[1:], mask[1:]])
-    z0, priors = [], {}
+    traces, integration = {}, {}
     for name, o in obs.items():
-        z = o.initial_state(_xhat0_for(xhat0, name, o.system.n_states))
-        priors[name] = o.estimate(t[0], z, u[0], y0[0])
-        z0.append(z)
-    prior_z0 = np.concatenate(z0)
-    s0 = np.concatenate([o.update(t[0], z, u[0], y0[0], mask[0]) if o.sampled else z for z, o in zip(z0, obs.values())])
-    bad0 = np.flatnonzero(~np.isfinite(s0))
-    if bad0.size:
-        _raise_non_finite(obs, recording, 0, int(bad0[0]), prior_z0, s0, first=True)
-    states, before, done = StepRunner(step, backend=engine).run(s0, A, np.zeros(1))
-    if done < len(A):
-        bad = int(np.flatnonzero(~np.isfinite(states[done]))[0])
-        _raise_non_finite(obs, recording, done + 1, bad, states[done - 1] if done else s0, states[done])
-    S = np.vstack([s0, states])
-    Z_prior = np.vstack([prior_z0, before])  # z at each sample before its update
-    traces = {}
-    off = 0
-    for name, o in obs.items():
-        sl = slice(off, off + o.n_z)
-        z = S[:, sl]
-        off += o.n_z
-        y_used = evaluate_many(fill[name], t[:, None], z, u, y0, mask) if (mask < 1).any() else y0
-        xhat = evaluate_many(o.design.output, t[:, None], z, u, y_used)
-        bad = np.argwhere(~np.isfinite(xhat))
+        # built once per design and cached (see Observer.compiled); the C code is cached on disk
+        z0 = o.initial_state(_xhat0_for(xhat0, name, o.system.n_states))
+        try:
+            traj = compiled_observer(o.design, hold).run(t, y0, u, mask=mask, z0=z0, max_step=max_step, engine=engine,
+                                                         name=name)
+        except FiniteEscapeError as e:
+            if getattr(e, "interval", None) is None:
+                raise
+            raise _non_finite(name, o, recording, e) from None
+        bad = np.argwhere(~np.isfinite(traj.xhat))
         if bad.size:  # the internal state is finite, but the estimate read from it is not
             r, c = (int(v) for v in bad[0])
-            raise FiniteEscapeError(f"observer {name!r}", float(t[r]), z[r], o.design.z_names, np.inf,
+            raise FiniteEscapeError(f"observer {name!r}", float(t[r]), traj.z[r], o.design.z_names, np.inf,
                                     message=f"observer {name!r} on the recording {recording.source}: its estimate of "
-                                            f"{o.system.states[c]} is {xhat[r, c]} at t = {t[r]:.6g} (row {r}) although its "
+                                            f"{o.system.states[c]} is {traj.xhat[r, c]} at t = {t[r]:.6g} (row {r}) although its "
                                             "internal state is finite; check the observer's output map x̂ = H(t, z, u, y)")
-        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, z, xhat, priors[name],
-                                     innovation=_innovations(o, t, Z_prior[:, sl], u, y_used, mask, recording.y))
+        innovation = np.where(mask > 0, recording.y - traj.yhat_prior, np.nan)
+        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, traj.z, traj.xhat, traj.xhat_prior,
+                                     innovation=innovation, std=estimate_std(o.design, traj.z))
+        integration[name] = traj.info()
     system = next(iter(obs.values())).system
     return Run(f"{system.name} (recorded: {recording.source})", t, system.states, recording.input_names, recording.output_names,
-               u, recording.y, traces, x=recording.x, info={"max_step": max_step, "substeps": n_sub, "on_missing": on_missing, "hold": hold})
+               u, recording.y, traces, x=recording.x,
+               info={"max_step": max_step, "substeps": max(v["max_substeps"] for v in integration.values()),
+                     "integration": integration, "on_missing": on_missing, "hold": hold},
+               estimated_params=system.estimated_params)
 
 
-def _innovations(o: AbstractObserver, t: np.ndarray, z_prior: np.ndarray, u: np.ndarray, y_used: np.ndarray, mask: np.ndarray,
-                 y: np.ndarray) -> np.ndarray:
-    """y_k − h(t_k, x̂_k⁻, u_k): each sample against the output predicted before it was used (NaN where missing).
-
-    x̂_k⁻ = H(t_k, z_k⁻, u_k, y_{k−1}): the internal state before the update at t_k, read with the measurement the
-    flow held until then (an estimate that depends on y would otherwise see y_k itself)."""
-    _, h = compile_system(o.system).bind()
-    y_held = np.vstack([y_used[:1], y_used[:-1]])
-    xhat_prior = evaluate_many(o.design.output, t[:, None], z_prior, u, y_held)
-    yhat = evaluate_many(h, t[:, None], xhat_prior, u)
-    return np.where(mask > 0, y - yhat, np.nan)
-
-
-def _raise_non_finite(obs: Mapping[str, AbstractObserver], rec: Recording, row: int, col: int, last: np.ndarray, bad: np.ndarray,
-                      *, first: bool = False) -> None:
-    """Stop with the observer, the sample and the data that made its state non-finite."""
-    off = 0
-    for name, o in obs.items():
-        if off <= col < off + o.n_z:
-            break
-        off += o.n_z
+def _non_finite(name: str, o: AbstractObserver, rec: Recording, err: FiniteEscapeError) -> FiniteEscapeError:
+    """The observer's blow-up told with the samples and the data around it (err.interval: -1 for the first sample,
+    k for the step from sample k to sample k + 1)."""
+    k, t = err.interval, rec.t
     names = o.design.z_names
-    z_bad = names[col - off]
-    t = rec.t
+    last = ", ".join(f"{n}={v:.6g}" for n, v in zip(names, err.x))
 
-    def data(k: int) -> str:
-        return ", ".join(f"{n} = {v:.6g}" for n, v in zip(rec.output_names + rec.input_names, np.r_[rec.y[k], rec.u[k]]))
+    def data(i: int) -> str:
+        return ", ".join(f"{n} = {v:.6g}" for n, v in zip(rec.output_names + rec.input_names, np.r_[rec.y[i], rec.u[i]]))
 
-    if first:
+    if k < 0:
         what = f"at its first sample (t = {t[0]:.6g}, row 0; {data(0)})"
     else:
-        what = (f"in the step from the sample at t = {t[row - 1]:.6g} (row {row - 1}; {data(row - 1)}) to the sample at "
-                f"t = {t[row]:.6g} (row {row}; {data(row)}), a step of {t[row] - t[row - 1]:.6g} s")
-    last_ = ", ".join(f"{n}={v:.6g}" for n, v in zip(names, last[off:off + o.n_z]))
-    raise FiniteEscapeError(f"observer {name!r}", float(t[max(row - 1, 0)]), last[off:off + o.n_z], names, np.inf,
-                            message=(f"observer {name!r} on the recording {rec.source}: its state {z_bad} became "
-                                     f"{bad[col]} {what}; last finite state: {last_}. Check that sample (units, outliers, a gap in time) "
+        what = (f"in the step from the sample at t = {t[k]:.6g} (row {k}; {data(k)}) to the sample at "
+                f"t = {t[k + 1]:.6g} (row {k + 1}; {data(k + 1)}), a step of {t[k + 1] - t[k]:.6g} s"
+                + (f" ({err.substeps} RK4 steps)" if getattr(err, "substeps", None) else ""))
+    out = FiniteEscapeError(f"observer {name!r}", err.t, err.x, names, np.inf,
+                            message=(f"observer {name!r} on the recording {rec.source}: its state became non-finite {what}; "
+                                     f"last finite state: {last}. Check that sample (units, outliers, a gap in time) "
                                      "or pass a smaller max_step (command line: --max-step)"))
-
-
-def _estimation_step(obs: Mapping[str, AbstractObserver], n_sub: int, *, linear: bool) -> tuple[ca.Function, dict[str, ca.Function]]:
-    first = next(iter(obs.values())).system
-    nu, ny = first.n_inputs, first.n_outputs
-    ns = sum(o.n_z for o in obs.values())
-    X = ca.MX if any(o.design.needs_mx for o in obs.values()) else ca.SX  # MHE's update embeds an NLP: MX graph
-    s = X.sym("s", ns)
-    a = X.sym("a", 2 + 2 * (nu + 2 * ny))
-    t, dt = a[0], a[1]
-    u0, y0, m0 = rows(a, 2, 2 + nu), rows(a, 2 + nu, 2 + nu + ny), rows(a, 2 + nu + ny, 2 + nu + 2 * ny)
-    o1 = 2 + nu + 2 * ny
-    u1, y1, m1 = rows(a, o1, o1 + nu), rows(a, o1 + nu, o1 + nu + ny), rows(a, o1 + nu + ny, o1 + nu + 2 * ny)
-    parts, priors, fills = [], [], {}
-    off = 0
-    for name, o in obs.items():
-        d = o.design
-        z = rows(s, off, off + o.n_z)
-        off += o.n_z
-        _, h = compile_system(o.system).bind()
-        zz, tt, uu, yy, mm = ca.SX.sym("z", o.n_z), ca.SX.sym("t"), ca.SX.sym("u", nu), ca.SX.sym("y", ny), ca.SX.sym("m", ny)
-        yhat = h(tt, d.output(tt, zz, uu, yy), uu)
-        fill = ca.Function(f"{d.method}_fill", [tt, zz, uu, yy, mm], [mm * yy + (1 - mm) * yhat])
-        fills[name] = fill
-        y_use = fill(t, z, u0, y0, m0)
-        # first-order hold (y where both ends were measured, and u), else the held (or predicted) value
-        slope = (m0 * m1) * (y1 - y_use) / dt if linear else ca.DM.zeros(ny)
-        u_slope = (u1 - u0) / dt if linear else ca.DM.zeros(nu)
-
-        def rhs(t_: ca.SX, z_: ca.SX, _k: int, d=d, y_use=y_use, slope=slope, u_slope=u_slope) -> ca.SX:
-            return d.flow(t_, z_, u0 + (t_ - t) * u_slope, y_use + (t_ - t) * slope)
-
-        h_ = dt / n_sub
-        for i in range(n_sub):
-            z = rk4_step(rhs, t + i * h_, z, h_)
-        priors.append(z)
-        if d.update is not None:
-            z = d.update(t + dt, z, u1, y1, m1)
-        parts.append(z)
-    # second output: the state at the next sample before its update (for the innovations)
-    return ca.Function("estimation_step", [s, a, X.sym("c", 1)], [ca.vertcat(*parts), ca.vertcat(*priors)]), fills
+    out.interval = k
+    return out

@@ -11,7 +11,7 @@ import numpy as np
 from ._metrics import CONVERGENCE_RULE, Metrics, error_metrics
 from ._whiteness import Whiteness, ljung_box
 
-__all__ = ["ObserverTrace", "Run", "write_csv"]
+__all__ = ["ObserverTrace", "Run", "write_csv", "estimate_std"]
 
 
 def write_csv(path: Any, header: Sequence[str], data: np.ndarray) -> None:
@@ -52,6 +52,23 @@ class ObserverTrace:
     #: y_k − h(x̂_k⁻): each output sample against the output predicted before the sample was used
     #: (shape (N, p), NaN where missing); set by :func:`nlobs.estimate`.
     innovation: np.ndarray | None = None
+    std: np.ndarray | None = None  #: (N, n) standard deviation of each estimate, from the covariance the observer carries
+
+
+def estimate_std(design: Any, z: np.ndarray) -> np.ndarray | None:
+    """The standard deviation of each entry of x̂ along a trajectory of z, from the design's
+    ``covariance`` (None for observers that carry none). Negative variances (a covariance that
+    lost definiteness) give NaN, not a number that looks fine."""
+    cov = getattr(design, "covariance", None)
+    if cov is None or z.shape[0] == 0:
+        return None
+    from ..engine import evaluate_many
+
+    n = design.system.n_states
+    P = evaluate_many(cov, z)
+    var = P[:, [i * (n + 1) for i in range(n)]]  # diagonal entries of the column-major n x n blocks
+    with np.errstate(invalid="ignore"):
+        return np.where(var >= 0, np.sqrt(np.abs(var)), np.nan)
 
 
 @dataclass(frozen=True, eq=False)
@@ -59,6 +76,11 @@ class Run:
     """Time, true states (when known), inputs, measurements and every observer's estimate.
 
     All arrays have time on the first axis; signals are labelled by the model's own names.
+
+    With unknown parameters estimated jointly (:meth:`nlobs.System.augmented`), they are the
+    last entries of `state_names` and are listed in `estimated_params`; :meth:`parameters`
+    reports their estimates (with ±2σ where the observer carries a covariance). `x` may then
+    hold only the model's own states (recorded data): errors compare those.
     """
 
     model: str
@@ -72,6 +94,7 @@ class Run:
     x: np.ndarray | None = None
     y_true: np.ndarray | None = None
     info: Mapping[str, Any] = field(default_factory=dict)
+    estimated_params: tuple[str, ...] = ()
 
     # -- errors and metrics -------------------------------------------------------------
     def _trace(self, name: str | None) -> ObserverTrace:
@@ -84,10 +107,30 @@ class Run:
         return self.observers[name]
 
     def error(self, name: str | None = None) -> np.ndarray:
-        """x̂ - x, shape (N, n). Needs the true state."""
+        """x̂ - x, shape (N, n). Needs the true state (when it holds only the model's own states and
+        not the estimated parameters, the error is over those states)."""
         if self.x is None:
             raise ValueError("this run has no true state (recorded data without states): errors cannot be computed")
-        return self._trace(name).xhat - self.x
+        xhat = self._trace(name).xhat
+        return xhat[:, :self.x.shape[1]] - self.x
+
+    # -- estimated parameters ---------------------------------------------------------------
+    def parameters(self, name: str | None = None, *, at: int = -1) -> dict[str, dict[str, float | None]]:
+        """Each estimated parameter at sample `at` (default the last):
+        ``{k: {"estimate": ..., "std": ... or None, "true": ... or None}}``.
+
+        ``std`` is the standard deviation of the estimate from the covariance the observer
+        carries (EKF, UKF, Kalman filters), None otherwise; ±2σ is ``2*std``. ``true`` is the
+        value the plant had, when known (a simulation).
+        """
+        trace = self._trace(name)
+        out: dict[str, dict[str, float | None]] = {}
+        for k in self.estimated_params:
+            i = self.state_names.index(k)
+            std = None if trace.std is None or not np.isfinite(trace.std[at, i]) else float(trace.std[at, i])
+            true = float(self.x[at, i]) if self.x is not None and i < self.x.shape[1] else None
+            out[k] = {"estimate": float(trace.xhat[at, i]), "std": std, "true": true}
+        return out
 
     def error_norm(self, name: str | None = None) -> np.ndarray:
         """‖x̂(t) - x(t)‖₂ at each time."""
@@ -106,7 +149,7 @@ class Run:
         e = self.error_norm(name)
         e0 = None
         if trace.xhat_prior is not None and self.x is not None:
-            e0 = float(np.linalg.norm(trace.xhat_prior - self.x[0]))
+            e0 = float(np.linalg.norm(trace.xhat_prior[:self.x.shape[1]] - self.x[0]))
         return error_metrics(self.t, e, tol=tol, e0=e0, tail=tail)
 
     def noise_gain(self, name: str | None = None, *, tail: float = 0.2) -> float:
@@ -162,13 +205,26 @@ class Run:
                      "the model, the tuning (Q, R) or the data leave information unused")
         return "\n".join(lines)
 
+    def _parameter_lines(self) -> list[str]:
+        """The estimated parameters at the final time, with ±2σ and the true value when known."""
+        if not self.estimated_params:
+            return []
+        lines = [f"estimated parameters at t = {self.t[-1]:g}:"]
+        for name in self.observers:
+            for k, v in self.parameters(name).items():
+                text = f"{v['estimate']:.6g}" + ("" if v["std"] is None else f" ± {2 * v['std']:.3g} (2σ)")
+                if v["true"] is not None:
+                    text += f", true {v['true']:.6g}"
+                lines.append(f"  {name:<16} {k} = {text}")
+        return lines
+
     def summary(self, *, tol: float | None = None) -> str:
         """A text table of every observer's metrics (with the convergence band of each); for
         recorded data without true states, the innovations and their whiteness instead (see
         :meth:`innovations` and :meth:`whiteness`)."""
         lines = [f"{self.model}: t in [{self.t[0]:g}, {self.t[-1]:g}], {len(self.t)} samples"]
         if self.x is None:
-            return "\n".join(lines + [self.residual_table()])
+            return "\n".join(lines + [self.residual_table()] + self._parameter_lines())
         head = f"{'observer':<18} {'final err':>10} {'RMS (last 20%)':>15} {'peak err':>10} {'conv. time':>11} {'band':>9}"
         lines += [head, "-" * len(head)]
         for name in self.observers:
@@ -178,6 +234,7 @@ class Run:
         lines.append("band: " + ("the tolerance given" if tol is not None else
                                  "max(2 % of the initial error, 2 × steady-state error), at most 20 % of the initial error")
                      + "; conv. time: from then on the error stays within it")
+        lines += self._parameter_lines()
         return "\n".join(lines)
 
     # -- export -------------------------------------------------------------------------
@@ -202,7 +259,7 @@ class Run:
             raise ImportError("to_pandas needs pandas: pip install 'nlobs[pandas]'") from e
         cols: dict[str, np.ndarray] = {}
         if self.x is not None:
-            cols.update({n: self.x[:, i] for i, n in enumerate(self.state_names)})
+            cols.update({n: self.x[:, i] for i, n in zip(range(self.x.shape[1]), self.state_names)})
         cols.update({n: self.u[:, i] for i, n in enumerate(self.input_names)})
         cols.update({n: self.y[:, i] for i, n in enumerate(self.output_names)})
         if self.y_true is not None:
@@ -220,6 +277,7 @@ class Run:
         ``final_estimate`` (the same as a list); with true states the :class:`Metrics`
         (``final_error``, ``rms_error``, ``convergence_time`` with its band ``tol``, ...); on
         recorded data the ``innovations`` per output (mean, RMS, Ljung–Box test).
+        With estimated parameters, each observer also has ``"parameters": {k: {"estimate", "std", "true"}}``.
         """
         obs: dict[str, Any] = {}
         for name, tr in self.observers.items():
@@ -230,6 +288,8 @@ class Run:
                 entry.update(self.metrics(name, tol=tol).to_dict())
                 if self.y_true is not None and not np.array_equal(self.y, self.y_true):
                     entry["noise_gain"] = self.noise_gain(name)
+            if self.estimated_params:
+                entry["parameters"] = self.parameters(name)
             if tr.innovation is not None:
                 entry["innovations"] = {o: w.to_dict() for o, w in self.whiteness(name).items()}
             obs[name] = entry
@@ -254,7 +314,7 @@ class Run:
         header = ["t", *self.input_names, *self.output_names]
         blocks = [self.t[:, None], self.u, self.y]
         if self.x is not None:
-            header += list(self.state_names)
+            header += list(self.state_names[:self.x.shape[1]])  # recorded truth may lack the estimated parameters
             blocks.append(self.x)
         for name, tr in self.observers.items():
             header += [f"{name}.{s}" for s in self.state_names]

@@ -25,21 +25,25 @@ from .._progress import as_progress
 from ..design import ObserverDesign
 from ..engine import Backend, StepRunner, compile_system, evaluate_many, rk4_step, rows
 from ..errors import FiniteEscapeError, ModelError, ShapeError
-from ..model import System, input_signals
+from ..model import ModelFile, ObserverConfig, System, input_signals
 from ..observer import AbstractObserver, Observer, as_observer
+from ._file import file_arguments, observers_of
 from ._options import Adaptive, Noise, ProcessNoise, Sampling
-from ._results import ObserverTrace, Run
+from ._results import ObserverTrace, Run, estimate_std
 
-__all__ = ["simulate", "prepare", "Prepared", "named_observers", "check_compatible", "stage_inputs"]
+__all__ = ["simulate", "Simulation", "prepare", "Prepared", "named_observers", "check_compatible", "stage_inputs",
+           "augmented_plant"]
 
 
 def named_observers(observers: Any) -> dict[str, AbstractObserver]:
-    """Observers by name, from a mapping, a sequence, or a single observer/design."""
+    """Observers by name, from a mapping, a sequence, or a single observer/design/model-file
+    configuration (a ModelFile stands for all its configured observers)."""
+    observers = observers_of(observers)
     if observers is None:
         return {}
     if isinstance(observers, Mapping):
         return {str(k): as_observer(v, str(k)) for k, v in observers.items()}
-    if isinstance(observers, (ObserverDesign, AbstractObserver)):
+    if isinstance(observers, (ObserverDesign, AbstractObserver, ObserverConfig)):
         observers = [observers]
     out: dict[str, AbstractObserver] = {}
     for obj in observers:
@@ -87,12 +91,12 @@ def stage_inputs(plant: System, inputs: Any, params: Mapping[str, float], t: np.
 
 
 def simulate(
-    plant: System,
+    plant: System | ModelFile,
     observers: Any = None,
     *,
-    t_final: float,
-    dt: float,
-    x0: Sequence[float],
+    t_final: float | None = None,
+    dt: float | None = None,
+    x0: Sequence[float] | None = None,
     inputs: Any = None,
     params: Mapping[str, float] | None = None,
     noise: Noise | None = None,
@@ -109,14 +113,21 @@ def simulate(
 
     Parameters
     ----------
-    plant : System
-        The true system.
+    plant : System or ModelFile
+        The true system; or a model file (:func:`nlobs.load_model`): its plant with
+        ``[simulation] true_parameters``, its observers (unless `observers` is given, which may
+        then also be a list of their names) and its ``[simulation]`` defaults for every argument
+        not given here.
     observers : mapping of name to observer/design, or a sequence, optional
-        Observers (or designs, made runnable with :class:`nlobs.Observer`).
+        Observers (or designs, made runnable with :class:`nlobs.Observer`, or a model file's
+        ``ObserverConfig`` objects, designed on the way). Observers that estimate some of the
+        plant's parameters (designed on ``plant.augmented(names)``) get the augmented plant:
+        its true parameter values are appended to `x0`, and the run reports the estimates.
     t_final, dt : float
-        Horizon [0, t_final] and step; t_final must be a whole multiple of dt.
+        Horizon [0, t_final] and step; t_final must be a whole multiple of dt (required unless
+        a model file gives them).
     x0 : sequence of float
-        Initial plant state.
+        Initial plant state (required unless a model file gives it).
     inputs : mapping of input name to signal, optional
         Numbers, expressions of ``t`` (``"0.5*sin(t)"``), callables ``u(t)``, or
         :mod:`nlobs.model` signals. Inputs not given are zero.
@@ -158,34 +169,89 @@ def simulate(
     ModelError, ShapeError
         For inconsistent arguments (wrong sizes, unknown names, incompatible observers).
     """
-    prep = prepare(plant, observers, t_final=t_final, dt=dt, inputs=inputs, params=params, noise=noise,
-                   process_noise=process_noise, sampling=sampling, caller="simulate", integrator=integrator)
-    plant, obs, layout, N, t = prep.plant, prep.obs, prep.layout, prep.n_steps, prep.t
-    s0 = prep.initial_state(x0, xhat0)
-    A = prep.inputs_for(seed)
-    c = prep.constants()
-    report = as_progress(progress, f"simulate {plant.name}")
-    info = {"dt": dt, "sampling": None if sampling is None else sampling.period, "seed": seed, "engine": engine,
-            "integrator": "rk4" if integrator is None else f"cvodes ({integrator.method}, rtol={integrator.rtol:g}, atol={integrator.atol:g})"}
+    if isinstance(plant, ModelFile):
+        return simulate(**file_arguments(plant, observers, t_final=t_final, dt=dt, x0=x0, inputs=inputs, params=params,
+                                         noise=noise, process_noise=process_noise, sampling=sampling, seed=seed,
+                                         xhat0=xhat0, engine=engine, progress=progress, escape_bound=escape_bound,
+                                         integrator=integrator))
+    sim = Simulation(plant, observers, t_final=t_final, dt=dt, inputs=inputs, params=params, noise=noise,
+                     process_noise=process_noise, sampling=sampling, integrator=integrator, engine=engine, _caller="simulate")
+    return sim.run(x0, xhat0=xhat0, seed=seed, progress=progress, escape_bound=escape_bound)
 
-    runner = layout.runner(engine)
-    S = np.empty((N + 1, layout.size))
-    O = np.empty((N + 1, layout.no))
-    S[0] = s0
-    _, _, done = runner.run(s0, A[:N], c, out=S[1:], obuf=O[:N], bound=escape_bound,
-                            on_chunk=None if report is None else (lambda states, k: report(k / N)))
-    if done < N:  # the state after step `done` (row done + 1) left the bound: report the last good one, row done
-        r = done
-        col = int(np.flatnonzero(~(np.abs(S[r + 1]) <= escape_bound))[0])
-        where, sl, names = layout.owner(col)
-        O[r] = runner.outputs(S[r:r + 1], A[r:r + 1], c)[0]
-        err = _plant_output_failure(plant, S, A, c, layout, runner, r) if where != "plant" else None
-        if err is None:
-            err = FiniteEscapeError(where, float(t[r]), S[r, sl], names, escape_bound)
-        err.partial = _assemble(plant, obs, layout, S[:r + 1], O[:r + 1], t[:r + 1], A[:r + 1], info)
-        raise err
-    O[N] = runner.outputs(S[N:], A[N:], c)[0]  # measurements and estimates at t_final
-    return _assemble(plant, obs, layout, S, O, t, A, info)
+
+class Simulation:
+    """A simulation set-up prepared once and run many times (initial states, estimates, noise seeds).
+
+    Validates the arguments, evaluates the input signals on the time grid and builds the joint
+    plant + observer step once (its C code compiled when worth it and cached on disk); each
+    :meth:`run` then only draws the noise of its seed and runs. ``simulate(...)`` is
+    ``Simulation(...).run(...)``.
+
+    Parameters
+    ----------
+    plant, observers, t_final, dt, inputs, params, noise, process_noise, sampling, integrator, engine :
+        As in :func:`nlobs.simulate`.
+
+    Examples
+    --------
+    >>> sim = Simulation(plant, {"ekf": ekf}, t_final=20, dt=1e-3, noise=Noise.gaussian(0.1))  # doctest: +SKIP
+    >>> runs = [sim.run([2.0, 0.0], seed=s) for s in range(100)]                                # doctest: +SKIP
+    """
+
+    def __init__(self, plant: System, observers: Any = None, *, t_final: float, dt: float, inputs: Any = None,
+                 params: Mapping[str, float] | None = None, noise: Noise | None = None,
+                 process_noise: ProcessNoise | None = None, sampling: Sampling | None = None,
+                 integrator: Adaptive | None = None, engine: Backend = "auto", _caller: str = "Simulation"):
+        self._prep = prepare(plant, observers, t_final=t_final, dt=dt, inputs=inputs, params=params, noise=noise,
+                             process_noise=process_noise, sampling=sampling, caller=_caller, integrator=integrator)
+        self.engine = engine
+        self._info = {"dt": dt, "sampling": None if sampling is None else sampling.period, "engine": engine,
+                      "integrator": "rk4" if integrator is None else
+                      f"cvodes ({integrator.method}, rtol={integrator.rtol:g}, atol={integrator.atol:g})"}
+        self._c = self._prep.constants()
+        self._prep.t.setflags(write=False)  # shared by the runs' results
+        self._A_clean = None if self._prep.seeded else self._prep.inputs_for(None)
+        if self._A_clean is not None:
+            self._A_clean.setflags(write=False)  # shared by the runs (their `u` are read-only views of it)
+
+    @property
+    def plant(self) -> System:
+        return self._prep.plant
+
+    @property
+    def t(self) -> np.ndarray:
+        """The time grid (a copy)."""
+        return self._prep.t.copy()
+
+    def run(self, x0: Sequence[float], *, xhat0: Mapping[str, Sequence[float]] | Sequence[float] | None = None,
+            seed: int | None = None, progress: bool | Callable[[float], None] | None = None,
+            escape_bound: float = 1e12) -> Run:
+        """One run from the plant state `x0` (see :func:`nlobs.simulate` for the arguments and errors)."""
+        prep = self._prep
+        plant, obs, layout, N, t = prep.plant, prep.obs, prep.layout, prep.n_steps, prep.t
+        s0 = prep.initial_state(x0, xhat0)
+        A = self._A_clean if self._A_clean is not None else prep.inputs_for(seed)
+        c = self._c
+        report = as_progress(progress, f"simulate {plant.name}")
+        info = dict(self._info, seed=seed)
+        runner = layout.runner(self.engine)
+        S = np.empty((N + 1, layout.size))
+        O = np.empty((N + 1, layout.no))
+        S[0] = s0
+        _, _, done = runner.run(s0, A[:N], c, out=S[1:], obuf=O[:N], bound=escape_bound,
+                                on_chunk=None if report is None else (lambda states, k: report(k / N)))
+        if done < N:  # the state after step `done` (row done + 1) left the bound: report the last good one, row done
+            r = done
+            col = int(np.flatnonzero(~(np.abs(S[r + 1]) <= escape_bound))[0])
+            where, sl, names = layout.owner(col)
+            O[r] = runner.outputs(S[r:r + 1], A[r:r + 1], c)[0]
+            err = _plant_output_failure(plant, S, A, c, layout, runner, r) if where != "plant" else None
+            if err is None:
+                err = FiniteEscapeError(where, float(t[r]), S[r, sl], names, escape_bound)
+            err.partial = _assemble(plant, obs, layout, S[:r + 1], O[:r + 1], t[:r + 1], A[:r + 1], info)
+            raise err
+        O[N] = runner.outputs(S[N:], A[N:], c)[0]  # measurements and estimates at t_final
+        return _assemble(plant, obs, layout, S, O, t, A, info)
 
 
 def _plant_output_failure(plant: System, S: np.ndarray, A: np.ndarray, c: np.ndarray, layout: _Layout, runner: _Runner,
@@ -229,10 +295,13 @@ class Prepared:
     process_noise: ProcessNoise | None
     every: int
     caller: str
+    x0_tail: tuple[float, ...] = ()  # true values of the estimated parameters, appended to a model-state x0
 
     def initial_state(self, x0: Sequence[float], xhat0: Any) -> np.ndarray:
         n, ny = self.plant.n_states, self.plant.n_outputs
         x0v = np.asarray(x0, dtype=float).reshape(-1)
+        if self.x0_tail and x0v.size == n - len(self.x0_tail):
+            x0v = np.concatenate([x0v, self.x0_tail])
         if x0v.size != n or not np.all(np.isfinite(x0v)):
             raise ShapeError(f"{self.caller}: `x0` must be {n} finite numbers (one per state: {', '.join(self.plant.states)}), "
                              f"got {list(x0v)}")
@@ -240,7 +309,12 @@ class Prepared:
         return np.concatenate([x0v, *z0s, np.zeros(ny if self.kind.sampled else 0)])
 
     def constants(self, params: Sequence[float] | None = None) -> np.ndarray:
-        return np.concatenate([[self.dt], self.plant.param_values if params is None else np.asarray(params, dtype=float)])
+        """The run-time constants of the compiled step: dt, dt/2, dt/6 (no division per step) and the
+        plant parameters (none when they are folded into the step as constants)."""
+        head = [self.dt, self.dt / 2, self.dt / 6]
+        if self.kind.folded is not None:
+            return np.array(head)
+        return np.concatenate([head, self.plant.param_values if params is None else np.asarray(params, dtype=float)])
 
     def inputs_for(self, seed: int | None) -> np.ndarray:
         """The per-step inputs with the noise of `seed` (measurement noise drawn first, then process noise)."""
@@ -261,10 +335,18 @@ class Prepared:
         return self.noise is not None or self.process_noise is not None
 
 
+#: Most RK4 steps one run stores (t_final / dt); beyond it the trajectories alone need tens of GB.
+MAX_STEPS = 1e8
+
+
 def prepare(plant: System, observers: Any, *, t_final: float, dt: float, inputs: Any, params: Mapping[str, float] | None,
             noise: Noise | None, process_noise: ProcessNoise | None, sampling: Sampling | None, caller: str,
-            integrator: Adaptive | None = None) -> Prepared:
-    """Validate the arguments shared by simulate and montecarlo and build the compiled joint step."""
+            integrator: Adaptive | None = None, fold_params: bool = False) -> Prepared:
+    """Validate the arguments shared by simulate and montecarlo and build the compiled joint step.
+
+    With `fold_params` the plant's parameter values are compiled into the step as constants
+    (for runs that do not vary them); otherwise they are run-time inputs.
+    """
     if not isinstance(plant, System):
         raise TypeError(f"{caller}: `plant` must be an nlobs.System, got {type(plant).__name__}")
     for label, v in (("t_final", t_final), ("dt", dt)):  # Python and NumPy numbers (np.float32 too), not bool
@@ -273,18 +355,23 @@ def prepare(plant: System, observers: Any, *, t_final: float, dt: float, inputs:
     # a single-precision number (np.float32(0.1)) is only that precise: compare the grid at its precision
     rel = max([1e-9] + [4 * float(np.finfo(v.dtype).eps) for v in (t_final, dt) if isinstance(v, np.floating)])
     t_final, dt = float(t_final), float(dt)
+    if t_final / dt > MAX_STEPS:
+        raise ShapeError(f"{caller}: t_final / dt = {t_final:g} / {dt:g} = {t_final / dt:.3g} steps, more than {MAX_STEPS:.0e} "
+                         "(every step is stored): choose a larger dt or a shorter t_final")
     N = int(round(t_final / dt))
     if N < 1 or abs(N * dt - t_final) > rel * max(1.0, t_final):
         raise ShapeError(f"{caller}: t_final = {t_final:g} must be a whole multiple of dt = {dt:g}")
     plant = plant.with_params(**params) if params else plant
     obs = named_observers(observers)
+    plant, x0_tail = augmented_plant(plant, obs)
     if obs and plant.n_outputs == 0:
         raise ModelError(f"{caller}: the plant {plant.name!r} has no outputs; an observer needs a measurement")
     for name, o in obs.items():
         check_compatible(plant, name, o)
     if integrator is not None and not isinstance(integrator, Adaptive):
         raise TypeError(f"{caller}: `integrator` must be an nlobs.Adaptive (or None for fixed-step RK4), got {integrator!r}")
-    kind = _Kind(sampled=sampling is not None, noisy=noise is not None, process=process_noise is not None, adaptive=integrator)
+    kind = _Kind(sampled=sampling is not None, noisy=noise is not None, process=process_noise is not None, adaptive=integrator,
+                 folded=tuple(float(v) for v in plant.param_values) if fold_params else None)
     _, layout = _joint_step(plant, obs, kind)
     t = np.arange(N + 1) * dt
     base = t[:, None]
@@ -293,7 +380,17 @@ def prepare(plant: System, observers: Any, *, t_final: float, dt: float, inputs:
     elif inputs:
         input_signals(plant, inputs)  # reports unknown input names
     every = sampling.every(dt) if sampling is not None else 1
-    return Prepared(plant, obs, kind, layout, N, float(dt), t, base, noise, process_noise, every, caller)
+    return Prepared(plant, obs, kind, layout, N, float(dt), t, base, noise, process_noise, every, caller, x0_tail)
+
+
+def augmented_plant(plant: System, obs: Mapping[str, AbstractObserver]) -> tuple[System, tuple[float, ...]]:
+    """The plant to simulate with observers that estimate some of its parameters (designed on
+    ``plant.augmented(names)``): the plant augmented the same way, and the true values of those
+    parameters (appended to an x0 of the model's states)."""
+    est = next((o.system.estimated_params for o in obs.values() if o.system.estimated_params), ())
+    if not est or plant.estimated_params or any(k not in plant.params for k in est):
+        return plant, ()  # nothing to do, or check_compatible reports the mismatch
+    return plant.augmented(est), tuple(plant.params[k] for k in est)
 
 
 def _xhat0_for(xhat0: Any, name: str, n: int) -> Any:
@@ -312,6 +409,7 @@ class _Kind:
     noisy: bool
     process: bool
     adaptive: Adaptive | None = None
+    folded: tuple[float, ...] | None = None  # plant parameter values compiled in as constants
 
 
 class _Layout:
@@ -410,8 +508,9 @@ def _build_step(plant: System, obs: Mapping[str, AbstractObserver], kind: _Kind)
     X = ca.MX if kind.adaptive is not None or any(o.design.needs_mx for o in obs.values()) else ca.SX
     s = X.sym("s", layout.size)
     a = X.sym("a", layout.na)
-    c = X.sym("c", 1 + plant.n_params)
-    dt, p = c[0], rows(c, 1, 1 + plant.n_params)
+    c = X.sym("c", 3 + (0 if kind.folded is not None else plant.n_params))
+    dt, half, sixth = c[0], c[1], c[2]
+    p = ca.DM(kind.folded) if kind.folded is not None else rows(c, 3, 3 + plant.n_params)
     t = a[0]
     nu = plant.n_inputs
     U = [rows(a, layout.u.start + k * nu, layout.u.start + (k + 1) * nu) for k in range(3)]
@@ -449,7 +548,7 @@ def _build_step(plant: System, obs: Mapping[str, AbstractObserver], kind: _Kind)
 
     joint = ca.vertcat(x, *zs.values())
     if kind.adaptive is None:
-        S_next = rk4_step(rhs, t, joint, dt)
+        S_next = rk4_step(rhs, t, joint, dt, half=half, sixth=sixth)
     else:
         S_next = _adaptive_flow(plant, obs, layout, kind)(joint, a, c, y_s if kind.sampled else ca.DM.zeros(ny))
     x_next = rows(S_next, 0, n) + (rows(a, layout.w.start, layout.w.stop) if kind.process else 0)
@@ -465,8 +564,10 @@ def _adaptive_flow(plant: System, obs: Mapping[str, AbstractObserver], layout: _
     comp = compile_system(plant)
     n, nu, ny = plant.n_states, plant.n_inputs, plant.n_outputs
     S = ca.SX.sym("S", layout.n + sum(o.n_z for o in obs.values()))
-    a, c, yh, tau = ca.SX.sym("a", layout.na), ca.SX.sym("c", 1 + plant.n_params), ca.SX.sym("yh", ny), ca.SX.sym("tau")
-    dt, p = c[0], rows(c, 1, 1 + plant.n_params)
+    nc = 3 + (0 if kind.folded is not None else plant.n_params)
+    a, c, yh, tau = ca.SX.sym("a", layout.na), ca.SX.sym("c", nc), ca.SX.sym("yh", ny), ca.SX.sym("tau")
+    dt = c[0]
+    p = ca.DM(kind.folded) if kind.folded is not None else rows(c, 3, 3 + plant.n_params)
     t = a[0] + tau * dt
     stages = [rows(a, layout.u.start + k * nu, layout.u.start + (k + 1) * nu) for k in range(3)]
     # quadratic through u(t_k), u(t_k + dt/2), u(t_k + dt): exact for held and linear inputs
@@ -505,5 +606,6 @@ def _assemble(plant: System, obs: Mapping[str, AbstractObserver], layout: _Layou
         z = O[:, zsl] if zsl is not None else S[:, layout.slices[name]]
         xhat = O[:, xsl] if xsl is not None else z[:, :n]
         prior = o.estimate(t[0], S[0, layout.slices[name]], u[0], y[0])
-        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, z, xhat, prior)
-    return Run(plant.name, t, plant.states, plant.inputs, plant.outputs, u, y, traces, x=S[:, :n], y_true=y_true, info=info)
+        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, z, xhat, prior, std=estimate_std(o.design, z))
+    return Run(plant.name, t, plant.states, plant.inputs, plant.outputs, u, y, traces, x=S[:, :n], y_true=y_true, info=info,
+               estimated_params=plant.estimated_params)

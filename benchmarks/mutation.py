@@ -1,0 +1,166 @@
+"""Mutation testing of the paper-equation modules (mutmut 3): do the tests catch a broken equation?
+
+Each module below implements equations of the papers; mutmut changes its code one small edit
+at a time (an operator, a constant, a sign, a dropped argument...) and runs the module's
+focused tests against every mutant. A mutant is *killed* when a test fails (or times out);
+a *survivor* is a change no test notices. The kill rate is killed / (killed + survived); mutants
+no test reaches ("no tests") count as survivors.
+
+Modules and why (the equations they implement):
+
+- design/_regression.py: 000 eqs. (16)-(17) (the G+D estimator), DREM mixing, gradient and
+  least squares, the filters of 004 eq. (37);
+- design/_kalman.py: the Kalman-like observer for state-affine systems and its high-gain
+  variant (002), the Riccati ODE Ṁ = λ[...];
+- design/_gpebo.py: the GPEBO / 2G+D observer of 000 (eqs. 8-13, order (3 + 2n)n);
+- design/_banks.py and analysis/_conditions.py: Banks' matrix measure, dissipativity and
+  Theorem 2.6 (003);
+- analysis/_identity.py: the exact identity test every PDE / left-inverse check relies on.
+
+String literals are not mutated (see _LAUNCH), nor raise statements, Check(...) lines and
+certificate values (do_not_mutate_patterns): messages and certificate text are not equations.
+
+Each module runs in its own scratch copy (``/tmp/nlobs-mutation/<module>``), so the work tree is
+never modified and modules do not interfere. A full run is long (tens of minutes per module on a
+shared 2-core machine): it runs under ``nice``, one module at a time.
+
+Run:  .venv/bin/pip install -e '.[mutation]'
+      .venv/bin/python benchmarks/mutation.py [--only design/_regression.py ...] [--max-children 2]
+Results: benchmarks/results/mutation.json (per module: killed, survived, no tests, timeouts, rate)
+and the survivors' names in benchmarks/results/mutation_survivors.txt (``mutmut show NAME`` in the
+scratch directory prints a mutant's diff).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+SCRATCH = Path(os.environ.get("NLOBS_MUTATION_DIR", "/tmp/nlobs-mutation"))
+
+#: module (relative to src/nlobs) -> the focused tests that check its equations
+MODULES: dict[str, list[str]] = {
+    "design/_regression.py": ["tests/design/test_regression.py", "tests/design/test_estimators.py"],
+    "design/_kalman.py": ["tests/design/test_kalman.py", "tests/design/test_high_gain.py"],
+    "design/_gpebo.py": ["tests/design/test_gpebo.py", "tests/papers/test_000_2gd_not_uco.py::test_2gd_error_follows_the_paper_law_to_round_off"],
+    "design/_banks.py": ["tests/design/test_banks.py"],
+    "analysis/_conditions.py": ["tests/analysis/test_forms_banks.py", "tests/design/test_banks.py"],
+    "analysis/_identity.py": ["tests/analysis/test_identity.py", "tests/design/test_pebo.py", "tests/design/test_iandi.py"],
+}
+
+_SETUP = r"""
+[tool.mutmut]
+source_paths = ["src/nlobs"]
+only_mutate = ["src/nlobs/{module}"]
+pytest_add_cli_args_test_selection = {tests}
+pytest_add_cli_args = ["-p", "no:cacheprovider"]
+timeout_multiplier = 5.0
+timeout_constant = 30.0
+use_git_change_detection = false
+# error messages and certificate text are not equations: raise statements, Check(...) lines and
+# certificate values are left alone (a changed message is not a broken equation)
+do_not_mutate_patterns = ['^\s*raise ', 'Check\(|Check\.assumed\(', 'values\[|values\.update|values = \{|values: dict', '__str__']
+"""
+
+
+# mutmut with one operator removed: string literals (error messages, certificate text, labels) are not
+# mutated. A changed message is not a broken equation, and those mutants would dominate the count.
+_LAUNCH = (
+    "import sys; import mutmut.mutation.mutators as m; "
+    "m.mutation_operators[:] = [(t, f) for t, f in m.mutation_operators if f.__name__ != 'operator_string']; "
+    "from mutmut.__main__ import cli; sys.argv[0] = 'mutmut'; cli()"
+)
+
+
+def _prepare(module: str, tests: list[str]) -> Path:
+    work = SCRATCH / module.replace("/", "__").removesuffix(".py")
+    if work.exists():
+        shutil.rmtree(work)
+    work.mkdir(parents=True)
+    shutil.copytree(ROOT / "src", work / "src", ignore=shutil.ignore_patterns("__pycache__", "*.so"))
+    shutil.copytree(ROOT / "tests", work / "tests", ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copy(ROOT / "pyproject.toml", work / "pyproject.toml")
+    text = (work / "pyproject.toml").read_text()
+    # pytest options of the project apply (warnings as errors, markers); mutmut's own table is appended
+    table = _SETUP.replace("{module}", module).replace("{tests}", json.dumps(tests))
+    (work / "pyproject.toml").write_text(text + table)
+    # PYTHONPATH points at mutants/src; it must exist before mutmut starts, or Python caches "no such
+    # directory" for it and the tests import the unmutated package through the editable install
+    (work / "mutants" / "src").mkdir(parents=True)
+    return work
+
+
+def _count(work: Path) -> dict[str, object]:
+    """Tally mutmut's per-mutant results from its .meta files (mutants/**.meta), with mutmut's own
+    exit-code meanings (mutmut.stats.status_by_exit_code)."""
+    from mutmut.stats import status_by_exit_code
+
+    counts: dict[str, object] = {}
+    survivors: list[str] = []
+    for meta in (work / "mutants").rglob("*.meta"):
+        data = json.loads(meta.read_text())
+        for name, code in data.get("exit_code_by_key", {}).items():
+            status = status_by_exit_code[code]
+            counts[status] = int(counts.get(status, 0)) + 1  # type: ignore[arg-type]
+            if status in ("survived", "no tests"):
+                survivors.append(f"{name} ({status})")
+    for key in ("killed", "survived", "no tests", "timeout", "segfault", "suspicious", "not checked"):
+        counts.setdefault(key, 0)
+    counts["survivor_names"] = sorted(survivors)
+    return counts
+
+
+def run_module(module: str, tests: list[str], max_children: int) -> dict[str, object]:
+    work = _prepare(module, tests)
+    env = {**os.environ, "PYTHONPATH": str(work / "mutants" / "src"), "NLOBS_CACHE": str(work / ".cache")}
+    t0 = time.time()
+    proc = subprocess.run(["nice", "-n", "15", sys.executable, "-c", _LAUNCH, "run", "--max-children", str(max_children)],
+                          cwd=work, env=env, capture_output=True, text=True)
+    elapsed = time.time() - t0
+    (work / "mutmut.log").write_text(proc.stdout[-200_000:] + "\n--- stderr ---\n" + proc.stderr[-200_000:])
+    counts = _count(work)
+    caught = int(counts["killed"]) + int(counts["timeout"]) + int(counts["segfault"])   # type: ignore[arg-type]
+    decided = caught + int(counts["survived"]) + int(counts["no tests"])                # type: ignore[arg-type]
+    rate = caught / decided if decided else float("nan")
+    return {"module": module, "tests": tests, "seconds": round(elapsed, 1), "exit_code": proc.returncode,
+            "rate": rate, **counts, "scratch": str(work)}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--only", nargs="*", help="modules to run (keys of MODULES)")
+    ap.add_argument("--max-children", type=int, default=2)
+    args = ap.parse_args(argv)
+    try:
+        import mutmut  # noqa: F401
+    except ImportError:
+        print("mutmut is not installed: .venv/bin/pip install -e '.[mutation]'", file=sys.stderr)
+        return 2
+    chosen = args.only or list(MODULES)
+    unknown = [m for m in chosen if m not in MODULES]
+    if unknown:
+        print(f"unknown module(s) {unknown}; choose from {list(MODULES)}", file=sys.stderr)
+        return 2
+    out = ROOT / "benchmarks" / "results" / "mutation.json"
+    results = json.loads(out.read_text()) if out.exists() else {}
+    for module in chosen:
+        print(f"{module}: mutating, tests {' '.join(MODULES[module])} ...", flush=True)
+        res = run_module(module, MODULES[module], args.max_children)
+        results[module] = {k: v for k, v in res.items() if k != "survivor_names"}
+        surv = ROOT / "benchmarks" / "results" / f"mutation_survivors_{module.replace('/', '__').removesuffix('.py')}.txt"
+        surv.write_text("\n".join(res["survivor_names"]) + "\n")  # type: ignore[arg-type]
+        print(f"  killed {res['killed']}, timeout {res['timeout']}, survived {res['survived']}, no tests {res['no tests']}: "
+              f"kill rate {res['rate']:.1%} ({res['seconds']:.0f} s)", flush=True)
+        out.write_text(json.dumps(results, indent=2, sort_keys=True) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,47 @@
+"""Print the README's speed table from the benchmark results (benchmarks/results/*.json).
+
+Each row: what was run, nlobs' time (min / median) with its error against the reference, the peer
+and its time and error, the ratio (min / median) and the target with whether the min met it.
+Rows come from every results file written in the format of ``_common.py``.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).parent))
+from _common import RESULTS, fmt_time  # noqa: E402
+
+ORDER = ["P1", "P2", "P3", "P3b", "P4", "P5", "P6"]
+
+
+def main() -> int:
+    rows, machines = [], []
+    for path in sorted(RESULTS.glob("*.json")):
+        try:
+            data = json.loads(path.read_text())
+        except ValueError:
+            continue
+        if not isinstance(data, dict) or not isinstance(data.get("rows"), list):
+            continue
+        rows += [r for r in data["rows"] if isinstance(r, dict) and "id" in r]
+        if "machine" in data:
+            machines.append(f"{path.stem}: {data['machine'].get('date', '?')}, load {data['machine'].get('load_1min_at_start', float('nan')):.1f}")
+    rows.sort(key=lambda r: (ORDER.index(r["id"]) if r["id"] in ORDER else len(ORDER), r["id"]))
+    print("| row | nlobs (min / median) | peer (min / median) | ratio (min / median) | target |")
+    print("|---|---|---|---|---|")
+    for r in rows:
+        ratio = f"{r['ratio_min']:.3g}× / {r['ratio_median']:.3g}×" + (" (peer/nlobs)" if r["ratio_kind"] == "peer/nlobs" else " (nlobs/peer)")
+        mark = {True: " ✔", False: " ✘", None: ""}[r.get("met")]
+        cells = [f"{r['id']} {r['what']}", f"{r['nlobs']}: {fmt_time(r['nlobs_min'])} / {fmt_time(r['nlobs_median'])}; {r['nlobs_error']}",
+                 f"{r['peer']}: {fmt_time(r['peer_min'])} / {fmt_time(r['peer_median'])}; {r['peer_error']}", ratio, f"{r['target']}{mark}"]
+        print("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")  # a | inside a cell would split it
+    if machines:
+        print("\nMeasured: " + "; ".join(machines))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

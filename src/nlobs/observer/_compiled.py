@@ -1,0 +1,252 @@
+"""An observer prepared once to run on sampled measurements many times.
+
+Between two samples t_k < t_{k+1} the observer integrates its flow ż = F(t, z, u, y) with the
+input and the measurement held (zero-order hold, or linear interpolation to the next sample),
+in RK4 sub-steps whose number is chosen per interval at run time (see :mod:`nlobs.engine`'s
+interval runner): at least ``ceil(dt_k / max_step)``, and enough that h·ρ ≤ 1 for the fastest
+rate ρ of the flow, measured as the run goes (the first interval uses the spectral radius of
+∂F/∂z at the initial state). At each sample the continuous-discrete observers apply their
+update. The functions are built once per design; the C code for them is compiled once per
+machine and cached on disk.
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import casadi as ca
+import numpy as np
+
+from ..design import ObserverDesign
+from ..engine import Backend, compile_system, rows
+from ..engine._integrate import rk4_step_rate
+from ..engine._intervals import MAX_SUBSTEPS, IntervalRunner
+from ..errors import DataError, FiniteEscapeError, ShapeError
+
+__all__ = ["CompiledObserver", "ObserverTrajectory", "compiled_observer"]
+
+Hold = Literal["zoh", "linear"]
+
+
+@dataclass(frozen=True, eq=False)
+class ObserverTrajectory:
+    """What :meth:`CompiledObserver.run` returns (time on the first axis).
+
+    Attributes
+    ----------
+    t : numpy.ndarray of shape (N,)
+    z : numpy.ndarray of shape (N, n_z)
+        The internal state at each sample, after the sample-time update.
+    xhat : numpy.ndarray of shape (N, n)
+        The estimate at each sample.
+    y_used : numpy.ndarray of shape (N, p)
+        The measurement the observer held after each sample (a missing component replaced by the
+        predicted output).
+    xhat_prior : numpy.ndarray of shape (n,)
+        The estimate at t[0] before the first measurement.
+    yhat_prior : numpy.ndarray of shape (N, p)
+        The output predicted for each sample before it is used: h(t_k, x̂_k⁻, u_k), with x̂_k⁻
+        read from the internal state before the update at t_k and the measurement held until
+        then (y_k − ŷ_k⁻ are the innovations).
+    substeps : numpy.ndarray of shape (N - 1,)
+        RK4 sub-steps taken in each interval.
+    rate : numpy.ndarray of shape (N - 1,)
+        The fastest rate of the flow measured in each interval (1/time unit).
+    engine : str
+        Where it ran: ``"c"`` or ``"vm"``.
+    """
+
+    t: np.ndarray
+    z: np.ndarray
+    xhat: np.ndarray
+    y_used: np.ndarray
+    xhat_prior: np.ndarray
+    yhat_prior: np.ndarray
+    substeps: np.ndarray
+    rate: np.ndarray
+    engine: str
+
+    def info(self) -> dict[str, Any]:
+        """How the run was integrated, for a result's ``info``."""
+        n = self.substeps
+        return {"substeps": int(n.sum()), "max_substeps": int(n.max()) if n.size else 0,
+                "fastest_rate": float(np.nanmax(self.rate)) if n.size and np.isfinite(self.rate).any() else 0.0,
+                "engine": self.engine}
+
+
+class CompiledObserver:
+    """An observer design prepared to run on sampled data: build once, run many times.
+
+    Made by :meth:`nlobs.Observer.compiled` (and used, through the same cache, by
+    :func:`nlobs.estimate`). Holding one avoids even the cache look-up.
+
+    Parameters
+    ----------
+    design : ObserverDesign
+    hold : {"zoh", "linear"}
+        How u and y are held between samples: zero-order hold, or linear interpolation to the
+        next sample (offline only).
+    """
+
+    def __init__(self, design: ObserverDesign, hold: Hold = "zoh"):
+        if hold not in ("zoh", "linear"):
+            raise ValueError(f"`hold` must be 'zoh' or 'linear', got {hold!r}")
+        self.design, self.hold = design, hold
+        s = design.system
+        self.nu, self.ny, self.nz, self.n = s.n_inputs, s.n_outputs, design.n_z, s.n_states
+        self.na = 2 + 2 * (self.nu + 2 * self.ny)
+        self.selects_state = _selects_state(design, self.n)
+        self._build()
+        self._runners: dict[str, IntervalRunner] = {}
+
+    # -- construction ---------------------------------------------------------------------------
+    def _build(self) -> None:
+        d, nu, ny, nz = self.design, self.nu, self.ny, self.nz
+        X = ca.MX if d.needs_mx else ca.SX  # MHE's update embeds an NLP: an MX graph, run on the VM
+        _, h = compile_system(d.system).bind()
+        zz, tt, uu, yy, mm = ca.SX.sym("z", nz), ca.SX.sym("t"), ca.SX.sym("u", nu), ca.SX.sym("y", ny), ca.SX.sym("m", ny)
+        yhat = h(tt, d.output(tt, zz, uu, yy), uu)
+        fill = ca.Function(f"{d.method}_fill", [tt, zz, uu, yy, mm], [mm * yy + (1 - mm) * yhat])
+
+        S, a, th = X.sym("S", nz + ny), X.sym("a", self.na), X.sym("th", 2)
+        z, yh = rows(S, 0, nz), rows(S, nz, nz + ny)
+        t, dt = a[0], a[1]
+        o1 = 2 + nu + 2 * ny
+        u0, m0 = rows(a, 2, 2 + nu), rows(a, 2 + nu + ny, 2 + nu + 2 * ny)
+        u1, y1, m1 = rows(a, o1, o1 + nu), rows(a, o1 + nu, o1 + nu + ny), rows(a, o1 + nu + ny, o1 + nu + 2 * ny)
+        if self.hold == "linear":  # first-order hold of u, and of y where both ends were measured
+            slope, u_slope = (m0 * m1) * (y1 - yh) / dt, (u1 - u0) / dt
+        else:
+            slope, u_slope = X.zeros(ny), X.zeros(nu)
+
+        def rhs(t_: Any, z_: Any, _k: int) -> Any:
+            return d.flow(t_, z_, u0 + (t_ - t) * u_slope, yh + (t_ - t) * slope)
+
+        z_next, rate = rk4_step_rate(rhs, th[0], z, th[1], rate=True)
+        self.sub = ca.Function(f"{d.method}_substep", [S, a, th], [ca.vertcat(z_next, yh), rate])
+
+        z_plus = d.update(t + dt, z, u1, y1, m1) if d.update is not None else z
+        yh_plus = fill(t + dt, z_plus, u1, y1, m1)
+        y_prior = h(t + dt, d.output(t + dt, z, u1, yh), u1)  # the output predicted before the sample is used
+        o = y_prior if self.selects_state else ca.vertcat(d.output(t + dt, z_plus, u1, yh_plus), y_prior)
+        self.jump = ca.Function(f"{d.method}_sample", [S, a], [ca.vertcat(z_plus, yh_plus), o])
+
+        # the start: the prior, the first update, the held measurement, and dF/dz there (for the first rate)
+        z0, t0, u0_, y0_, m0_ = X.sym("z0", nz), X.sym("t0"), X.sym("u0", nu), X.sym("y0", ny), X.sym("m0", ny)
+        prior = d.output(t0, z0, u0_, y0_)
+        zs = d.update(t0, z0, u0_, y0_, m0_) if d.update is not None else z0
+        ys = fill(t0, zs, u0_, y0_, m0_)
+        zj, tj, uj, yj = X.sym("zj", nz), X.sym("tj"), X.sym("uj", nu), X.sym("yj", ny)
+        jac = ca.Function("flow_jacobian", [zj, tj, uj, yj], [ca.jacobian(d.flow(tj, zj, uj, yj), zj)])
+        self.start = ca.Function(f"{d.method}_start", [z0, t0, u0_, y0_, m0_],
+                                 [prior, zs, ys, d.output(t0, zs, u0_, ys), jac(zs, t0, u0_, ys), h(t0, prior, u0_)])
+
+    def _runner(self, engine: Backend) -> IntervalRunner:
+        r = self._runners.get(engine)
+        if r is None:
+            r = self._runners[engine] = IntervalRunner(self.sub, self.jump, backend=engine)
+        return r
+
+    # -- running --------------------------------------------------------------------------------
+    def run(self, t: Any, y: Any, u: Any = None, *, mask: Any = None, z0: Any = None, xhat0: Any = None,
+            max_step: float | None = None, engine: Backend = "auto", name: str | None = None) -> ObserverTrajectory:
+        """Run the observer on samples: times `t` (N,), outputs `y` (N, p), inputs `u` (N, m).
+
+        Parameters
+        ----------
+        t, y, u : array_like
+            Strictly increasing sample times and the signals at them (no NaN: give `mask`).
+        mask : array_like of shape (N, p), optional
+            1 where an output was measured, 0 where missing (its value in `y` is then ignored).
+        z0 : array_like of shape (n_z,), optional
+            The internal state at t[0] before the first update (default: from `xhat0`).
+        xhat0 : array_like of shape (n,), optional
+            The initial estimate (default: the design's).
+        max_step : float, optional
+            Largest RK4 step between samples; the steps are shorter where the flow's rate asks for it.
+        engine : {"auto", "vm", "c"}
+        name : str, optional
+            The observer's name in error messages.
+
+        Raises
+        ------
+        FiniteEscapeError
+            When the estimate becomes non-finite (with the interval and the last finite state).
+        DataError
+            When an interval (a gap in the recording) would need more than 10⁸ RK4 steps.
+        """
+        label = f"observer {name or self.design.method!r}"
+        t = np.ascontiguousarray(t, dtype=float).reshape(-1)
+        N = t.size
+        y = np.asarray(y, dtype=float).reshape(N, self.ny)
+        u = np.zeros((N, 0)) if u is None and self.nu == 0 else np.asarray(u, dtype=float).reshape(N, self.nu)
+        m = np.ones((N, self.ny)) if mask is None else np.asarray(mask, dtype=float).reshape(N, self.ny)
+        y = np.where(m > 0, y, 0.0)
+        if max_step is not None and not (np.isfinite(max_step) and max_step > 0):
+            raise ShapeError(f"{label}: `max_step` must be a positive number, got {max_step!r}")
+        if z0 is None:
+            x0 = self.design.xhat0 if xhat0 is None else np.asarray(xhat0, dtype=float).reshape(self.n)
+            z0 = np.asarray(self.design.initial(x0), dtype=float).reshape(-1)
+        prior, zs, ys, xs, J, yp0 = (np.asarray(v, dtype=float)
+                                     for v in self.start(np.asarray(z0, dtype=float), t[0], u[0], y[0], m[0]))
+        zs, ys = zs.reshape(-1), ys.reshape(-1)
+        if not np.all(np.isfinite(zs)):
+            err = FiniteEscapeError(label, float(t[0]), np.asarray(z0, dtype=float).reshape(-1), self.design.z_names, np.inf,
+                                    hint=f"at its first sample (t = {t[0]:g})")
+            err.interval, err.substeps = -1, 0
+            raise err
+        rate0 = float(np.max(np.abs(np.linalg.eigvals(J)))) if J.size and np.all(np.isfinite(J)) else 0.0
+        dts = np.diff(t)
+        A = np.hstack([t[:-1, None], dts[:, None], u[:-1], y[:-1], m[:-1], u[1:], y[1:], m[1:]])
+        nmin = np.ones(N - 1) if max_step is None else np.maximum(1.0, np.ceil(dts / max_step - 1e-9))
+        runner = self._runner(engine)
+        res = runner.run(np.concatenate([zs, ys]), A, nmin, rate0=rate0)
+        S = np.vstack([np.concatenate([zs, ys]), res.states])
+        if res.refused is not None:
+            k, need = res.refused
+            rate = res.rate[k - 1] if k > 0 and np.isfinite(res.rate[k - 1]) else rate0
+            raise DataError(
+                f"{label}: the interval from t = {t[k]:g} to {t[k + 1]:g} (length {dts[k]:g}) would need {need:.3g} RK4 steps "
+                f"(more than {MAX_SUBSTEPS:.0e}): the observer's fastest rate there is {rate:.3g} per time unit"
+                + (f" and max_step = {max_step:g}" if max_step is not None else "")
+                + ". Split the recording at this gap and estimate each part, or check the model's time scale")
+        if res.failed is not None:
+            k = res.failed
+            err = FiniteEscapeError(label, float(t[k]), S[k, :self.nz], self.design.z_names, np.inf,
+                                    hint=f"between the samples at t = {t[k]:g} and t = {t[k + 1]:g} "
+                                         f"({int(res.substeps[k])} RK4 steps)")
+            err.interval, err.substeps = k, int(res.substeps[k])  # the step from sample k to sample k + 1
+            raise err
+        z = S[:, :self.nz]
+        yhat_prior = np.vstack([yp0.reshape(1, -1), res.outputs[:, res.outputs.shape[1] - self.ny:]])
+        xhat = z[:, :self.n] if self.selects_state else np.vstack([xs.reshape(1, -1), res.outputs[:, :self.n]])
+        return ObserverTrajectory(t, z, np.ascontiguousarray(xhat), S[:, self.nz:], prior.reshape(-1), yhat_prior,
+                                  res.substeps, res.rate, res.backend)
+
+
+def _selects_state(design: ObserverDesign, n: int) -> bool:
+    """Whether the design's estimate is exactly the first n internal states (x̂ = z[:n])."""
+    if design.needs_mx:
+        return False
+    z = ca.SX.sym("z", design.n_z)
+    t, u, y = ca.SX.sym("t"), ca.SX.sym("u", design.system.n_inputs), ca.SX.sym("y", design.system.n_outputs)
+    xhat = design.output(t, z, u, y)
+    return design.n_z >= n and all(ca.is_equal(xhat[i], z[i]) for i in range(n))
+
+
+_CACHE: OrderedDict[tuple[int, str], CompiledObserver] = OrderedDict()
+
+
+def compiled_observer(design: ObserverDesign, hold: Hold = "zoh") -> CompiledObserver:
+    """The prepared observer for `design` (built on first use, then cached for the process)."""
+    key = (id(design), hold)
+    hit = _CACHE.get(key)
+    if hit is not None and hit.design is design:  # the cache keeps the design alive, so its id is not reused
+        _CACHE.move_to_end(key)
+        return hit
+    compiled = _CACHE[key] = CompiledObserver(design, hold)
+    if len(_CACHE) > 64:
+        _CACHE.popitem(last=False)
+    return compiled
