@@ -148,6 +148,9 @@ class Advice:
     seconds : float
     description : str
         The model file's description (it cites the model's source).
+    run_refused : str
+        Why ``run=True`` ran nothing although designs apply (the simulation's inputs do not identify an unknown
+        parameter: refused before any estimation); empty otherwise.
     """
 
     model: str
@@ -163,6 +166,7 @@ class Advice:
     scenario: str = ""
     seconds: float = 0.0
     description: str = ""  #: the model file's description (it cites the model's source)
+    run_refused: str = ""  #: why the comparison run was not made although asked for (an input that identifies nothing)
 
     @property
     def applicable(self) -> tuple[Candidate, ...]:
@@ -194,6 +198,8 @@ class Advice:
             out["ranking"] = list(self.ranking or ())
             out["scores"] = [s.to_dict() for s in self.scores]
             out["scenario"] = self.scenario
+            if self.run_refused:
+                out["run_refused"] = self.run_refused
         return out
 
     def __str__(self) -> str:
@@ -226,7 +232,9 @@ class Advice:
                 if not (blocked and c.why == blocked):
                     lines.append(f"  {c.kind:<24} {c.why}")
         if self.scores is not None and not self.scores:
-            lines.append("Nothing to run: no observer kind applies.")
+            lines.append(f"Nothing was run: {self.run_refused}" if self.run_refused else
+                         "Nothing was run: blocked (see BLOCKED above), no estimation was attempted." if self.blockers else
+                         "Nothing to run: no observer kind applies.")
         elif self.scores is not None:
             lines.append(f"Ranking on {self.scenario} (error RMS over the last 20 %, then convergence time):")
             for i, s in enumerate(self.scores):

@@ -181,6 +181,9 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
     t_ctx = time.perf_counter()
     ctx = build_context(system, model_file=mf, unknown_params=unknown_params or (), simulation=simulation, recording=recording,
                         true_parameters=true_parameters, xhat0=xhat0, seed=seed)
+    if mf is not None:
+        for name, cfg in mf.observers.items():  # what the user supplied for kinds nlobs cannot tune (KKL's φ, custom ...)
+            ctx.configs.setdefault(cfg.kind, (name, cfg.options))
     if run and ctx.recording is None and ctx.scenario is None:
         raise ModelError(f"advise: nothing to run on: {system.name!r} has no [simulation] x0 and no recording was given; "
                          "add [simulation] x0 = [...] (with t_final, inputs, noise) or pass a recording (--data)")
@@ -203,7 +206,11 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
         candidates.append(try_kind(ctx, kind))
     scores = runres = None
     scenario = ""
-    if run:
+    refused = ""
+    if run and ctx.run_blockers:
+        refused = "; ".join(ctx.run_blockers)
+        scores, runres = [], None
+    elif run:
         if say:
             n_run = sum(c.applies and c.runnable for c in candidates)
             say(f"advise {system.name}: running {n_run} design(s) ...")
@@ -212,10 +219,11 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
             ctx.notes.append("the comparison run has no process noise and the model is exact: estimators that lean on the "
                              "model (an open-loop copy of a stable model, a tiny Q) look better here than on a real system; "
                              "add [simulation] process_noise to compare them under model error")
+    if run:
         scenario = (f"the recording ({ctx.recording.t.size} samples)" if ctx.recording is not None else
                     ctx.scenario.describe() + ", x̂(0) = (" + ", ".join(f"{v:.3g}" for v in ctx.xhat0) + ")")
     if say and progress is True and sys.stderr.isatty():
         sys.stderr.write("\r\033[K")
     return Advice(system.name, ctx.system, ctx.report, tuple(candidates), tuple(ctx.notes), tuple(ctx.blockers), forms,
                   extra, None if scores is None else tuple(scores), runres, scenario, time.perf_counter() - t0,
-                  mf.description if mf is not None else "")
+                  mf.description if mf is not None else "", refused)

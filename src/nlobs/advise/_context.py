@@ -115,6 +115,8 @@ class Context:
     uco: Any = None
     forms: Any = None                   # FormsReport of the system (computed once; the trials reuse its verdicts)
     recording: Recording | None = None  # recorded data to compare on (the tuning still comes from [simulation])
+    run_blockers: list[str] = field(default_factory=list)   # why the comparison run cannot show what it should
+    configs: dict[str, tuple[str, Mapping[str, Any]]] = field(default_factory=dict)  # kind -> the file's [observers.NAME]
 
     @property
     def n(self) -> int:
@@ -463,6 +465,17 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
                         f"{'it' if len(badp) == 1 else 'them'}; fix {'its' if len(badp) == 1 else 'their'} value(s) in the file or "
                         "estimate an identifiable combination (`nlobs analyze --params` shows the directions)")
     ctx.blockers = blockers
+    if not badp and unknown and rep_sig is not None and recording is None:
+        # identifiable for generic inputs, but the [simulation] inputs may not excite a parameter (k·u with u = 0): the
+        # run would only show a parameter that never moves, so it is refused before anything is estimated
+        badsig = [k for k in unknown if k not in rep_sig.identifiable_params]
+        if badsig:
+            one = len(badsig) == 1
+            ctx.run_blockers.append(
+                f"with the [simulation] inputs ({rep_sig.inputs}) the unknown parameter{'' if one else 's'} "
+                f"{', '.join(badsig)} {'is' if one else 'are'} not identifiable (rank {rep_sig.rank} < {len(rep_sig.unknowns)}; "
+                f"generic inputs would identify {'it' if one else 'them'}): a run would not show the estimation converge. "
+                "Choose a richer [simulation] input (inputs = {...})")
     if rep_sig is not None and rep.observable and not rep_sig.observable:
         lost = [s for s in rep.unknowns if s not in rep_sig.extra.get("observable_unknowns", rep_sig.observable_states)]
         ctx.notes.append(f"with the simulation's input ({rep_sig.inputs}) {', '.join(lost)} {'is' if len(lost) == 1 else 'are'} "

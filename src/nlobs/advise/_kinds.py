@@ -858,6 +858,21 @@ TRIALS: dict[str, Callable[[Context], Candidate]] = {
 }
 
 
+def _from_file(ctx: Context, kind: str, auto: Candidate) -> Candidate:
+    """A kind nlobs cannot tune by itself, designed with what the user supplied in the file's ``[observers.NAME]``."""
+    name, options = ctx.configs[kind]
+    xh = options.get("xhat0")
+    if isinstance(xh, (list, tuple)) and ctx.unknown and len(xh) == ctx.model.n_states:  # the guesses go at the end
+        options = {**options, "xhat0": [*xh, *(float(ctx.model.params[k]) for k in ctx.unknown)]}
+    cand = _Trial(ctx, kind).design(options, f"designed from the file's [observers.{name}] (nlobs cannot tune this kind by "
+                                    "itself)")
+    if not cand.applies:
+        return Candidate(kind, "fails", f"the file's [observers.{name}] does not design: {cand.why}", cand.options,
+                         auto.reference or REFERENCES.get(kind, ""))
+    return Candidate(kind, "applies", cand.why, cand.options, auto.reference or REFERENCES.get(kind, ""), cand.design,
+                     cand.runnable)
+
+
 def try_kind(ctx: Context, kind: str) -> Candidate:
     """The candidate for one kind: blocked by an unobservable state, tried by its trial, or not tuned."""
     t0 = time.perf_counter()
@@ -877,7 +892,10 @@ def try_kind(ctx: Context, kind: str) -> Candidate:
                              cand.reference, cand.design, cand.runnable)
     else:
         fn = DESIGNS[kind]
-        cand = Candidate(kind, "not tuned", f"no automatic tuning is known for this kind; give its options in the model file: "
-                         f"{', '.join(options_of(fn))}", {k: "..." for k in options_of(fn)}, "")
+        cand = Candidate(kind, "not tuned", f"no automatic tuning is known for this kind; give its options in the model file "
+                         f"([observers.NAME] kind = {kind!r} with {', '.join(options_of(fn))}) and `nlobs design` uses them",
+                         {k: "..." for k in options_of(fn)}, "")
+    if cand.status in ("needs input", "not tuned") and kind in ctx.configs and not ctx.blockers:
+        cand = _from_file(ctx, kind, cand)
     return Candidate(cand.kind, cand.status, cand.why, cand.options, cand.reference, cand.design, cand.runnable,
                      time.perf_counter() - t0)

@@ -34,13 +34,10 @@ TIE = 1.25
 def _score(run: Run, name: str, ctx: Context) -> Score:
     """The metrics of one candidate (the one place that reads :meth:`Run.metrics`, so its definition may change)."""
     tr = run.observers[name]
-    params = {}
-    for i, k in enumerate(ctx.system.states):
-        if k in ctx.system.estimated_params:
-            params[k] = {"estimate": float(tr.xhat[-1, i]), "true": ctx.truth.get(k)}
     if not np.all(np.isfinite(tr.xhat)):
         bad = int(np.flatnonzero(~np.isfinite(tr.xhat).all(axis=1))[0])
         return Score(name, "diverged", detail=f"non-finite estimate at t = {run.t[bad]:.4g}")
+    params = _parameters(run, name, ctx)
     if run.x is not None:
         m = run.metrics(name)
         return Score(name, "ok", m.rms_error, m.convergence_time, m.final_error, parameters=params)
@@ -49,6 +46,23 @@ def _score(run: Run, name: str, ctx: Context) -> Score:
     ok = np.all(np.isfinite(resid), axis=1) & tail
     rms = float(np.sqrt(np.mean(np.sum(resid[ok] ** 2, axis=1)))) if ok.any() else float("nan")
     return Score(name, "ok", rms, None, float(np.linalg.norm(resid[-1])), detail=f"{what} (no true state)", parameters=params)
+
+
+def _parameters(run: Run, name: str, ctx: Context) -> dict[str, dict[str, float | None]]:
+    """Each unknown parameter's final estimate, its standard deviation where the observer carries a covariance
+    (:meth:`nlobs.Run.parameters`), and the value the simulation used (None on a recording)."""
+    if not ctx.system.estimated_params:
+        return {}
+    if run.estimated_params:
+        out = run.parameters(name)
+    else:  # a run that does not label them (defensive: read the trailing states)
+        tr = run.observers[name]
+        out = {k: {"estimate": float(tr.xhat[-1, ctx.system.states.index(k)]), "std": None, "true": None}
+               for k in ctx.system.estimated_params}
+    if ctx.recording is None:
+        for k, v in out.items():
+            v["true"] = ctx.truth.get(k, v.get("true"))
+    return out
 
 
 def residuals(run: Run, name: str, system: System) -> tuple[np.ndarray, str]:

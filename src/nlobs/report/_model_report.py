@@ -29,23 +29,15 @@ def _esc(text: Any) -> str:
 
 def parameter_estimates(adv: Advice) -> list[dict[str, Any]]:
     """One row per (candidate, estimated parameter): final estimate, ±2σ where the observer carries a covariance
-    (internal states named ``P_i_i``), and the true value of the simulation."""
-    run = adv.run
-    if run is None or not adv.system.estimated_params:
+    (:meth:`nlobs.Run.parameters`), and the true value of the simulation (None on a recording)."""
+    if adv.scores is None or not adv.system.estimated_params:
         return []
     rows = []
-    for name, tr in run.observers.items():
-        for k in adv.system.estimated_params:
-            i = adv.system.states.index(k)
-            est = float(tr.xhat[-1, i])
-            std = None
-            key = f"P_{i}_{i}"
-            if key in tr.z_names:
-                var = float(tr.z[-1, tr.z_names.index(key)])
-                std = float(np.sqrt(var)) if var >= 0 else None
-            true = float(run.x[-1, i]) if run.x is not None else None
-            rows.append({"observer": name, "parameter": k, "estimate": est, "pm2sigma": None if std is None else 2 * std,
-                         "true": true, "error": None if true is None else est - true})
+    for s in adv.scores:
+        for k, v in s.parameters.items():
+            est, std, true = v.get("estimate"), v.get("std"), v.get("true")
+            rows.append({"observer": s.kind, "parameter": k, "estimate": est, "pm2sigma": None if std is None else 2 * std,
+                         "true": true, "error": None if true is None or est is None else est - true})
     return rows
 
 
