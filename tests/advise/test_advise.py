@@ -239,3 +239,34 @@ def test_mhe_runs_on_its_own_and_joins_the_ranking():
     long = _sim([1.0, 0.0], {"u": "sin(t)"}, noise={"y": 0.01}, t_final=10.0, sample_period=0.01)
     c = advise(msd(), simulation=long, kinds=["mhe"]).candidate("mhe")
     assert c.applies and not c.runnable and "left out of --run: 1000 measurement updates" in c.why
+
+
+def test_constructed_maps_of_a_model_with_a_saturation_are_written_as_the_parser_reads_them():
+    # sat(u, 0, 3) reaches SymPy as Min(3, Max(0, u)); the KKL/PEBO maps and Ψ carry it into option text, which the
+    # model parser must read back (it knows min/max, not Min/Max)
+    s = nlobs.System(states=["Tr", "Tw"], f=["-2*Tr + 2*Tw + sat(u, 0, 3)", "0.4*Tr - 0.5*Tw"], inputs=["u"],
+                     outputs=["y"], h=["Tr"], name="room")
+    adv = advise(s, simulation=_sim([2.0, 1.0], {"u": "2 + 2*sin(0.2*t)"}, noise={"y": 0.01}),
+                 kinds=["kkl", "pebo", "high_gain_derivatives"])
+    for kind in ("kkl", "pebo", "high_gain_derivatives"):
+        c = adv.candidate(kind)
+        assert c.applies, c.why
+    B = adv.candidate("kkl").options["B"]
+    assert any("min(3, max(0, u))" in b for b in B) and not any("Min" in b for b in B)
+    u = symbol("u")
+    got = parse_expression(adv.candidate("pebo").options["B"][0], {"u": u, "y": symbol("y")})
+    at = [float(got.xreplace({u: v, symbol("y"): 0.0})) for v in (5.0, 3.0, 1.0)]
+    assert at[0] == at[1] != at[2]                                                     # saturated above 3
+
+
+def test_a_parameter_appended_as_a_state_makes_phi_grow_and_gpebo_injects_the_output():
+    # S' = -V S/(K + S) + u with V unknown: A(y) = [[0, -y/(K + y)], [0, 0]], so Φ_A = [[1, -∫y/(K + y)], [0, 1]] grows
+    # linearly, which Wang, Ortega & Bobtsov (2021) assumption (5) excludes (000_6cd8bea7ca1db43b.txt eq. (5))
+    s = nlobs.System(states=["S"], f=["-V*S/(0.5 + S) + u"], inputs=["u"], outputs=["y"], h=["S"], params={"V": 1.5},
+                     name="uptake")
+    sim = _sim([2.0], {"u": "0.6 + 0.4*sin(0.5*t)"}, noise={"y": 0.01}, t_final=20.0, sample_period=0.05)
+    adv = advise(s, unknown_params=["V"], true_parameters={"V": 1.0}, simulation=sim, kinds=["gpebo_2gd"], run=True)
+    c = adv.candidate("gpebo_2gd")
+    assert c.applies and "L" in c.options and "grows" in c.why
+    (score,) = adv.scores
+    assert abs(score.parameters["V"]["estimate"] - 1.0) < 0.05

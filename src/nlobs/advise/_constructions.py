@@ -22,6 +22,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 import sympy as sp
+from sympy.printing.str import StrPrinter
 
 from ..analysis import matrix_measure
 from ..design import observer_gain
@@ -31,6 +32,28 @@ from ..model import TIME, System, symbol
 
 __all__ = ["jacobians_at", "find_chains", "derivative_map", "exact_output_injection", "kkl_linear", "pebo_linear", "banks_gain", "banks_necessary",
            "cascade_partition", "rational"]
+
+
+class _FilePrinter(StrPrinter):
+    """SymPy's text, spelled the way model files and observer options are read back (min/max in lower case)."""
+
+    def _print_Min(self, expr: sp.Expr) -> str:
+        return self._nested("min", expr.args)
+
+    def _print_Max(self, expr: sp.Expr) -> str:
+        return self._nested("max", expr.args)
+
+    def _nested(self, name: str, args: tuple) -> str:  # the parser's min/max take two arguments
+        first, *rest = args
+        out = self._print(first)
+        for a in rest:
+            out = f"{name}({out}, {self._print(a)})"
+        return out
+
+
+def text(expr: Any) -> str:
+    """An expression as option text the model parser reads back (``Min`` -> ``min``; see ``parse_expression``)."""
+    return _FilePrinter().doprint(sp.sympify(expr))
 
 
 def rational(v: float) -> sp.Rational:
@@ -182,8 +205,8 @@ def kkl_linear(system: System, omega: float) -> tuple[dict[str, Any] | None, str
     Ti = Tn.inv()
     xi = sp.Matrix(sp.symbols(f"xi1:{n + 1}"))
     Bx = (Bk * sp.Matrix(system.y) + Tn * B).applyfunc(sp.expand)
-    return {"phi": [str(e) for e in Tn * sp.Matrix(system.x)], "left_inverse": [str(e) for e in Ti * xi],
-            "B": [str(e) for e in Bx], "Lambda": [str(v) for v in lam]}, ""
+    return {"phi": [text(e) for e in Tn * sp.Matrix(system.x)], "left_inverse": [text(e) for e in Ti * xi],
+            "B": [text(e) for e in Bx], "Lambda": [text(v) for v in lam]}, ""
 
 
 def pebo_linear(system: System) -> tuple[dict[str, Any] | None, str, sp.Matrix | None]:
@@ -218,8 +241,8 @@ def pebo_linear(system: System) -> tuple[dict[str, Any] | None, str, sp.Matrix |
     left = Mi * sp.Matrix.vstack(y, xi)
     Bx = (Kt * y + T * B).applyfunc(sp.expand)
     b = C * A * Mi[:, p:]     # ẏ = C(Ax + B) with x = Mi (y, ξ + θ): the θ-coefficient
-    return {"phi": [str(e) for e in T * sp.Matrix(system.x)], "left_inverse": [str(sp.expand(e)) for e in left],
-            "B": [str(e) for e in Bx]}, "", b
+    return {"phi": [text(e) for e in T * sp.Matrix(system.x)], "left_inverse": [text(sp.expand(e)) for e in left],
+            "B": [text(e) for e in Bx]}, "", b
 
 
 def jacobians_at(system: System, t: np.ndarray, x: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
