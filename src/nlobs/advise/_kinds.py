@@ -723,7 +723,10 @@ def _kkl_learned(ctx: Context) -> Candidate:
     # Λ on the observer's time scale: the data start after the ξ transient (16/min|λ|) and cover ~10 plant time constants
     lam = [float(f"{-ctx.omega_o * (1 + k / ctx.n):.6g}") for k in range(ctx.n + 1)]
     t_final = 16.0 / ctx.omega_o + 10.0 / ctx.omega_p
-    dt = min(ctx.scenario.dt if ctx.scenario is not None else 0.01, 0.05 / abs(lam[-1]))
+    # RK4 at 5 % of the fastest rate (ξ's, which is faster than the plant's: |λ| ≥ 2ω_o = 6ω_p): about 1,800 steps
+    # whatever the run's own dt (which the comparison needs, not the training data; a slow model on a fine dt would
+    # otherwise integrate tens of thousands of steps here)
+    dt = 0.05 / abs(lam[-1])
     t_final = float(f"{max(t_final, 20 * dt):.6g}")
     dt = t_final / max(1, round(t_final / dt))
     opts: dict[str, Any] = {"region": box, "eigenvalues": lam, "n_trajectories": 40, "t_final": t_final, "dt": dt}
@@ -751,7 +754,8 @@ def _augmented(ctx: Context) -> Candidate:
                             "left_inverse": [text(e) for e in aug.left_inverse], "b": [text(e) for e in aug.b]}
     tuning = f"constructed: w = T(x) with {aug.n_w} states mimics the model (span of the output derivatives closed)"
     params = {sp.Symbol(k, real=True): v for k, v in ctx.system.params.items()}
-    if not any(e.xreplace(params).free_symbols for e in aug.A):
+    ys = set(ctx.system.y)
+    if not any(e.xreplace(params).free_symbols for e in aug.A) and not any(e.free_symbols & ys for e in aug.b):
         opts["poles"] = _poles(aug.n_w, ctx.omega_o)
         return t.design(opts, tuning + f"; A constant: Luenberger with poles {_fmt(opts['poles'])}")
     if ctx.nominal is None:
@@ -766,7 +770,7 @@ def _augmented(ctx: Context) -> Candidate:
     Cw = np.array(aug.C.xreplace(params), dtype=float) if not aug.C.xreplace(params).free_symbols else None
     W, M0, note = ctx.riccati_weights(ctx.R_rate, np.diag(sw ** 2), Qw, Cw, _CA(ctx, (aug.C * aug.A).xreplace(params)))
     opts.update({"Q": _sq(Qw), "R": _sq(W), "P0": _sq(M0)})
-    return t.design(opts, tuning + "; A(u, y, t) varies: Kalman–Bucy filter on the augmented system, Q, R as for kalman_bucy",
+    return t.design(opts, tuning + "; A(u, y, t) or b(u, y, t) varies: Kalman–Bucy filter on the augmented system, Q, R as for kalman_bucy",
                     extra=note)
 
 
