@@ -270,3 +270,19 @@ def test_a_parameter_appended_as_a_state_makes_phi_grow_and_gpebo_injects_the_ou
     assert c.applies and "L" in c.options and "grows" in c.why
     (score,) = adv.scores
     assert abs(score.parameters["V"]["estimate"] - 1.0) < 0.05
+
+
+def test_riccati_weight_floor_is_taken_in_the_states_own_scales():
+    # Bergman's minimal model (glucose G ~ 100-300 measured; insulin action X ~ 1e-3): C A = [-(p1 + X), -G, 0] is
+    # large only towards X, whose prior is small. The step-limit floor of W is max λ(CA M0 CAᵀ)/ω_lim², about
+    # (p1 s_G)² + (G s_X)² ≈ 1e2, not λmax(M0)‖CA‖² ≈ 1e9 (which made the filter crawl)
+    s = nlobs.System(states=["G", "X", "Ins"], f=["-(p1 + X)*G + p1*Gb", "-p2*X + p3*(Ins - Ib)", "-n*(Ins - Ib) + u"],
+                     inputs=["u"], outputs=["y"], h=["G"],
+                     params={"p1": 0.03, "p2": 0.02, "p3": 1e-5, "n": 0.1, "Gb": 90.0, "Ib": 10.0}, name="glucose")
+    sim = _sim([200.0, 0.0, 10.0], {"u": "5 + 5*sin(0.05*t)"}, noise={"y": 1.0}, t_final=300.0, dt=0.01, sample_period=1.0)
+    adv = advise(s, simulation=sim, kinds=["kalman_bucy"], run=True)
+    c = adv.candidate("kalman_bucy")
+    W = np.array(c.options["R"])[0, 0]
+    assert 1.0 <= W < 1e4                                     # σ²T_s = 1, raised only as far as the step limit needs
+    e = adv.run.error_norm("kalman_bucy")
+    assert e[-1] < 0.01 * e[0]

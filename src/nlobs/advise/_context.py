@@ -136,14 +136,15 @@ class Context:
         return lim
 
     def riccati_weights(self, W: np.ndarray, M0: np.ndarray, Q: np.ndarray, C: np.ndarray | None = None,
-                        CA: float = 0.0) -> tuple[np.ndarray, np.ndarray, str]:
+                        CA: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, str]:
         """W and M(0) of a continuous-time Riccati observer that the run can integrate.
 
         With explicit RK4 on held samples, every rate of the filter must stay below the step limit ω_lim:
 
         - the steady gain, about √(q/W)‖C‖: W ≥ max(q)‖C‖²/ω_lim²;
-        - the gain on the unmeasured states, about √(λmax(M)/W)‖CA‖ (they reach the output through A): W ≥
-          λmax(M0)‖CA‖²/ω_lim² (`CA` is the largest ‖CA(u, y, t)‖ on the run);
+        - the gain on the unmeasured states, which reach the output through A: about √(λmax(CA M CAᵀ)/W), so W ≥
+          max λmax(CA M0 CAᵀ)/ω_lim² over `CA`, the matrices C A(u, y, t) at points of the run, shape (k, p, n) (in
+          the states' own scales: a large coupling to a state whose prior is small does not count as a fast gain);
         - the first correction, λmax(C M0 Cᵀ W⁻¹): met by shrinking M(0) along the measured directions only (the
           first samples fix those anyway), keeping the prior of the unmeasured ones.
 
@@ -156,7 +157,10 @@ class Context:
             return W2, M, ""
         notes = []
         c2 = self.output_gain ** 2
-        floor = max(float(np.max(np.diag(Q))) * c2, float(np.linalg.eigvalsh(M).max()) * CA ** 2) / lim ** 2
+        cam = 0.0
+        if CA is not None and len(CA):
+            cam = float(np.max(np.linalg.eigvalsh(np.einsum("kpi,ij,kqj->kpq", CA, M, CA))))
+        floor = max(float(np.max(np.diag(Q))) * c2, cam) / lim ** 2
         if np.any(np.diag(W2) < floor):
             W2[np.diag_indices_from(W2)] = np.maximum(np.diag(W2), floor)
             notes.append(f"W raised from σ²T_s to {floor:.3g} so that the filter's gains stay below the step limit "

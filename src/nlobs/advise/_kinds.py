@@ -461,15 +461,16 @@ def _state_affine(ctx: Context) -> tuple[Any, str]:
         return None, _clean(e)
 
 
-def _CA(ctx: Context, CA: sp.Matrix) -> float:
-    """max ‖C A(u, y, t)‖₂ on the run (how strongly the unmeasured states reach the output's derivative)."""
+def _CA(ctx: Context, CA: sp.Matrix) -> np.ndarray:
+    """C A(u, y, t) at points of the run, shape (k, p, n) (how the unmeasured states reach the output's derivative);
+    one matrix when constant, none (shape (0, p, n)) without a run."""
+    p, n = CA.shape
     if not CA.free_symbols:
-        return float(np.linalg.norm(np.array(CA, dtype=float), 2))
+        return np.array(CA, dtype=float).reshape(1, p, n)
     if ctx.nominal is None:
-        return 0.0
-    vals = evaluate(list(CA.T), ctx.system, ctx.samples(300)).reshape(-1, CA.shape[1], CA.shape[0]).transpose(0, 2, 1)
-    vals = vals[np.all(np.isfinite(vals), axis=(1, 2))]
-    return float(np.max(np.linalg.norm(vals, 2, axis=(1, 2)))) if len(vals) else 0.0
+        return np.zeros((0, p, n))
+    vals = evaluate(list(CA.T), ctx.system, ctx.samples(300)).reshape(-1, n, p).transpose(0, 2, 1)
+    return vals[np.all(np.isfinite(vals), axis=(1, 2))]
 
 
 def _constant_C(parts: Any) -> np.ndarray | None:
