@@ -1,11 +1,17 @@
 #!/usr/bin/env bash
 # The two commands of the README:
 #   ./dev.sh demo   set up (virtualenv in .venv) and run the main job: `nlobs demo`
-#   ./dev.sh test   set up and run the test suite
+#   ./dev.sh test   set up and run the test suite (which also builds the documentation)
+# and three helpers:
+#   ./dev.sh nlobs ARGS   any nlobs command, from the project's .venv
+#   ./dev.sh docs         build the documentation site into site/ (warnings are errors)
+#   ./dev.sh python ARGS  the project's Python
 # Needs only Python 3.11+ (and, for the fast compiled engine, a C compiler; without one nlobs
 # falls back to CasADi's virtual machine).
 set -euo pipefail
+caller=$(pwd)
 cd "$(dirname "$0")"
+project=$(pwd)
 PY=${PYTHON:-}
 if [ -z "$PY" ]; then
   for cand in python3.11 python3.12 python3.13 python3; do
@@ -25,5 +31,8 @@ fi
 case "${1:-}" in
   demo) shift; exec .venv/bin/nlobs demo "$@" ;;
   test) shift; exec .venv/bin/python -m pytest -q "$@" ;;
-  *) echo "usage: ./dev.sh demo|test [args]" >&2; exit 2 ;;
+  nlobs) shift; cd "$caller"; exec "$project/.venv/bin/nlobs" "$@" ;;   # paths relative to where you are
+  python) shift; cd "$caller"; exec "$project/.venv/bin/python" "$@" ;;
+  docs) shift; exec .venv/bin/python -m sphinx -W --keep-going -q -b html docs site "$@" ;;
+  *) echo "usage: ./dev.sh demo|test|docs|nlobs|python [args]" >&2; exit 2 ;;
 esac

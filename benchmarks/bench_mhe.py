@@ -206,8 +206,8 @@ def tank_section(results: dict) -> None:
                     rms = float(np.sqrt(np.mean((xh[50:] - x[50:, 0]) ** 2)))
                     mx = float(np.abs(xh[50:] - x[50:, 0]).max())
                     note = f"IPOPT fallbacks {int(tr.z[-1, -1])}" if name.startswith("mhe") else ""
-            except nlobs.SolverError as e:
-                el, rms, mx, note = time.perf_counter() - t0, float("nan"), float("nan"), f"SolverError: {str(e)[:150]}..."
+            except (nlobs.SolverError, nlobs.FiniteEscapeError) as e:  # estimate stops (never returns NaN estimates)
+                el, rms, mx, note = time.perf_counter() - t0, float("nan"), float("nan"), f"{type(e).__name__}: {str(e)[:150]}..."
             print(f"  {label:<8} {name:<22} {rms:>21.3f} {mx:>13.3f} {el:>7.2f}  {note}")
             out[f"{label}/{name}"] = {"rms_x1": rms, "max_err_x1": mx, "seconds": el, "note": note}
     results["tanks"] = out

@@ -101,7 +101,7 @@ def test_demo_only_writes_the_report(tmp_path, capsys):
 
 def test_console_script_entry_point():
     out = subprocess.run([sys.executable, "-m", "nlobs.cli", "demo", "--list"], capture_output=True, text=True)
-    assert out.returncode == 0 and "001-IV-C" in out.stdout
+    assert out.returncode == 0 and "aug-toy" in out.stdout
 
 
 def test_errors_under_json_are_one_json_object(capsys):

@@ -93,7 +93,8 @@ def test_the_parameter_estimate_and_its_std_are_the_bayesian_posterior():
     assert abs(est["std"] - np.sqrt(var)) < 1e-12
     js = run.summary_dict()["observers"]["ekf"]["parameters"]["k"]
     assert js == {"estimate": est["estimate"], "std": est["std"], "true": 1.5}
-    assert "k = " in run.summary() and "(2σ), true 1.5" in run.summary()
+    text = str(run.summary())
+    assert "k = " in text and "(2σ), true 1.5" in text
 
 
 def test_default_xhat0_holds_the_initial_guesses():

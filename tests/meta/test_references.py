@@ -68,3 +68,33 @@ def test_certificates_cite_by_author():
     pend = nlobs.System(states=["x1", "x2"], f=["x2", "-sin(x1) + u"], inputs=["u"], outputs=["y"], h=["x1"])
     cert = nlobs.design_output_injection(pend, poles=[-2, -3]).certificate
     assert cited_keys(cert.reference) == ["002"] and not FILE_NAME.search(str(cert))
+
+
+def _docstrings(path: Path):
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
+            doc = ast.get_docstring(node, clean=False)
+            if doc:
+                yield getattr(node, "lineno", 1), doc
+
+
+def test_docstrings_cite_by_author_and_year():
+    """Docstrings become the API reference: no paper file names, no bare paper numbers."""
+    found = [(path, line, doc, FILE_NAME.search(doc) or BARE_NUMBER.search(doc))
+             for path in sorted(ROOT.rglob("*.py")) if path.name != "references.py" for line, doc in _docstrings(path)]
+    bad = [f"{path.relative_to(ROOT)}:{line}: ...{doc[max(0, m.start() - 30):m.end() + 30]!r}" for path, line, doc, m in found if m]
+    assert not bad, "cite papers by author and year in docstrings:\n" + "\n".join(bad)
+
+
+def test_author_year_citations_of_the_table_are_spelled_as_the_table_spells_them():
+    """A docstring that cites a work of the table by its surnames uses the table's label (so that
+    cited_keys finds it: `nlobs kinds` and the bibliographies are built from it)."""
+    bad = []
+    for path in sorted(ROOT.rglob("*.py")):
+        for line, doc in _docstrings(path):
+            for r in REFERENCES.values():
+                first = r.short.split(",")[0].split(" &")[0]
+                for m in re.finditer(rf"{re.escape(first)}[^()\n]{{0,60}}\(?{r.year}\)?", doc):
+                    if r.label not in doc[max(0, m.start() - 5):m.end() + 5] and r.short in m.group(0):
+                        bad.append(f"{path.relative_to(ROOT)}:{line}: {m.group(0)!r} (the table: {r.label!r})")
+    assert not bad, "\n".join(bad)

@@ -108,7 +108,7 @@ def test_the_definition_travels_with_the_results(runs):
     entry = d["observers"]["ekf"]
     assert {"convergence_time", "tol", "tol_basis", "initial_error", "steady_error"} <= set(entry)
     assert entry["tol_basis"] == "steady"
-    text = run.summary()
+    text = str(run.summary())
     assert "band" in text and "2 × steady-state error" in text
     assert "stays within `tol`" in run.summary_dict(tol=0.1)["convergence_rule"]
 

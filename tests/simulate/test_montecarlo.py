@@ -45,7 +45,7 @@ def test_statistics_match_the_per_run_numbers(mc):
     s = mc.stats("inj")
     assert s["runs"] == 12 and s["failed"] == 0
     assert s["rms_error_median"] == pytest.approx(np.median(o.rms_error))
-    assert "inj" in mc.summary() and "ekf" in mc.summary()
+    assert "inj" in str(mc.summary()) and "ekf" in str(mc.summary())
     df = mc.to_pandas()
     assert len(df) == 24 and set(df.observer) == {"inj", "ekf"}
     fig = mc.plot()

@@ -131,7 +131,7 @@ def test_results_export_and_plot(tmp_path):
     assert (tmp_path / "run.png").stat().st_size > 10_000 and len(fig.axes) == 3
     s = run.summary_dict()
     assert set(s["observers"]["oi"]) >= {"final_error", "rms_error", "convergence_time"}
-    assert "oi" in run.summary()
+    assert "oi" in str(run.summary())
     with pytest.raises(KeyError, match="no observer named 'x'"):
         run.metrics("x")
 

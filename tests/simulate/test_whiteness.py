@@ -81,7 +81,7 @@ def test_innovations_are_the_prior_prediction_errors(recording):
     wrong = design_ekf(PEND.with_params(a=8.0), Q=np.diag([1e-6, 1e-4]), R=[[1e-4]])
     assert estimate(wrong, rec).whiteness()["y"].white is False
     # the summary of a recording without states is the innovations table, not an empty one
-    text = res.summary()
+    text = str(res.summary())
     assert "Ljung-Box" in text and "ekf" in text and "(no true state)" not in text
     j = res.summary_dict()["observers"]["ekf"]
     assert j["innovations"]["y"]["white"] is True and set(j["estimate"]) == {"x1", "x2"}

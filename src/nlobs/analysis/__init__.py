@@ -1,17 +1,17 @@
 """Analysis: is it possible? Observability, excitation, forms, augmentation.
 
-Structural (generic rank, 002): :func:`analyze` -> :class:`ObservabilityReport`, :func:`observable_function`;
+Structural (generic rank, Besançon (2010)): :func:`analyze` -> :class:`ObservabilityReport`, :func:`observable_function`;
 piecewise models (abs, min, max, sat) one regime at a time: :func:`visited_regimes`.
 Linear: :func:`kalman_rank`, :func:`pbh_test`, :func:`kalman_decomposition`.
-LTV / state-affine along a trajectory (000): :func:`ltv_gramian`, :func:`uco_test`, :func:`state_affine_ltv`.
-Nonlinear along a trajectory (002): :func:`empirical_gramian`, :func:`indistinguishable`.
-Excitation (000 eq. 15, 002): :func:`interval_excitation`, :func:`persistent_excitation`,
+LTV / state-affine along a trajectory (Wang, Ortega & Bobtsov (2021)): :func:`ltv_gramian`, :func:`uco_test`, :func:`state_affine_ltv`.
+Nonlinear along a trajectory (Besançon (2010)): :func:`empirical_gramian`, :func:`indistinguishable`.
+Excitation (Wang, Ortega & Bobtsov (2021), eq. 15, Besançon (2010)): :func:`interval_excitation`, :func:`persistent_excitation`,
 :func:`identifiability_rank`, :func:`regular_persistence`, :func:`local_regularity`.
-Observer forms (002): :func:`recognise_forms`, :func:`state_affine_form`, :func:`triangular_form`,
+Observer forms (Besançon (2010)): :func:`recognise_forms`, :func:`state_affine_form`, :func:`triangular_form`,
 :func:`lipschitz_constant`, :func:`with_params_as_states`.
-Banks (003): :func:`matrix_measure`, :func:`max_slope`, :func:`banks_condition`, :func:`lipschitz_bound`.
+Banks (1980): :func:`matrix_measure`, :func:`max_slope`, :func:`banks_condition`, :func:`lipschitz_bound`.
 Identities (exact, Schwartz-Zippel): :func:`decide_identity`, :func:`exact_generic_rank`.
-Augmentation (001): :func:`check_mimicking`, :func:`injectivity`, :func:`left_inverse_bounds`,
+Augmentation (Viegas, Batista, Oliveira & Silvestre (2015)): :func:`check_mimicking`, :func:`injectivity`, :func:`left_inverse_bounds`,
 :func:`augmented_observability`, :func:`propose_augmentation`.
 """
 

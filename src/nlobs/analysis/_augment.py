@@ -1,15 +1,15 @@
-r"""State augmentation (001): mimicking LTV systems, injectivity, left inverses, and an automatic
+r"""State augmentation (Viegas, Batista, Oliveira & Silvestre (2015)): mimicking LTV systems, injectivity, left inverses, and an automatic
 augmentation by closing the span of the output's time derivatives.
 
 A system :math:`\dot w = A(t, u, y)w + b(t, u, y)`, :math:`z = C(t, u, y)w` *mimics*
-:math:`\dot x = f(x, u)`, :math:`y = h(x)` through :math:`w = T(x)` (001 Def. 3, eq. 2) when,
+:math:`\dot x = f(x, u)`, :math:`y = h(x)` through :math:`w = T(x)` (Viegas, Batista, Oliveira & Silvestre (2015), Def. 3, eq. 2) when,
 identically,
 
 .. math::
 
     \frac{\partial T}{\partial x}(x)\,f(x, u) = A(t, u, h(x))\,T(x) + b(t, u, h(x)), \qquad C\,T(x) = h(x).
 
-Then (001 Theorem 1) if the LTV system is observable along the input and output, the model is
+Then (Viegas, Batista, Oliveira & Silvestre (2015), Theorem 1) if the LTV system is observable along the input and output, the model is
 observable iff T is injective, and an observer for w gives :math:`\hat x = T'(\hat w)` through a
 left inverse (Lemmas 1-2).
 
@@ -18,7 +18,7 @@ automatically for polynomial dynamics. Starting from the states and the output, 
 derivative of each new function, splits it into groups of terms that share the same coefficient
 (a function of the known signals u, y, t and the parameters), keeps the groups already in the
 span, and adds the others as new states, until the span is closed. Grouping by coefficient is what
-keeps x1·x3 − x2·x2 as *one* state in 001 §IV-B instead of the two that make (19) unobservable.
+keeps x1·x3 − x2·x2 as *one* state in Viegas, Batista, Oliveira & Silvestre (2015), §IV-B instead of the two that make (19) unobservable.
 """
 
 from __future__ import annotations
@@ -53,7 +53,7 @@ def _known(system: System) -> dict[str, sp.Symbol]:
 
 @dataclass(frozen=True, eq=False)
 class Augmentation:
-    r"""A mimicking system :math:`\dot w = A(u, y, t)w + b(u, y, t)`, :math:`y = Cw`, with :math:`w = T(x)` (001 eq. 2)."""
+    r"""A mimicking system :math:`\dot w = A(u, y, t)w + b(u, y, t)`, :math:`y = Cw`, with :math:`w = T(x)` (Viegas, Batista, Oliveira & Silvestre (2015), eq. 2)."""
 
     system: System
     T: tuple[sp.Expr, ...]
@@ -80,7 +80,7 @@ class Augmentation:
 
 @dataclass(frozen=True)
 class MimickingCheck:
-    """Whether (A, b, C) mimics the model through T (001 Def. 3), with the failing row if not.
+    """Whether (A, b, C) mimics the model through T (Viegas, Batista, Oliveira & Silvestre (2015), Def. 3), with the failing row if not.
 
     Attributes
     ----------
@@ -147,7 +147,7 @@ def check_mimicking(system: System, T: Sequence[ExprLike] | Augmentation, A: Any
     A : (p, p) matrix of expressions in the inputs, outputs, t and parameters
     C : (n_outputs, p) matrix
     b : sequence of p expressions, optional
-        Input term b(u, y, t); or give `B` with b = B u (001 eq. 2 with v = u).
+        Input term b(u, y, t); or give `B` with b = B u (Viegas, Batista, Oliveira & Silvestre (2015), eq. 2 with v = u).
 
     Returns
     -------
@@ -156,7 +156,7 @@ def check_mimicking(system: System, T: Sequence[ExprLike] | Augmentation, A: Any
 
     References
     ----------
-    001_1b4027b3a70d560f.txt Definition 3, eq. (2); eqs. (16), (18), (19), (21).
+    Viegas, Batista, Oliveira & Silvestre (2015), Definition 3, eq. (2); eqs. (16), (18), (19), (21).
     """
     aug = T if isinstance(T, Augmentation) else _as_augmentation(system, T, A, C, b, B)
     x = sp.Matrix(system.x)
@@ -202,7 +202,7 @@ def propose_augmentation(system: System, *, max_degree: int = 4, max_states: int
     r"""Build a state augmentation w = T(x) = [x; T_a(x)] and a mimicking system automatically.
 
     Polynomial dynamics are required (outputs may be a fractional power of a polynomial, such as
-    the range |p| = (p·p)^½, which then enters A as y). The span of {x, h} is closed under the time
+    the range ‖p‖ = (p·p)^½, which then enters A as y). The span of {x, h} is closed under the time
     derivative: each derivative is split into groups of terms with a common coefficient in the
     known signals (u, y, t, parameters); a group already in the span contributes a column of A, a
     group with no state contributes to b, and any other group becomes a new state.
@@ -218,7 +218,7 @@ def propose_augmentation(system: System, *, max_degree: int = 4, max_states: int
     Returns
     -------
     Augmentation
-        T, A(u, y, t), b(u, y, t), C and the left inverse [I 0] (001 Def. 5). The result is
+        T, A(u, y, t), b(u, y, t), C and the left inverse [I 0] (Viegas, Batista, Oliveira & Silvestre (2015), Def. 5). The result is
         re-verified with :func:`check_mimicking`.
 
     Raises
@@ -229,7 +229,7 @@ def propose_augmentation(system: System, *, max_degree: int = 4, max_states: int
 
     References
     ----------
-    001_1b4027b3a70d560f.txt Def. 5, §IV-A eq. (16), §IV-B eq. (18), §IV-C eq. (21), §V (future work).
+    Viegas, Batista, Oliveira & Silvestre (2015), Def. 5, §IV-A eq. (16), §IV-B eq. (18), §IV-C eq. (21), §V (future work).
     """
     x = list(system.x)
     xs = set(x)
@@ -351,7 +351,7 @@ def _in_span(P: sp.Poly, basis: list[sp.Poly]) -> tuple[bool, list[sp.Expr]]:
 
 @dataclass(frozen=True)
 class InjectivityCheck:
-    """Is T injective? (001 Theorem 1: the model is observable iff T is, given an observable mimicking system.)"""
+    """Is T injective? (Viegas, Batista, Oliveira & Silvestre (2015), Theorem 1: the model is observable iff T is, given an observable mimicking system.)"""
 
     injective: bool | None
     reason: str
@@ -363,9 +363,9 @@ class InjectivityCheck:
 
 def injectivity(system: System, T: Sequence[ExprLike] | Augmentation, *, left_inverse: Sequence[ExprLike] | None = None,
                 samples: int = 20, seed: int = 0) -> InjectivityCheck:
-    r"""Test injectivity of w = T(x) (001 Theorem 1).
+    r"""Test injectivity of w = T(x) (Viegas, Batista, Oliveira & Silvestre (2015), Theorem 1).
 
-    Proofs: T contains every state as a component (a state augmentation function, 001 Def. 5, with
+    Proofs: T contains every state as a component (a state augmentation function, Viegas, Batista, Oliveira & Silvestre (2015), Def. 5, with
     left inverse [I 0]), or the given left inverse satisfies T'(T(x)) = x identically. Disproof: the
     Jacobian ∂T/∂x has rank < n at every sampled point (T is then not an immersion, hence not
     injective on any open set). Otherwise undecided.
@@ -419,7 +419,7 @@ def injectivity(system: System, T: Sequence[ExprLike] | Augmentation, *, left_in
 
 @dataclass(frozen=True)
 class LeftInverseBounds:
-    """Lipschitz constants of a left inverse T' (001 Lemma 1: upper α; Lemma 2: also a lower bound)."""
+    """Lipschitz constants of a left inverse T' (Viegas, Batista, Oliveira & Silvestre (2015), Lemma 1: upper α; Lemma 2: also a lower bound)."""
 
     upper: float
     lower: float
@@ -441,10 +441,10 @@ class LeftInverseBounds:
 
 
 def left_inverse_bounds(left_inverse: Sequence[ExprLike], n_w: int, *, box: Any = None) -> LeftInverseBounds:
-    r"""Lipschitz bounds of a left inverse T': R^p -> R^n (001 Lemmas 1-2).
+    r"""Lipschitz bounds of a left inverse T': R^p -> R^n (Viegas, Batista, Oliveira & Silvestre (2015), Lemmas 1-2).
 
     Linear T'(w) = L w: the exact bounds σ_max(L) and, when p = n, σ_min(L) (for p > n the lower
-    bound is 0: Lemma 2 cannot hold, as 001 notes for [I 0]). Nonlinear T': the upper bound is
+    bound is 0: Lemma 2 cannot hold, as Viegas, Batista, Oliveira & Silvestre (2015) notes for [I 0]). Nonlinear T': the upper bound is
     estimated as sup ‖DT'‖₂ over `box` (required).
 
     Parameters
@@ -462,7 +462,7 @@ def left_inverse_bounds(left_inverse: Sequence[ExprLike], n_w: int, *, box: Any 
 
     References
     ----------
-    001_1b4027b3a70d560f.txt Lemma 1 eq. (3), Lemma 2 eq. (9), remark after Def. 5.
+    Viegas, Batista, Oliveira & Silvestre (2015), Lemma 1 eq. (3), Lemma 2 eq. (9), remark after Def. 5.
     """
     from ._conditions import lipschitz_bound
 
@@ -506,12 +506,12 @@ class AugmentedObservability:
 
 def augmented_observability(system: System, aug: Augmentation, x0: Any, *, t_final: float, dt: float = 1e-2,
                             inputs: Any = None, rtol: float = 1e-9) -> AugmentedObservability:
-    r"""Observability of the mimicking LTV system along the model's trajectory from x0 (001 Theorem 1).
+    r"""Observability of the mimicking LTV system along the model's trajectory from x0 (Viegas, Batista, Oliveira & Silvestre (2015), Theorem 1).
 
     The model is simulated (RK4) under `inputs`; A(t) = A(u(t), y(t), t) is sampled on the grid
-    and the Gramian W(0, T) of (A(t), C) is computed (000 eq. 3). With T injective, a full rank
-    proves observability of the model for this input (001 Theorem 1); the unobservable directions
-    are reported as combinations of the w's (001 §IV-B: only w6 + w7 is seen in (19)).
+    and the Gramian W(0, T) of (A(t), C) is computed (Wang, Ortega & Bobtsov (2021), eq. 3). With T injective, a full rank
+    proves observability of the model for this input (Viegas, Batista, Oliveira & Silvestre (2015), Theorem 1); the unobservable directions
+    are reported as combinations of the w's (Viegas, Batista, Oliveira & Silvestre (2015), §IV-B: only w6 + w7 is seen in (19)).
 
     Parameters
     ----------

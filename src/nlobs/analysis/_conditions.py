@@ -1,7 +1,7 @@
-r"""Banks' conditions for exponential observers (003) and sup-over-a-box estimates.
+r"""Banks' conditions for exponential observers (Banks (1980)) and sup-over-a-box estimates.
 
-* Matrix measure (003 §1): :math:`\lambda(A) = \max\operatorname{spec}((A + A^\top)/2)`.
-* Maximum slope (003, before Lemma 2.4): :math:`\mu_N = \sup_{x\ne z}\langle Nx - Nz, x - z\rangle/\|x - z\|^2`;
+* Matrix measure (Banks (1980), §1): :math:`\lambda(A) = \max\operatorname{spec}((A + A^\top)/2)`.
+* Maximum slope (Banks (1980), before Lemma 2.4): :math:`\mu_N = \sup_{x\ne z}\langle Nx - Nz, x - z\rangle/\|x - z\|^2`;
   for a C¹ map on a convex region it equals :math:`\sup_x \lambda(DN(x))`. N is dissipative
   (Lemma 2.3) iff :math:`\mu_N \le 0`.
 * Theorem 2.6: :math:`\lambda(Df_1(x) + P\,DB(x)) \le -\varepsilon` on Ω, and a Lipschitz perturbation
@@ -89,11 +89,11 @@ def matrix_measure(A: Any) -> Any:
 
     References
     ----------
-    003_a2c72ccb4281ea3f.txt §1 and Lemma 2.3.
+    Banks (1980), §1 and Lemma 2.3.
 
     Examples
     --------
-    >>> matrix_measure([[-1, -2], [2, -1]])  # 003 example 3.1
+    >>> matrix_measure([[-1, -2], [2, -1]])  # Banks (1980), example 3.1
     -1.0
     """
     a = np.array(A, dtype=float)
@@ -177,7 +177,7 @@ def _sym_max(Js: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class SlopeResult:
-    r"""Maximum slope :math:`\mu_N` of a nonlinearity over a box (003), with the worst point."""
+    r"""Maximum slope :math:`\mu_N` of a nonlinearity over a box (Banks (1980)), with the worst point."""
 
     mu: float
     worst_point: np.ndarray
@@ -202,7 +202,7 @@ def max_slope(exprs: Any, variables: Sequence[str], box: Any, *, samples: int = 
     r"""Maximum slope :math:`\mu_N = \sup \langle Nx - Nz, x - z\rangle/\|x - z\|^2` of N over a box.
 
     For C¹ N on a convex box, :math:`\mu_N = \sup_x\lambda(DN(x))` (mean-value theorem), estimated
-    by :func:`box_sup`. N is dissipative (003 Lemma 2.3) iff μ_N ≤ 0 (up to `tol`).
+    by :func:`box_sup`. N is dissipative (Banks (1980), Lemma 2.3) iff μ_N ≤ 0 (up to `tol`).
 
     Parameters
     ----------
@@ -226,7 +226,7 @@ def max_slope(exprs: Any, variables: Sequence[str], box: Any, *, samples: int = 
 
     References
     ----------
-    003_a2c72ccb4281ea3f.txt Lemma 2.3 (dissipative f1), Lemma 2.4 (μ_{f1} ≤ δ < ε).
+    Banks (1980), Lemma 2.3 (dissipative f1), Lemma 2.4 (μ_{f1} ≤ δ < ε).
     """
     caller = "max_slope"
     variables = tuple(variables)
@@ -241,7 +241,7 @@ def max_slope(exprs: Any, variables: Sequence[str], box: Any, *, samples: int = 
 
 @dataclass(frozen=True, eq=False)
 class BanksCheck:
-    r"""Banks' condition :math:`\lambda(Df_1(x) + P\,DB(x)) \le -\varepsilon` over a region (003 Thm 2.6)."""
+    r"""Banks' condition :math:`\lambda(Df_1(x) + P\,DB(x)) \le -\varepsilon` over a region (Banks (1980), Thm 2.6)."""
 
     lam_max: float
     worst_point: np.ndarray
@@ -274,7 +274,7 @@ class BanksCheck:
 
 def banks_condition(f1: Any, B: Any, P: Any, variables: Sequence[str], region: Any, *, epsilon: float | None = None,
                     samples: int = 2000, seed: int = 0) -> BanksCheck:
-    r"""Check :math:`\lambda(Df_1(x) + P\,DB(x)) \le -\varepsilon` for all x in a box (003 Theorem 2.6).
+    r"""Check :math:`\lambda(Df_1(x) + P\,DB(x)) \le -\varepsilon` for all x in a box (Banks (1980), Theorem 2.6).
 
     Parameters
     ----------
@@ -305,7 +305,7 @@ def banks_condition(f1: Any, B: Any, P: Any, variables: Sequence[str], region: A
 
     References
     ----------
-    003_a2c72ccb4281ea3f.txt Theorem 2.6; examples 3.1 (P = (−2, 1)ᵀ, λ = −1) and 3.2 (gains (−1, 4), λ ≤ −1).
+    Banks (1980), Theorem 2.6; examples 3.1 (P = (−2, 1)ᵀ, λ = −1) and 3.2 (gains (−1, 4), λ ≤ −1).
     (Example 3.1's text prints the injection as P(x1 + x2); Lemma 2.3's proof shows it is P·(ŷ − y).)
     """
     caller = "banks_condition"
@@ -357,7 +357,7 @@ def lipschitz_bound(exprs: Any, variables: Sequence[str], box: Any, *, wrt: int 
                     seed: int = 0) -> LipschitzEstimate:
     r"""Estimate the Lipschitz constant :math:`\sup_x\|DN(x)\|_2` of N over a (convex) box, with the worst point.
 
-    For Banks' perturbation f2 (003 Theorem 2.6 needs K < ε) and the Lipschitz form of 002. With
+    For Banks' perturbation f2 (Banks (1980), Theorem 2.6 needs K < ε) and the Lipschitz form of Besançon (2010). With
     `wrt` = k only the first k variables are differentiated (the rest, e.g. inputs, range over the box).
 
     Parameters

@@ -1,12 +1,12 @@
-r"""Excitation of regressors and inputs: IE (000 eq. 15), PE, identifiability of a linear
-regression (000 Prop. 2), regular persistence and local regularity for state-affine systems (002).
+r"""Excitation of regressors and inputs: IE (Wang, Ortega & Bobtsov (2021), eq. 15), PE, identifiability of a linear
+regression (Wang, Ortega & Bobtsov (2021), Prop. 2), regular persistence and local regularity for state-affine systems (Besançon (2010)).
 
 For a regressor ψ(t) ∈ R^q of a linear regression Y = ψᵀθ:
 
-* interval excitation (IE, 000 eq. 15): :math:`\int_0^{t_d}\psi\psi^\top ds \ge C_d I` for some t_d;
+* interval excitation (IE, Wang, Ortega & Bobtsov (2021), eq. 15): :math:`\int_0^{t_d}\psi\psi^\top ds \ge C_d I` for some t_d;
 * persistent excitation (PE): :math:`\int_t^{t+T}\psi\psi^\top ds \ge \alpha I` for all t;
-* identifiability: rank :math:`[\psi(t_1) | \dots | \psi(t_q)] = q` for some times (000 S2,
-  equivalent to IE and, for GPEBO's regressor, to observability: 000 Prop. 2).
+* identifiability: rank :math:`[\psi(t_1) | \dots | \psi(t_q)] = q` for some times (Wang, Ortega & Bobtsov (2021) S2,
+  equivalent to IE and, for GPEBO's regressor, to observability: Wang, Ortega & Bobtsov (2021), Prop. 2).
 
 The integrals use the trapezoidal rule on the given samples.
 """
@@ -72,7 +72,7 @@ class ExcitationResult:
     threshold : float
     excited : bool
     t_excited : float or None
-        IE: the first time the threshold is reached (a t_d of 000 eq. 15).
+        IE: the first time the threshold is reached (a t_d of Wang, Ortega & Bobtsov (2021), eq. 15).
     window : float or None
     """
 
@@ -98,7 +98,7 @@ class ExcitationResult:
 
 
 def interval_excitation(timepts: Any, psi: Any, *, C_d: float | None = None, rtol: float = RTOL) -> ExcitationResult:
-    r"""Interval excitation of a regressor (000 eq. 15): :math:`\int_0^{t_d}\psi\psi^\top ds \ge C_d I`.
+    r"""Interval excitation of a regressor (Wang, Ortega & Bobtsov (2021), eq. 15): :math:`\int_0^{t_d}\psi\psi^\top ds \ge C_d I`.
 
     Parameters
     ----------
@@ -107,7 +107,7 @@ def interval_excitation(timepts: Any, psi: Any, *, C_d: float | None = None, rto
         ψ(t_k) in rows (time on the first axis).
     C_d : float, optional
         The level to reach; default ``rtol`` times the largest eigenvalue of the full integral
-        (i.e. "full rank", which by 000 Prop. 2 is identifiability).
+        (i.e. "full rank", which by Wang, Ortega & Bobtsov (2021), Prop. 2 is identifiability).
 
     Returns
     -------
@@ -121,7 +121,7 @@ def interval_excitation(timepts: Any, psi: Any, *, C_d: float | None = None, rto
 
     References
     ----------
-    000_6cd8bea7ca1db43b.txt eq. (15) and Lemma 2 (G+D converges iff ψ is IE).
+    Wang, Ortega & Bobtsov (2021), eq. (15) and Lemma 2 (G+D converges iff ψ is IE).
     """
     t, P = _regressor(timepts, psi, "interval_excitation")
     if C_d is not None and not (np.isfinite(C_d) and C_d > 0):
@@ -155,7 +155,7 @@ def persistent_excitation(timepts: Any, psi: Any, window: float, *, alpha: float
 
     References
     ----------
-    000_6cd8bea7ca1db43b.txt §1 (PE vs IE: IE is "strictly weaker"); the PE integral is the UCO
+    Wang, Ortega & Bobtsov (2021), §1 (PE vs IE: IE is "strictly weaker"); the PE integral is the UCO
     Gramian (eq. 4) of A = 0, C = ψᵀ.
     """
     t, P = _regressor(timepts, psi, "persistent_excitation")
@@ -176,7 +176,7 @@ def persistent_excitation(timepts: Any, psi: Any, window: float, *, alpha: float
 
 @dataclass(frozen=True, eq=False)
 class IdentifiabilityResult:
-    """Rank of [ψ(t_1) | … | ψ(t_N)] (000 S2) with q time instants that achieve it."""
+    """Rank of [ψ(t_1) | … | ψ(t_N)] (Wang, Ortega & Bobtsov (2021) S2) with q time instants that achieve it."""
 
     rank: int
     q: int
@@ -213,7 +213,7 @@ def identifiability_rank(timepts: Any, psi: Any, *, rtol: float = RTOL) -> Ident
 
     References
     ----------
-    000_6cd8bea7ca1db43b.txt S2 and Proposition 2 (identifiability ⇔ observability of (2)).
+    Wang, Ortega & Bobtsov (2021) S2 and Proposition 2 (identifiability ⇔ observability of (2)).
     """
     import scipy.linalg
 
@@ -228,7 +228,7 @@ def identifiability_rank(timepts: Any, psi: Any, *, rtol: float = RTOL) -> Ident
 
 def regular_persistence(model: StateAffine, timepts: Any, window: float, *, u: Any = None, y: Any = None,
                         alpha: float | None = None, stride: int = 1) -> UCOResult:
-    r"""Is the input regularly persistent for a state-affine model (002)?
+    r"""Is the input regularly persistent for a state-affine model (Besançon (2010))?
 
     u is regularly persistent when :math:`\int_{t-T}^t \Phi_u^\top C^\top C \Phi_u\,d\tau \ge \alpha I`
     for all t ≥ t0: the UCO test of the LTV system obtained by freezing A(u, y) along the
@@ -254,7 +254,7 @@ def regular_persistence(model: StateAffine, timepts: Any, window: float, *, u: A
 
     References
     ----------
-    002_613af42269ea26a7.txt "Regularly persistent inputs (RP)" and "Kalman-like observer".
+    Besançon (2010) "Regularly persistent inputs (RP)" and "Kalman-like observer".
     """
     A, C = state_affine_ltv(model, timepts, u=u, y=y)
     return uco_test(A, C, timepts, window, delta=alpha, stride=stride)
@@ -262,7 +262,7 @@ def regular_persistence(model: StateAffine, timepts: Any, window: float, *, u: A
 
 @dataclass(frozen=True, eq=False)
 class LocalRegularity:
-    r"""Local regularity measure α(t, T) of 002 for a set of short windows T."""
+    r"""Local regularity measure α(t, T) of Besançon (2010) for a set of short windows T."""
 
     windows: np.ndarray
     starts: np.ndarray
@@ -280,7 +280,7 @@ class LocalRegularity:
 
 def local_regularity(model: StateAffine, timepts: Any, windows: Any, *, u: Any = None, y: Any = None,
                      alpha: float | None = None, stride: int = 1, ratio: float = 1e-3) -> LocalRegularity:
-    r"""Locally regular inputs for a state-affine model (002).
+    r"""Locally regular inputs for a state-affine model (Besançon (2010)).
 
     u is locally regular if for every T ≤ T0 and t,
 
@@ -314,7 +314,7 @@ def local_regularity(model: StateAffine, timepts: Any, windows: Any, *, u: Any =
 
     References
     ----------
-    002_613af42269ea26a7.txt "Locally regular inputs (LR)".
+    Besançon (2010) "Locally regular inputs (LR)".
     """
     A, C = state_affine_ltv(model, timepts, u=u, y=y)
     t = check_timepts(timepts, "local_regularity", uniform=True)

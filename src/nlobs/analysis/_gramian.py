@@ -1,15 +1,15 @@
-r"""Observability along a trajectory: LTV Gramians and the UCO test (000), empirical Gramians,
-numerical indistinguishability (002).
+r"""Observability along a trajectory: LTV Gramians and the UCO test (Wang, Ortega & Bobtsov (2021)), empirical Gramians,
+numerical indistinguishability (Besançon (2010)).
 
 For an LTV pair (A(t), C(t)) — or a state-affine model frozen along a measured input and output —
-the observability Gramian (000 eq. 3)
+the observability Gramian (Wang, Ortega & Bobtsov (2021), eq. 3)
 
 .. math::
 
     W(t_0, t_1) = \int_{t_0}^{t_1} \Phi^\top(\tau, t_0)\, C^\top(\tau) C(\tau)\, \Phi(\tau, t_0)\, d\tau
 
 is integrated together with :math:`\dot\Phi = A\Phi` by RK4 on the time grid. Observability on
-[t0, t1] is rank W = n; uniform complete observability (000 eq. 4) asks W(t, t+T) ≥ δI for all t,
+[t0, t1] is rank W = n; uniform complete observability (Wang, Ortega & Bobtsov (2021), eq. 4) asks W(t, t+T) ≥ δI for all t,
 and :func:`uco_test` reports :math:`\delta(t) = \lambda_{\min} W(t, t+T)` so the user sees where
 excitation is lost.
 """
@@ -131,7 +131,7 @@ def _sym_eig(W: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 @dataclass(frozen=True, eq=False)
 class GramianResult:
-    r"""Observability Gramian :math:`W(t_0, t_1)` of an LTV pair (000 eq. 3) and its rank test.
+    r"""Observability Gramian :math:`W(t_0, t_1)` of an LTV pair (Wang, Ortega & Bobtsov (2021), eq. 3) and its rank test.
 
     Attributes
     ----------
@@ -145,7 +145,7 @@ class GramianResult:
     rank : int
         Number of eigenvalues above ``rtol * max``.
     observable : bool
-        rank = n: the LTV system is observable on [t0, t1] (000 Prop. 1's assumption).
+        rank = n: the LTV system is observable on [t0, t1] (Wang, Ortega & Bobtsov (2021), Prop. 1's assumption).
     unobservable_directions : numpy.ndarray
         Eigenvectors of the eigenvalues counted as zero.
     t_full_rank : float or None
@@ -185,7 +185,7 @@ def _rank_of(W: np.ndarray, rtol: float) -> tuple[np.ndarray, np.ndarray, int]:
     The rank is decided on the Jacobi-scaled Gramian S = D^-½ W D^-½ (D = diag W): a congruence
     with a positive diagonal keeps the rank and the kernel (ker W = D^-½ ker S), and removes the
     effect of units and magnitudes, so that one relative threshold `rtol` is meaningful (the
-    augmented systems of 001 mix positions and products of positions, with diagonal entries
+    augmented systems of Viegas, Batista, Oliveira & Silvestre (2015) mix positions and products of positions, with diagonal entries
     spanning ten orders of magnitude).
     """
     lam = np.linalg.eigvalsh((W + W.T) / 2)
@@ -205,7 +205,7 @@ def _rank_of(W: np.ndarray, rtol: float) -> tuple[np.ndarray, np.ndarray, int]:
 
 
 def ltv_gramian(A: Any, C: Any, timepts: Any, *, rtol: float = RTOL) -> GramianResult:
-    r"""The observability Gramian W(t0, t1) of :math:`\dot x = A(t)x`, :math:`y = C(t)x` (000 eq. 3).
+    r"""The observability Gramian W(t0, t1) of :math:`\dot x = A(t)x`, :math:`y = C(t)x` (Wang, Ortega & Bobtsov (2021), eq. 3).
 
     Parameters
     ----------
@@ -233,7 +233,7 @@ def ltv_gramian(A: Any, C: Any, timepts: Any, *, rtol: float = RTOL) -> GramianR
 
     References
     ----------
-    000_6cd8bea7ca1db43b.txt eq. (3) and Proposition 1 (rank W(0, T) = n).
+    Wang, Ortega & Bobtsov (2021), eq. (3) and Proposition 1 (rank W(0, T) = n).
     """
     t = check_timepts(timepts, "ltv_gramian")
     Av, Am, Cv, Cm = _pair_paths(A, C, t, "ltv_gramian")
@@ -253,7 +253,7 @@ def ltv_gramian(A: Any, C: Any, timepts: Any, *, rtol: float = RTOL) -> GramianR
 
 @dataclass(frozen=True, eq=False)
 class UCOResult:
-    r"""Sliding-window Gramian test of uniform complete observability (000 eq. 4).
+    r"""Sliding-window Gramian test of uniform complete observability (Wang, Ortega & Bobtsov (2021), eq. 4).
 
     Attributes
     ----------
@@ -302,7 +302,7 @@ class UCOResult:
 
 def uco_test(A: Any, C: Any, timepts: Any, window: float, *, delta: float | None = None, stride: int = 1,
              ratio: float = 1e-3) -> UCOResult:
-    r"""δ(t) = λ_min W(t, t+T) on a uniform grid: the UCO condition W(t, t+T) ≥ δI (000 eq. 4).
+    r"""δ(t) = λ_min W(t, t+T) on a uniform grid: the UCO condition W(t, t+T) ≥ δI (Wang, Ortega & Bobtsov (2021), eq. 4).
 
     Parameters
     ----------
@@ -325,7 +325,7 @@ def uco_test(A: Any, C: Any, timepts: Any, window: float, *, delta: float | None
 
     References
     ----------
-    000_6cd8bea7ca1db43b.txt eq. (4); 002_613af42269ea26a7.txt "Regularly persistent inputs"
+    Wang, Ortega & Bobtsov (2021), eq. (4); Besançon (2010) "Regularly persistent inputs"
     (the same integral for state-affine systems).
     """
     t = check_timepts(timepts, "uco_test", uniform=True)
@@ -362,7 +362,7 @@ def _signal(values: Any, t: np.ndarray, width: int, name: str, caller: str) -> n
 
 
 def state_affine_ltv(model: StateAffine, timepts: Any, *, u: Any = None, y: Any = None) -> tuple[np.ndarray, np.ndarray]:
-    r"""Freeze a state-affine model (000 eq. 1) along measured u(t), y(t): A(t) = A(u, y, t), C(t) = C(u, t)ᵀ.
+    r"""Freeze a state-affine model (Wang, Ortega & Bobtsov (2021), eq. 1) along measured u(t), y(t): A(t) = A(u, y, t), C(t) = C(u, t)ᵀ.
 
     Returns the sampled A of shape (N, n, n) and C of shape (N, p, n) (y = C(t) x) for
     :func:`ltv_gramian` and :func:`uco_test`.
@@ -486,7 +486,7 @@ def empirical_gramian(system: System, x0: Any, *, t_final: float, dt: float = 1e
         W_{ij} = \frac{1}{4\varepsilon^2}\int_0^T (y^{+i} - y^{-i})^\top (y^{+j} - y^{-j})\, dt .
 
     A rank-deficient W means two nearby initial states give (to first order) the same output under
-    this input: the input is singular for this trajectory (002, "Universal input").
+    this input: the input is singular for this trajectory (Besançon (2010), "Universal input").
 
     Parameters
     ----------
@@ -517,8 +517,8 @@ def empirical_gramian(system: System, x0: Any, *, t_final: float, dt: float = 1e
 
     References
     ----------
-    002_613af42269ea26a7.txt "Universal input", "Regularly persistent inputs" (the output-difference
-    integral); 000_6cd8bea7ca1db43b.txt eq. (3) (the linear case, of which this is the linearisation).
+    Besançon (2010) "Universal input", "Regularly persistent inputs" (the output-difference
+    integral); Wang, Ortega & Bobtsov (2021), eq. (3) (the linear case, of which this is the linearisation).
     """
     caller = "empirical_gramian"
     x0 = np.asarray(x0, dtype=float).ravel()
@@ -551,7 +551,7 @@ def empirical_gramian(system: System, x0: Any, *, t_final: float, dt: float = 1e
 
 @dataclass(frozen=True, eq=False)
 class Indistinguishability:
-    r"""Output distance of two initial states under the same input (002, "Indistinguishability")."""
+    r"""Output distance of two initial states under the same input (Besançon (2010), "Indistinguishability")."""
 
     x0_a: np.ndarray
     x0_b: np.ndarray
@@ -597,7 +597,7 @@ def indistinguishable(system: System, x0_a: Any, x0_b: Any, *, t_final: float, d
 
     References
     ----------
-    002_613af42269ea26a7.txt "Indistinguishability": h(χ_u(t, x0)) = h(χ_u(t, x0')) for all t.
+    Besançon (2010) "Indistinguishability": h(χ_u(t, x0)) = h(χ_u(t, x0')) for all t.
     """
     caller = "indistinguishable"
     xa = np.asarray(x0_a, dtype=float).ravel()

@@ -367,7 +367,7 @@ def decide_identity(lhs: Any, rhs: Any = 0, *, seed: int = 0, simplify: bool = T
         Seed of the random points (the verdict is reproducible for a seed).
     simplify : bool
         Try :func:`sympy.simplify` when the exact tests cannot decide (it can be slow on large
-        expressions; it is skipped above 3,000 operations).
+        expressions; it is skipped above 3000 operations).
 
     Returns
     -------

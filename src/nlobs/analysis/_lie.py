@@ -1,12 +1,12 @@
-r"""Structural observability: the generic rank of the observation space (002), computed fast.
+r"""Structural observability: the generic rank of the observation space (Besançon (2010)), computed fast.
 
-The observation space :math:`\mathcal O(h)` of 002 is the smallest vector space of functions that
+The observation space :math:`\mathcal O(h)` of Besançon (2010) is the smallest vector space of functions that
 contains the outputs and is closed under Lie derivation along :math:`f_u = f(\cdot, u)` for
 every constant u; the observability rank condition is :math:`\dim d\mathcal O(h)|_x = n`. Its
 generic value equals the rank of the Jacobian, with respect to the unknowns, of the output's
 successive time derivatives for a generic input (the derivatives of the input enter as free
 values). That Jacobian is not built symbolically: the solution is expanded as a truncated power
-series at a random point of GF(p), with gradients carried along (Sedoglavic 2002), and the rank is
+series at a random point of GF(p), with gradients carried along (Sedoglavic (2002)), and the rank is
 taken over GF(p).
 """
 
@@ -34,7 +34,7 @@ from ..references import cite
 
 __all__ = ["analyze", "observable_function", "InputClass"]
 
-_REF = f"{cite('002')} (observation space, rank condition); Sedoglavic, J. Symb. Comput. 33(5), 2002"
+_REF = f"{cite('002')} (observation space, rank condition); {cite('sedoglavic2002')}"
 
 
 @dataclass(frozen=True)
@@ -42,7 +42,7 @@ class InputClass:
     """How a known input is taken in the structural test.
 
     ``kind`` is ``"generic"`` (a generic analytic input: every derivative a free value, which gives
-    the rank of 002's observation space), ``"polynomial"`` (a generic polynomial of `degree`;
+    the rank of Besançon (2010)'s observation space), ``"polynomial"`` (a generic polynomial of `degree`;
     ``degree=0`` is a generic constant) or ``"signal"`` (the given expression of t, e.g. ``0``).
     """
 
@@ -352,7 +352,7 @@ def _sign_symmetries(system: System, st: _Setup, params_unknown: tuple[str, ...]
     unknowns. Screening is sparse: an expression is evaluated only on the patterns that flip one
     of its variables (or its own state), since every other pattern leaves it unchanged, so the
     cost grows like m · Σ|vars of f_i|² rather than m² · (size of f). Each symmetry gives pairs of
-    indistinguishable states (001 §IV-C: x2 -> -x2 when c = 0).
+    indistinguishable states (Viegas, Batista, Oliveira & Silvestre (2015), §IV-C: x2 -> -x2 when c = 0).
     """
     from ..model._translate import NUMPY, translate
 
@@ -488,7 +488,7 @@ def analyze(system: System, *, unknown_params: Any = (), inputs: Any = "generic"
             regime: Mapping[str, float] | None = None) -> ObservabilityReport:
     r"""Structural observability (and identifiability) of a model by the generic rank.
 
-    The rank condition of 002 asks for :math:`\dim d\mathcal O(h)|_x = n`, where the observation
+    The rank condition of Besançon (2010) asks for :math:`\dim d\mathcal O(h)|_x = n`, where the observation
     space :math:`\mathcal O(h)` is spanned by the outputs and their repeated Lie derivatives along
     :math:`f_u` for constant u. Its generic value is the rank of
 
@@ -498,7 +498,7 @@ def analyze(system: System, *, unknown_params: Any = (), inputs: Any = "generic"
 
     for a generic input, with N = number of unknowns (the ranks of the jets increase strictly until
     they stop). J is evaluated at a random point of GF(p), p a random 27-bit prime, through
-    truncated power series of the solution carrying gradients (Sedoglavic 2002), and reduced over
+    truncated power series of the solution carrying gradients (Sedoglavic (2002)), and reduced over
     GF(p): rank, observable unknowns (unit vector in the row space), kernel.
 
     *Error.* A rank over GF(p) at one point is never above the generic rank over Q, so a full rank
@@ -513,10 +513,10 @@ def analyze(system: System, *, unknown_params: Any = (), inputs: Any = "generic"
     unsaturated branch of min/max/sat. :func:`visited_regimes` finds the regimes a trajectory
     goes through.
 
-    *Local, not global.* The rank condition proves local weak observability (002). When a sign
+    *Local, not global.* The rank condition proves local weak observability (Besançon (2010)). When a sign
     change of some unknowns leaves f and h invariant (checked for every sign pattern of up to 12
     unknowns, proved symbolically), x and σx are indistinguishable: reported in ``symmetries``
-    (001 §IV-C: x1' = x2², x2' = 0, y = x1).
+    (Viegas, Batista, Oliveira & Silvestre (2015), §IV-C: x1' = x2², x2' = 0, y = x1).
 
     Parameters
     ----------
@@ -524,7 +524,7 @@ def analyze(system: System, *, unknown_params: Any = (), inputs: Any = "generic"
     unknown_params : sequence of str, "all" or bool, optional
         Parameters taken as unknown constants (identifiability); the others keep their values.
     inputs : "generic", "constant", int or mapping, optional
-        How known inputs are taken: ``"generic"`` (default; the observation space of 002),
+        How known inputs are taken: ``"generic"`` (default; the observation space of Besançon (2010)),
         ``"constant"`` (one generic constant), an int d (generic polynomials of degree d), or a
         mapping ``{input: class or signal}`` where a signal is a number or an expression of t
         (``{"u": 0}`` analyses the singular input u = 0).
@@ -558,8 +558,8 @@ def analyze(system: System, *, unknown_params: Any = (), inputs: Any = "generic"
 
     References
     ----------
-    002_613af42269ea26a7.txt, "Observation space", "Observability rank condition", "Local weak
-    observability"; 001_1b4027b3a70d560f.txt §IV-C (local vs global); A. Sedoglavic, "A
+    Besançon (2010), "Observation space", "Observability rank condition", "Local weak
+    observability"; Viegas, Batista, Oliveira & Silvestre (2015), §IV-C (local vs global); A. Sedoglavic, "A
     probabilistic algorithm to test local algebraic observability in polynomial time", J. Symb.
     Comput. 33(5), 2002.
 
@@ -625,7 +625,7 @@ def _analyze(system: System, unknown_params: Any, inputs: Any, unknown_inputs: M
     if ui:
         input_desc += "; unknown inputs: " + ", ".join(f"{k} (polynomial of degree {d})" for k, d in ui.items())
     method = (f"generic rank of the output-jet Jacobian (orders 0..{res.max_order}) by truncated power series at a random "
-              f"point modulo the prime {res.prime} (Sedoglavic 2002); {runs} point(s); {_REF}")
+              f"point modulo the prime {res.prime}; {runs} point(s); {_REF}")
     notes = [*st.prog.notes, *notes]
     if res.rank < M and gap < 1e-6:
         notes.append(f"the real Jacobian at the direction point is ill-conditioned (smallest kept singular value ratio "
@@ -656,7 +656,7 @@ def observable_function(system: System, expr: ExprLike, **options: Any) -> Funct
 
     φ is locally observable iff :math:`d\varphi` lies in :math:`d\mathcal O(h)` (generically): its
     gradient is in the row space of the output-jet Jacobian. Range-only localisation with u = 0
-    (p' = v, v' = 0, y = |p|²) observes |p|², p·v and |v|² but not p1.
+    (p' = v, v' = 0, y = ‖p‖²) observes ‖p‖², p·v and ‖v‖² but not p1.
 
     Parameters
     ----------

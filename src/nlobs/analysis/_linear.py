@@ -94,7 +94,7 @@ def kalman_rank(A: np.ndarray, C: np.ndarray) -> LinearObservability:
 
     References
     ----------
-    002_613af42269ea26a7.txt, "Result [Luenberger]": an observer with arbitrary rate exists
+    Besançon (2010), "Result [Luenberger]": an observer with arbitrary rate exists
     iff (A, C) is observable.
     """
     A, C = check_pair(A, C, "kalman_rank")
@@ -227,7 +227,7 @@ def kalman_decomposition(A: Any, C: Any) -> KalmanDecomposition:
 
     References
     ----------
-    002_613af42269ea26a7.txt, "Summary": a system that fails the rank condition can be written as
+    Besançon (2010), "Summary": a system that fails the rank condition can be written as
     ζ1' = f1(ζ1, ζ2, u), ζ2' = f2(ζ2, u), y = h2(ζ2) with the ζ2 part observable; this is the linear case.
     """
     A, C = check_pair(A, C, "kalman_decomposition")

@@ -1,14 +1,14 @@
-r"""Observer forms (002): is a model — possibly after adding unknown constant parameters as states —
+r"""Observer forms (Besançon (2010)): is a model — possibly after adding unknown constant parameters as states —
 in output-injection, state-affine, Lipschitz or triangular (high-gain) form? And if not, which
 entry breaks the form.
 
 * Output injection: :math:`\dot x = Ax + B(u, y)`, y = Cx, A and C constant (reuses
   :class:`nlobs.model.OutputInjectionForm`).
-* State-affine (000 eq. 1, 002 "Kalman-like"): :math:`\dot x = A(u, y, t)x + b(u, y, t)`,
+* State-affine (Wang, Ortega & Bobtsov (2021), eq. 1, Besançon (2010) "Kalman-like"): :math:`\dot x = A(u, y, t)x + b(u, y, t)`,
   :math:`y = C(u, t)^\top x`.
 * Lipschitz: :math:`\dot x = Ax + \varphi(x, u)`, y = Cx, with a Lipschitz constant of φ over a box.
 * Triangular (high gain): y = x1 and :math:`\partial f_i/\partial x_j = 0` for j > i + 1, with
-  :math:`\partial f_i/\partial x_{i+1}` bounded away from 0 (002, "High Gain Observer").
+  :math:`\partial f_i/\partial x_{i+1}` bounded away from 0 (Besançon (2010), "High Gain Observer").
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ __all__ = ["FormCheck", "FormsReport", "with_params_as_states", "state_affine_fo
 
 
 def with_params_as_states(system: System, params: Sequence[str] | str = "all") -> System:
-    """The model with the given parameters moved to the state (p' = 0), e.g. 002's robot arm with unknown b.
+    """The model with the given parameters moved to the state (p' = 0), e.g. Besançon (2010)'s robot arm with unknown b.
 
     Parameters
     ----------
@@ -73,7 +73,7 @@ def _output_matrix(system: System, f: sp.Matrix, h: sp.Matrix) -> tuple[sp.Matri
 
 
 def state_affine_form(system: System) -> FormCheck:
-    r"""Recognise :math:`\dot x = A(u, y, t)x + b(u, y, t)`, :math:`y = C(u, t)^\top x` (000 eq. 1).
+    r"""Recognise :math:`\dot x = A(u, y, t)x + b(u, y, t)`, :math:`y = C(u, t)^\top x` (Wang, Ortega & Bobtsov (2021), eq. 1).
 
     With a constant C, write :math:`x = C^+y + K\xi` (K an orthonormal basis of ker C): the model is
     state-affine iff :math:`\partial f/\partial x\,K` depends on x only through y. Then
@@ -82,7 +82,7 @@ def state_affine_form(system: System) -> FormCheck:
 
     References
     ----------
-    000_6cd8bea7ca1db43b.txt eq. (1); 002_613af42269ea26a7.txt "state affine systems".
+    Wang, Ortega & Bobtsov (2021), eq. (1); Besançon (2010) "state affine systems".
     """
     form = f"state-affine ({cite('000')} eq. 1)"
     f, h = system.substituted()
@@ -151,7 +151,7 @@ def lipschitz_constant(system: System, box: Any, *, A: Any = None, input_box: An
 
     References
     ----------
-    002_613af42269ea26a7.txt "LTI + Lipschitz NL" (γ and the condition eigmin(Q)/(2 eigmax(P)) > γ).
+    Besançon (2010) "LTI + Lipschitz NL" (γ and the condition eigmin(Q)/(2 eigmax(P)) > γ).
     """
     caller = "lipschitz_constant"
     n, m = system.n_states, system.n_inputs
@@ -173,7 +173,7 @@ def lipschitz_constant(system: System, box: Any, *, A: Any = None, input_box: An
 
 
 def triangular_form(system: System) -> FormCheck:
-    r"""Recognise the triangular (high-gain) form of 002: y = x1 and f_i depends on x_1..x_{i+1} only.
+    r"""Recognise the triangular (high-gain) form of Besançon (2010): y = x1 and f_i depends on x_1..x_{i+1} only.
 
     Two levels are reported: the general form (∂f_i/∂x_j = 0 for j > i + 1, and the coupling
     :math:`\partial f_i/\partial x_{i+1}` never zero: it must be bounded away from 0 for the
@@ -182,7 +182,7 @@ def triangular_form(system: System) -> FormCheck:
 
     References
     ----------
-    002_613af42269ea26a7.txt "LTI + structured NL", "High Gain Observer" and its extension.
+    Besançon (2010) "LTI + structured NL", "High Gain Observer" and its extension.
     """
     form = f"triangular / high-gain ({cite('002')})"
     f, h = system.substituted()
@@ -218,7 +218,7 @@ def triangular_form(system: System) -> FormCheck:
 
 @dataclass(frozen=True)
 class FormsReport:
-    """Which observer forms a model is in (002), with the breaking entry for each one it is not in."""
+    """Which observer forms a model is in (Besançon (2010)), with the breaking entry for each one it is not in."""
 
     model: str
     checks: tuple[FormCheck, ...]
@@ -236,13 +236,13 @@ class FormsReport:
 
 def recognise_forms(system: System, *, unknown_params: Sequence[str] | str = (), box: Any = None,
                     input_box: Any = None) -> FormsReport:
-    """Check the observer forms of 002 on a model (optionally with parameters added as constant states).
+    """Check the observer forms of Besançon (2010) on a model (optionally with parameters added as constant states).
 
     Parameters
     ----------
     system : System
     unknown_params : sequence of str or "all"
-        Parameters to estimate, added as states with p' = 0 before the check (002's robot arm with
+        Parameters to estimate, added as states with p' = 0 before the check (Besançon (2010)'s robot arm with
         unknown b is state-affine only in (x1, x2, b)).
     box, input_box : array_like of shape (n, 2) / (m, 2), optional
         When given, the Lipschitz constant of φ = f - Ax is estimated over the box.

@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 from ..references import cite
+from .._display import html_block
 
 __all__ = ["clean_direction", "fmt_vec", "fmt_directions", "fmt_point", "ObservabilityReport", "FunctionCheck", "Symmetry"]
 
@@ -157,6 +158,13 @@ class ObservabilityReport:
             "notes": list(self.notes),
             "seconds": self.seconds,
         }
+
+    def __repr__(self) -> str:
+        return (f"ObservabilityReport(model={self.model!r}, observable={self.observable}, rank={self.rank}/{len(self.unknowns)}, "
+                f"observable_states={self.observable_states}, globally_observable={self.globally_observable})")
+
+    def _repr_html_(self) -> str:
+        return html_block(f"Observability of {self.model!r}", str(self))
 
     def __str__(self) -> str:
         M = len(self.unknowns)

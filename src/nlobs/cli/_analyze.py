@@ -19,13 +19,18 @@ MAX_REGIMES = 4  #: regimes analysed at most (the most visited ones)
 
 
 def add_parser(sub: Any) -> None:
-    a = sub.add_parser("analyze", help=f"structural observability of a model file (generic rank, {cite('002')})")
+    a = sub.add_parser("analyze", help="is the model observable? (generic rank of the observation space)",
+                       description="Structural observability and identifiability of a model file: the generic rank of the "
+                                   f"Jacobian of the output and its time derivatives ({cite('002')}), computed by truncated "
+                                   f"power series modulo a prime ({cite('sedoglavic2002')}); unobservable directions, "
+                                   "sign symmetries, and functions of the states you ask about.")
     a.add_argument("model", help="model file (TOML)")
     a.add_argument("--params", default=None, metavar="NAMES",
                    help="comma-separated parameters to treat as unknown constants (identifiability), or 'all' "
                         "(default: the parameters the file declares unknown = true)")
     a.add_argument("--inputs", default="generic", metavar="CLASS",
-                   help=f"'generic' (default: the observation space of {cite('002')}), 'constant', or a polynomial degree")
+                   help="the inputs the verdict covers: 'generic' (default: any smooth input), 'constant', or N "
+                        "(polynomials of degree N)")
     a.add_argument("--function", action="append", default=[], metavar="EXPR",
                    help="a function of the states to test for observability (repeatable), e.g. 'x1**2 + x2**2'")
     a.add_argument("--regime", default="auto", metavar="WHICH",

@@ -9,7 +9,9 @@ from ._common import designs_of
 
 
 def add_parser(sub: Any) -> None:
-    x = sub.add_parser("export", help="write an observer's sample-to-sample step as dependency-free C")
+    x = sub.add_parser("export", help="write an observer's sample-to-sample step as dependency-free C",
+                       description="Write NAME.c and NAME.h (the observer's step from one sample to the next, C99, only "
+                                   "<math.h>, no allocation) and an example main.c that reads t,u...,y... lines from stdin.")
     x.add_argument("model", help="model file (TOML)")
     x.add_argument("--observer", required=True, metavar="NAME", help="observer configured in the file")
     x.add_argument("--c", required=True, metavar="DIR", dest="c_dir", help="folder for NAME.c, NAME.h and an example main.c")

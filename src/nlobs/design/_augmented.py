@@ -1,4 +1,4 @@
-"""Observers on a mimicking augmented system (001): a linear observer in w = T(x), x̂ = T⁺(ŵ)."""
+"""Observers on a mimicking augmented system (Viegas, Batista, Oliveira & Silvestre (2015)): a linear observer in w = T(x), x̂ = T⁺(ŵ)."""
 
 from __future__ import annotations
 
@@ -30,7 +30,7 @@ REF = (f"{cite('001')}: mimicking systems (2), Def. 3, Theorem 1 (observable iff
 def design_augmented(system: System, *, T: Sequence[ExprLike], A: Any, C: Any, left_inverse: Sequence[ExprLike],
                      b: Sequence[ExprLike] | None = None, poles: Any = None, L: Any = None, Q: Any = None, R: Any = None,
                      P0: Any = None, xhat0: Any = None) -> ObserverDesign:
-    r"""Linear observer on a system that mimics the model through w = T(x) (001).
+    r"""Linear observer on a system that mimics the model through w = T(x) (Viegas, Batista, Oliveira & Silvestre (2015)).
 
     The augmented system :math:`\dot w = A(u, y, t)w + b(u, y, t)`, :math:`y = Cw` mimics
     :math:`\dot x = f(x, u, t)`, :math:`y = h(x)` when, identically in (x, u, t) and with
@@ -41,11 +41,11 @@ def design_augmented(system: System, *, T: Sequence[ExprLike], A: Any, C: Any, l
         \frac{\partial T}{\partial x} f(x, u, t) = A(u, h(x), t)\,T(x) + b(u, h(x), t), \qquad C\,T(x) = h(x).
 
     Both identities and the left inverse :math:`T^+(T(x)) = x` are decided exactly (:func:`nlobs.analysis.decide_identity`) before
-    the gain is computed; the estimate is :math:`\hat x = T^+(\hat w)` (001 Lemma 1).
+    the gain is computed; the estimate is :math:`\hat x = T^+(\hat w)` (Viegas, Batista, Oliveira & Silvestre (2015), Lemma 1).
 
-    - A constant (LTI, 001 §IV-C): Luenberger :math:`\dot{\hat w} = A\hat w + b - L(C\hat w - y)`
+    - A constant (LTI, Viegas, Batista, Oliveira & Silvestre (2015), §IV-C): Luenberger :math:`\dot{\hat w} = A\hat w + b - L(C\hat w - y)`
       with L from `poles`, `L`, or the LQE weights `Q`, `R`.
-    - A depending on (u, y, t) (LTV, 001 §IV-A/B): Kalman-Bucy filter
+    - A depending on (u, y, t) (LTV, Viegas, Batista, Oliveira & Silvestre (2015), §IV-A/B): Kalman-Bucy filter
       :math:`\dot{\hat w} = A\hat w + b - PC^\top R^{-1}(C\hat w - y)`,
       :math:`\dot P = AP + PA^\top + Q - PC^\top R^{-1}CP` (`Q` > 0 and `R` > 0 required),
       evaluated on the measured input and output.
@@ -78,7 +78,7 @@ def design_augmented(system: System, *, T: Sequence[ExprLike], A: Any, C: Any, l
 
     References
     ----------
-    001_1b4027b3a70d560f.txt eqs. (2), (15)-(18), (20)-(22), Def. 3, Theorem 1, Lemma 1.
+    Viegas, Batista, Oliveira & Silvestre (2015), eqs. (2), (15)-(18), (20)-(22), Def. 3, Theorem 1, Lemma 1.
     """
     require_system(system, "design_augmented")
     caller = "design_augmented"

@@ -1,4 +1,4 @@
-"""Banks' exponential observer (003): x̂' = f(x̂) + P·(B(x̂) - y), conditions checked with the matrix measure.
+"""Banks' exponential observer (Banks (1980)): x̂' = f(x̂) + P·(B(x̂) - y), conditions checked with the matrix measure.
 
 The matrix measure and the supremum over a box come from ``nlobs.analysis``
 (:func:`~nlobs.analysis.matrix_measure`, :func:`~nlobs.analysis.banks_condition` for the stand-alone
@@ -122,7 +122,7 @@ def banks_conditions(system: System, P: np.ndarray, perturbation: Sequence[sp.Ex
 def design_banks(system: System, *, P: Any, region: Mapping[str, Sequence[float]] | None = None,
                  perturbation: Sequence[ExprLike] | None = None, perturbation_bound: float | None = None,
                  xhat0: Any = None) -> ObserverDesign:
-    r"""Banks' exponential observer (003) with his conditions checked over a region.
+    r"""Banks' exponential observer (Banks (1980)) with his conditions checked over a region.
 
     For :math:`\dot x = f(x, t) = f_1(x, t) + f_2(x, t)`, :math:`y = B(x)`:
 
@@ -145,7 +145,7 @@ def design_banks(system: System, *, P: Any, region: Mapping[str, Sequence[float]
     ----------
     system : System
     P : array_like of shape (n, p)
-        The gain (003 example 3.1: P = (-2, 1)ᵀ; example 3.2: (-1, 4)ᵀ).
+        The gain (Banks (1980), example 3.1: P = (-2, 1)ᵀ; example 3.2: (-1, 4)ᵀ).
     region : mapping of name to (lo, hi), optional
         The convex box Ω for the state variables (and inputs, t) the conditions depend on;
         not needed when λ(Df1 + P DB) and Df2 are constant.
@@ -171,7 +171,7 @@ def design_banks(system: System, *, P: Any, region: Mapping[str, Sequence[float]
 
     References
     ----------
-    003_a2c72ccb4281ea3f.txt, Lemmas 2.3, 2.4, Theorem 2.6, examples 3.1 and 3.2.
+    Banks (1980), Lemmas 2.3, 2.4, Theorem 2.6, examples 3.1 and 3.2.
     """
     require_system(system, "design_banks")
     caller = "design_banks"

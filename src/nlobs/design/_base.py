@@ -1,6 +1,6 @@
 """What a design returns: the observer's equations with the evidence behind them.
 
-An observer is a dynamical system (004 eq. 2, 000 eq. 6)
+An observer is a dynamical system (Yi, Ortega & Zhang (2019), eq. 2, Wang, Ortega & Bobtsov (2021), eq. 6)
 
 .. math::
 
@@ -22,6 +22,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from .._display import html_block
 from ..errors import ShapeError
 from ..model import System
 
@@ -106,7 +107,7 @@ class Certificate:
     method : str
         What was designed, in words.
     reference : str
-        The paper and equation implemented (file name and equation number).
+        The work and the equation implemented, cited by author and year (:func:`nlobs.references.cite`).
     checks : tuple of Check
         Preconditions and guarantees, each with its numbers.
     values : mapping
@@ -123,6 +124,13 @@ class Certificate:
         lines += [f"  {c}" for c in self.checks]
         lines += [f"  {k} = {_fmt(v)}" for k, v in self.values.items()]
         return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        counts = ", ".join(f"{sum(c.status == s for c in self.checks)} {s}" for s in _STATUS if any(c.status == s for c in self.checks))
+        return f"Certificate({self.method!r}, reference={self.reference!r}, checks: {counts or 'none'}, values: {', '.join(self.values)})"
+
+    def _repr_html_(self) -> str:
+        return html_block(f"Certificate: {self.method}", str(self))
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,6 @@
-r"""The KKL+PEBO observer for the class of 004 Proposition 7 (eqs. 40-47).
+r"""The KKL+PEBO observer for the class of Yi, Ortega & Zhang (2019), Proposition 7 (eqs. 40-47).
 
-Systems of the form (004 eq. 40)
+Systems of the form (Yi, Ortega & Zhang (2019), eq. 40)
 
 .. math::
 
@@ -47,7 +47,7 @@ REF = f"{cite('004')} Proposition 7: class (40)-(42), observer (43)-(47)"
 
 def design_kkl_pebo_cascade(system: System, *, x2: Sequence[str], x3: Sequence[str], x4: Sequence[str], k: str,
                             alpha: float = 1.0, estimator: Any = None, xhat0: Any = None) -> ObserverDesign:
-    r"""KKL+PEBO observer for the class of 004 Proposition 7, from the partition of the states.
+    r"""KKL+PEBO observer for the class of Yi, Ortega & Zhang (2019), Proposition 7, from the partition of the states.
 
     The model is checked against (40)-(41) block by block; the observer is (43)-(47) with
     :math:`\hat{\mathbf x}_1 = y`.
@@ -75,7 +75,7 @@ def design_kkl_pebo_cascade(system: System, *, x2: Sequence[str], x3: Sequence[s
 
     References
     ----------
-    004_f1e237c45ff4719e.txt Proposition 7, eqs. (40)-(49).
+    Yi, Ortega & Zhang (2019), Proposition 7, eqs. (40)-(49).
     """
     caller = "design_kkl_pebo_cascade"
     if not isinstance(system, System):

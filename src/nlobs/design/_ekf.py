@@ -10,6 +10,7 @@ import numpy as np
 
 from ..engine import compile_system
 from ..errors import PreconditionError
+from ..references import cite
 from ..model import System
 from ._common import require_system
 from ._base import Certificate, Check, ObserverDesign, Symbols, check_vector
@@ -18,8 +19,8 @@ from ._checks import check_matrix
 
 __all__ = ["design_ekf"]
 
-REF_EKF = ("Extended Kalman filter (Jazwinski 1970; D. Simon, Optimal State Estimation, 2006, ch. 13); "
-           "Joseph-form update (Bucy & Joseph 1968)")
+REF_EKF = (f"Extended Kalman filter ({cite('jazwinski1970')}; {cite('simon2006', 'ch. 13')}); "
+           f"Joseph-form update ({cite('bucy1968')})")
 
 
 def _sym(M: ca.SX) -> ca.SX:
@@ -48,7 +49,7 @@ def design_ekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
 
     Here R is an intensity: white noise sampled with standard deviation σ every Δt has
     intensity σ²Δt, and a small R makes the gain P Hᵀ R⁻¹ H large, so the integration step
-    must resolve it (RK4 is stable for |λ|Δt < 2.8).
+    must resolve it (RK4 is stable for Δt·abs(λ) < 2.8).
 
     P is stored in full and kept exactly symmetric: every derivative and update is
     symmetrised, so P stays symmetric to the last bit and positive definite as long as the
@@ -73,7 +74,7 @@ def design_ekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
         their Jacobians are evaluated at the estimate clipped to the bounds; the estimate is
         projected onto the bounds (clipped) after each measurement update, and the reported
         estimate is the clipped one; P is left as the update made it (estimate projection with
-        the identity weight, Simon 2010). Without bounds the filter is unchanged.
+        the identity weight, Simon (2010)). Without bounds the filter is unchanged.
 
     Raises
     ------

@@ -1,18 +1,18 @@
-r"""GPEBO for state-affine systems and the 2G+D observer (000).
+r"""GPEBO for state-affine systems and the 2G+D observer (Wang, Ortega & Bobtsov (2021)).
 
-For :math:`\dot x = A(u, y, t)x + b(u, y, t)`, :math:`y = C(u, t)^\top x` (000 eq. 1), Lemma 1 turns
+For :math:`\dot x = A(u, y, t)x + b(u, y, t)`, :math:`y = C(u, t)^\top x` (Wang, Ortega & Bobtsov (2021), eq. 1), Lemma 1 turns
 state observation into the estimation of a constant vector: with
 
 .. math::
 
     \dot\xi = A\xi + b, \qquad \dot\Phi_A = A\Phi_A, \quad \Phi_A(0) = I_n
 
-(000 eq. 13), :math:`x = \xi + \Phi_A\theta` with :math:`\theta = x(0) - \xi(0)` (eq. 8), and θ
+(Wang, Ortega & Bobtsov (2021), eq. 13), :math:`x = \xi + \Phi_A\theta` with :math:`\theta = x(0) - \xi(0)` (eq. 8), and θ
 satisfies the LRE :math:`\mathcal Y = \psi^\top\theta` with :math:`\mathcal Y = y - C^\top\xi`,
 :math:`\psi = \Phi_A^\top C` (eqs. 9-10). Any estimator of :mod:`nlobs.design` then gives
 :math:`\hat x = \xi + \Phi_A\hat\theta` (eq. 12); with the G+D estimator (eqs. 16-17) this is the
 *2G+D observer*, which converges whenever the system is observable on some [0, T]
-(000 Proposition 1), uniform complete observability is not needed.
+(Wang, Ortega & Bobtsov (2021), Proposition 1), uniform complete observability is not needed.
 
 Where the homogeneous part is not uniformly stable (assumption 5), an output injection L
 is added, as the paper suggests after eq. (5): :math:`\dot\xi = A\xi + b + L(y - C^\top\xi)`,
@@ -70,7 +70,7 @@ def _uniform_stability(A: sp.Matrix, caller: str, injected: bool) -> Check | Non
 
 def design_gpebo(system: StateAffine | System, *, estimator: AbstractEstimator | Any = None, L: Any = None,
                  xhat0: Any = None) -> ObserverDesign:
-    r"""GPEBO observer for a state-affine system (000 Lemma 1), with any regression estimator.
+    r"""GPEBO observer for a state-affine system (Wang, Ortega & Bobtsov (2021), Lemma 1), with any regression estimator.
 
     .. math::
 
@@ -115,7 +115,7 @@ def design_gpebo(system: StateAffine | System, *, estimator: AbstractEstimator |
 
     References
     ----------
-    000_6cd8bea7ca1db43b.txt Lemma 1, eqs. (5), (8)-(13), Proposition 1, §6.
+    Wang, Ortega & Bobtsov (2021), Lemma 1, eqs. (5), (8)-(13), Proposition 1, §6.
     """
     caller = "design_gpebo"
     try:
@@ -167,7 +167,7 @@ def design_gpebo(system: StateAffine | System, *, estimator: AbstractEstimator |
 
 def design_2gd(system: StateAffine | System, *, gamma_g: float = 1.0, gamma: float = 1.0, L: Any = None,
                xhat0: Any = None) -> ObserverDesign:
-    r"""The 2G+D observer of 000 Proposition 1: GPEBO (Lemma 1) with the G+D estimator (Lemma 2).
+    r"""The 2G+D observer of Wang, Ortega & Bobtsov (2021), Proposition 1: GPEBO (Lemma 1) with the G+D estimator (Lemma 2).
 
     Globally exponentially convergent for every state-affine system that is *observable* on
     some interval [0, T] (rank W(0, T) = n), under assumption (5); UCO is not needed.
@@ -177,14 +177,14 @@ def design_2gd(system: StateAffine | System, *, gamma_g: float = 1.0, gamma: flo
     ----------
     system : StateAffine or System
     gamma_g, gamma : float
-        Gains of the gradient and of the mixed scalar stage of G+D (000 eqs. 16a, 16c).
+        Gains of the gradient and of the mixed scalar stage of G+D (Wang, Ortega & Bobtsov (2021), eqs. 16a, 16c).
     L : (n, p) matrix, optional
         Output injection where assumption (5) fails.
     xhat0 : array_like, optional
 
     References
     ----------
-    000_6cd8bea7ca1db43b.txt Proposition 1, Lemmas 1-2, eqs. (12)-(17).
+    Wang, Ortega & Bobtsov (2021), Proposition 1, Lemmas 1-2, eqs. (12)-(17).
 
     Examples
     --------

@@ -1,5 +1,5 @@
-"""High-gain observers: the triangular form (Gauthier-Hammouri-Kupka, 002) and the
-output-derivative observer of Khalil-Esfandiari used in 004 Table I."""
+"""High-gain observers: the triangular form (Gauthier-Hammouri-Kupka, Besançon (2010)) and the
+output-derivative observer of Khalil-Esfandiari used in Yi, Ortega & Zhang (2019), Table I."""
 
 from __future__ import annotations
 
@@ -55,7 +55,7 @@ class Chain:
 
 def triangular_chains(system: System, chains: Sequence[Sequence[str]] | None = None, *,
                       caller: str = "triangular_chains") -> list[Chain]:
-    r"""Recognise the (multi-output) triangular form of 002, or say which entry breaks it.
+    r"""Recognise the (multi-output) triangular form of Besançon (2010), or say which entry breaks it.
 
     The states are grouped in one chain per output, :math:`(x_{k,1}, \dots, x_{k,n_k})` with
     :math:`y_k = x_{k,1}`. The form requires, for every state :math:`x_{k,i}` at level i:
@@ -64,7 +64,7 @@ def triangular_chains(system: System, chains: Sequence[Sequence[str]] | None = N
       the next state of its own chain :math:`x_{k,i+1}`;
     - it depends on :math:`x_{k,i+1}` linearly, through a nonzero coupling
       :math:`a_{k,i} = \partial f_{k,i}/\partial x_{k,i+1}` (1 in the GHK form; a constant, or
-      a function bounded away from 0, in the extension of 002).
+      a function bounded away from 0, in the extension of Besançon (2010)).
 
     Parameters
     ----------
@@ -196,7 +196,7 @@ def design_high_gain(system: System, *, theta: float | None = None, r: float | N
                      poles: Any = None, chains: Sequence[Sequence[str]] | None = None, lipschitz: float | None = None,
                      saturation: Mapping[str, float] | Sequence[float] | None = None,
                      xhat0: Any = None) -> ObserverDesign:
-    r"""High-gain observer for the triangular form (Gauthier-Hammouri-Kupka; 002).
+    r"""High-gain observer for the triangular form (Gauthier-Hammouri-Kupka; Besançon (2010)).
 
     For :math:`\dot x = A_0 x + B(u, x)`, :math:`y = C_0 x` with :math:`A_0` the shift matrix
     and B triangular (:math:`\partial B_i/\partial x_j = 0` for :math:`j \ge i+1`),
@@ -209,7 +209,7 @@ def design_high_gain(system: System, *, theta: float | None = None, r: float | N
     with :math:`A_0 - K_0C_0` Hurwitz and θ large enough. Several outputs give several chains
     (each state may depend on states of lower or equal level in any chain); the coupling
     :math:`a_i = \partial f_i / \partial x_{i+1}` may be any nonzero constant (K0 is then
-    computed for :math:`A_c - K_0C_0`) or, as in the extension of 002, a function of (u, y, t)
+    computed for :math:`A_c - K_0C_0`) or, as in the extension of Besançon (2010), a function of (u, y, t)
     bounded away from zero (K0 must then be given). In the scaled error
     :math:`\varepsilon_i = e_i/\theta^{i-1}` the linear part is
     :math:`\theta(A_c - K_0C_0)`, so its eigenvalues are θ times those of
@@ -228,12 +228,12 @@ def design_high_gain(system: System, *, theta: float | None = None, r: float | N
     theta : float, optional
         The high gain θ (> 0); give θ or `r`.
     r : float, optional
-        1/θ, as in 004 Table I.
+        1/θ, as in Yi, Ortega & Zhang (2019), Table I.
     K0 : array_like, optional
         Gains, one per state of each chain (flat in chain order, or nested per chain).
     poles : array_like, optional
         Eigenvalues of :math:`A_c - K_0C_0` per chain (default: all at -1, i.e. binomial gains:
-        (2, 1) for chains of length 2, as in 004 Table I). Not with `K0`.
+        (2, 1) for chains of length 2, as in Yi, Ortega & Zhang (2019), Table I). Not with `K0`.
     chains : sequence of sequences of state names, optional
         The chains, one per output, each starting with its measured state.
     lipschitz : float, optional
@@ -251,7 +251,7 @@ def design_high_gain(system: System, *, theta: float | None = None, r: float | N
     -------
     ObserverDesign
         Certificate values: ``theta``, ``K0``, ``eigenvalues`` (of A_c - K0C0),
-        ``nominal_rate`` (θ min |Re eig|), and with `lipschitz` ``theta_min``, ``P0`` and
+        ``nominal_rate`` (θ · min abs(Re eig)), and with `lipschitz` ``theta_min``, ``P0`` and
         ``guaranteed_rate``.
 
     Raises
@@ -264,8 +264,8 @@ def design_high_gain(system: System, *, theta: float | None = None, r: float | N
 
     References
     ----------
-    002_613af42269ea26a7.txt, "'Uniformly observable' systems - LTI + structured NL", Result
-    [High Gain Observer] and "about high gain" (extension). 004_f1e237c45ff4719e.txt Table I,
+    Besançon (2010), "'Uniformly observable' systems - LTI + structured NL", Result
+    [High Gain Observer] and "about high gain" (extension). Yi, Ortega & Zhang (2019), Table I,
     "HGO (time-varying dynamics)" (r1 = 0.05, α = (2, 1)).
 
     Examples
@@ -399,7 +399,7 @@ def design_high_gain_derivatives(system: System, *, xhat: Mapping[str, ExprLike]
         \dot\xi_{k,\rho-1} = \varphi_{0,k} + \frac{\alpha_{k,\rho}}{r^{\rho}}(y_k - \xi_{k,0}),
 
     and :math:`\hat x = \Psi(\xi, u, y, t)`, the user's map from output derivatives to the state
-    (004 Table I: :math:`\hat x = ((C_2\xi_2 - uy_2)/(1-u), -L_3\xi_4 - uy_1)`). The error
+    (Yi, Ortega & Zhang (2019), Table I: :math:`\hat x = ((C_2\xi_2 - uy_2)/(1-u), -L_3\xi_4 - uy_1)`). The error
     dynamics of each chain are linear with eigenvalues :math:`r^{-1}` times the roots of
     :math:`s^\rho + \alpha_1 s^{\rho-1} + \dots + \alpha_\rho`; the unknown
     :math:`y^{(\rho)} - \varphi_0` enters as a disturbance attenuated like :math:`r^{\rho-i}`
@@ -415,7 +415,7 @@ def design_high_gain_derivatives(system: System, *, xhat: Mapping[str, ExprLike]
         Ψ, in the inputs, outputs, parameters, ``t`` and the symbols ``D{i}_{output}`` for the
         i-th derivative estimate of an output (``D0_y1`` estimates y1, ``D1_y1`` its derivative).
     r : float, optional
-        The small parameter (004: r ∈ (0, 1]); give r or `theta` = 1/r.
+        The small parameter (Yi, Ortega & Zhang (2019): r ∈ (0, 1]); give r or `theta` = 1/r.
     theta : float, optional
     orders : mapping of output name to int, or sequence, optional
         ρ_k, the number of derivatives estimated (including y itself). Default: one more than
@@ -423,7 +423,7 @@ def design_high_gain_derivatives(system: System, *, xhat: Mapping[str, ExprLike]
     alpha : array_like, optional
         α per chain (flat in output order or nested); the polynomial
         :math:`s^\rho + \alpha_1 s^{\rho-1} + \dots` must be Hurwitz. Default: binomial
-        (all roots at -1): (2, 1) for ρ = 2, as in 004 Table I.
+        (all roots at -1): (2, 1) for ρ = 2, as in Yi, Ortega & Zhang (2019), Table I.
 
     Other Parameters
     ----------------
@@ -433,7 +433,7 @@ def design_high_gain_derivatives(system: System, *, xhat: Mapping[str, ExprLike]
         Clip the derivative estimates where they enter Ψ and φ0 (Khalil's saturation).
     xhat0 : array_like of shape (n,), optional
         The chains start at the output derivatives of `xhat0` with u = 0, t = 0 (zeros by default,
-        as in 004 §V-C: "all initial values of the dynamic extensions are 0").
+        as in Yi, Ortega & Zhang (2019), §V-C: "all initial values of the dynamic extensions are 0").
 
     Returns
     -------
@@ -448,7 +448,7 @@ def design_high_gain_derivatives(system: System, *, xhat: Mapping[str, ExprLike]
 
     References
     ----------
-    004_f1e237c45ff4719e.txt §V-C, Table I "HGO (linear dynamics)" with r2 = 0.005,
+    Yi, Ortega & Zhang (2019), §V-C, Table I "HGO (linear dynamics)" with r2 = 0.005,
     α1 = α3 = 2, α2 = α4 = 1. (The table prints r1 inside the formula of this observer but lists
     r2 as its parameter; the text assigns r2 = 0.005 to it.)
     """

@@ -1,4 +1,4 @@
-r"""Immersion and invariance observer with the pseudo-inverse (004 Proposition 4).
+r"""Immersion and invariance observer with the pseudo-inverse (Yi, Ortega & Zhang (2019), Proposition 4).
 
 Given :math:`\beta(y, \chi) \in \mathbb R^{n_z}`, :math:`\phi(x) \in \mathbb R^{n_z}` and a left
 inverse :math:`\phi^L(\phi(x), y) = x`, the observer makes the manifold
@@ -11,7 +11,7 @@ inverse :math:`\phi^L(\phi(x), y) = x`, the observer makes the manifold
                + \big(I - [\nabla_\chi\beta^\top]^\dagger\nabla_\chi\beta^\top\big)Q(y, \chi, u), \\
     \hat x &= \phi^L(\beta(y, \chi), y)
 
-(004 eqs. 18-19), where :math:`\nabla_\chi\beta^\top = \partial\beta/\partial\chi` is the
+(Yi, Ortega & Zhang (2019), eqs. 18-19), where :math:`\nabla_\chi\beta^\top = \partial\beta/\partial\chi` is the
 :math:`n_z \times n_\chi` Jacobian and † the Moore-Penrose pseudo-inverse. A4 asks this Jacobian
 to have full row rank :math:`n_z`, so that :math:`JJ^\dagger = I` and the off-the-manifold
 coordinate :math:`d = \beta - \phi(x)` obeys (16); A5 (its zero equilibrium is asymptotically
@@ -49,7 +49,7 @@ REF = f"{cite('004')} Proposition 4: A4, A5, eqs. (16)-(19); remarks R7-R8"
 def design_iandi(system: System, *, beta: Sequence[Any], phi: Sequence[Any], left_inverse: Sequence[Any],
                  n_chi: int | None = None, Q: Sequence[Any] | None = None, chi0: Any = None,
                  xhat0: Any = None) -> ObserverDesign:
-    r"""I&I observer (004 Proposition 4, eqs. 18-19) with the pseudo-inverse of :math:`\partial\beta/\partial\chi`.
+    r"""I&I observer (Yi, Ortega & Zhang (2019), Proposition 4, eqs. 18-19) with the pseudo-inverse of :math:`\partial\beta/\partial\chi`.
 
     Parameters
     ----------
@@ -71,7 +71,7 @@ def design_iandi(system: System, *, beta: Sequence[Any], phi: Sequence[Any], lef
         Default initial estimate (zeros). Without `chi0`, when β is affine in χ with a constant
         Jacobian J, the observer starts on the manifold of the estimate:
         :math:`\chi(0) = J^\dagger(\phi(\hat x_0) - \beta(h(\hat x_0), 0))` (so x̂0 = 0 gives χ(0) = 0
-        when φ(0) = 0 and β(0, 0) = 0, the "dynamic extensions at 0" of 004 §V-C); otherwise χ(0) = 0.
+        when φ(0) = 0 and β(0, 0) = 0, the "dynamic extensions at 0" of Yi, Ortega & Zhang (2019), §V-C); otherwise χ(0) = 0.
 
     Returns
     -------
@@ -91,7 +91,7 @@ def design_iandi(system: System, *, beta: Sequence[Any], phi: Sequence[Any], lef
 
     References
     ----------
-    004_f1e237c45ff4719e.txt Proposition 4, eqs. (16)-(19), R7-R8.
+    Yi, Ortega & Zhang (2019), Proposition 4, eqs. (16)-(19), R7-R8.
     """
     caller = "design_iandi"
     if not isinstance(system, System):

@@ -1,4 +1,4 @@
-"""Kalman-type observers with a Riccati differential equation (002): Kalman-Bucy for LTV systems,
+"""Kalman-type observers with a Riccati differential equation (Besançon (2010)): Kalman-Bucy for LTV systems,
 the Kalman-like observer for state-affine systems (forgetting δ or noise V), and the LTV-based
 high-gain Kalman observer."""
 
@@ -120,10 +120,10 @@ def _riccati_design(method: str, title: str, ref: str, parts: StateAffineParts, 
                     lam: float | None = None, phi: sp.Matrix | None = None, extra_checks: Sequence[Check] = (),
                     extra_values: Mapping[str, Any] | None = None, estimate: Callable[[ca.SX], ca.SX] | None = None,
                     initial: Callable[[ca.SX], ca.SX] | None = None, state_names: Sequence[str] | None = None) -> ObserverDesign:
-    """The observer x̂' = A x̂ + b - K(Cx̂ - y) with the Riccati equation of 002 (see design_kalman_like).
+    """The observer x̂' = A x̂ + b - K(Cx̂ - y) with the Riccati equation of Besançon (2010), (see design_kalman_like).
 
     `estimate` maps the filter state to the plant estimate and `initial` maps xhat0 to the
-    filter's initial state (both identity by default): used for augmented systems (001).
+    filter's initial state (both identity by default): used for augmented systems (Viegas, Batista, Oliveira & Silvestre (2015)).
     """
     system = parts.system
     n, p = parts.A.shape[0], system.n_outputs
@@ -197,7 +197,7 @@ def _riccati_design(method: str, title: str, ref: str, parts: StateAffineParts, 
 
 def design_kalman_like(model: System | StateAffine, *, W: Any = None, V: Any = None, delta: float = 0.0, M0: Any = None,
                        region: Mapping[str, Sequence[float]] | None = None, xhat0: Any = None) -> ObserverDesign:
-    r"""Kalman-like observer for a state-affine system (002), with forgetting δ and/or noise V.
+    r"""Kalman-like observer for a state-affine system (Besançon (2010)), with forgetting δ and/or noise V.
 
     For :math:`\dot x = A(u, y, t)x + b(u, y, t)`, :math:`y = C(u, t)x`:
 
@@ -207,7 +207,7 @@ def design_kalman_like(model: System | StateAffine, *, W: Any = None, V: Any = N
 
         \dot M = AM + MA^\top - MC^\top W^{-1}CM + V + \delta M,
 
-    with :math:`\delta > 2\|A\|` or V > 0 (002). Noise-free, :math:`V_e = e^\top M^{-1}e` satisfies
+    with :math:`\delta > 2\|A\|` or V > 0 (Besançon (2010)). Noise-free, :math:`V_e = e^\top M^{-1}e` satisfies
     :math:`\dot V_e = -\delta V_e - e^\top(C^\top W^{-1}C + M^{-1}VM^{-1})e \le -\delta V_e`, so
     :math:`e^\top M^{-1} e` decays at least like :math:`e^{-\delta t}`. Convergence needs the
     input to be regularly persistent (A, C uniformly completely observable along the
@@ -246,7 +246,7 @@ def design_kalman_like(model: System | StateAffine, *, W: Any = None, V: Any = N
 
     References
     ----------
-    002_613af42269ea26a7.txt, Result [Kalman] and "LTV-like with I/O NL"; the robot arm with
+    Besançon (2010), Result [Kalman] and "LTV-like with I/O NL"; the robot arm with
     unknown b and the Van der Pol oscillator with unknown γ, ω² (examples of the slides).
     """
     caller = "design_kalman_like"
@@ -264,15 +264,15 @@ def design_kalman_bucy(model: System | StateAffine, *, Q: Any, R: Any, P0: Any =
         \dot{\hat x} = A\hat x + b - PC^\top R^{-1}(C\hat x - y), \qquad
         \dot P = AP + PA^\top + Q - PC^\top R^{-1}CP ,
 
-    the Kalman observer of 002 with δ = 0 and V = Q > 0. A may also depend on the measured
-    output (as the augmented systems of 001 do); the filter then evaluates it on the
+    the Kalman observer of Besançon (2010) with δ = 0 and V = Q > 0. A may also depend on the measured
+    output (as the augmented systems of Viegas, Batista, Oliveira & Silvestre (2015) do); the filter then evaluates it on the
     measurement.
 
     Parameters
     ----------
     model : StateAffine or System
     Q : array_like of shape (n, n)
-        Process noise intensity, positive definite (002: V > 0 when δ = 0).
+        Process noise intensity, positive definite (Besançon (2010): V > 0 when δ = 0).
     R : array_like of shape (p, p)
         Measurement noise intensity, positive definite.
     P0 : array_like of shape (n, n), optional
@@ -288,7 +288,7 @@ def design_kalman_bucy(model: System | StateAffine, *, Q: Any, R: Any, P0: Any =
 
     References
     ----------
-    002_613af42269ea26a7.txt, Result [Kalman]; Kalman & Bucy (1961).
+    Besançon (2010), Result [Kalman]; Kalman & Bucy (1961).
     """
     caller = "design_kalman_bucy"
     parts = state_affine_parts(model, caller)
@@ -303,7 +303,7 @@ def design_kalman_bucy(model: System | StateAffine, *, Q: Any, R: Any, P0: Any =
 
 def design_high_gain_kalman(system: System, *, lam: float, delta: float, W: Any = None, M0: Any = None,
                             region: Mapping[str, Sequence[float]] | None = None, xhat0: Any = None) -> ObserverDesign:
-    r"""LTV-based high-gain Kalman observer (002) for :math:`\dot x = A_0(u, y)x + \varphi(x, u)`, :math:`y = x_1`.
+    r"""LTV-based high-gain Kalman observer (Besançon (2010)) for :math:`\dot x = A_0(u, y)x + \varphi(x, u)`, :math:`y = x_1`.
 
     :math:`A_0` has only the superdiagonal :math:`a_{i,i+1}(u, y)` and φ is triangular
     (:math:`\partial\varphi_i/\partial x_j = 0` for j ≥ i+1):
@@ -343,7 +343,7 @@ def design_high_gain_kalman(system: System, *, lam: float, delta: float, W: Any 
 
     References
     ----------
-    002_613af42269ea26a7.txt, "'Non uniformly observable' systems - LTV-like with structured NL".
+    Besançon (2010), "'Non uniformly observable' systems - LTV-like with structured NL".
     """
     require_system(system, "design_high_gain_kalman")
     caller = "design_high_gain_kalman"

@@ -1,6 +1,6 @@
 r"""A KKL observer without a closed-form φ: the left inverse learned from simulated data.
 
-Beyond 004 Proposition 1, which needs φ and φ^L in closed form. Andrieu and Praly (004 ref. [1])
+Beyond Yi, Ortega & Zhang (2019), Proposition 1, which needs φ and φ^L in closed form. Andrieu and Praly (Yi, Ortega & Zhang (2019), ref. [1])
 show that for an autonomous system observable in a backward-distinguishable sense, with
 :math:`n_\xi = (n + 1)p` and :math:`\Lambda` diagonal with distinct negative eigenvalues (each
 output driving n + 1 filters :math:`\dot\xi = \Lambda\xi + By`, B = ones), the map φ solving the
@@ -13,7 +13,7 @@ is measured on held-out trajectories.
 
 References
 ----------
-004_f1e237c45ff4719e.txt Proposition 1 and ref. [1] (Andrieu & Praly, SIAM J. Control Optim. 45,
+Yi, Ortega & Zhang (2019), Proposition 1 and ref. [1] (Andrieu & Praly, SIAM J. Control Optim. 45,
 2006); learning φ^L from simulated data as in Ramos, Bernard, Pinto et al. (IFAC 2020) and
 Buisson-Fenet, Bahr, Di Meglio (2022), here without a neural network.
 """
@@ -36,7 +36,7 @@ from ..references import cite
 
 __all__ = ["design_kkl_learned"]
 
-REF = (f"{cite('004')} Proposition 1 (KKL observer), ref. [1] Andrieu & Praly 2006 (n_ξ = (n+1)p, existence "
+REF = (f"{cite('004')} Proposition 1 (KKL observer), ref. [1] {cite('andrieu2006')} (n_ξ = (n+1)p, existence "
        "and injectivity of φ); φ^L learned by polynomial ridge regression on simulated (ξ, y) → x pairs")
 
 
@@ -70,7 +70,7 @@ def design_kkl_learned(system: System, *, region: Sequence[Sequence[float]], eig
                        degree: int = 3, n_trajectories: int = 60, t_final: float = 30.0, dt: float = 0.01,
                        burn_in: float | None = None, held_out: float = 0.25, ridge: float = 1e-8,
                        inputs: Mapping[str, float] | None = None, seed: int = 0, xhat0: Any = None) -> ObserverDesign:
-    r"""KKL observer with a learned left inverse (beyond 004 Proposition 1).
+    r"""KKL observer with a learned left inverse (beyond Yi, Ortega & Zhang (2019), Proposition 1).
 
     .. math::
 

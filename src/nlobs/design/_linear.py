@@ -1,4 +1,4 @@
-"""Luenberger observer (LTI) and the error-linearisation / output-injection observer (002)."""
+"""Luenberger observer (LTI) and the error-linearisation / output-injection observer (Besançon (2010))."""
 
 from __future__ import annotations
 
@@ -60,8 +60,8 @@ def design_luenberger(system: System, *, poles: Any = None, L: Any = None, Q: An
 
     References
     ----------
-    002_613af42269ea26a7.txt, "Result [Luenberger]".
-    001_1b4027b3a70d560f.txt §IV-C: L = [1+√2, 1, 1+√2] places eig(A - LC) at -1, -√2/2 ± j√2/2.
+    Besançon (2010), "Result [Luenberger]".
+    Viegas, Batista, Oliveira & Silvestre (2015), §IV-C: L = [1+√2, 1, 1+√2] places eig(A - LC) at -1, -√2/2 ± j√2/2.
 
     Examples
     --------
@@ -122,7 +122,7 @@ def design_output_injection(system: System, *, poles: Any = None, K: Any = None,
 
     References
     ----------
-    002_613af42269ea26a7.txt, "Result [Error linearization]" and the robot-arm example
+    Besançon (2010), "Result [Error linearization]" and the robot-arm example
     (x1' = x2, x2' = -a1 sin x1 - a2 x2 + b u, y = x1).
     """
     require_system(system, "design_output_injection")

@@ -1,4 +1,4 @@
-"""Lipschitz (Thau) observer for x' = Ax + φ(x, u), y = Cx (002), with a Riccati-based gain search."""
+"""Lipschitz (Thau) observer for x' = Ax + φ(x, u), y = Cx (Besançon (2010)), with a Riccati-based gain search."""
 
 from __future__ import annotations
 
@@ -150,7 +150,7 @@ def lipschitz_constant(system: System, phi: Sequence[sp.Expr], region: Mapping[s
 
 def design_lipschitz(system: System, *, gamma: float | None = None, region: Mapping[str, Sequence[float]] | None = None,
                      A: Any = None, K: Any = None, xhat0: Any = None) -> ObserverDesign:
-    r"""Thau's observer for a Lipschitz nonlinearity, with a Riccati-based gain search (002).
+    r"""Thau's observer for a Lipschitz nonlinearity, with a Riccati-based gain search (Besançon (2010)).
 
     For :math:`\dot x = Ax + \varphi(x, u)`, :math:`y = Cx`, with
     :math:`\|\varphi(x, u) - \varphi(z, u)\| \le \gamma\|x - z\|`:
@@ -204,7 +204,7 @@ def design_lipschitz(system: System, *, gamma: float | None = None, region: Mapp
 
     References
     ----------
-    002_613af42269ea26a7.txt, "LTI + Lipschitz NL", "First idea" (Thau 1973).
+    Besançon (2010), "LTI + Lipschitz NL", "First idea" (Thau (1973)).
     """
     require_system(system, "design_lipschitz")
     caller = "design_lipschitz"

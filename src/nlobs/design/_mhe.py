@@ -1,4 +1,4 @@
-"""Moving-horizon estimation: the "corrected trajectory-based" observer of 002, solved as a compiled NLP.
+"""Moving-horizon estimation: the "corrected trajectory-based" observer of Besançon (2010), solved as a compiled NLP.
 
 At each sample the estimator solves, over the states at the N + 1 sample times of a window
 (multiple shooting, one RK4-discretised interval between neighbours, process noise as free
@@ -11,7 +11,7 @@ state z, so MHE fits the observer contract (z⁺ = J(t, z⁻, u, y, m)); J is a 
 around the compiled solver so that a failure stops the run with a :class:`~nlobs.SolverError`
 naming the window and the solver status.
 
-References: 002_613af42269ea26a7.txt, "About methods", approach I (the window problem);
+References: Besançon (2010), "About methods", approach I (the window problem);
 Rao, Rawlings & Mayne (2003) (MHE with an arrival cost, EKF covariance as its approximation);
 Kühl et al. (2011) (arrival cost updated by an EKF step linearised at the MHE solution).
 """
@@ -130,24 +130,8 @@ def design_mhe(system: System, *, horizon: int = 20, R: Any = None, Q: Any = Non
         \quad\text{s.t.}\quad x_{i+1} = F(x_i, u_i; t_i, \Delta_i) + \sqrt{\Delta_i}\, L v_i,
         \quad x_i \in [\ell, \upsilon],
 
-    with :math:`F` = `substeps` RK4 steps of the model over :math:`\Delta_i = t_{i+1} - t_i`
-    (input held), :math:`LL^\top = Q` (so the process noise of an interval has covariance
-    :math:`Q\Delta_i`), :math:`m_i` the mask of measured outputs, and returns
-    :math:`\hat x(t_k) = x_k^*`. With Q = 0 this is 002's "corrected trajectory-based" estimator
-    (the integral of the output error replaced by its sum over the samples, the window's
-    trajectory an exact model trajectory) with an arrival cost.
-
-    Arrival cost (``arrival="ekf"``, default): :math:`(\bar x, P)` is a prior for the window's
-    first state *before* its measurement. When the window slides, one EKF step linearised at
-    the MHE solution :math:`x^*` of the leaving node (its measurement update, then the prediction
-    to the next node, Joseph form) gives the new :math:`(\bar x, P)` (Rao, Rawlings & Mayne
-    2003; Kühl et al. 2011). ``arrival="fixed"``: the prior is the previous solution at the new
-    first node and P stays P0 (the first node's measurement is then not counted again), the
-    default of do-mpc.
-
-    While the window fills up, its leading slots are copies of the first sample (zero-length
-    intervals, no measurement). Between samples the estimate is predicted with the model. Each
-    solve is warm-started from the previous solution, shifted by one sample.
+    Besançon (2010), "Some observer problem formulations - About methods", approach I;
+    Rao, Rawlings & Mayne (2003); Kühl et al. (2011).
 
     Parameters
     ----------
@@ -207,7 +191,7 @@ def design_mhe(system: System, *, horizon: int = 20, R: Any = None, Q: Any = Non
 
     References
     ----------
-    002_613af42269ea26a7.txt, "Some observer problem formulations - About methods", approach I;
+    Besançon (2010), "Some observer problem formulations - About methods", approach I;
     Rao, Rawlings & Mayne (2003); Kühl et al. (2011).
     """
     require_system(system, "design_mhe")

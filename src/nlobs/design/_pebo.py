@@ -1,7 +1,7 @@
-r"""KKL (004 Prop. 1), PEBO (Prop. 2) and KKL+PEBO (Prop. 3) observers.
+r"""KKL (Yi, Ortega & Zhang (2019), Prop. 1), PEBO (Prop. 2) and KKL+PEBO (Prop. 3) observers.
 
 All three rest on one PDE for an injection :math:`B(y, u)` and a map φ with a left inverse
-:math:`\phi^L(\phi(x), h(x)) = x` (004 eqs. 4-5):
+:math:`\phi^L(\phi(x), h(x)) = x` (Yi, Ortega & Zhang (2019), eqs. 4-5):
 
 .. math::
 
@@ -10,15 +10,15 @@ All three rest on one PDE for an injection :math:`B(y, u)` and a map φ with a l
 With :math:`\Lambda = \operatorname{diag}(\Lambda_L, 0)` (eq. 14) the components with λ < 0 form a
 KKL observer (:math:`\xi_L - \phi_L(x) \to 0`) and those with λ = 0 a PEBO
 (:math:`\phi_P(x) = \xi_P + \theta`, θ constant, eq. 9); θ is estimated from a regression on the
-outputs and their (filtered) derivatives, 004 eq. (11):
+outputs and their (filtered) derivatives, Yi, Ortega & Zhang (2019), eq. (11):
 
 .. math::
 
     \dot y = \nabla h^\top f\big(\phi^L(\xi + E\theta, y), u\big) = a(\xi, y, u) + b(\xi, y, u)^\top\theta
     \;\Longrightarrow\; W[y] - F[a] = F[b]^\top\theta + \epsilon_t ,
 
-with :math:`F = \alpha/(p+\alpha)`, :math:`W = \alpha p/(p+\alpha)` (004 eq. 37) when the right-hand
-side is affine in θ (possibly after a reparametrisation Θ = Θ(θ), as 004 §V-A does with
+with :math:`F = \alpha/(p+\alpha)`, :math:`W = \alpha p/(p+\alpha)` (Yi, Ortega & Zhang (2019), eq. 37) when the right-hand
+side is affine in θ (possibly after a reparametrisation Θ = Θ(θ), as Yi, Ortega & Zhang (2019), §V-A does with
 :math:`\Theta = e^\theta`), and otherwise a windowed nonlinear least-squares fit of θ
 (:class:`WindowedNLS`). R5: a constant Λ that is only *similar* to the form (14),
 :math:`\Lambda = P^{-1}\operatorname{diag}(\Lambda_L, 0)P`, is handled in the coordinates Pφ.
@@ -206,7 +206,7 @@ class WindowedNLS:
         \min_\theta \sum_{j=1}^{M-1}\Big|y_j - y_0 - \int_{t_0}^{t_j} g(\theta; s)\,dt\Big|^2
         \quad\big(+ \sum_j |y_j - h(\phi^L(\xi_j + E\theta, y_j))|^2 \text{ for algebraic rows}\big),
 
-    with :math:`g = \nabla h^\top f(\phi^L(\xi + E\theta, y), u)` (the right-hand side of 004 eq. 11)
+    with :math:`g = \nabla h^\top f(\phi^L(\xi + E\theta, y), u)` (the right-hand side of Yi, Ortega & Zhang (2019), eq. 11)
     and the integral on the stored samples by Simpson's rule (odd `samples`, residuals at every
     second sample, error O(h⁴)) or the trapezoidal rule (even `samples`, O(h²)). The data enter through
     output increments, so no derivative of y is taken. The fit runs at sample instants (the
@@ -479,7 +479,7 @@ def _theta_estimator(system: System, maps: _Maps, stack: StateStack, xi: ca.SX, 
 
 def design_kkl(system: System, *, phi: Sequence[Any], left_inverse: Sequence[Any], B: Sequence[Any], Lambda: Any,
                xhat0: Any = None) -> ObserverDesign:
-    r"""KKL observer (004 Proposition 1) from a solution (φ, Λ, B) of the PDE and a left inverse φ^L.
+    r"""KKL observer (Yi, Ortega & Zhang (2019), Proposition 1) from a solution (φ, Λ, B) of the PDE and a left inverse φ^L.
 
     .. math::
 
@@ -501,8 +501,8 @@ def design_kkl(system: System, *, phi: Sequence[Any], left_inverse: Sequence[Any
         The injection B(y, u), n_ξ components.
     Lambda : sequence (diagonal) or (n_ξ, n_ξ) matrix
         Λ with negative entries; entries may depend on the inputs (a time-varying stable Λ, as
-        in 004 Table I), a non-diagonal Λ must be constant and diagonalisable with negative
-        real eigenvalues (004 R5).
+        in Yi, Ortega & Zhang (2019), Table I), a non-diagonal Λ must be constant and diagonalisable with negative
+        real eigenvalues (Yi, Ortega & Zhang (2019), R5).
     xhat0 : array_like, optional
         Initial estimate (zeros); ξ(0) = φ(xhat0).
 
@@ -515,7 +515,7 @@ def design_kkl(system: System, *, phi: Sequence[Any], left_inverse: Sequence[Any
 
     References
     ----------
-    004_f1e237c45ff4719e.txt Proposition 1, eqs. (4)-(6), remark R5.
+    Yi, Ortega & Zhang (2019), Proposition 1, eqs. (4)-(6), remark R5.
     """
     return _kkl_pebo(system, phi=phi, left_inverse=left_inverse, B=B, Lambda=Lambda, estimator=None, alpha=1.0, Theta=None,
                      theta_from_Theta=None, xhat0=xhat0, caller="design_kkl", method="kkl", require="kkl")
@@ -524,7 +524,7 @@ def design_kkl(system: System, *, phi: Sequence[Any], left_inverse: Sequence[Any
 def design_pebo(system: System, *, phi: Sequence[Any], left_inverse: Sequence[Any], B: Sequence[Any],
                 estimator: Any = None, alpha: float = 1.0, Theta: Sequence[Any] | None = None,
                 theta_from_Theta: Sequence[Any] | None = None, xhat0: Any = None) -> ObserverDesign:
-    r"""Parameter estimation-based observer, PEBO (004 Proposition 2).
+    r"""Parameter estimation-based observer, PEBO (Yi, Ortega & Zhang (2019), Proposition 2).
 
     .. math::
 
@@ -533,7 +533,7 @@ def design_pebo(system: System, *, phi: Sequence[Any], left_inverse: Sequence[An
 
     with θ̂ from the regression (11). When
     :math:`\dot y = a(\xi, y, u) + b(\xi, y, u)^\top\theta` (or linear in a reparametrisation
-    Θ(θ)), the regression :math:`W[y] - F[a] = F[b]^\top\theta` (filters of 004 eq. 37) feeds a
+    Θ(θ)), the regression :math:`W[y] - F[a] = F[b]^\top\theta` (filters of Yi, Ortega & Zhang (2019), eq. 37) feeds a
     linear estimator (default :class:`Gradient`, gain 1); otherwise pass
     ``estimator=WindowedNLS(window=...)``. ξ(0) = φ(xhat0), θ̂(0) = 0.
 
@@ -548,7 +548,7 @@ def design_pebo(system: System, *, phi: Sequence[Any], left_inverse: Sequence[An
     alpha : float
         Filter constant α > 0 of F = α/(p + α) and W = αp/(p + α).
     Theta : sequence of expressions in ``theta1, ...``, optional
-        A reparametrisation Θ(θ) in which the regression is linear (004 §V-A: Θ = exp(θ)).
+        A reparametrisation Θ(θ) in which the regression is linear (Yi, Ortega & Zhang (2019), §V-A: Θ = exp(θ)).
     theta_from_Theta : sequence of expressions in ``Theta1, ...``, optional
         Its inverse θ(Θ) (checked), used for x̂. Where θ(Θ) is undefined (log of Θ̂ ≤ 0) the
         estimate is NaN: start Θ̂ inside the domain (Θ̂(0) = Θ(0)).
@@ -563,7 +563,7 @@ def design_pebo(system: System, *, phi: Sequence[Any], left_inverse: Sequence[An
 
     References
     ----------
-    004_f1e237c45ff4719e.txt Proposition 2, eqs. (7)-(13), R3; filters eq. (37).
+    Yi, Ortega & Zhang (2019), Proposition 2, eqs. (7)-(13), R3; filters eq. (37).
     """
     return _kkl_pebo(system, phi=phi, left_inverse=left_inverse, B=B, Lambda=None, estimator=estimator, alpha=alpha,
                      Theta=Theta, theta_from_Theta=theta_from_Theta, xhat0=xhat0, caller="design_pebo", method="pebo",
@@ -573,7 +573,7 @@ def design_pebo(system: System, *, phi: Sequence[Any], left_inverse: Sequence[An
 def design_kkl_pebo(system: System, *, phi: Sequence[Any], left_inverse: Sequence[Any], B: Sequence[Any], Lambda: Any,
                     estimator: Any = None, alpha: float = 1.0, Theta: Sequence[Any] | None = None,
                     theta_from_Theta: Sequence[Any] | None = None, xhat0: Any = None) -> ObserverDesign:
-    r"""KKL+PEBO observer (004 Proposition 3): KKL for the components with λ < 0, PEBO for λ = 0.
+    r"""KKL+PEBO observer (Yi, Ortega & Zhang (2019), Proposition 3): KKL for the components with λ < 0, PEBO for λ = 0.
 
     .. math::
 
@@ -601,7 +601,7 @@ def design_kkl_pebo(system: System, *, phi: Sequence[Any], left_inverse: Sequenc
 
     References
     ----------
-    004_f1e237c45ff4719e.txt Proposition 3, eqs. (14)-(15), R4-R5; example (31)-(37).
+    Yi, Ortega & Zhang (2019), Proposition 3, eqs. (14)-(15), R4-R5; example (31)-(37).
     """
     return _kkl_pebo(system, phi=phi, left_inverse=left_inverse, B=B, Lambda=Lambda, estimator=estimator, alpha=alpha,
                      Theta=Theta, theta_from_Theta=theta_from_Theta, xhat0=xhat0, caller="design_kkl_pebo",

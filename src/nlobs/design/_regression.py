@@ -16,22 +16,22 @@ so an estimator runs, is simulated and compared like any observer:
 - :class:`LeastSquares`: with forgetting, :math:`\dot P = \beta P - P\psi\psi^\top P`;
 - :class:`DREM`: dynamic regressor extension (stable LTI filters) and mixing with the adjugate,
   one scalar regression :math:`\mathcal Y_i = \Delta\theta_i` per parameter;
-- :class:`GD`: the G+D interlaced estimator of 000 eqs. (16)-(17), which converges under
+- :class:`GD`: the G+D interlaced estimator of Wang, Ortega & Bobtsov (2021), eqs. (16)-(17), which converges under
   interval excitation only (identifiability of the LRE).
 
 The filters :math:`F(p) = \alpha/(p+\alpha)` and :math:`W(p) = \alpha p/(p + \alpha)` of
-004 eq. (37) are :func:`lowpass` and :func:`derivative_filter`.
+Yi, Ortega & Zhang (2019), eq. (37) are :func:`lowpass` and :func:`derivative_filter`.
 
 Every estimator reports the excitation it saw: :func:`excitation_report` evaluates the
 regressor along a run and returns the interval-excitation level
-:math:`\lambda_{\min}\int_0^t\psi\psi^\top` (000 eq. 15), the persistent-excitation level over a
+:math:`\lambda_{\min}\int_0^t\psi\psi^\top` (Wang, Ortega & Bobtsov (2021), eq. 15), the persistent-excitation level over a
 window, and for DREM and G+D the mixed regressor Δ and the time it became non-zero.
 
 References
 ----------
-000_6cd8bea7ca1db43b.txt eqs. (9), (15), (16)-(17), Lemma 2; 004_f1e237c45ff4719e.txt eqs. (34), (37),
-(47); DREM: Aranovskiy, Bobtsov, Ortega, Pyrkin, IEEE TAC 62 (2017) 3546-3550 (000 ref. [1]);
-least squares with forgetting: Ioannou & Sun, *Robust Adaptive Control* (1996), §4.3.6.
+Wang, Ortega & Bobtsov (2021), eqs. (9), (15), (16)-(17), Lemma 2; Yi, Ortega & Zhang (2019), eqs. (34), (37),
+(47); DREM: Aranovskiy, Bobtsov, Ortega, Pyrkin, IEEE TAC 62 (2017) 3546-3550 (Wang, Ortega & Bobtsov (2021), ref. [1]);
+least squares with forgetting: Ioannou & Sun (1996), §4.3.6.
 """
 
 from __future__ import annotations
@@ -64,7 +64,7 @@ __all__ = [
 REF_GD = f"{cite('000')} eqs. (16)-(17), Lemma 2 (G+D interlaced estimator)"
 REF_DREM = f"DREM: {cite('000')} ref. [1] (Aranovskiy et al., IEEE TAC 2017); mixing as in {cite('000')} eqs. (17c)-(19)"
 REF_GRADIENT = f"gradient estimator: {cite('004')} eqs. (34), (47); {cite('000')} eq. (16a)"
-REF_LS = "least squares with forgetting (Ioannou & Sun 1996, §4.3.6)"
+REF_LS = f"least squares with forgetting ({cite('ioannou1996', '§4.3.6')})"
 
 
 # ---------------------------------------------------------------------------------------------
@@ -165,7 +165,7 @@ class StateStack:
 
 
 def lowpass(stack: StateStack, signal: Any, alpha: float, name: str) -> ca.SX:
-    r"""The filter :math:`F(p) = \alpha/(p + \alpha)` applied to `signal` (004 eq. 37).
+    r"""The filter :math:`F(p) = \alpha/(p + \alpha)` applied to `signal` (Yi, Ortega & Zhang (2019), eq. 37).
 
     Adds the state :math:`w` with :math:`\dot w = -\alpha w + \alpha s`, :math:`w(0) = 0`, and
     returns it.
@@ -183,7 +183,7 @@ def lowpass(stack: StateStack, signal: Any, alpha: float, name: str) -> ca.SX:
 
     References
     ----------
-    004_f1e237c45ff4719e.txt eq. (37).
+    Yi, Ortega & Zhang (2019), eq. (37).
     """
     a = check_positive(alpha, "alpha", "lowpass")
     s = ca.SX(signal)
@@ -193,11 +193,11 @@ def lowpass(stack: StateStack, signal: Any, alpha: float, name: str) -> ca.SX:
 
 
 def derivative_filter(stack: StateStack, signal: Any, alpha: float, name: str) -> ca.SX:
-    r"""The filter :math:`W(p) = \alpha p/(p + \alpha)` applied to `signal` (004 eq. 37).
+    r"""The filter :math:`W(p) = \alpha p/(p + \alpha)` applied to `signal` (Yi, Ortega & Zhang (2019), eq. 37).
 
     Since :math:`W = \alpha(1 - F)`, it is :math:`\alpha(s - F[s])` with one filter state;
     :math:`W[s]` is the filtered derivative: :math:`W[s] = F[\dot s] + \alpha s(0)e^{-\alpha t}`
-    (the second term is the exponentially decaying :math:`\epsilon_t` of 004 §V-A).
+    (the second term is the exponentially decaying :math:`\epsilon_t` of Yi, Ortega & Zhang (2019), §V-A).
 
     Parameters
     ----------
@@ -212,7 +212,7 @@ def derivative_filter(stack: StateStack, signal: Any, alpha: float, name: str) -
 
     References
     ----------
-    004_f1e237c45ff4719e.txt eq. (37), §V-A.
+    Yi, Ortega & Zhang (2019), eq. (37), §V-A.
     """
     a = check_positive(alpha, "alpha", "derivative_filter")
     s = ca.SX(signal)
@@ -342,7 +342,7 @@ class Gradient(AbstractEstimator):
     r"""Gradient estimator :math:`\dot{\hat\theta} = \Gamma\psi(\mathcal Y - \psi^\top\hat\theta)`.
 
     Converges exponentially iff ψ is persistently exciting; with a scalar regressor, iff ψ is
-    not square integrable (004 §V-A).
+    not square integrable (Yi, Ortega & Zhang (2019), §V-A).
 
     Parameters
     ----------
@@ -351,7 +351,7 @@ class Gradient(AbstractEstimator):
 
     References
     ----------
-    004_f1e237c45ff4719e.txt eqs. (34) and (47); 000_6cd8bea7ca1db43b.txt eq. (16a).
+    Yi, Ortega & Zhang (2019), eqs. (34) and (47); Wang, Ortega & Bobtsov (2021), eq. (16a).
     """
 
     gamma: Any = 1.0
@@ -397,7 +397,7 @@ class LeastSquares(AbstractEstimator):
 
     References
     ----------
-    Ioannou & Sun, *Robust Adaptive Control* (1996), §4.3.6 (least squares with forgetting and
+    Ioannou & Sun (1996), §4.3.6 (least squares with forgetting and
     modified least squares with bounded gain).
     """
 
@@ -470,7 +470,7 @@ class DREM(AbstractEstimator):
 
     References
     ----------
-    000_6cd8bea7ca1db43b.txt ref. [1] (Aranovskiy et al., IEEE TAC 62, 2017) and eqs. (17c)-(19)
+    Wang, Ortega & Bobtsov (2021), ref. [1] (Aranovskiy et al., IEEE TAC 62, 2017) and eqs. (17c)-(19)
     for the mixing step.
     """
 
@@ -534,7 +534,7 @@ class DREM(AbstractEstimator):
 
 @dataclass(frozen=True)
 class GD(AbstractEstimator):
-    r"""The G+D interlaced estimator (000 Lemma 2, eqs. 16-17).
+    r"""The G+D interlaced estimator (Wang, Ortega & Bobtsov (2021), Lemma 2, eqs. 16-17).
 
     .. math::
 
@@ -544,8 +544,8 @@ class GD(AbstractEstimator):
         \dot{\hat\theta} &= \gamma\Delta(Y - \Delta\hat\theta).
 
     The gradient error is :math:`\tilde\theta_g = \Omega\tilde\theta_g(0)`, so
-    :math:`D\theta = \hat\theta_g - \Omega\theta_{g0}` and :math:`Y = \Delta\theta` (000 eqs. 18-19).
-    If ψ is interval exciting (000 eq. 15), Δ > 0 after the excitation interval and θ̂
+    :math:`D\theta = \hat\theta_g - \Omega\theta_{g0}` and :math:`Y = \Delta\theta` (Wang, Ortega & Bobtsov (2021), eqs. 18-19).
+    If ψ is interval exciting (Wang, Ortega & Bobtsov (2021), eq. 15), Δ > 0 after the excitation interval and θ̂
     converges exponentially: no persistent excitation is needed.
 
     Choice: :math:`\hat\theta_g(0) = \theta_{g0} = 0`. This loses nothing: the signal
@@ -562,7 +562,7 @@ class GD(AbstractEstimator):
 
     References
     ----------
-    000_6cd8bea7ca1db43b.txt eqs. (16)-(19), Lemma 2; interval excitation eq. (15).
+    Wang, Ortega & Bobtsov (2021), eqs. (16)-(19), Lemma 2; interval excitation eq. (15).
     """
 
     gamma_g: float = 1.0
@@ -653,17 +653,17 @@ class ExcitationReport:
     t : numpy.ndarray
     ie_level : numpy.ndarray
         :math:`\lambda_{\min}\int_0^t\psi\psi^\top ds` at each time: the interval-excitation level
-        :math:`C_d` reached by t (000 eq. 15); 0 while the regression is not identifiable.
+        :math:`C_d` reached by t (Wang, Ortega & Bobtsov (2021), eq. 15); 0 while the regression is not identifiable.
     ie_time : float or None
-        First time the IE level exceeds `tol` (the :math:`t_d` of 000 eq. 15).
+        First time the IE level exceeds `tol` (the :math:`t_d` of Wang, Ortega & Bobtsov (2021), eq. 15).
     pe_level : float or None
         :math:`\min_{t_0}\lambda_{\min}\int_{t_0}^{t_0+T}\psi\psi^\top` over the run for the window T
-        (the δ of a PE condition, 004 eq. 42); None without a window.
+        (the δ of a PE condition, Yi, Ortega & Zhang (2019), eq. 42); None without a window.
     window : float or None
     delta : numpy.ndarray or None
         The mixed scalar regressor Δ(t) (DREM, G+D).
     delta_time : float or None
-        First time |Δ| exceeds `tol` (000 Lemma 2: Δ ≠ 0 for t ≥ t_d under IE).
+        First time abs(Δ) exceeds `tol` (Wang, Ortega & Bobtsov (2021), Lemma 2: Δ ≠ 0 for t ≥ t_d under IE).
     tol : float
     """
 
@@ -881,7 +881,7 @@ def design_gradient(system: System | LinearRegression, *, gamma: Any = 1.0, xhat
 
     References
     ----------
-    004_f1e237c45ff4719e.txt eq. (34); 000_6cd8bea7ca1db43b.txt eq. (16a).
+    Yi, Ortega & Zhang (2019), eq. (34); Wang, Ortega & Bobtsov (2021), eq. (16a).
     """
     return _design_estimator(system, Gradient(gamma), "gradient", "design_gradient", xhat0)
 
@@ -927,14 +927,14 @@ def design_drem(system: System | LinearRegression, *, gamma: Any = 1.0, lambdas:
 
     References
     ----------
-    Aranovskiy et al., IEEE TAC 62 (2017) (000 ref. [1]).
+    Aranovskiy et al., IEEE TAC 62 (2017) (Wang, Ortega & Bobtsov (2021), ref. [1]).
     """
     return _design_estimator(system, DREM(gamma, lambdas, kreisselmeier), "drem", "design_drem", xhat0)
 
 
 def design_gd(system: System | LinearRegression, *, gamma_g: float = 1.0, gamma: float = 1.0,
               xhat0: Any = None) -> ObserverDesign:
-    r"""G+D interlaced estimator (000 Lemma 2, eqs. 16-17; see :class:`GD`): converges under
+    r"""G+D interlaced estimator (Wang, Ortega & Bobtsov (2021), Lemma 2, eqs. 16-17; see :class:`GD`): converges under
     interval excitation (identifiability) only.
 
     Parameters
@@ -947,7 +947,7 @@ def design_gd(system: System | LinearRegression, *, gamma_g: float = 1.0, gamma:
 
     References
     ----------
-    000_6cd8bea7ca1db43b.txt eqs. (15)-(19), Lemma 2.
+    Wang, Ortega & Bobtsov (2021), eqs. (15)-(19), Lemma 2.
     """
     return _design_estimator(system, GD(gamma_g, gamma), "gd", "design_gd", xhat0)
 

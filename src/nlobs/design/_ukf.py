@@ -10,6 +10,7 @@ import numpy as np
 
 from ..engine import compile_system
 from ..errors import PreconditionError
+from ..references import cite
 from ..model import System
 from ._common import require_system
 from ._base import Certificate, Check, ObserverDesign, Symbols, check_vector
@@ -18,8 +19,7 @@ from ._checks import check_matrix
 
 __all__ = ["design_ukf", "unscented_weights"]
 
-REF = ("Continuous-discrete UKF: S. Särkkä, 'On unscented Kalman filtering for state estimation of continuous-time "
-       "nonlinear systems', IEEE TAC 52(9), 2007 (prediction ODEs); scaled sigma points of Wan & van der Merwe (2000)")
+REF = (f"Continuous-discrete UKF: {cite('sarkka2007')} (prediction ODEs); scaled sigma points of {cite('wan2000')}")
 
 
 def unscented_weights(n: int, alpha: float, beta: float, kappa: float) -> tuple[np.ndarray, np.ndarray, float]:
@@ -44,7 +44,7 @@ def design_ukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
     r"""Continuous-discrete unscented Kalman filter.
 
     Sigma points :math:`\mathcal X = m + \sqrt{c}\,[0, L, -L]` with :math:`P = LL^\top` (Cholesky).
-    Between samples (Särkkä 2007):
+    Between samples (Särkkä (2007)):
 
     .. math::
 
@@ -71,7 +71,7 @@ def design_ukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
         State bounds, e.g. ``{"x1": (0, None)}`` (None: no bound on that side). Policy: f and h are
         evaluated at the sigma points clipped to the bounds (the spreads in the covariance sums are
         the unclipped ones); the mean is projected onto the bounds (clipped) after each update and
-        the reported estimate is the clipped mean; P is left as the update made it (Simon 2010,
+        the reported estimate is the clipped mean; P is left as the update made it (Simon (2010),
         estimate projection with the identity weight). Without bounds the filter is unchanged.
 
     Other Parameters
@@ -88,7 +88,7 @@ def design_ukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
 
     References
     ----------
-    Särkkä (2007); Julier & Uhlmann (2004); the continuous-discrete EKF of this package for comparison.
+    Särkkä (2007); Wan & van der Merwe (2000); Julier & Uhlmann (2004); the continuous-discrete EKF of this package for comparison.
     """
     require_system(system, "design_ukf")
     caller = "design_ukf"

@@ -2,7 +2,9 @@
 
 from . import pendulum as pendulum
 from . import toy_augmented as toy_augmented
+from ._base import ALIASES as ALIASES
 from ._base import EXAMPLES as EXAMPLES
+from ._base import find_example as find_example
 from ._base import Claim as Claim
 from ._base import ExampleResult as ExampleResult
 from ._base import register as register

@@ -14,7 +14,7 @@ from typing import Any
 from ..model import System
 from ..simulate import Run
 
-__all__ = ["Claim", "ExampleResult", "Example", "EXAMPLES", "register", "rows_from_run"]
+__all__ = ["Claim", "ExampleResult", "Example", "EXAMPLES", "ALIASES", "register", "find_example", "rows_from_run"]
 
 
 @dataclass(frozen=True)
@@ -37,7 +37,8 @@ class ExampleResult:
     ----------
     key, title : str
     reference : str
-        Paper file and equations, e.g. ``"001_1b4027b3a70d560f.txt §IV-C, eqs. (20)-(22)"``.
+        The work and the place in it, cited by author and year through
+        :func:`nlobs.references.cite`, e.g. ``"Viegas, Batista, Oliveira & Silvestre (2015), §IV-C, eqs. (20)-(22)"``.
     summary : str
         One paragraph: what is shown and what was found.
     model : str
@@ -79,29 +80,61 @@ class ExampleResult:
 
     @property
     def ok(self) -> bool:
+        """Whether every claim holds."""
         return all(c.holds for c in self.claims)
+
+    def __repr__(self) -> str:
+        n_ok = sum(c.holds for c in self.claims)
+        return (f"ExampleResult({self.key!r}, claims {n_ok}/{len(self.claims)} hold, runs={list(self.runs)}, "
+                f"figures={list(self.figures)})")
+
+    def _repr_html_(self) -> str:
+        """The example as the demo report shows it (claims, table, plots, model, evidence, notes)."""
+        from ..report import example_section
+
+        return example_section(self)
 
 
 @dataclass(frozen=True)
 class Example:
+    """A registered example: its key (``nlobs demo --only KEY``), title, place in the demo and function."""
+
     key: str
     title: str
     order: int
     run: Callable[[], ExampleResult]
+    aliases: tuple[str, ...] = ()
 
 
 #: Every registered example by key, in the order the demo shows them.
 EXAMPLES: dict[str, Example] = {}
+#: Former keys that still select an example (``nlobs demo --only 002-pendulum``).
+ALIASES: dict[str, str] = {}
 
 
-def register(key: str, title: str, order: int) -> Callable[[Callable[[], ExampleResult]], Callable[[], ExampleResult]]:
-    """Decorator: register a paper example for the demo."""
+def register(key: str, title: str, order: int, *, aliases: Sequence[str] = ()) -> Callable[[Callable[[], ExampleResult]], Callable[[], ExampleResult]]:
+    """Decorator: register a paper example for the demo under `key` (and its former keys `aliases`)."""
 
     def deco(fn: Callable[[], ExampleResult]) -> Callable[[], ExampleResult]:
-        EXAMPLES[key] = Example(key, title, order, fn)
+        EXAMPLES[key] = Example(key, title, order, fn, tuple(aliases))
+        ALIASES.update({a: key for a in aliases})
         return fn
 
     return deco
+
+
+def find_example(key: str) -> Example:
+    """The example registered under `key` or a former key of it.
+
+    Raises
+    ------
+    KeyError
+        Naming the available keys.
+    """
+    key = ALIASES.get(key, key)
+    if key not in EXAMPLES:
+        raise KeyError(f"no example {key!r}; available: {', '.join(e.key for e in sorted(EXAMPLES.values(), key=lambda e: e.order))}")
+    return EXAMPLES[key]
 
 
 def rows_from_run(label: str, run: Run, *, tol: float | None = None, **extra: Any) -> list[dict[str, Any]]:

@@ -26,7 +26,7 @@ def a_matrix(model: System | StateAffine) -> Callable[[float, np.ndarray, np.nda
 
 def gramian(A: Callable[[float, np.ndarray, np.ndarray], np.ndarray], C: np.ndarray, t: np.ndarray, u: np.ndarray,
             y: np.ndarray) -> np.ndarray:
-    r"""The observability Gramian over the whole grid `t` (000 eq. 3),
+    r"""The observability Gramian over the whole grid `t` (Wang, Ortega & Bobtsov (2021), eq. 3),
 
     .. math:: W(t_0, t_1) = \int_{t_0}^{t_1} \Phi(\tau, t_0)^\top C^\top C\,\Phi(\tau, t_0)\,d\tau ,
 

@@ -1,4 +1,4 @@
-"""M8 #9 (004 §V-C): the DC-DC Ćuk converter (50) and the six observers of Table I under bounded noise.
+"""M8 #9 (Yi, Ortega & Zhang (2019), §V-C): the DC-DC Ćuk converter (50) and the six observers of Table I under bounded noise.
 
 The converter runs under the paper's "ideal" state feedback with set-point changes every 0.2 s; the
 six observers (KKLO, PEBO, KKL+PEBO, I&IO and two high-gain observers, all from the bundled model
@@ -42,7 +42,7 @@ STATES = ("i1", "v4")
 
 
 def model() -> System:
-    """The averaged Ćuk converter (004 eq. 50) from ``models/cuk.toml``."""
+    """The averaged Ćuk converter (Yi, Ortega & Zhang (2019), eq. 50) from ``models/cuk.toml``."""
     return bundled("cuk").system
 
 
@@ -64,7 +64,7 @@ def equilibrium(vd: float, params: Mapping[str, float]) -> np.ndarray:
 
 
 def control_law(system: System, lam: float) -> sp.Expr:
-    r"""u = |V_d|/(|V_d| + E) + λ s/(1 + s²), s = G|V_d| v2 + E(i3 - i1) (004 §V-C, from its ref. [2]).
+    r"""u = |V_d|/(|V_d| + E) + λ s/(1 + s²), s = G|V_d| v2 + E(i3 - i1) (Yi, Ortega & Zhang (2019), §V-C, from its ref. [2]).
 
     The PDF prints s = G|V_d| v2 + E(x2 - x1); with x = (i1, v4) that mixes a voltage into a current.
     s is the passive output of the incremental model (50) around the set point (with storage
@@ -144,7 +144,7 @@ def _figure(noisy: Run, e_clean: Mapping[str, np.ndarray], e_noisy: Mapping[str,
         if j == 1:
             axes[0, j].plot(t, setpoint[::20], color="C3", lw=0.8, ls="--", label="-|V_d|")
         axes[0, j].set_ylabel(f"{st} [{unit}]")
-        axes[0, j].legend(fontsize="small", loc="best")
+        axes[0, j].legend(fontsize=9, loc="best")
         for i, name in enumerate(names):
             ax = axes[i + 1, j]
             ax.plot(t, e_noisy[name][::20, j], color=f"C{i}", lw=0.6, label=f"{name}, noisy")
@@ -154,14 +154,14 @@ def _figure(noisy: Run, e_clean: Mapping[str, np.ndarray], e_noisy: Mapping[str,
             ax.set_ylim(-lim, lim)
             ax.set_ylabel(f"{st}: x̂ - x")
             ax.grid(alpha=0.3)
-            ax.legend(fontsize="x-small", loc="upper right")
+            ax.legend(fontsize=8, loc="upper right")
     for ax in axes[-1]:
         ax.set_xlabel("t [s]")
     fig.suptitle(f"{cite('004')} Fig. 2 reproduced: states and estimation errors (y-range scaled to the errors after 0.2 s)")
     return fig
 
 
-@register("004-cuk", f"{cite('004')}: Ćuk converter, six observers under bounded noise (Table I)", 90)
+@register("cuk", f"{cite('004')}: Ćuk converter, six observers under bounded noise (Table I)", 90, aliases=("004-cuk",))
 def run() -> ExampleResult:
     system = model()
     ds = designs(system)
@@ -232,7 +232,7 @@ def run() -> ExampleResult:
     notes = [
         f"Set points |V_d| = {', '.join(f'{v:g}' for v in SETPOINTS)} V on successive 0.2 s intervals and λ = {LAMBDA:g}: "
         f"{cite('004')} gives neither (|V_d| from 15 to 30 V from E = 12 V keeps the duty cycle in [0.55, 0.72]).",
-        f"L3 = 10 mH: {cite('004')} §V-C lists L1, C2, C4, G, E but not L3 (lost in the conversion); 10 mH as L1 (and {cite('004')} ref. [15]).",
+        f"L3 = 10 mH: {cite('004')} §V-C lists L1, C2, C4, G, E but not L3 (not given); 10 mH as L1 (and {cite('004')} ref. [15]).",
         f"The plant starts at the equilibrium of |V_d| = {SETPOINTS[0]:g} V, (i1, v4, v2, i3) = {np.round(x0, 3).tolist()}; every "
         f"observer's dynamic extension starts at 0 ({cite('004')} §V-C), so the initial errors are the equilibrium values.",
         "The feedback uses the true state (the paper's 'ideal' feedback). It is simulated first; its duty cycle is then "
@@ -240,7 +240,7 @@ def run() -> ExampleResult:
         f"closed loop by at most {replay[0]:.2g} A (i1) and {replay[1]:.2g} V (v4).",
         f"Noise: uniform in ±{NOISE[0]:g} (v2) and ±{NOISE[1]:g} (i3), drawn every {NOISE_PERIOD:g} s and held, added to the "
         f"continuous outputs; RK4 with dt = {DT:g} s (the gradient estimators of PEBO reach rates of 1e5/s).",
-        "Derived again from (50) where Table I is garbled: I&IO: x̂2 = ξ2 - L3γ2 y2 and -γ1 u y2 in ξ1' (eq. 18 gives both; "
+        "Derived again from (50) where Table I as printed is inconsistent with it: I&IO: x̂2 = ξ2 - L3γ2 y2 and -γ1 u y2 in ξ1' (eq. 18 gives both; "
         "the printed signs make the error grow); PEBO: B2 = (y2 + G u y1)/C4 and Y2 = W[y2] + F[(u y1 + ξ2)/L3 + G y2/C4]; "
         "KKL+PEBO: Y = W[y1] - F[((1 - u)ξ1 + u y2)/C2] (printed with ξ2); the regressors are filtered, F[b], also where "
         "the table writes the constant -1/L3 (same regression, smaller transient).",
@@ -260,7 +260,7 @@ def run() -> ExampleResult:
     evidence = [_text_table(rows), *(f"{n}:\n{ds[n]}" for n in names)]
     return ExampleResult(
         systems={"Ćuk converter (50)": model()},
-        key="004-cuk", title=f"{cite('004')} §V-C: Ćuk converter, six observers under bounded noise", reference=REF,
+        key="cuk", title=f"{cite('004')} §V-C: Ćuk converter, six observers under bounded noise", reference=REF,
         summary=(f"Six observers of {cite('004')} Table I on the Ćuk converter (50) under state feedback and bounded noise. KKLO: "
                  f"noise part of the error {kkl.noise_rms[0]:.2g} A / {kkl.noise_rms[1]:.2g} V; the worst RMS errors under "
                  f"noise are the high-gain observers' in i1; the paper's 'KKLO least noise-sensitive' holds for v4, not for i1."),

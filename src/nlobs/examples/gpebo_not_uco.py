@@ -1,9 +1,9 @@
-"""M8 #7 (000): the 2G+D observer converges on a system that is observable but not UCO.
+"""M8 #7 (Wang, Ortega & Bobtsov (2021)): the 2G+D observer converges on a system that is observable but not UCO.
 
 ẋ = [[0, u(t)], [0, 0]]x, y = x1, u(t) = e^{-t}: the input vanishes, so the observability
 Gramian over a window [t0, t0 + T] decays like e^{-2 t0} (not uniformly completely observable),
-while W(0, T) has full rank (observable). 000 Proposition 1 says observability suffices for the
-2G+D observer; a Kalman-like observer (002), whose convergence rests on UCO, stalls.
+while W(0, T) has full rank (observable). Wang, Ortega & Bobtsov (2021), Proposition 1 says observability suffices for the
+2G+D observer; a Kalman-like observer (Besançon (2010)), whose convergence rests on UCO, stalls.
 """
 
 from __future__ import annotations
@@ -30,16 +30,16 @@ KL_DELTA, KL_V = 1.0, 0.01          # Kalman-like tuning (002 gives none): forge
 
 
 def kalman_like(sa: StateAffine, *, delta: float = KL_DELTA, V: float = KL_V) -> ObserverDesign:
-    """The Kalman-like observer of 002 (nlobs.design.design_kalman_like) with V = `V`·I, forgetting δ."""
+    """The Kalman-like observer of Besançon (2010), (nlobs.design.design_kalman_like) with V = `V`·I, forgetting δ."""
     return design_kalman_like(sa, delta=delta, V=V * np.eye(sa.n_states))
 
 
 def model() -> StateAffine:
-    """ẋ = [[0, u], [0, 0]]x, y = x1 (000 eq. 1 with A = [[0, u], [0, 0]], b = 0, C = e1)."""
+    """ẋ = [[0, u], [0, 0]]x, y = x1 (Wang, Ortega & Bobtsov (2021), eq. 1 with A = [[0, u], [0, 0]], b = 0, C = e1)."""
     return StateAffine([[0, "u"], [0, 0]], [0, 0], [[1], [0]], inputs=["u"], outputs=["y"], name="ltv_vanishing_input")
 
 
-@register("000-2gd-not-uco", f"{cite('000')}: 2G+D converges where the system is observable but not UCO", 70)
+@register("2gd-not-uco", f"{cite('000')}: 2G+D converges where the system is observable but not UCO", 70, aliases=("000-2gd-not-uco",))
 def run() -> ExampleResult:
     sa = model()
     system = sa.to_system()
@@ -114,7 +114,7 @@ def run() -> ExampleResult:
     ]
     return ExampleResult(
         systems={"ẋ = [[0, u], [0, 0]]x, y = x1": model().to_system()},
-        key="000-2gd-not-uco", title=f"{cite('000')}: 2G+D on an observable, non-UCO LTV system", reference=REF,
+        key="2gd-not-uco", title=f"{cite('000')}: 2G+D on an observable, non-UCO LTV system", reference=REF,
         summary=(f"With u(t) = e^(-t) the system ẋ = [[0, u], [0, 0]]x, y = x1 is observable on [0, T] but not UCO. The 2G+D "
                  f"observer (order 14) reaches |x̂ - x| = {e_gd[-1]:.2g} at t = 20; the Kalman-like observer stalls at "
                  f"{e_kl[-1]:.3g}."),

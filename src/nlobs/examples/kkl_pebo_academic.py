@@ -1,6 +1,6 @@
-"""M8 #8 (004 §V-A): a system neither KKL nor PEBO solves, and the KKL+PEBO observer (32)-(37).
+"""M8 #8 (Yi, Ortega & Zhang (2019), §V-A): a system neither KKL nor PEBO solves, and the KKL+PEBO observer (32)-(37).
 
-ẋ1 = -x1³ + e^{x3}, ẋ2 = -x2 + x1² + sin x1, ẋ3 = (x1² + 1)^{-1} + x1 u, y = x1 (004 eq. 31).
+ẋ1 = -x1³ + e^{x3}, ẋ2 = -x2 + x1² + sin x1, ẋ3 = (x1² + 1)^{-1} + x1 u, y = x1 (Yi, Ortega & Zhang (2019), eq. 31).
 x2 has a stable self-dynamics (it needs λ = -1: a KKL component) and x3 has none (it needs
 λ = 0: a PEBO component), so the checks of the pure designs fail and point at that, while the
 KKL+PEBO observer with Λ = diag(-1, 0), φ = (x2, x3) converges (F3, F4).
@@ -30,7 +30,7 @@ B = ["y**2 + sin(y)", "u*y + 1/(y**2 + 1)"]   # 004 F4 proof: B(h(x), u)
 
 
 def model() -> System:
-    """004 eq. (31)."""
+    """Yi, Ortega & Zhang (2019), eq. (31)."""
     return System(states=["x1", "x2", "x3"], f=["-x1**3 + exp(x3)", "-x2 + x1**2 + sin(x1)", "1/(x1**2 + 1) + x1*u"],
                   outputs=["y"], h=["x1"], inputs=["u"], name="yi_ortega_zhang_31")
 
@@ -50,7 +50,7 @@ def _failure(fn, **kw) -> str:  # noqa: ANN001
     return ""
 
 
-@register("004-kkl-pebo", f"{cite('004')}: neither KKL nor PEBO, but KKL+PEBO (example 31)", 80)
+@register("kkl-pebo", f"{cite('004')}: neither KKL nor PEBO, but KKL+PEBO (example 31)", 80, aliases=("004-kkl-pebo",))
 def run() -> ExampleResult:
     system = model()
     kkl_msg = _failure(design_kkl, Lambda=[-1, -1])
@@ -96,7 +96,7 @@ def run() -> ExampleResult:
     ]
     return ExampleResult(
         systems={"example (31)": model()},
-        key="004-kkl-pebo", title=f"{cite('004')} §V-A: KKL+PEBO where KKL and PEBO fail", reference=REF,
+        key="kkl-pebo", title=f"{cite('004')} §V-A: KKL+PEBO where KKL and PEBO fail", reference=REF,
         summary=(f"The KKL and PEBO checks fail and say which component needs which λ; KKL+PEBO (32)-(37) reaches "
                  f"|x̂2 - x2| = {err[-1, 1]:.2g}, |x̂3 - x3| = {err[-1, 2]:.2g} at t = {T_FINAL:g}."),
         model=str(system), evidence=[f"KKL check: {kkl_msg}", f"PEBO check: {pebo_msg}", str(d), str(rep)],

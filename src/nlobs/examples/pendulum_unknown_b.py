@@ -1,4 +1,4 @@
-"""002, robot arm / pendulum with the input gain b unknown ("Pb2: x1, x2, b ?"): Kalman-like observer.
+"""Besançon (2010), robot arm / pendulum with the input gain b unknown ("Pb2: x1, x2, b ?"): Kalman-like observer.
 
 With b as a constant state the model is state-affine, x_e' = A_e(u)x_e + B_e(y), y = C_e x_e:
 A_e(u) = [[0, 1, 0], [0, -a2, u], [0, 0, 0]], B_e(y) = (0, -a1 sin y, 0). b is seen only through
@@ -33,7 +33,7 @@ def pendulum_unknown_b() -> System:
     return bundled("pendulum_unknown_b").system
 
 
-@register("002-pendulum-b", f"{cite('002')} — robot arm with unknown b: Kalman-like observer, exciting vs zero input", 51)
+@register("pendulum-b", f"{cite('002')} — robot arm with unknown b: Kalman-like observer, exciting vs zero input", 51, aliases=("002-pendulum-b",))
 def run() -> ExampleResult:
     mf = bundled("pendulum_unknown_b")
     system = mf.system
@@ -72,7 +72,7 @@ def run() -> ExampleResult:
                                 lam > 1e-6, f"min over windows of λmin(W) = {lam:.2e}"))
     return ExampleResult(
         systems={"pendulum with b as a state": pendulum_unknown_b()},
-        key="002-pendulum-b",
+        key="pendulum-b",
         title=f"{cite('002')} — robot arm with unknown b: Kalman-like observer, exciting vs zero input",
         reference=REFERENCE,
         summary=("With b unknown the pendulum is state-affine in (x1, x2, b) with A_e(u). Under a persistently exciting "
@@ -81,7 +81,7 @@ def run() -> ExampleResult:
         model=str(system), evidence=(str(d.certificate),), runs=runs, table=tuple(table), claims=tuple(claims),
         notes=("b = 1, x(0) = (1, 0), x̂(0) = 0, V, W and the inputs are our choices; the slides give the form only.",
                "The noise-type design (V > 0, δ = 0) is used because with forgetting δ > 0 and u = 0 the covariance of b "
-               "grows like e^{δt} without bound (no information about b arrives), which the engine would stop as a blow-up.",
+               "grows like $e^{\\delta t}$ without bound (no information about b arrives), which the engine would stop as a blow-up.",
                "gramian_min_eig is the smallest eigenvalue of the observability Gramian of (A_e(u(t)), C_e) over 5 s "
                "windows, minimised over the windows (RK4 transition matrices on the simulation grid)."),
     )

@@ -1,4 +1,4 @@
-"""001 §IV-A and §IV-B: single-range localisation through state augmentation, with a Kalman-Bucy filter
+"""Viegas, Batista, Oliveira & Silvestre (2015), §IV-A and §IV-B: single-range localisation through state augmentation, with a Kalman-Bucy filter
 on the augmented LTV system and the estimate recovered by the left inverse x̂ = [I 0]ŵ.
 
 §IV-A (15)-(16): x1' = x2 + u, x2' = 0, y = ‖x1‖; w = (x1, x2, ‖x1‖, x1·x2, x2·x2) ∈ R⁹.
@@ -40,13 +40,13 @@ def _dot(a: tuple[str, ...], b: tuple[str, ...]) -> str:
 
 
 def velocity_model() -> System:
-    """001 eq. (15): relative position p = x1, current velocity c = x2, measured vehicle velocity u."""
+    """Viegas, Batista, Oliveira & Silvestre (2015), eq. (15): relative position p = x1, current velocity c = x2, measured vehicle velocity u."""
     return System(states=[*P, "c1", "c2", "c3"], f=["c1 + u1", "c2 + u2", "c3 + u3", "0", "0", "0"],
                   inputs=["u1", "u2", "u3"], outputs=["y"], h=[RANGE], name="range_velocity")
 
 
 def velocity_augmentation() -> dict:
-    """T, A(u, y), b(u), C and the left inverse of 001 eq. (16) (A re-derived, see the module docstring)."""
+    """T, A(u, y), b(u), C and the left inverse of Viegas, Batista, Oliveira & Silvestre (2015), eq. (16) (A re-derived, see the module docstring)."""
     C_ = ("c1", "c2", "c3")
     T = [*P, *C_, RANGE, _dot(P, C_), _dot(C_, C_)]
     A = [["0"] * 9 for _ in range(9)]
@@ -61,14 +61,14 @@ def velocity_augmentation() -> dict:
 
 
 def acceleration_model() -> System:
-    """001 eq. (17): position p = x1, velocity v = x2, constant acceleration bias (gravity) g = x3, measured u."""
+    """Viegas, Batista, Oliveira & Silvestre (2015), eq. (17): position p = x1, velocity v = x2, constant acceleration bias (gravity) g = x3, measured u."""
     return System(states=[*P, "v1", "v2", "v3", "g1", "g2", "g3"],
                   f=["-v1", "-v2", "-v3", "g1 + u1", "g2 + u2", "g3 + u3", "0", "0", "0"],
                   inputs=["u1", "u2", "u3"], outputs=["y"], h=[RANGE], name="range_acceleration")
 
 
 def acceleration_augmentation() -> dict:
-    """T, A(u, y), b(u), C and the left inverse of 001 eq. (18)."""
+    """T, A(u, y), b(u), C and the left inverse of Viegas, Batista, Oliveira & Silvestre (2015), eq. (18)."""
     V, G = ("v1", "v2", "v3"), ("g1", "g2", "g3")
     T = [*P, *V, *G, RANGE, _dot(P, V), f"{_dot(P, G)} - ({_dot(V, V)})", _dot(V, G), _dot(G, G)]
     A = [["0"] * 14 for _ in range(14)]
@@ -141,29 +141,31 @@ def scaled_min_eig(W: np.ndarray) -> float:
 
 
 def _gramian(aug: dict, system: System, run, window: float) -> np.ndarray:  # noqa: ANN001
-    """The observability Gramian of the augmented LTV system over [0, window] along `run` (000 eq. 3)."""
+    """The observability Gramian of the augmented LTV system over [0, window] along `run` (Wang, Ortega & Bobtsov (2021), eq. 3)."""
     k = int(np.searchsorted(run.t, window)) + 1
     return gramian(augmented_matrix(aug, system), np.array(aug["C"], dtype=float), run.t[:k], run.u[:k], run.y_true[:k])
 
 
-@register("001-range-velocity", f"{cite('001')} §IV-A — range-only localisation with velocity input (9-state augmentation)", 20)
+@register("range-vel", f"{cite('001')} §IV-A — range-only localisation with velocity input (9-state augmentation)", 20, aliases=("001-range-velocity",))
 def run_velocity() -> ExampleResult:
-    return _run("001-range-velocity", f"{cite('001')} §IV-A — range-only localisation with velocity input (9-state augmentation)",
+    return _run("range-vel", f"{cite('001')} §IV-A — range-only localisation with velocity input (9-state augmentation)",
                 velocity_model(), velocity_augmentation(), x0=[8.0, -5.0, 3.0, 0.2, -0.1, 0.05], xhat0=[1.0, 1.0, 1.0, 0, 0, 0],
                 rich={"u1": "2*cos(t)", "u2": "2*sin(0.7*t)", "u3": "cos(0.4*t)"},
                 straight={"u1": 1.0, "u2": 0.5, "u3": 0.0}, T=100.0, dt=5e-3,
                 P0=np.diag([10.0] * 6 + [0.1, 10.0, 10.0]), Q=1e-2,
                 reference=f"{cite('001')} §IV-A, eqs. (15)-(16), Lemma 1, estimate [I6 0]ŵ",
-                notes=("A of (16) is garbled in the text conversion; it is re-derived from d/dt T(x) (module docstring) and "
+                notes=("A of (16) is re-derived from $\\frac{d}{dt}T(x)$: $\\frac{d}{dt}\\|x_1\\| = (u^\\top x_1 + x_1 \\cdot x_2)/y$ and "
+                       "$\\frac{d}{dt}(x_1 \\cdot x_2) = u^\\top x_2 + x_2 \\cdot x_2$ give the rows of $\\|x_1\\|$ and $x_1 \\cdot x_2$; "
+                       "the result is "
                        "checked symbolically by design_augmented.",
                        "Trajectory, current, input, Q = 0.01 I, R = 0.01, P0 (small on the measured range) and the noise are "
                        "our choices; the paper gives no simulation for §IV-A."))
 
 
-@register("001-range-acceleration", f"{cite('001')} §IV-B — range-only localisation with acceleration input (14-state augmentation)", 30)
+@register("range-acc", f"{cite('001')} §IV-B — range-only localisation with acceleration input (14-state augmentation)", 30, aliases=("001-range-acceleration",))
 def run_acceleration() -> ExampleResult:
     g = (0.1, -0.2, -1.0)
-    return _run("001-range-acceleration",
+    return _run("range-acc",
                 f"{cite('001')} §IV-B — range-only localisation with acceleration input (14-state augmentation)",
                 acceleration_model(), acceleration_augmentation(), x0=[8.0, -5.0, 3.0, 0.1, 0.0, 0.05, *g],
                 xhat0=[1.0, 1.0, 1.0, 0, 0, 0, 0, 0, 0],

@@ -1,4 +1,4 @@
-"""001 §IV-C: the toy system (20) observed through the augmented LTI system (21).
+"""Viegas, Batista, Oliveira & Silvestre (2015), §IV-C: the toy system (20) observed through the augmented LTI system (21).
 
 x1' = x2², x2' = c, y = x1 is mimicked by w' = Aw + Bc, z = Cw with w = T(x) = (x1, x2, x2²),
 A = [[0, 0, 1], [0, 0, 0], [0, 2c, 0]], B = (0, 1, 0)ᵀ, C = (1, 0, 0). The observability
@@ -48,7 +48,7 @@ def paper_observer(system: System, L: np.ndarray = L_PAPER) -> ObserverDesign:
                             C=[[1, 0, 0]], left_inverse=["w1", "w2"], L=L)
 
 
-@register("001-IV-C", f"{cite('001')} §IV-C — a toy system observed through state augmentation", 10)
+@register("aug-toy", f"{cite('001')} §IV-C — a toy system observed through state augmentation", 10, aliases=("001-IV-C",))
 def run() -> ExampleResult:
     c = 0.5
     system = toy_system(c)
@@ -73,7 +73,7 @@ def run() -> ExampleResult:
     ]
     return ExampleResult(
         systems={"the toy system (20), c = 0.5": system, "the toy system (20), c = 0": toy_system(0.0)},
-        key="001-IV-C",
+        key="aug-toy",
         title=f"{cite('001')} §IV-C — a toy system observed through state augmentation",
         reference=REFERENCE,
         summary=("The nonlinear system x1' = x2², x2' = c, y = x1 is mimicked by an LTI system in w = (x1, x2, x2²). "
@@ -85,7 +85,7 @@ def run() -> ExampleResult:
         runs={"noise-free": clean, "noisy (σ = 0.01, a new sample every 1 ms)": noisy},
         table=(*rows_from_run("noise-free", clean), *rows_from_run("noisy σ=0.01", noisy)),
         claims=tuple(claims),
-        notes=("The paper writes the eigenvalues as −√2/2 ± √2/2 (a conversion slip): the characteristic polynomial of "
+        notes=("The eigenvalues read −√2/2 ± √2/2 in the text we have; the characteristic polynomial of "
                "A − LC is s³ + (1+√2)s² + (1+√2)s + 1 = (s + 1)(s² + √2 s + 1), whose roots are −1 and −√2/2 ± j√2/2.",
                "c is modelled as a parameter, so the observer's input term is the constant Bc as in the paper's observer equation.",
                "The noisy run (our addition) adds Gaussian noise σ = 0.01 to y at every 1 ms step. Sampling at 100 Hz "

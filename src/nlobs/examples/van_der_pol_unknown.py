@@ -1,11 +1,11 @@
-"""002, Van der Pol with unknown γ and ω²: the state-affine model ż = A(y)z and a Kalman-like observer.
+"""Besançon (2010), Van der Pol with unknown γ and ω²: the state-affine model ż = A(y)z and a Kalman-like observer.
 
 ẍ - γ(1 - x²)ẋ + ω²x = 0, y = x. With z = (x, ẋ - γ(x - x³/3), γ, ω²):
 
     z1' = z2 + (y - y³/3) z3,  z2' = -y z4,  z3' = 0,  z4' = 0,  y = z1,
 
 i.e. ż = A(y)z with A(y) = [[0, 1, y - y³/3, 0], [0, 0, 0, -y], 0, 0]. On the limit cycle the output
-is regularly persistent and the Kalman-like observer estimates γ and ω² (002: "∃ a limit cycle ⇒
+is regularly persistent and the Kalman-like observer estimates γ and ω² (Besançon (2010): "∃ a limit cycle ⇒
 observability with 'regular persistency'").
 """
 
@@ -34,7 +34,7 @@ def van_der_pol_unknown() -> System:
     return bundled("van_der_pol_unknown").system
 
 
-@register("002-vdp", f"{cite('002')} — Van der Pol with unknown γ, ω²: Kalman-like observer on ż = A(y)z", 60)
+@register("vdp", f"{cite('002')} — Van der Pol with unknown γ, ω²: Kalman-like observer on ż = A(y)z", 60, aliases=("002-vdp",))
 def run() -> ExampleResult:
     mf = bundled("van_der_pol_unknown")
     system = mf.system
@@ -67,7 +67,7 @@ def run() -> ExampleResult:
         row["gamma_hat"], row["omega2_hat"] = float(tr[2]), float(tr[3])
     return ExampleResult(
         systems={"Van der Pol with γ, ω² as states": van_der_pol_unknown()},
-        key="002-vdp",
+        key="vdp",
         title=f"{cite('002')} — Van der Pol with unknown γ, ω²: Kalman-like observer on ż = A(y)z",
         reference=REFERENCE,
         summary=("In Liénard coordinates the Van der Pol oscillator with unknown γ and ω² is state-affine in the measured "

@@ -1,4 +1,4 @@
-"""Structured forms of a model: LTI, state-affine (000 eq. 1) and output-injection (002).
+"""Structured forms of a model: LTI, state-affine (Wang, Ortega & Bobtsov (2021), eq. 1) and output-injection (Besançon (2010)).
 
 Each form converts to a general :class:`~nlobs.System` (``to_system``) and, where the
 structure can be read off the equations, is recognised from one (``from_system``), with an
@@ -166,7 +166,7 @@ def matrix_of(value: Any, rows: int, cols: int, allowed: Mapping[str, sp.Symbol]
 
 @dataclass(frozen=True, init=False)
 class StateAffine:
-    r"""A state-affine model (000 eq. 1):
+    r"""A state-affine model (Wang, Ortega & Bobtsov (2021), eq. 1):
 
     .. math::
 
@@ -183,7 +183,7 @@ class StateAffine:
 
     References
     ----------
-    000_6cd8bea7ca1db43b.txt eq. (1); 002_613af42269ea26a7.txt, "Kalman-like observer".
+    Wang, Ortega & Bobtsov (2021), eq. (1); Besançon (2010), "Kalman-like observer".
     """
 
     A: sp.Matrix
@@ -234,7 +234,7 @@ class StateAffine:
 
 @dataclass(frozen=True)
 class OutputInjectionForm:
-    r"""A model in output-injection form (002, "Error linearization"):
+    r"""A model in output-injection form (Besançon (2010), "Error linearization"):
 
     .. math::
 

@@ -347,7 +347,7 @@ class System:
 
     @staticmethod
     def state_affine(A: Any, b: Any, C: Any, **names: Any) -> System:
-        """A state-affine system x' = A(u, y, t)x + b(u, y, t), y = C(u, t)ᵀx (000 eq. 1).
+        """A state-affine system x' = A(u, y, t)x + b(u, y, t), y = C(u, t)ᵀx (Wang, Ortega & Bobtsov (2021), eq. 1).
 
         See :class:`nlobs.model.StateAffine`.
         """

@@ -99,6 +99,9 @@ class SimulationConfig:
 class ObserverConfig:
     """One ``[observers.NAME]`` table: the design ``kind`` and its tuning options (raw).
 
+    ``nlobs.design.design_from_config(config)`` designs it; :func:`nlobs.simulate` and
+    :func:`nlobs.estimate` accept configs wherever they accept designs.
+
     Attributes
     ----------
     name, kind : str
@@ -111,9 +114,6 @@ class ObserverConfig:
         without one.
     guesses : mapping of str to float
         Initial guesses of the unknown parameters, the default tail of x̂0.
-
-    ``nlobs.design.design_from_config(config)`` designs it; :func:`nlobs.simulate` and
-    :func:`nlobs.estimate` accept configs wherever they accept designs.
     """
 
     name: str

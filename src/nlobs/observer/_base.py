@@ -1,6 +1,6 @@
 """The runnable observer contract.
 
-An observer is the dynamical system of its design (004 eq. 2, 000 eq. 6):
+An observer is the dynamical system of its design (Yi, Ortega & Zhang (2019), eq. 2, Wang, Ortega & Bobtsov (2021), eq. 6):
 
 .. math::
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import html
 import platform
 import sys
+import textwrap
 import time
 import traceback
 from collections.abc import Sequence
@@ -13,19 +14,22 @@ from pathlib import Path
 from typing import TextIO
 
 from .. import __version__
+from .._display import Column, SummaryTable
 from ..analysis import analyze
-from ..examples import EXAMPLES, ExampleResult
+from ..examples import EXAMPLES, ExampleResult, find_example
+from ..references import REFERENCES, cited_keys
 from ..simulate import CONVERGENCE_RULE
-from ._html import fmt, img, page, table
+from ._html import HALF_WIDTH, bibliography, details, equations, figure, page, plain, pre, prose, section, table
 
-__all__ = ["run_demo", "DemoOutcome"]
+__all__ = ["run_demo", "DemoOutcome", "example_section", "summary_table"]
 
 COLUMNS = [("run", "run"), ("observer", "observer"), ("convergence_time", "convergence time"),
            ("rms_error", "RMS error (last 20 %)"), ("final_error", "final error")]
 
-
 @dataclass(frozen=True)
 class DemoOutcome:
+    """What ``nlobs demo`` did: the examples' results, the ones that crashed, the report, the wall time."""
+
     results: Sequence[ExampleResult]
     failed: Sequence[tuple[str, str]]  # (key, error text) of examples that crashed
     report: Path
@@ -38,55 +42,77 @@ class DemoOutcome:
 
 def run_demo(out_dir: str | Path = "nlobs-report", *, only: Sequence[str] | None = None, progress: bool = True,
              stream: TextIO | None = None) -> DemoOutcome:
-    """Run the registered paper examples (all, or `only` these keys), write ``out_dir/index.html``,
-    print a summary to `stream`, and return what happened."""
+    """Run the registered paper examples, write ``out_dir/index.html`` and print a summary.
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        Folder of the report (created if needed).
+    only : sequence of str, optional
+        Keys of the examples to run (default: all); see ``nlobs demo --list``.
+    progress : bool
+        Print one line per example on stderr.
+    stream : text stream, optional
+        Where the summary goes (default: stdout).
+
+    Returns
+    -------
+    DemoOutcome
+    """
+    t0 = time.perf_counter()
     stream = stream or sys.stdout
     examples = sorted(EXAMPLES.values(), key=lambda e: e.order)
     if only:
-        unknown = [k for k in only if k not in EXAMPLES]
-        if unknown:
-            raise KeyError(f"no example {unknown[0]!r}; available: {', '.join(e.key for e in examples)}")
-        examples = [e for e in examples if e.key in only]
-    t0 = time.perf_counter()
+        chosen = {find_example(k).key for k in only}
+        examples = [e for e in examples if e.key in chosen]
     results, failed, timings = [], [], {}
     for i, ex in enumerate(examples):
         if progress:
-            print(f"[{i + 1}/{len(examples)}] {ex.title} ...", file=sys.stderr, flush=True)
+            print(f"[{i + 1}/{len(examples)}] {ex.key}: {plain(ex.title)} ...", file=sys.stderr, flush=True)
         t1 = time.perf_counter()
         try:
             results.append(ex.run())
         except Exception as e:  # noqa: BLE001 - one broken example must not hide the others
             failed.append((ex.key, f"{type(e).__name__}: {e}\n{traceback.format_exc()}"))
         timings[ex.key] = time.perf_counter() - t1
-    seconds = time.perf_counter() - t0
+    t_examples = time.perf_counter() - t0
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     report = out / "index.html"
-    report.write_text(_html(results, failed, timings, seconds), encoding="utf-8")
-    _print_summary(results, failed, stream, report, seconds)
+    report.write_text(_html(results, failed, timings, t_examples), encoding="utf-8")
+    seconds = time.perf_counter() - t0
+    _print_summary(results, failed, stream, report, seconds, t_examples)
     return DemoOutcome(results, failed, report, seconds)
 
 
+def summary_table(results: Sequence[ExampleResult]) -> SummaryTable:
+    """Every observer of every example, one row each: what ``nlobs demo`` prints."""
+    cols = [Column("example", "example", str, numeric=False), Column("run", "run", str, numeric=False),
+            Column("observer", "observer", str, numeric=False), Column("convergence_time", "conv. time"),
+            Column("rms_error", "RMS error"), Column("final_error", "final err")]
+    rows = [dict(row, example=r.key, run=plain(str(row["run"])), observer=plain(str(row["observer"])))
+            for r in results for row in r.table]
+    return SummaryTable("All observers", cols, rows,
+                        tuple(textwrap.wrap(f"{CONVERGENCE_RULE} (—: not within the run). RMS error: over the "
+                                            "last 20 % of the run; final err: at the final time", width=88)))
+
+
 def _print_summary(results: Sequence[ExampleResult], failed: Sequence[tuple[str, str]], stream: TextIO, report: Path,
-                   seconds: float) -> None:
+                   seconds: float, t_examples: float) -> None:
     w = stream.write
-    head = f"{'example':<14} {'run':<14} {'observer':<28} {'conv. time':>10} {'RMS error':>10} {'final err':>10}"
-    w(head + "\n" + "-" * len(head) + "\n")
-    for r in results:
-        for row in r.table:
-            w(f"{r.key:<14} {str(row['run'])[:14]:<14} {str(row['observer'])[:28]:<28} {fmt(row['convergence_time']):>10} "
-              f"{fmt(row['rms_error']):>10} {fmt(row['final_error']):>10}\n")
-    w(f"conv. time: the time after which the error stays within its band, max(2 % of the initial error, 2 × the "
-      f"steady-state error), at most 20 % of the initial error (— : not within the run); see the report\n\n")
+    w(str(summary_table(results)) + "\n\n")
+    width = max([len(r.key) for r in results] + [len(k) for k, _ in failed] + [7])
     for r in results:
         n_ok = sum(c.holds for c in r.claims)
-        w(f"{r.key:<14} claims {n_ok}/{len(r.claims)} hold" + ("" if r.ok else "  <-- see the report") + "\n")
+        w(f"{r.key:<{width}} claims {n_ok}/{len(r.claims)} hold" + ("" if r.ok else "  <-- see the report") + "\n")
         for c in r.claims:
             if not c.holds:
-                w(f"    FAILS: {c.text} ({c.detail})\n")
+                w(textwrap.fill(f"FAILS: {plain(c.text)} ({plain(c.detail)})", width=88, initial_indent="    ",
+                            subsequent_indent="      ") + "\n")
     for key, err in failed:
-        w(f"{key:<14} CRASHED: {err.splitlines()[0]}\n")
-    w(f"\nreport: {report.resolve()}  ({seconds:.1f} s)\n")
+        w(f"{key:<{width}} CRASHED: {err.splitlines()[0]}\n")
+    w(f"\nreport: {report.resolve()}\n"
+      f"wall time {seconds:.1f} s (examples {t_examples:.1f} s, report {seconds - t_examples:.1f} s)\n")
 
 
 def _convergence_note(r: ExampleResult) -> str:
@@ -96,67 +122,108 @@ def _convergence_note(r: ExampleResult) -> str:
     return f"{CONVERGENCE_RULE[0].upper() + CONVERGENCE_RULE[1:]} (— : not within the run). RMS over the last 20 % of the run."
 
 
-def _section(r: ExampleResult, seconds: float) -> str:
-    parts = [f"<h2 id='{html.escape(r.key)}'>{html.escape(r.title)}</h2>",
-             f"<p class='ref'>{html.escape(r.reference)} · ran in {seconds:.1f} s</p>",
-             f"<p>{html.escape(r.summary)}</p>", "<h3>Claims checked</h3><ul class='claims'>"]
+def _observability(r: ExampleResult) -> list[str]:
+    items, reports = [], []
+    for label, system in r.systems.items():
+        try:
+            rep = analyze(system)
+        except Exception as e:  # noqa: BLE001 - an analysis that cannot run is reported, not fatal
+            items.append(f"<li>{prose(label)}: <span class='fail'>analysis failed: {html.escape(str(e))}</span></li>")
+            continue
+        d = rep.to_dict()
+        verdict = (f"observable: generic rank {d['rank']} = {d['n_states']}" if d["observable"] else
+                   f"not observable: generic rank {d['rank']} < {d['n_states']}; observable states: "
+                   f"{', '.join(d['observable_states']) or 'none'}")
+        cls = "ok" if d["observable"] else "fail"
+        if d.get("globally_observable") is False:
+            verdict += "; locally only: a symmetry makes it globally unobservable"
+            cls = "warn"
+        items.append(f"<li>{prose(label)}: <span class='{cls}'>{html.escape(verdict)}</span></li>")
+        reports.append(pre(f"{plain(label)}\n{rep}"))
+    if not items:
+        return []
+    out = ["<h3>Observability (nlobs.analyze)</h3><ul>" + "".join(items) + "</ul>"]
+    if reports:
+        out.append(details("Observability reports", "".join(reports)))
+    return out
+
+
+def _reference_links(text: str) -> str:
+    """The reference line, each cited work linked to its entry in the bibliography."""
+    out = prose(text)
+    for k in cited_keys(text):
+        label = html.escape(REFERENCES[k].label)
+        out = out.replace(label, f"<a href='#ref-{k}'>{label}</a>", 1)
+    return out
+
+
+def example_section(r: ExampleResult, seconds: float | None = None, *, level: int = 2, plots: bool = True) -> str:
+    """One example as an HTML section: claims, observability, the table, the plots, the model, the evidence, notes.
+
+    Parameters
+    ----------
+    r : ExampleResult
+    seconds : float, optional
+        How long it ran (shown under the title).
+    level : int
+        Heading level of the title (2: ``<h2>``).
+    plots : bool
+        Include the run plots and the example's figures.
+    """
+    h = level + 1
+    sub = _reference_links(r.reference) + (f" · ran in {seconds:.1f} s" if seconds is not None else "")
+    parts = [f"<p>{prose(r.summary)}</p>", f"<h{h}>Claims checked</h{h}><ul class='claims'>"]
     for c in r.claims:
         cls, word = ("ok", "holds") if c.holds else ("fail", "FAILS")
-        parts.append(f"<li><span class='{cls}'>{word}</span> — {html.escape(c.text)}"
-                     + (f" <span class='note'>({html.escape(c.detail)})</span>" if c.detail else "") + "</li>")
+        parts.append(f"<li><span class='{cls}'>{word}</span> — {prose(c.text)}"
+                     + (f" <span class='note'>({prose(c.detail)})</span>" if c.detail else "") + "</li>")
     parts.append("</ul>")
-    if r.systems:
-        parts.append("<h3>Observability (nlobs.analyze)</h3><ul>")
-        details = []
-        for label, system in r.systems.items():
-            try:
-                rep = analyze(system)
-                d = rep.to_dict()
-                verdict = (f"observable: generic rank {d['rank']} = {d['n_states']}" if d["observable"] else
-                           f"not observable: generic rank {d['rank']} < {d['n_states']}; observable states: "
-                           f"{', '.join(d['observable_states']) or 'none'}")
-                cls = "ok" if d["observable"] else "fail"
-                if d.get("globally_observable") is False:
-                    verdict += "; locally only: a symmetry makes it globally unobservable"
-                    cls = "warn"
-                parts.append(f"<li>{html.escape(label)}: <span class='{cls}'>{html.escape(verdict)}</span></li>")
-                details.append(f"<pre>{html.escape(label)}\n{html.escape(str(rep))}</pre>")
-            except Exception as e:  # noqa: BLE001 - an analysis that cannot run is reported, not fatal
-                parts.append(f"<li>{html.escape(label)}: <span class='fail'>analysis failed: {html.escape(str(e))}</span></li>")
-        parts.append("</ul>")
-        if details:
-            parts.append("<details><summary>Observability reports</summary>" + "".join(details) + "</details>")
+    parts += _observability(r)
     if r.table:
-        parts.append("<h3>Convergence and accuracy</h3>" + table(r.table, COLUMNS)
+        parts.append(f"<h{h}>Convergence and accuracy</h{h}>" + table(r.table, COLUMNS + _extra_columns(r))
                      + f"<p class='note'>{html.escape(_convergence_note(r))}</p>")
-    if r.runs:
-        parts.append("<div class='runs'>" + "".join(
-            f"<figure><figcaption>{html.escape(label)}</figcaption>{img(run.plot(), f'{r.key} {label}')}</figure>"
-            for label, run in r.runs.items()) + "</div>")
-    for caption, fig in r.figures.items():
-        parts.append(f"<h3>{html.escape(caption)}</h3>" + img(fig, caption))
-    parts.append(f"<details><summary>Model</summary><pre>{html.escape(r.model)}</pre></details>")
+    if r.runs and plots:
+        parts.append("<div class='figs'>" + "".join(figure(run.plot(width=HALF_WIDTH), label, alt=f"{r.key} {plain(label)}")
+                                                  for label, run in r.runs.items()) + "</div>")
+    for caption, fig in r.figures.items() if plots else ():
+        parts.append(figure(fig, caption))
+    if r.systems:
+        parts.append(f"<h{h}>Model</h{h}>" + "".join(f"<p>{prose(label)}</p>{equations(s)}" for label, s in r.systems.items()))
+    else:
+        parts.append(details("Model", pre(r.model)))
     if r.evidence:
-        parts.append("<details><summary>Evidence: observability verdicts and design certificates</summary>"
-                     + "".join(f"<pre>{html.escape(e)}</pre>" for e in r.evidence) + "</details>")
+        parts.append(details("Evidence: observability verdicts and design certificates", "".join(pre(e) for e in r.evidence)))
     if r.notes:
-        parts.append("<h3>Notes</h3><ul>" + "".join(f"<li class='note'>{html.escape(n)}</li>" for n in r.notes) + "</ul>")
-    return "".join(parts)
+        parts.append(f"<h{h}>Notes</h{h}><ul>" + "".join(f"<li class='note'>{prose(n)}</li>" for n in r.notes) + "</ul>")
+    return section(r.title, parts, id=r.key, level=level, subtitle=sub)
+
+
+_EXTRA_HEADERS = {"guaranteed_rate": "guaranteed rate ε − K", "gramian_min_eig": "λmin Gramian", "b_hat": "b̂(T)",
+                  "gamma_hat": "γ̂(T)", "omega2_hat": "ω̂²(T)", "rms_noise_free": "RMS noise-free",
+                  "noise_induced_rms": "RMS due to noise", "order": "order"}
+
+
+def _extra_columns(r: ExampleResult) -> list[tuple[str, str]]:
+    keys = []
+    for row in r.table:
+        keys += [k for k in row if k not in keys and k not in {c for c, _ in COLUMNS}]
+    return [(k, _EXTRA_HEADERS.get(k, k.replace("_", " "))) for k in keys]
 
 
 def _html(results: Sequence[ExampleResult], failed: Sequence[tuple[str, str]], timings: dict[str, float], seconds: float) -> str:
-    nav = "<nav><h3>Examples</h3><ul>" + "".join(
-        f"<li><a href='#{html.escape(r.key)}'>{html.escape(r.title)}</a> — "
+    nav = "<nav><h3>Examples</h3><ol>" + "".join(
+        f"<li><a href='#{html.escape(r.key)}'>{prose(r.title)}</a> — "
         f"<span class='{'ok' if r.ok else 'fail'}'>{sum(c.holds for c in r.claims)}/{len(r.claims)} claims</span></li>"
-        for r in results) + "".join(f"<li><span class='fail'>{html.escape(k)} crashed</span></li>" for k, _ in failed) + "</ul></nav>"
+        for r in results) + "".join(f"<li><span class='fail'>{html.escape(k)} crashed</span></li>" for k, _ in failed) + "</ol></nav>"
     overview = [dict(row, example=r.key) for r in results for row in r.table]
     body = [nav]
     if overview:
-        body.append("<details open><summary>All observers at a glance</summary>"
-                    + table(overview, [("example", "example"), *COLUMNS]) + "</details>")
-    body += [_section(r, timings[r.key]) for r in results]
+        body.append(details("All observers at a glance", table(overview, [("example", "example"), *COLUMNS]), open=True))
+    body += [example_section(r, timings[r.key]) for r in results]
     for key, err in failed:
-        body.append(f"<h2>{html.escape(key)}</h2><p class='fail'>This example crashed:</p><pre>{html.escape(err)}</pre>")
-    subtitle = (f"nlobs {__version__} · the papers' examples reproduced · {len(results)} example(s) in {seconds:.1f} s · "
-                f"Python {platform.python_version()} on {html.escape(platform.machine())}")
+        body.append(section(key, "<p class='fail'>This example crashed:</p>" + pre(err), id=key))
+    body.append(bibliography(*(f"{r.title}\n{r.reference}\n{r.summary}\n" + "\n".join(r.notes)
+                               + "\n".join(c.text + c.detail for c in r.claims) + "\n".join(r.evidence) for r in results)))
+    subtitle = (f"nlobs {__version__} · the papers' examples reproduced · {len(results)} example(s), computed in "
+                f"{seconds:.1f} s · Python {platform.python_version()} on {html.escape(platform.machine())}")
     return page("nlobs — the papers' examples", subtitle, body)

@@ -68,7 +68,7 @@ class FitResult:
     nfev : int
         Simulations run.
     singular_values : numpy.ndarray
-        Of the weighted Jacobian with columns scaled by max(|θ|, 1e-12) (relative sensitivity).
+        Of the weighted Jacobian with columns scaled by max(abs(θ), 1e-12) (relative sensitivity).
     unidentifiable : tuple of str
         Directions the data do not determine (combinations of unknowns), empty when all are.
     integration_change : float

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from .._display import Column, SummaryTable, short_repr
 from .._progress import as_progress
 from ..design import check_positive
 from ..engine import Backend, evaluate_many, run_batch, saved_steps
@@ -85,6 +86,9 @@ class ObserverStats:
         with np.errstate(invalid="ignore"):
             return np.nanmax(self.error_norm, axis=1)
 
+    def __repr__(self) -> str:
+        return short_repr(self, {"name": self.name, "xhat": self.xhat})
+
 
 @dataclass(frozen=True, eq=False)
 class MonteCarloResult:
@@ -128,23 +132,25 @@ class MonteCarloResult:
             "rms_error_p90": float(np.percentile(rms, 90)) if rms.size else None,
         }
 
-    def summary(self) -> str:
-        head = (f"{'observer':<20} {'runs':>5} {'failed':>6} {'unsettled':>9} {'conv. median':>12} {'conv. p90':>10} "
-                f"{'RMS median':>11} {'RMS p90':>9}")
-        lines = [f"{self.model}: Monte Carlo, {self.runs} runs, t in [0, {self.t[-1]:g}]", head, "-" * len(head)]
-
-        def f(v: float | None) -> str:
-            return "—" if v is None else f"{v:.3g}"
-
-        for name in self.observers:
-            s = self.stats(name)
-            lines.append(f"{name:<20} {s['runs']:>5} {s['failed']:>6} {s['not_converged']:>9} {f(s['convergence_time_median']):>12} "
-                         f"{f(s['convergence_time_p90']):>10} {f(s['rms_error_median']):>11} {f(s['rms_error_p90']):>9}")
-        for j, reason in self.failures[:10]:
-            lines.append(f"  run {j}: {reason}")
+    def summary(self) -> SummaryTable:
+        """Per observer: runs, failures, unsettled runs, median and 90th percentile of the
+        convergence time and of the RMS error; ``print()`` it, show it in a notebook, or ``.to_pandas()`` it."""
+        cols = [Column("observer", "observer", str, numeric=False), Column("runs", "runs"), Column("failed", "failed"),
+                Column("not_converged", "unsettled"), Column("convergence_time_median", "conv. median"),
+                Column("convergence_time_p90", "conv. p90"), Column("rms_error_median", "RMS median"),
+                Column("rms_error_p90", "RMS p90")]
+        rows = [{"observer": name, **self.stats(name)} for name in self.observers]
+        notes = [f"  run {j}: {reason}" for j, reason in self.failures[:10]]
         if len(self.failures) > 10:
-            lines.append(f"  ... and {len(self.failures) - 10} more failed runs")
-        return "\n".join(lines)
+            notes.append(f"  ... and {len(self.failures) - 10} more failed runs")
+        return SummaryTable(f"{self.model}: Monte Carlo, {self.runs} runs, t in [0, {self.t[-1]:g}]", cols, rows, notes)
+
+    def __repr__(self) -> str:
+        return short_repr(self, {"model": self.model, "runs": self.runs, "failed": len(self.failed),
+                                 "t": (float(self.t[0]), float(self.t[-1])), "observers": tuple(self.observers)})
+
+    def _repr_html_(self) -> str:
+        return self.summary()._repr_html_()
 
     def to_pandas(self) -> Any:
         """One row per (run, observer): seed, status and the metrics."""
@@ -279,7 +285,7 @@ def montecarlo(
     seed : int
         Base seed; run j uses ``seeds[j]`` (see the result), exactly as ``simulate(seed=seeds[j])``.
     save_every : int, optional
-        Keep every k-th step (default: about 1,000 saved times); the final time is always kept.
+        Keep every k-th step (default: about 1,Wang, Ortega & Bobtsov (2021) saved times); the final time is always kept.
     tol : float, optional
         Absolute convergence tolerance (default: each run's band as in :meth:`Run.metrics`, the larger
         of 2 % of its initial error ‖x̂(0⁻) − x(0)‖ and twice its steady-state error, at most 20 % of

@@ -59,11 +59,11 @@ class Noise:
     """Measurement noise added to each output sample.
 
     Build with :meth:`gaussian` (standard deviation) or :meth:`uniform` (bound b, uniform in
-    [-b, b], as in 004 §V), or combine per output with :meth:`per_output`.
+    [-b, b], as in Yi, Ortega & Zhang (2019), §V), or combine per output with :meth:`per_output`.
     Scales are a scalar (every output), a sequence (one per output) or a mapping by name.
     With `hold` (seconds, a whole multiple of the integration step) a new noise sample is
     drawn only every `hold` seconds and held in between — a noise source with its own sample
-    time over a continuously measured output (004 §V-C: noise "sampled every 10⁻⁴ s").
+    time over a continuously measured output (Yi, Ortega & Zhang (2019), §V-C: noise "sampled every 10⁻⁴ s").
     """
 
     kinds: Mapping[str, Kind] | Kind

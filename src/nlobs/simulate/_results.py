@@ -4,14 +4,16 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import numpy as np
 
+from .._display import MISSING, Column, SummaryTable, fmt_number, short_repr
 from ._metrics import CONVERGENCE_RULE, Metrics, error_metrics
 from ._whiteness import Whiteness, ljung_box
 
-__all__ = ["ObserverTrace", "Run", "write_csv", "estimate_std"]
+__all__ = ["ObserverTrace", "Run", "write_csv"]
 
 
 def write_csv(path: Any, header: Sequence[str], data: np.ndarray) -> None:
@@ -52,19 +54,27 @@ class ObserverTrace:
     #: y_k − h(x̂_k⁻): each output sample against the output predicted before the sample was used
     #: (shape (N, p), NaN where missing); set by :func:`nlobs.estimate`.
     innovation: np.ndarray | None = None
-    std: np.ndarray | None = None  #: (N, n) standard deviation of each estimate, from the covariance the observer carries
+    #: The design's covariance of x̂ as a function of z (None for observers that carry none); see :attr:`std`.
+    covariance: Any = field(default=None, repr=False)
+
+    @cached_property
+    def std(self) -> np.ndarray | None:
+        """(N, n) standard deviation of each estimate, from the covariance the observer carries (None
+        for observers without one). Computed when first read: runs that never ask do not pay for it."""
+        return _std(self.covariance, self.z, self.xhat.shape[1])
+
+    def __repr__(self) -> str:
+        return short_repr(self, {"name": self.name, "method": self.method, "z": self.z, "xhat": self.xhat})
 
 
-def estimate_std(design: Any, z: np.ndarray) -> np.ndarray | None:
-    """The standard deviation of each entry of x̂ along a trajectory of z, from the design's
-    ``covariance`` (None for observers that carry none). Negative variances (a covariance that
-    lost definiteness) give NaN, not a number that looks fine."""
-    cov = getattr(design, "covariance", None)
+def _std(cov: Any, z: np.ndarray, n: int) -> np.ndarray | None:
+    """The standard deviation of each entry of x̂ along a trajectory of z, from a design's
+    ``covariance`` function (None for observers that carry none). Negative variances (a covariance
+    that lost definiteness) give NaN, not a number that looks fine."""
     if cov is None or z.shape[0] == 0:
         return None
     from ..engine import evaluate_many
 
-    n = design.system.n_states
     P = evaluate_many(cov, z)
     var = P[:, [i * (n + 1) for i in range(n)]]  # diagonal entries of the column-major n x n blocks
     with np.errstate(invalid="ignore"):
@@ -94,6 +104,7 @@ class Run:
     x: np.ndarray | None = None
     y_true: np.ndarray | None = None
     info: Mapping[str, Any] = field(default_factory=dict)
+    #: Names of the parameters estimated jointly with the states (the last entries of the state names).
     estimated_params: tuple[str, ...] = ()
 
     # -- errors and metrics -------------------------------------------------------------
@@ -116,8 +127,9 @@ class Run:
 
     # -- estimated parameters ---------------------------------------------------------------
     def parameters(self, name: str | None = None, *, at: int = -1) -> dict[str, dict[str, float | None]]:
-        """Each estimated parameter at sample `at` (default the last):
-        ``{k: {"estimate": ..., "std": ... or None, "true": ... or None}}``.
+        """Each estimated parameter at sample `at` (default the last), with its standard deviation.
+
+        Returns ``{k: {"estimate": value, "std": value or None, "true": value or None}}``.
 
         ``std`` is the standard deviation of the estimate from the covariance the observer
         carries (EKF, UKF, Kalman filters), None otherwise; ±2σ is ``2*std``. ``true`` is the
@@ -187,23 +199,24 @@ class Run:
         start = int(np.ceil(burn_in * inn.shape[0]))
         return {o: ljung_box(inn[start:, j], lags=lags, alpha=alpha) for j, o in enumerate(self.output_names)}
 
-    def residual_table(self) -> str:
-        """Per observer and output: the innovations' mean and RMS and the Ljung–Box whiteness test."""
-        head = f"{'observer':<18} {'output':<10} {'mean':>10} {'RMS':>10} {'Ljung-Box Q':>12} {'lags':>5} {'p':>7}  white?"
-        lines = ["innovations y_k − h(x̂_k⁻) (each sample against the output predicted before it was used), "
-                 "after the first 10 % of the samples:", head, "-" * len(head)]
+    def residual_table(self) -> SummaryTable:
+        """Per observer and output: the innovations' mean and RMS and the Ljung–Box whiteness test
+        (a table: ``print()`` it, show it in a notebook, or ``.to_pandas()`` it)."""
+        cols = [Column("observer", "observer", str, numeric=False), Column("output", "output", str, numeric=False),
+                Column("mean", "mean"), Column("rms", "RMS"), Column("q", "Ljung-Box Q"), Column("lags", "lags"),
+                Column("p_value", "p"), Column("white", "white?", str, numeric=False)]
+        rows = []
         for name, tr in self.observers.items():
             if tr.innovation is None:
-                lines.append(f"{name:<18} (no innovations recorded)")
+                rows.append({"observer": name, "output": "(no innovations recorded)", "white": MISSING})
                 continue
             for o, w in self.whiteness(name).items():
-                white = "—" if w.p_value is None else ("yes" if w.white else "no")
-                q = "—" if w.q is None else f"{w.q:.3g}"
-                p = "—" if w.p_value is None else f"{w.p_value:.3g}"
-                lines.append(f"{name:<18} {o:<10} {w.mean:>10.3g} {w.rms:>10.3g} {q:>12} {w.lags:>5} {p:>7}  {white}")
-        lines.append("white?: Ljung–Box test at the 5 % level; 'no' means the innovations are correlated in time: "
-                     "the model, the tuning (Q, R) or the data leave information unused")
-        return "\n".join(lines)
+                rows.append({"observer": name, "output": o, "mean": w.mean, "rms": w.rms, "q": w.q, "lags": w.lags,
+                             "p_value": w.p_value, "white": MISSING if w.p_value is None else ("yes" if w.white else "no")})
+        return SummaryTable("innovations y_k − h(x̂_k⁻) (each sample against the output predicted before it was used), "
+                            "after the first 10 % of the samples:", cols, rows,
+                            ("white?: Ljung–Box test at the 5 % level; 'no' means the innovations are correlated in time: "
+                             "the model, the tuning (Q, R) or the data leave information unused",))
 
     def _parameter_lines(self) -> list[str]:
         """The estimated parameters at the final time, with ±2σ and the true value when known."""
@@ -218,24 +231,36 @@ class Run:
                 lines.append(f"  {name:<16} {k} = {text}")
         return lines
 
-    def summary(self, *, tol: float | None = None) -> str:
-        """A text table of every observer's metrics (with the convergence band of each); for
-        recorded data without true states, the innovations and their whiteness instead (see
-        :meth:`innovations` and :meth:`whiteness`)."""
-        lines = [f"{self.model}: t in [{self.t[0]:g}, {self.t[-1]:g}], {len(self.t)} samples"]
+    def summary(self, *, tol: float | None = None) -> SummaryTable:
+        """Every observer's metrics (with the convergence band of each) as a table: ``print()`` it,
+        show it in a notebook, or ``.to_pandas()`` it. For recorded data without true states, the
+        innovations and their whiteness instead (see :meth:`innovations` and :meth:`whiteness`).
+
+        Parameters
+        ----------
+        tol : float, optional
+            Convergence tolerance (default: the band of :data:`nlobs.simulate.CONVERGENCE_RULE`).
+        """
+        title = f"{self.model}: t in [{self.t[0]:g}, {self.t[-1]:g}], {len(self.t)} samples"
         if self.x is None:
-            return "\n".join(lines + [self.residual_table()] + self._parameter_lines())
-        head = f"{'observer':<18} {'final err':>10} {'RMS (last 20%)':>15} {'peak err':>10} {'conv. time':>11} {'band':>9}"
-        lines += [head, "-" * len(head)]
-        for name in self.observers:
-            m = self.metrics(name, tol=tol)
-            tc = "never" if m.convergence_time is None else f"{m.convergence_time:.3g}"
-            lines.append(f"{name:<18} {m.final_error:>10.3g} {m.rms_error:>15.3g} {m.peak_error:>10.3g} {tc:>11} {m.tol:>9.2g}")
-        lines.append("band: " + ("the tolerance given" if tol is not None else
-                                 "max(2 % of the initial error, 2 × steady-state error), at most 20 % of the initial error")
-                     + "; conv. time: from then on the error stays within it")
-        lines += self._parameter_lines()
-        return "\n".join(lines)
+            res = self.residual_table()
+            return SummaryTable(f"{title}\n{res.title}", res.columns, res.rows, (*res.notes, *self._parameter_lines()))
+        cols = [Column("observer", "observer", str, numeric=False), Column("final_error", "final err"),
+                Column("rms_error", "RMS (last 20%)"), Column("peak_error", "peak err"),
+                Column("convergence_time", "conv. time"), Column("tol", "band", lambda v: fmt_number(v, 2))]
+        rows = [{"observer": n, **self.metrics(n, tol=tol).to_dict()} for n in self.observers]
+        band = ("the tolerance given" if tol is not None else
+                "max(2 % of the initial error, 2 × steady-state error), at most 20 % of the initial error")
+        return SummaryTable(title, cols, rows, (f"band: {band}; conv. time: from then on the error stays within it "
+                                                f"({MISSING}: not within the run)", *self._parameter_lines()))
+
+    def __repr__(self) -> str:
+        return short_repr(self, {"model": self.model, "t": (float(self.t[0]), float(self.t[-1])), "samples": int(self.t.size),
+                                 "states": self.state_names, "observers": tuple(self.observers),
+                                 "true_state": self.x is not None})
+
+    def _repr_html_(self) -> str:
+        return self.summary()._repr_html_()
 
     # -- export -------------------------------------------------------------------------
     def to_numpy(self) -> dict[str, np.ndarray]:
@@ -322,11 +347,25 @@ class Run:
         data = np.hstack([np.asarray(b, dtype=float).reshape(self.t.size, -1) for b in blocks])[keep]
         write_csv(path, header, data)
 
-    def plot(self, path: str | None = None, *, observers: Sequence[str] | None = None) -> Any:
+    def plot(self, path: str | None = None, *, observers: Sequence[str] | None = None, width: float = 6.4,
+             title: str | None = None) -> Any:
         """States vs estimates, and the error norms on a log scale; saved to `path` if given.
 
-        Returns the matplotlib Figure.
+        Parameters
+        ----------
+        path : str, optional
+            File to save the figure to (png, pdf, svg, ...).
+        observers : sequence of str, optional
+            Observers to draw (default: all).
+        width : float
+            Figure width in inches.
+        title : str, optional
+            A title above the panels.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
         """
         from ._plot import plot_run
 
-        return plot_run(self, path, observers=observers)
+        return plot_run(self, path, observers=observers, width=width, title=title)

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numbers
 from collections import OrderedDict
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import casadi as ca
@@ -29,7 +29,7 @@ from ..model import ModelFile, ObserverConfig, System, input_signals
 from ..observer import AbstractObserver, Observer, as_observer
 from ._file import file_arguments, observers_of
 from ._options import Adaptive, Noise, ProcessNoise, Sampling
-from ._results import ObserverTrace, Run, estimate_std
+from ._results import ObserverTrace, Run
 
 __all__ = ["simulate", "Simulation", "prepare", "Prepared", "named_observers", "check_compatible", "stage_inputs",
            "augmented_plant"]
@@ -170,10 +170,11 @@ def simulate(
         For inconsistent arguments (wrong sizes, unknown names, incompatible observers).
     """
     if isinstance(plant, ModelFile):
-        return simulate(**file_arguments(plant, observers, t_final=t_final, dt=dt, x0=x0, inputs=inputs, params=params,
+        run = simulate(**file_arguments(plant, observers, t_final=t_final, dt=dt, x0=x0, inputs=inputs, params=params,
                                          noise=noise, process_noise=process_noise, sampling=sampling, seed=seed,
                                          xhat0=xhat0, engine=engine, progress=progress, escape_bound=escape_bound,
                                          integrator=integrator))
+        return replace(run, info={**run.info, "units": dict(plant.units)})  # the file's [units] label the plots
     sim = Simulation(plant, observers, t_final=t_final, dt=dt, inputs=inputs, params=params, noise=noise,
                      process_noise=process_noise, sampling=sampling, integrator=integrator, engine=engine, _caller="simulate")
     return sim.run(x0, xhat0=xhat0, seed=seed, progress=progress, escape_bound=escape_bound)
@@ -606,6 +607,7 @@ def _assemble(plant: System, obs: Mapping[str, AbstractObserver], layout: _Layou
         z = O[:, zsl] if zsl is not None else S[:, layout.slices[name]]
         xhat = O[:, xsl] if xsl is not None else z[:, :n]
         prior = o.estimate(t[0], S[0, layout.slices[name]], u[0], y[0])
-        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, z, xhat, prior, std=estimate_std(o.design, z))
-    return Run(plant.name, t, plant.states, plant.inputs, plant.outputs, u, y, traces, x=S[:, :n], y_true=y_true, info=info,
-               estimated_params=plant.estimated_params)
+        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, z, xhat, prior,
+                                     covariance=getattr(o.design, "covariance", None))
+    return Run(plant.name, t, plant.states, plant.inputs, plant.outputs, u, y, traces, x=S[:, :n], y_true=y_true,
+               info={**info, "units": dict(getattr(plant, "units", None) or {})}, estimated_params=plant.estimated_params)

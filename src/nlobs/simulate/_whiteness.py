@@ -8,7 +8,7 @@ prediction errors) that are white: uncorrelated in time. The Ljung–Box statist
     Q = n(n + 2) \\sum_{k=1}^{h} \\frac{\\hat\\rho_k^2}{n - k}
 
 of the sample autocorrelations :math:`\\hat\\rho_k` is approximately χ² with h degrees of freedom
-for white noise (Ljung & Box 1978).
+for white noise (Ljung & Box (1978)).
 """
 
 from __future__ import annotations

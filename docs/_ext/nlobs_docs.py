@@ -1,0 +1,208 @@
+"""Sphinx glue for the nlobs documentation (nothing here is copied from the library by hand):
+
+- maths rendered as MathML at build time (latex2mathml, the report's renderer): no script,
+  no font download, the site works offline;
+- the examples gallery: one sphinx-gallery script per registered example of
+  :mod:`nlobs.examples`, written at build time, plus a scraper for the library's matplotlib
+  figures (they are not pyplot figures);
+- the API reference pages: every public name of every nlobs namespace, listed at build time;
+- the references page, from :data:`nlobs.references.REFERENCES`.
+"""
+
+from __future__ import annotations
+
+import html
+import inspect
+import re
+from pathlib import Path, PurePosixPath
+from typing import Any
+
+from docutils import nodes
+from latex2mathml.converter import convert
+
+HERE = Path(__file__).resolve().parent.parent   # docs/
+
+# -- maths ----------------------------------------------------------------------------------
+
+
+def _mathml(latex: str, display: bool) -> str:
+    try:
+        return convert(latex.strip(), display="block" if display else "inline")
+    except Exception:  # noqa: BLE001 - an expression latex2mathml does not know: show its source
+        return f"<code class='latex'>{html.escape(latex)}</code>"
+
+
+def _visit_math(self: Any, node: nodes.Element) -> None:
+    self.body.append(_mathml(node.astext(), False))
+    raise nodes.SkipNode
+
+
+def _visit_displaymath(self: Any, node: nodes.Element) -> None:
+    latex = node.astext()
+    parts = [p for p in re.split(r"\n\s*\n", latex) if p.strip()] if not node.get("nowrap") else [latex]
+    self.body.append("<div class='math-block'>" + "".join(_mathml(p, True) for p in parts) + "</div>")
+    raise nodes.SkipNode
+
+
+# -- the gallery ----------------------------------------------------------------------------
+
+GALLERY_SRC = HERE / "_gallery_src"
+
+
+def _script(ex: Any) -> str:
+    from nlobs.report import plain
+
+    title = plain(ex.title)
+    return f'''"""
+{title}
+{"=" * len(title)}
+
+The example registered as ``{ex.key}`` in :mod:`nlobs.examples`, run while these pages were
+built. ``nlobs demo --only {ex.key}`` runs the same function; so do the acceptance tests.
+"""
+
+# %%
+# Run the example: it builds the models, checks the claims with numbers and simulates the observers.
+from nlobs.examples import find_example
+from nlobs.report import HTML, example_section
+
+result = find_example("{ex.key}").run()
+
+# %%
+# What is shown, the claims checked, the observability verdicts, the numbers, the model, the
+# evidence and the notes (the demo report's section, here without its plots, which follow).
+HTML(example_section(result, plots=False, level=3))
+
+# %%
+# The simulations — true states (grey) against each observer's estimate, and the error norms —
+# then the example's own figures, if it has any.
+figures = [run.plot(width=5.1, title=label) for label, run in result.runs.items()]
+figures += list(result.figures.values())
+'''
+
+
+def write_gallery_sources(app: Any = None) -> None:
+    """One script per registered example (the examples' order), and the gallery's header."""
+    from nlobs.examples import EXAMPLES
+
+    GALLERY_SRC.mkdir(exist_ok=True)
+    for old in GALLERY_SRC.glob("*.py"):
+        old.unlink()
+    (GALLERY_SRC / "GALLERY_HEADER.rst").write_text(
+        "The papers' examples\n====================\n\n"
+        "Each page runs one example of :mod:`nlobs.examples` while the documentation is built, so the\n"
+        "numbers, claims and plots here are those of the code you install. ``nlobs demo`` runs them all\n"
+        "and writes the same content as one self-contained report.\n", encoding="utf-8")
+    for i, ex in enumerate(sorted(EXAMPLES.values(), key=lambda e: e.order)):
+        name = f"plot_{i:02d}_{ex.key.replace('-', '_')}.py"
+        (GALLERY_SRC / name).write_text(_script(ex), encoding="utf-8")
+
+
+class FigureScraper:
+    """Save every matplotlib Figure a gallery block created (the library draws on Figure objects,
+    not through pyplot, so sphinx-gallery's own scraper does not see them)."""
+
+    def __repr__(self) -> str:  # a stable repr keeps Sphinx's environment cache valid
+        return "FigureScraper"
+
+    def __call__(self, block: Any, block_vars: dict[str, Any], gallery_conf: dict[str, Any]) -> str:
+        from matplotlib.figure import Figure
+        from sphinx_gallery.scrapers import figure_rst
+
+        seen = block_vars.setdefault("_nlobs_seen", set())
+        figs = []
+        for value in list(block_vars["example_globals"].values()):
+            for item in value if isinstance(value, (list, tuple)) else [value]:
+                if isinstance(item, Figure) and id(item) not in seen:
+                    figs.append(item)
+        narrow, wide = [], []
+        for fig, path in zip(figs, block_vars["image_path_iterator"]):
+            seen.add(id(fig))
+            fig.savefig(path, dpi=110)
+            (wide if fig.get_size_inches()[0] > 6 else narrow).append(PurePosixPath(path))
+        # side-by-side figures two per row; a wide figure alone, at full width
+        parts = [figure_rst(narrow, gallery_conf["src_dir"])] if narrow else []
+        parts += [figure_rst([p], gallery_conf["src_dir"]) for p in wide]
+        return "\n".join(parts)
+
+
+# -- the API reference -----------------------------------------------------------------------
+
+NAMESPACES = [
+    ("nlobs.model", "Models: System, structured forms, model files, input signals"),
+    ("nlobs.analysis", "Observability analysis"),
+    ("nlobs.design", "Observer designs and their certificates"),
+    ("nlobs.observer", "Running observers: offline, online, C export"),
+    ("nlobs.simulate", "Simulation, noise, recorded data, Monte Carlo, results"),
+    ("nlobs.interop", "python-control"),
+    ("nlobs.examples", "The papers' examples"),
+    ("nlobs.report", "Report building blocks"),
+    ("nlobs.references", "The works nlobs cites"),
+    ("nlobs.errors", "Errors"),
+]
+
+
+def public_names(modname: str) -> list[str]:
+    """Public classes and functions a namespace offers (its own or re-exported from nlobs)."""
+    import importlib
+
+    mod = importlib.import_module(modname)
+    names = getattr(mod, "__all__", None) or [n for n in dir(mod) if not n.startswith("_")]
+    out = []
+    for n in names:
+        obj = getattr(mod, n, None)
+        if (inspect.isclass(obj) or inspect.isfunction(obj)) and getattr(obj, "__module__", "").startswith("nlobs"):
+            out.append(n)
+    return sorted(set(out), key=str.lower)
+
+
+def write_api_pages(app: Any = None) -> None:
+    """docs/api/index.rst: one autosummary table per namespace, each object documented once (where
+    its stage defines it); then the names the top level ``nlobs`` re-exports, linked there."""
+    import importlib
+
+    lines = ["API reference", "=============", "",
+             "Every public class and function, generated from the docstrings (NumPy style), grouped by",
+             "the stage that defines it. The top level ``nlobs`` re-exports the names most scripts need",
+             "(listed at the end).", ""]
+    home: dict[int, str] = {}
+    for modname, title in NAMESPACES:
+        mod = importlib.import_module(modname)
+        names = [n for n in public_names(modname) if id(getattr(mod, n)) not in home]
+        if not names:
+            continue
+        lines += [title, "-" * len(title), "", f".. currentmodule:: {modname}", "", ".. autosummary::",
+                  "   :toctree: generated", "   :nosignatures:", ""]
+        for n in names:
+            home[id(getattr(mod, n))] = f"{modname}.{n}"
+            lines.append(f"   {n}")
+        lines.append("")
+    top = importlib.import_module("nlobs")
+    reexported = [n for n in public_names("nlobs") if id(getattr(top, n)) in home]
+    lines += ["Re-exported by ``nlobs``", "------------------------", "",
+              ", ".join(f":{'class' if inspect.isclass(getattr(top, n)) else 'func'}:`nlobs.{n} <{home[id(getattr(top, n))]}>`"
+                        for n in reexported), ""]
+    (HERE / "api").mkdir(exist_ok=True)
+    target = HERE / "api" / "index.rst"
+    text = "\n".join(lines)
+    if not target.exists() or target.read_text(encoding="utf-8") != text:
+        target.write_text(text, encoding="utf-8")
+
+
+def write_references_page(app: Any = None) -> None:
+    from nlobs.references import REFERENCES, full_citation
+
+    lines = ["References", "==========", "",
+             "Every work nlobs implements or cites, from the one table in :mod:`nlobs.references`; the",
+             "library and these pages cite them by author and year.", ""]
+    for k, r in REFERENCES.items():
+        lines += [f".. _ref-{k}:", "", f"**{r.label}** — {full_citation(k)}", ""]
+    target = HERE / "references.rst"
+    text = "\n".join(lines)
+    if not target.exists() or target.read_text(encoding="utf-8") != text:
+        target.write_text(text, encoding="utf-8")
+
+
+def setup(app: Any) -> dict[str, Any]:
+    app.add_html_math_renderer("mathml", (_visit_math, None), (_visit_displaymath, None))
+    return {"parallel_read_safe": True, "parallel_write_safe": True}

@@ -1,0 +1,79 @@
+"""The documentation site builds with warnings as errors (what `./dev.sh docs` runs), covers every
+public function and every paper example, cites no internal file, and its guides' code runs."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+FILE_NAME = re.compile(r"\d{3}_[0-9a-f]{16}\.txt")
+
+
+@pytest.fixture(scope="module")
+def site(tmp_path_factory):
+    out = tmp_path_factory.mktemp("site")
+    proc = subprocess.run([sys.executable, "-m", "sphinx", "-W", "--keep-going", "-E", "-q", "-b", "html",
+                           "-d", str(out / ".doctrees"), str(DOCS), str(out)], capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, f"the documentation does not build cleanly:\n{proc.stderr[-5000:]}"
+    return out
+
+
+def test_api_reference_has_a_page_for_every_public_function_and_class(site):
+    sys.path.insert(0, str(DOCS / "_ext"))
+    import nlobs_docs
+
+    missing = []
+    for modname, _ in nlobs_docs.NAMESPACES:
+        for name in nlobs_docs.public_names(modname):
+            pages = list((site / "api" / "generated").glob(f"nlobs.*.{name}.html"))
+            if not pages:
+                missing.append(f"{modname}.{name}")
+    assert not missing, missing
+    index = (site / "api" / "index.html").read_text(encoding="utf-8")
+    assert "design_ekf" in index and "simulate" in index
+
+
+def test_gallery_has_a_page_per_example_with_its_plots_and_rendered_maths(site):
+    from nlobs.examples import EXAMPLES
+
+    for key in EXAMPLES:
+        pages = list((site / "gallery").glob(f"plot_*_{key.replace('-', '_')}.html"))
+        assert len(pages) == 1, key
+        text = pages[0].read_text(encoding="utf-8")
+        assert "<math" in text, f"{key}: no rendered maths"
+        assert "Claims checked" in text and ("sphx-glr-single-img" in text or "sphx-glr-multi-img" in text), key
+        assert "FAILS" not in text or key == "cuk", f"{key}: a claim fails in the docs build"
+
+
+def test_no_page_names_an_internal_file_or_loads_anything_from_elsewhere(site):
+    for page in site.rglob("*.html"):
+        text = page.read_text(encoding="utf-8")
+        if "_modules" not in page.parts:  # highlighted source code, whose comments cite papers by file (house rule)
+            assert not FILE_NAME.search(text), page
+        assert "shared/papers" not in text and "papers README" not in text, page
+        assert not re.search(r"<script[^>]+src=['\"]https?://", text), f"{page} loads a script from the network"
+
+
+def test_references_page_lists_the_table(site):
+    from nlobs.references import REFERENCES
+
+    text = (site / "references.html").read_text(encoding="utf-8")
+    for r in REFERENCES.values():
+        assert r.title.split(":")[0][:40].replace("&", "&amp;") in text, r.key
+
+
+@pytest.mark.parametrize("guide", sorted(p.name for p in (DOCS / "guide").glob("*.rst")))
+def test_guide_code_runs_as_written(guide, tmp_path):
+    text = (DOCS / "guide" / guide).read_text(encoding="utf-8")
+    blocks = re.findall(r"^\.\. code-block:: python\n\n((?:(?:   .*)?\n)+)", text, flags=re.M)
+    assert blocks, f"{guide} has no Python example"
+    code = "\n".join("\n".join(line[3:] for line in b.splitlines()) for b in blocks)
+    (tmp_path / "guide.py").write_text("import matplotlib\nmatplotlib.use('Agg')\n" + code, encoding="utf-8")
+    proc = subprocess.run([sys.executable, "guide.py"], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, f"{guide}:\n{proc.stdout[-2000:]}\n{proc.stderr[-3000:]}"
