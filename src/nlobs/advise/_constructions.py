@@ -53,7 +53,7 @@ class _FilePrinter(StrPrinter):
 
 def text(expr: Any) -> str:
     """An expression as option text the model parser reads back (``Min`` -> ``min``; see ``parse_expression``)."""
-    return _FilePrinter().doprint(sp.sympify(expr))
+    return _FilePrinter().doprint(expr)
 
 
 def rational(v: float) -> sp.Rational:

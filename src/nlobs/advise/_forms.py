@@ -67,7 +67,7 @@ def _screen(system: System, C: np.ndarray, along_kernel_only: bool, seed: int = 
 
 
 def recognise(system: System) -> FormsReport:
-    """Output injection, state-affine, triangular and Lipschitz forms (002 / 000 eq. 1), as
+    """Output injection, state-affine, triangular and Lipschitz forms (Besançon (2010); Wang, Ortega & Bobtsov (2021) eq. 1), as
     :func:`nlobs.analysis.recognise_forms`, with the numeric screen of this module in front of the symbolic work."""
     checks = []
     C = _linear_output(system)
