@@ -118,46 +118,36 @@ def _run_group(ctx: Context, designs: dict[str, Any], engine: str, progress: Any
     sc, rec = ctx.scenario, ctx.recording
     failed: list[Score] = []
     if rec is None and engine != "vm" and len(designs) > 1:
-        designs, failed = _screen(ctx, designs)
+        # candidates that blow up at the start (a filter unstable at its first step, a gain beyond the step), found on a
+        # short prefix on the virtual machine: the whole run then compiles its joint step once, instead of once more
+        # for every candidate that diverges (a C build of a dozen observers takes seconds)
+        period = sc.sample_period or sc.dt
+        t_pre = min(sc.t_final, max(0.02 * sc.t_final, 20 * period))
+        _, designs, failed = _without_diverging(ctx, designs, max(sc.dt, round(t_pre / period) * period), "vm", None)
+    run, designs, more = _without_diverging(ctx, designs, None, engine, progress)
+    return run, ([_score(run, k, ctx) for k in designs] if run is not None else []) + failed + more
+
+
+def _without_diverging(ctx: Context, designs: dict[str, Any], t_final: float | None, engine: str,
+                       progress: Any) -> tuple[Run | None, dict[str, Any], list[Score]]:
+    """Run `designs` together on the scenario (up to `t_final`; None: all of it) or the recording, dropping each one
+    that blows up (reported with the time) until a run completes; returns the run, the designs in it, the dropped."""
+    sc, rec = ctx.scenario, ctx.recording
+    failed: list[Score] = []
     while designs:
         try:
             if rec is not None:
-                run = estimate(designs, rec, engine=engine)
-            else:
-                run = simulate(ctx.system, designs, t_final=sc.t_final, dt=sc.dt, x0=sc.x0, inputs=sc.inputs, noise=sc.noise,
-                               process_noise=sc.process_noise, sampling=sc.sampling, seed=sc.seed, engine=engine,
-                               progress=progress)
-            return run, [_score(run, k, ctx) for k in designs] + failed
+                return estimate(designs, rec, engine=engine), designs, failed
+            return (simulate(ctx.system, designs, t_final=sc.t_final if t_final is None else t_final, dt=sc.dt, x0=sc.x0,
+                             inputs=sc.inputs, noise=sc.noise, process_noise=sc.process_noise, sampling=sc.sampling,
+                             seed=sc.seed, engine=engine, progress=progress), designs, failed)
         except FiniteEscapeError as e:
             name = _culprit(e, designs)
             if name is None:
                 raise
             failed.append(Score(name, "diverged", detail=f"blew up after t = {e.t:.4g}"))
             designs = {k: v for k, v in designs.items() if k != name}
-    return None, failed
-
-
-def _screen(ctx: Context, designs: dict[str, Any]) -> tuple[dict[str, Any], list[Score]]:
-    """Candidates that blow up at the start (a filter unstable at its first step, a gain beyond the step) found on a
-    short prefix of the run on the virtual machine: the whole run then compiles its joint step once, instead of once
-    more for every candidate that diverges (a C build of a dozen observers takes seconds)."""
-    sc = ctx.scenario
-    period = sc.sample_period or sc.dt
-    t_pre = min(sc.t_final, max(0.02 * sc.t_final, 20 * period))
-    t_pre = max(sc.dt, round(t_pre / period) * period)
-    failed: list[Score] = []
-    while len(designs) > 1:
-        try:
-            simulate(ctx.system, designs, t_final=t_pre, dt=sc.dt, x0=sc.x0, inputs=sc.inputs, noise=sc.noise,
-                     process_noise=sc.process_noise, sampling=sc.sampling, seed=sc.seed, engine="vm")
-            break
-        except FiniteEscapeError as e:
-            name = _culprit(e, designs)
-            if name is None:
-                break
-            failed.append(Score(name, "diverged", detail=f"blew up after t = {e.t:.4g}"))
-            designs = {k: v for k, v in designs.items() if k != name}
-    return designs, failed
+    return None, designs, failed
 
 
 def _merge(a: Run, b: Run) -> Run:
