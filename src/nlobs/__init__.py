@@ -84,3 +84,6 @@ from .observer import export_c as export_c  # noqa: E402
 from . import interop as interop  # noqa: E402
 from .interop import from_control as from_control  # noqa: E402
 from .interop import to_control as to_control  # noqa: E402
+from . import advise as _advise_pkg  # noqa: E402
+from .advise import Advice as Advice  # noqa: E402
+from .advise import advise as advise  # noqa: E402

@@ -13,13 +13,13 @@ import json
 import sys
 from collections.abc import Sequence
 
-from . import _analyze, _demo, _estimate, _export, _fit, _kinds, _simulate
+from . import _analyze, _demo, _design, _estimate, _export, _fit, _kinds, _models, _report, _simulate
 from ._common import error_message
 
 __all__ = ["main", "COMMANDS"]
 
 #: The command modules, in the order `nlobs --help` lists them.
-COMMANDS = [_demo, _analyze, _simulate, _estimate, _fit, _export, _kinds]
+COMMANDS = [_demo, _models, _analyze, _design, _report, _simulate, _estimate, _fit, _export, _kinds]
 
 
 def _parser() -> argparse.ArgumentParser:

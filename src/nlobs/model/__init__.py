@@ -20,3 +20,7 @@ from ._toml import SimulationConfig as SimulationConfig
 from ._toml import load_model as load_model
 from ._toml import loads_model as loads_model
 from ._translate import translate as translate
+from ._library import LibraryEntry as LibraryEntry
+from ._library import bundled_names as bundled_names
+from ._library import bundled_path as bundled_path
+from ._library import library as library

@@ -62,6 +62,7 @@ from .._text import LabelError, check_label, shorten, shorten_list
 from ..errors import ModelError, ModelFileError
 from ._budget import check_tree
 from ._expr import CONSTANTS, FUNCTIONS, ExpressionError, parse_expression
+from ._library import bundled_path
 from ._system import _NAME, RESERVED, TIME, System, symbol
 
 __all__ = ["ModelFile", "SimulationConfig", "ObserverConfig", "load_model", "loads_model"]
@@ -169,7 +170,10 @@ class ModelFile:
 
 
 def load_model(path: str | Path) -> ModelFile:
-    """Read a TOML model file (UTF-8, with or without a byte-order mark).
+    """Read a TOML model file (UTF-8, with or without a byte-order mark), or a bundled model by name
+    (``load_model("lorenz")``; see ``nlobs models``).
+
+    A path that exists always wins over a bundled name.
 
     Raises
     ------
@@ -177,10 +181,13 @@ def load_model(path: str | Path) -> ModelFile:
         If the file cannot be read, is not valid TOML, or breaks the format.
     """
     p = Path(path)
+    if not p.exists():  # a bare name of the bundled library (`nlobs models`); an existing path always wins
+        p = bundled_path(str(path)) or p
     try:
         text = p.read_bytes().decode("utf-8")
     except OSError as e:
-        raise ModelFileError(f"cannot read the model file: {e.strerror}", path=str(p)) from None
+        hint = "; not a bundled model name either (`nlobs models` lists them)" if not p.exists() else ""
+        raise ModelFileError(f"cannot read the model file: {e.strerror}{hint}", path=str(p)) from None
     except UnicodeDecodeError as e:
         raise ModelFileError(f"the model file is not UTF-8 text (byte {e.start} cannot be decoded); save it as UTF-8",
                              path=str(p)) from None

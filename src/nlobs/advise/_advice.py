@@ -1,0 +1,250 @@
+"""What :func:`nlobs.advise` returns: one row per observer kind, the verdicts behind them, and a ranking."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..analysis import ObservabilityReport
+from ..design import Check, ObserverDesign
+from ..model import System
+from ..simulate import Run
+
+__all__ = ["Candidate", "Score", "Advice", "STATUSES", "jsonable"]
+
+#: Candidate statuses: the design was made and its checks hold (`applies`); a precondition fails with its numbers
+#: (`fails`); the kind needs structure only the user can give (`needs input`); the kind exists but nlobs has no
+#: automatic tuning for it (`not tuned`).
+STATUSES = ("applies", "fails", "needs input", "not tuned")
+
+
+def jsonable(value: Any) -> Any:
+    """Options and values as JSON/TOML-ready data (arrays -> lists, numpy scalars -> floats, non-finite -> None)."""
+    if isinstance(value, Mapping):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, np.ndarray):
+        return jsonable(value.tolist())
+    if isinstance(value, (list, tuple)):
+        return [jsonable(v) for v in value]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        v = float(value)
+        return v if np.isfinite(v) else None
+    if isinstance(value, complex):
+        return [value.real, value.imag]
+    if value is None or isinstance(value, str):
+        return value
+    return str(value)
+
+
+@dataclass(frozen=True, eq=False)
+class Candidate:
+    """One observer kind tried on the model.
+
+    Attributes
+    ----------
+    kind : str
+        The kind, as in model files (``[observers.NAME] kind = "..."``).
+    status : {"applies", "fails", "needs input", "not tuned"}
+    why : str
+        Why it applies (the tuning and what the certificate guarantees) or why not (the failed
+        precondition with its numbers, or what the user must supply).
+    options : mapping
+        The tuning options the design was made with (paste them into ``[observers.NAME]``), or, for
+        ``needs input``, the options the user must supply.
+    reference : str
+        The work the kind implements, by authors and year.
+    design : ObserverDesign or None
+        The design, when it applies.
+    runnable : bool
+        Whether ``--run`` simulates it (MHE on many samples is left out, with the reason in `why`).
+    """
+
+    kind: str
+    status: str
+    why: str
+    options: Mapping[str, Any] = field(default_factory=dict)
+    reference: str = ""
+    design: ObserverDesign | None = None
+    runnable: bool = True
+    seconds: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.status not in STATUSES:
+            raise ValueError(f"Candidate: `status` must be one of {', '.join(STATUSES)}, got {self.status!r}")
+
+    @property
+    def applies(self) -> bool:
+        return self.status == "applies"
+
+    @property
+    def checks(self) -> tuple[Check, ...]:
+        return self.design.certificate.checks if self.design is not None else ()
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"kind": self.kind, "applies": self.applies, "status": self.status, "why": self.why,
+                               "options": jsonable(self.options), "reference": self.reference}
+        if self.design is not None:
+            out["certificate"] = {"method": self.design.certificate.method,
+                                  "checks": [{"condition": c.condition, "status": c.status, "detail": c.detail}
+                                             for c in self.design.certificate.checks]}
+        if self.applies and not self.runnable:
+            out["run"] = False
+        return out
+
+    def __str__(self) -> str:
+        return f"{self.kind}: {self.status} - {self.why}"
+
+
+@dataclass(frozen=True)
+class Score:
+    """One candidate measured on the comparison run (metrics from :meth:`nlobs.Run.metrics`)."""
+
+    kind: str
+    status: str                 # "ok", "diverged", "failed"
+    rms_error: float | None = None
+    convergence_time: float | None = None
+    final_error: float | None = None
+    detail: str = ""
+    parameters: Mapping[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        return jsonable({"kind": self.kind, "status": self.status, "rms_error": self.rms_error,
+                         "convergence_time": self.convergence_time, "final_error": self.final_error, "detail": self.detail,
+                         **({"parameters": dict(self.parameters)} if self.parameters else {})})
+
+
+@dataclass(frozen=True, eq=False)
+class Advice:
+    """The answer to "how do I observe this model?": verdicts, one candidate per kind, and (with a run) a ranking.
+
+    Attributes
+    ----------
+    model : str
+    system : System
+        What the observers estimate (unknown parameters appended as constant states).
+    observability : ObservabilityReport
+    candidates : tuple of Candidate
+    notes : tuple of str
+        The tuning rules used, and warnings (singular input, local-only observability, ...).
+    blockers : tuple of str
+        Why no full-state observer can apply (an unobservable state, an unidentifiable parameter).
+    forms : tuple of str
+        Form recognition (output injection, state-affine, triangular, Lipschitz), one line each.
+    extra : mapping
+        JSON-ready evidence: ``"uco"`` along the run for state-affine models, ``"detectability"``, ...
+    scores : tuple of Score or None
+        With a run: every runnable candidate, best first.
+    run : Run or None
+        The comparison run (all candidates that did not diverge).
+    scenario : str
+        What the run was (horizon, step, sampling, noise, x̂(0)), or the recording.
+    seconds : float
+    description : str
+        The model file's description (it cites the model's source).
+    run_refused : str
+        Why ``run=True`` ran nothing although designs apply (the simulation's inputs do not identify an unknown
+        parameter: refused before any estimation); empty otherwise.
+    """
+
+    model: str
+    system: System
+    observability: ObservabilityReport
+    candidates: tuple[Candidate, ...]
+    notes: tuple[str, ...] = ()
+    blockers: tuple[str, ...] = ()
+    forms: tuple[str, ...] = ()
+    extra: Mapping[str, Any] = field(default_factory=dict)
+    scores: tuple[Score, ...] | None = None
+    run: Run | None = None
+    scenario: str = ""
+    seconds: float = 0.0
+    description: str = ""  #: the model file's description (it cites the model's source)
+    run_refused: str = ""  #: why the comparison run was not made although asked for (an input that identifies nothing)
+
+    @property
+    def applicable(self) -> tuple[Candidate, ...]:
+        return tuple(c for c in self.candidates if c.applies)
+
+    @property
+    def ranking(self) -> tuple[str, ...] | None:
+        """Kinds best first (only candidates that ran without diverging), or None without a run."""
+        if self.scores is None:
+            return None
+        return tuple(s.kind for s in self.scores if s.status == "ok")
+
+    def candidate(self, kind: str) -> Candidate:
+        for c in self.candidates:
+            if c.kind == kind:
+                return c
+        raise KeyError(f"no candidate {kind!r}; kinds: {', '.join(c.kind for c in self.candidates)}")
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``nlobs design --json`` object: model, observability, candidates (and ranking with a run)."""
+        obs = self.observability.to_dict()
+        obs.update(jsonable(dict(self.extra)))
+        obs["blockers"] = list(self.blockers)
+        obs["forms"] = list(self.forms)
+        out: dict[str, Any] = {"model": self.model, "description": self.description, "states": list(self.system.states),
+                               "estimated_params": list(self.system.estimated_params), "observability": jsonable(obs),
+                               "candidates": [c.to_dict() for c in self.candidates], "notes": list(self.notes)}
+        if self.scores is not None:
+            out["ranking"] = list(self.ranking or ())
+            out["scores"] = [s.to_dict() for s in self.scores]
+            out["scenario"] = self.scenario
+            if self.run_refused:
+                out["run_refused"] = self.run_refused
+        return out
+
+    def __str__(self) -> str:
+        rep = self.observability
+        lines = [f"Observer design for {self.model!r} ({self.system.n_states} states"
+                 + (f", of which {len(self.system.estimated_params)} unknown parameter(s): "
+                    f"{', '.join(self.system.estimated_params)}" if self.system.estimated_params else "") + ")"
+                 + (f": {self.description}" if self.description else "")]
+        verdict = "observable" if rep.observable else "NOT observable"
+        lines.append(f"  observability: {verdict} (generic rank {rep.rank} of {len(rep.unknowns)}; "
+                     f"observable: {', '.join(rep.observable_states) or 'none'}"
+                     + (f"; identifiable: {', '.join(rep.identifiable_params) or 'none'}" if rep.unknown_params else "") + ")")
+        for b in self.blockers:
+            lines.append(f"  BLOCKED: {b}")
+        for f in self.forms:
+            lines.append(f"  form: {f}")
+        for n in self.notes:
+            lines.append(f"  note: {n}")
+        groups = [("applies", "Applies"), ("fails", "Does not apply"), ("needs input", "Needs input"), ("not tuned", "Not tuned")]
+        blocked = "; ".join(self.blockers)
+        for status, title in groups:
+            rows = [c for c in self.candidates if c.status == status]
+            if not rows:
+                continue
+            lines.append(f"{title} ({len(rows)}):")
+            same = [c.kind for c in rows if blocked and c.why == blocked]
+            if same:
+                lines.append(f"  blocked (see above): {', '.join(same)}")
+            for c in rows:
+                if not (blocked and c.why == blocked):
+                    lines.append(f"  {c.kind:<24} {c.why}")
+        if self.scores is not None and not self.scores:
+            lines.append(f"Nothing was run: {self.run_refused}" if self.run_refused else
+                         "Nothing was run: blocked (see BLOCKED above), no estimation was attempted." if self.blockers else
+                         "Nothing to run: no observer kind applies.")
+        elif self.scores is not None:
+            lines.append(f"Ranking on {self.scenario} (error RMS over the last 20 %, then convergence time):")
+            for i, s in enumerate(self.scores):
+                if s.status == "ok":
+                    tc = "never" if s.convergence_time is None else f"{s.convergence_time:.3g}"
+                    lines.append(f"  {i + 1:>2}. {s.kind:<24} RMS {s.rms_error:.3g}  converged at {tc}  final {s.final_error:.3g}"
+                                 + (f"  {s.detail}" if s.detail else ""))
+                else:
+                    lines.append(f"   -  {s.kind:<24} {s.status}: {s.detail}")
+            if not any(s.status == "ok" and s.convergence_time is not None for s in self.scores):
+                lines.append("  none converged within the run (to 2 % of the initial error): see the report's plots")
+        lines.append(f"({self.seconds:.1f} s)")
+        return "\n".join(lines)

@@ -1,0 +1,229 @@
+"""``advise``: from a model to the observers that fit it, with the reasons, and optionally a ranking."""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..analysis import ltv_gramian, uco_test
+from ..design import DESIGNS
+from ..errors import ModelError
+from ..model import ModelFile, System, load_model
+from ..references import cite
+from ..simulate import Recording
+from ._advice import Advice, Candidate
+from ._constructions import evaluate
+from ._context import Context, build_context, file_true_parameters, file_unknown_params
+from ._kinds import try_kind
+from ._rank import compare
+
+__all__ = ["advise"]
+
+
+def _progress_writer(progress: bool | Callable[[str], None] | None) -> Callable[[str], None] | None:
+    """True: one line redrawn in place on a terminal; elsewhere (logs, CI) only the phases, one line each."""
+    if progress is None or progress is False:
+        return None
+    if progress is True:
+        tty = sys.stderr.isatty()
+
+        def write(msg: str) -> None:
+            if tty:
+                sys.stderr.write(f"\r\033[K{msg}")
+            elif "] " not in msg:
+                sys.stderr.write(f"{msg}\n")
+            sys.stderr.flush()
+        return write
+    return progress
+
+
+def _uco(ctx: Context) -> tuple[dict[str, Any] | None, str]:
+    """Observability on the run vs uniform complete observability, for a state-affine model (Wang, Ortega &
+    Bobtsov (2021) eqs. 3-4): the Gramian of the model frozen along the nominal run."""
+    from ..design._kalman import state_affine_parts
+    from ..errors import FormError
+
+    if ctx.nominal is None:
+        return None, ""
+    try:
+        parts = state_affine_parts(ctx.system, "advise")
+    except (FormError, TypeError):
+        return None, ""
+    run = ctx.nominal
+    k = np.unique(np.linspace(0, run.t.size - 1, min(run.t.size, 2001)).astype(int))
+    pts = {"t": run.t[k], "x": run.x[k], "u": run.u[k], "y": run.y[k]}
+    n, p = ctx.n, ctx.p
+    A = evaluate(list(parts.A.T), ctx.system, pts).reshape(-1, n, n).transpose(0, 2, 1)
+    C = evaluate(list(parts.C.T), ctx.system, pts).reshape(-1, n, p).transpose(0, 2, 1)
+    if not (np.all(np.isfinite(A)) and np.all(np.isfinite(C))):
+        return None, ""
+    t = pts["t"]
+    try:
+        gram = ltv_gramian(A, C, t)
+        window = float(min(t[-1] / 4.0, 10.0 * 2 * np.pi / ctx.omega_p))
+        stride = max(1, (t.size - 1) // 100)
+        uco = uco_test(A, C, t, window, stride=stride)
+    except (ValueError, ModelError):
+        return None, ""
+    lam = float(gram.eigenvalues[0])
+    top = float(np.max(np.abs(gram.eigenvalues)))
+    if not np.all(np.isfinite(gram.eigenvalues)) or lam < -1e-8 * top or top > 1e12 or uco.delta.min() < -1e-8 * abs(uco.delta).max():
+        return ({"observable_on_run": None, "gramian_max_eig": top},
+                f"along the run the frozen model's transition matrix grows to ~{top:.1e} (A(u, y, t) is not stable along the "
+                "run): its Gramian cannot decide observability or uniformity here, and GPEBO-type observers (Φ_A) need an "
+                f"output injection ({cite('000', 'assumption 5')})")
+    tr = np.trace(gram.W_path, axis1=1, axis2=2) if gram.W_path is not None and len(gram.W_path) == t.size else None
+    peak = float(np.max(np.diff(tr) / np.diff(t))) if tr is not None else None
+    info = {"observable_on_run": bool(gram.observable), "gramian_min_eig": lam, "gramian_trace": float(np.trace(gram.W)),
+            "regressor_peak": peak,
+            "horizon": float(t[-1] - t[0]), "uco_window": uco.window,
+            "uco_uniform": bool(uco.uniform), "uco_min_delta": float(uco.delta.min()), "uco_worst_start": uco.worst_start}
+    if gram.observable and not uco.uniform:
+        text = (f"along the run the model is observable on [0, {t[-1]:g}] (λmin W = {lam:.3g}) but NOT uniformly completely "
+                f"observable: λmin W(t, t + {uco.window:g}) falls to {uco.delta.min():.3g} (at t = {uco.worst_start:g}). "
+                f"Observers whose convergence rests on uniform observability (Kalman-like, EKF) may stall; the 2G+D observer "
+                f"needs only observability on an interval ({cite('000', 'Proposition 1')})")
+    elif gram.observable:
+        text = (f"along the run: observable and uniformly so on windows of {uco.window:g} (min λmin W(t, t + T) = "
+                f"{uco.delta.min():.3g})")
+    else:
+        text = f"along the run the frozen model is NOT observable (λmin W(0, {t[-1]:g}) = {lam:.3g}): the input does not excite it"
+    return info, text
+
+
+def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[str] | None = None, simulation: Any = None,
+           recording: Recording | None = None, true_parameters: Mapping[str, float] | None = None,
+           kinds: Sequence[str] | None = None, run: bool = False, xhat0: Sequence[float] | None = None,
+           progress: bool | Callable[[str], None] | None = None, engine: str = "auto", seed: int = 0) -> Advice:
+    r"""Which observers fit this model, why the others do not, and (with `run`) which works best.
+
+    Runs the structural observability analysis (:func:`nlobs.analyze`) and the form recognition, then tries
+    every registered observer kind (:data:`nlobs.design.DESIGNS`) with an automatic tuning from the model's
+    time scales, the region its simulation visits and the declared noise (rules in
+    :mod:`nlobs.advise._context`). Each kind gets a :class:`Candidate`: it applies (the design and its
+    certificate), fails (the precondition with its numbers), or needs input only the user can give.
+
+    A state that is not observable blocks every full-state observer: the reason names it and says whether it
+    is detectable. An unknown parameter that is not identifiable blocks them too, before anything is estimated.
+
+    Parameters
+    ----------
+    model : System, ModelFile, or a path / bundled model name
+    unknown_params : sequence of str, optional
+        Parameters to estimate with the states (default: those the model file marks ``unknown = true``).
+        The observers then run on ``model.augmented(unknown_params)``.
+    simulation : SimulationConfig, optional
+        The run to tune for and compare on (default: the model file's ``[simulation]``).
+    recording : Recording, optional
+        Recorded data to compare on instead of a simulation (the tuning still uses ``[simulation]``).
+    true_parameters : mapping, optional
+        Values of the unknown parameters in the simulation (default: the file's ``true_parameters``, else the
+        parameter values).
+    kinds : sequence of str, optional
+        Only these kinds (default: all registered).
+    run : bool
+        Simulate every applicable design on the same measurements and rank them.
+    xhat0 : sequence of float, optional
+        Initial estimate shared by every candidate (default: see the tuning rules).
+    progress : bool or callable, optional
+        Report progress on stderr (True) or to ``progress(message)``.
+
+    Other Parameters
+    ----------------
+    engine : {"auto", "vm", "c"}
+        Numeric backend of the comparison run.
+    seed : int
+        Seed of the structural analysis.
+
+    Returns
+    -------
+    Advice
+
+    Raises
+    ------
+    ModelError
+        For unknown kinds or parameters, or `run` without a ``[simulation]`` x0 or a recording.
+
+    Examples
+    --------
+    >>> import nlobs
+    >>> adv = nlobs.advise("dc_motor")
+    >>> adv.candidate("luenberger").applies, adv.candidate("high_gain").applies
+    (True, True)
+    """
+    t0 = time.perf_counter()
+    mf = None
+    if isinstance(model, (str, Path)):
+        model = load_model(model)
+    if isinstance(model, ModelFile):
+        mf = model
+        system = mf.system
+        if unknown_params is None:
+            unknown_params = file_unknown_params(mf)
+        if true_parameters is None:
+            true_parameters = file_true_parameters(mf.simulation)
+    elif isinstance(model, System):
+        system = model
+    else:
+        raise ModelError(f"advise: `model` must be a System, a ModelFile, or a model file path/name; got {type(model).__name__}")
+    chosen = list(kinds) if kinds else list(DESIGNS)
+    unknown_kinds = [k for k in chosen if k not in DESIGNS]
+    if unknown_kinds:
+        raise ModelError(f"advise: unknown observer kind {unknown_kinds[0]!r}; kinds: {', '.join(DESIGNS)}")
+    say = _progress_writer(progress)
+    if say:
+        say(f"advise {system.name}: observability analysis and time scales ...")
+    t_ctx = time.perf_counter()
+    ctx = build_context(system, model_file=mf, unknown_params=unknown_params or (), simulation=simulation, recording=recording,
+                        true_parameters=true_parameters, xhat0=xhat0, seed=seed)
+    if mf is not None:
+        for name, cfg in mf.observers.items():  # what the user supplied for kinds nlobs cannot tune (KKL's φ, custom ...)
+            ctx.configs.setdefault(cfg.kind, (name, cfg.options))
+    if run and ctx.recording is None and ctx.scenario is None:
+        raise ModelError(f"advise: nothing to run on: {system.name!r} has no [simulation] x0 and no recording was given; "
+                         "add [simulation] x0 = [...] (with t_final, inputs, noise) or pass a recording (--data)")
+    forms = tuple(str(c) for c in ctx.forms.checks)
+    extra: dict[str, Any] = {}
+    if ctx.detectability:
+        extra["detectability"] = ctx.detectability
+    if not ctx.blockers:
+        info, text = _uco(ctx)
+        if info is not None:
+            extra["uco"] = info
+            ctx.uco = info
+            ctx.notes.append(text)
+    candidates: list[Candidate] = []
+    if say:
+        say(f"advise {system.name}: trying {len(chosen)} observer kinds ({time.perf_counter() - t_ctx:.1f} s so far) ...")
+    for i, kind in enumerate(chosen):
+        if say:
+            say(f"advise {system.name}: [{i + 1}/{len(chosen)}] {kind} ...")
+        candidates.append(try_kind(ctx, kind))
+    scores = runres = None
+    scenario = ""
+    refused = ""
+    if run and ctx.run_blockers:
+        refused = "; ".join(ctx.run_blockers)
+        scores, runres = [], None
+    elif run:
+        if say:
+            n_run = sum(c.applies and c.runnable for c in candidates)
+            say(f"advise {system.name}: running {n_run} design(s) ...")
+        scores, runres = compare(ctx, candidates, engine=engine)
+        if scores and ctx.recording is None and ctx.scenario.process_std is None:
+            ctx.notes.append("the comparison run has no process noise and the model is exact: estimators that lean on the "
+                             "model (an open-loop copy of a stable model, a tiny Q) look better here than on a real system; "
+                             "add [simulation] process_noise to compare them under model error")
+    if run:
+        scenario = (f"the recording ({ctx.recording.t.size} samples)" if ctx.recording is not None else
+                    ctx.scenario.describe() + ", x̂(0) = (" + ", ".join(f"{v:.3g}" for v in ctx.xhat0) + ")")
+    if say and progress is True and sys.stderr.isatty():
+        sys.stderr.write("\r\033[K")
+    return Advice(system.name, ctx.system, ctx.report, tuple(candidates), tuple(ctx.notes), tuple(ctx.blockers), forms,
+                  extra, None if scores is None else tuple(scores), runres, scenario, time.perf_counter() - t0,
+                  mf.description if mf is not None else "", refused)

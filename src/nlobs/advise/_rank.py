@@ -1,0 +1,162 @@
+r"""``--run``: every applicable design on the same measurements, ranked.
+
+The candidates run together in one simulation (one compiled step). A candidate that blows up is
+reported as diverged, with the time, and the others are run again without it.
+
+Ranking: by the error after convergence — the RMS of ‖x̂ − x‖ over the last 20 % of the run
+(:meth:`nlobs.Run.metrics`) — and, among errors within a factor 1.25 of each other (a tie at the
+precision such a run has), by the convergence time. On a recording there is no true state; the
+candidates are then ranked by the RMS of their innovations y_k − h(x̂_k⁻) over the last 20 % (what
+:func:`nlobs.estimate` records; y − h(x̂) for an observer without them).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from ..engine import compile_system
+from ..errors import FiniteEscapeError
+from ..model import System
+from ..simulate import Run, estimate, simulate
+from ._advice import Candidate, Score
+from ._context import Context
+
+__all__ = ["compare", "rank", "residuals", "TIE"]
+
+#: Errors within this factor count as a tie, broken by the convergence time.
+TIE = 1.25
+
+
+def _score(run: Run, name: str, ctx: Context) -> Score:
+    """The metrics of one candidate (the one place that reads :meth:`Run.metrics`, so its definition may change)."""
+    tr = run.observers[name]
+    if not np.all(np.isfinite(tr.xhat)):
+        bad = int(np.flatnonzero(~np.isfinite(tr.xhat).all(axis=1))[0])
+        return Score(name, "diverged", detail=f"non-finite estimate at t = {run.t[bad]:.4g}")
+    params = _parameters(run, name, ctx)
+    if run.x is not None:
+        m = run.metrics(name)
+        return Score(name, "ok", m.rms_error, m.convergence_time, m.final_error, parameters=params)
+    resid, what = residuals(run, name, ctx.system)
+    tail = run.t >= run.t[-1] - 0.2 * (run.t[-1] - run.t[0])
+    ok = np.all(np.isfinite(resid), axis=1) & tail
+    rms = float(np.sqrt(np.mean(np.sum(resid[ok] ** 2, axis=1)))) if ok.any() else float("nan")
+    return Score(name, "ok", rms, None, float(np.linalg.norm(resid[-1])), detail=f"{what} (no true state)", parameters=params)
+
+
+def _parameters(run: Run, name: str, ctx: Context) -> dict[str, dict[str, float | None]]:
+    """Each unknown parameter's final estimate, its standard deviation where the observer carries a covariance
+    (:meth:`nlobs.Run.parameters`), and the value the simulation used (None on a recording)."""
+    if not ctx.system.estimated_params:
+        return {}
+    if run.estimated_params:
+        out = run.parameters(name)
+    else:  # a run that does not label them (defensive: read the trailing states)
+        tr = run.observers[name]
+        out = {k: {"estimate": float(tr.xhat[-1, ctx.system.states.index(k)]), "std": None, "true": None}
+               for k in ctx.system.estimated_params}
+    if ctx.recording is None:
+        for k, v in out.items():
+            v["true"] = ctx.truth.get(k, v.get("true"))
+    return out
+
+
+def residuals(run: Run, name: str, system: System) -> tuple[np.ndarray, str]:
+    """The output error along a run, shape (N, p), and what it is: the innovations y_k − h(x̂_k⁻) that
+    :func:`nlobs.estimate` records (each sample against the prediction made before it was used), else y − h(x̂)."""
+    import casadi as ca
+
+    tr = run.observers[name]
+    if getattr(tr, "innovation", None) is not None:
+        return run.innovations(name), "innovation RMS"
+    comp = compile_system(system)
+    N = run.t.size
+    h = comp.h.map(N)(ca.DM(run.t).T, ca.DM(tr.xhat.T), ca.DM(run.u.T) if system.n_inputs else ca.DM(0, N),
+                      ca.repmat(ca.DM(system.param_values), 1, N))
+    return run.y - np.asarray(h, dtype=float).T, "output residual RMS"
+
+
+def rank(scores: Sequence[Score]) -> list[Score]:
+    """Best first: finite errors grouped within a factor :data:`TIE`, each group by convergence time; then the failures."""
+    ok = sorted((s for s in scores if s.status == "ok"), key=lambda s: s.rms_error)
+    out: list[Score] = []
+    i = 0
+    while i < len(ok):
+        j = i
+        while j + 1 < len(ok) and ok[j + 1].rms_error <= TIE * ok[i].rms_error:
+            j += 1
+        group = ok[i:j + 1]
+        out += sorted(group, key=lambda s: (s.convergence_time is None, s.convergence_time or 0.0, s.rms_error))
+        i = j + 1
+    return out + [s for s in scores if s.status != "ok"]
+
+
+def compare(ctx: Context, candidates: Sequence[Candidate], *, progress: bool | Callable[[float], None] | None = None,
+            engine: str = "auto") -> tuple[list[Score], Run | None]:
+    """Run every runnable applicable candidate on the context's scenario; return the ranked scores and the run."""
+    designs = {c.kind: c.design for c in candidates if c.applies and c.runnable and c.design is not None}
+    # designs that are not plain SX (MHE embeds an NLP solver) would put the whole joint step on CasADi's virtual
+    # machine: they run on their own, on the same measurements (same seed), so the others keep the compiled step
+    heavy = {k: d for k, d in designs.items() if d.needs_mx}
+    light = {k: d for k, d in designs.items() if k not in heavy}
+    scores: list[Score] = []
+    run = None
+    for group in (light, *({k: d} for k, d in heavy.items())):
+        part, done = _run_group(ctx, group, engine, progress)
+        scores += done
+        if part is not None:
+            run = part if run is None else _merge(run, part)
+    return rank(scores), run
+
+
+def _run_group(ctx: Context, designs: dict[str, Any], engine: str, progress: Any) -> tuple[Run | None, list[Score]]:
+    """One simulation of `designs` together; a design that blows up is reported and the rest run again without it."""
+    sc, rec = ctx.scenario, ctx.recording
+    failed: list[Score] = []
+    if rec is None and engine != "vm" and len(designs) > 1:
+        # candidates that blow up at the start (a filter unstable at its first step, a gain beyond the step), found on a
+        # short prefix on the virtual machine: the whole run then compiles its joint step once, instead of once more
+        # for every candidate that diverges (a C build of a dozen observers takes seconds)
+        period = sc.sample_period or sc.dt
+        t_pre = min(sc.t_final, max(0.02 * sc.t_final, 20 * period))
+        _, designs, failed = _without_diverging(ctx, designs, max(sc.dt, round(t_pre / period) * period), "vm", None)
+    run, designs, more = _without_diverging(ctx, designs, None, engine, progress)
+    return run, ([_score(run, k, ctx) for k in designs] if run is not None else []) + failed + more
+
+
+def _without_diverging(ctx: Context, designs: dict[str, Any], t_final: float | None, engine: str,
+                       progress: Any) -> tuple[Run | None, dict[str, Any], list[Score]]:
+    """Run `designs` together on the scenario (up to `t_final`; None: all of it) or the recording, dropping each one
+    that blows up (reported with the time) until a run completes; returns the run, the designs in it, the dropped."""
+    sc, rec = ctx.scenario, ctx.recording
+    failed: list[Score] = []
+    while designs:
+        try:
+            if rec is not None:
+                return estimate(designs, rec, engine=engine), designs, failed
+            return (simulate(ctx.system, designs, t_final=sc.t_final if t_final is None else t_final, dt=sc.dt, x0=sc.x0,
+                             inputs=sc.inputs, noise=sc.noise, process_noise=sc.process_noise, sampling=sc.sampling,
+                             seed=sc.seed, engine=engine, progress=progress), designs, failed)
+        except FiniteEscapeError as e:
+            name = _culprit(e, designs)
+            if name is None:
+                raise
+            failed.append(Score(name, "diverged", detail=f"blew up after t = {e.t:.4g}"))
+            designs = {k: v for k, v in designs.items() if k != name}
+    return None, designs, failed
+
+
+def _merge(a: Run, b: Run) -> Run:
+    """The observers of two runs on the same measurements in one Run."""
+    return replace(a, observers={**a.observers, **b.observers})
+
+
+def _culprit(e: FiniteEscapeError, designs: Mapping[str, Any]) -> str | None:
+    for name in designs:
+        if e.where == f"observer {name!r}":
+            return name
+    return None

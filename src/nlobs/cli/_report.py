@@ -1,0 +1,47 @@
+"""``nlobs report``: the HTML report of a model — verdicts, every observer kind, the runs side by side."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from typing import Any
+
+
+def add_parser(sub: Any) -> None:
+    r = sub.add_parser("report", help="HTML report of a model: observability, observer kinds (applies / why), runs and plots",
+                       description="Runs `nlobs design --run` on the model (on its [simulation], or on DATA.csv) and writes a "
+                                   "self-contained HTML report: observability verdicts, the table of observer kinds, the "
+                                   "candidates' runs side by side with plots, and the parameter estimates.")
+    r.add_argument("model", help="model file (TOML) or a bundled model name (nlobs models)")
+    r.add_argument("data", nargs="?", help="a recording (CSV with t, the outputs and the inputs) to run on instead of the simulation")
+    r.add_argument("--out", default="nlobs-report", metavar="DIR", help="output folder (default: nlobs-report)")
+    r.add_argument("--kind", action="append", metavar="KIND", help="only this observer kind (repeatable)")
+    r.add_argument("--params", default=None, metavar="NAMES", help="comma-separated parameters to estimate with the states")
+    r.add_argument("--no-run", action="store_true", help="verdicts and candidates only, no comparison run")
+    r.add_argument("--json", action="store_true", help="print one JSON object (the report's path and the ranking)")
+    r.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..advise import advise
+    from ..model import load_model
+    from ..report import write_model_report
+    from ..simulate import Recording
+
+    mf = load_model(args.model)
+    unknown = [p.strip() for p in args.params.split(",") if p.strip()] if args.params is not None else None
+    recording = None
+    if args.data:
+        system = mf.system.augmented(unknown) if unknown else mf.system
+        recording = Recording.from_csv(args.data, system)
+    adv = advise(mf, unknown_params=unknown, recording=recording, kinds=args.kind, run=not args.no_run,
+                 progress=not args.json)
+    path = write_model_report(adv, args.out, source=mf.path + (f" with {args.data}" if args.data else ""))
+    if args.json:
+        print(json.dumps({"report": str(path.resolve()), "ranking": list(adv.ranking or ()),
+                          "applies": [c.kind for c in adv.applicable]}))
+    else:
+        print(f"{len(adv.applicable)} of {len(adv.candidates)} observer kinds apply"
+              + (f"; best on the run: {', '.join((adv.ranking or ())[:3])}" if adv.ranking else ""))
+        print(f"report: {path.resolve()}")
+    return 0

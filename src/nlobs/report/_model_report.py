@@ -1,0 +1,165 @@
+"""``nlobs report``: the self-contained HTML report of one model — observability verdicts, every observer kind
+(applies / why not), the runs side by side with plots, and the parameter estimates."""
+
+from __future__ import annotations
+
+import html
+import platform
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from .. import __version__
+from ..advise import Advice
+from ..references import bibliography
+from ._html import img, page, table
+
+__all__ = ["model_report", "write_model_report", "parameter_estimates"]
+
+#: How many of the best-ranked candidates get their own states-vs-estimates plot.
+TOP = 3
+
+
+def _esc(text: Any) -> str:
+    return html.escape(str(text))
+
+
+def parameter_estimates(adv: Advice) -> list[dict[str, Any]]:
+    """One row per (candidate, estimated parameter): final estimate, ±2σ where the observer carries a covariance
+    (:meth:`nlobs.Run.parameters`), and the true value of the simulation (None on a recording)."""
+    if adv.scores is None or not adv.system.estimated_params:
+        return []
+    rows = []
+    for s in adv.scores:
+        for k, v in s.parameters.items():
+            est, std, true = v.get("estimate"), v.get("std"), v.get("true")
+            rows.append({"observer": s.kind, "parameter": k, "estimate": est, "pm2sigma": None if std is None else 2 * std,
+                         "true": true, "error": None if true is None or est is None else est - true})
+    return rows
+
+
+def _errors_figure(adv: Advice, kinds: Sequence[str]) -> Figure:
+    """‖x̂ − x‖ of every candidate on a log scale; on recorded data (no true state), ‖y − h(x̂)‖."""
+    from ..advise._rank import residuals
+
+    run = adv.run
+    truth = run.x is not None
+    fig = Figure(figsize=(8, 3.6), layout="constrained")
+    ax = fig.subplots()
+    for j, k in enumerate(kinds):
+        e = run.error_norm(k) if truth else np.linalg.norm(residuals(run, k, adv.system)[0], axis=1)
+        ax.semilogy(run.t, np.maximum(e, 1e-16), lw=1.1, color=f"C{j % 10}", ls="-" if j < 10 else "--", label=k)
+    ax.set_xlabel("t")
+    ax.set_ylabel("‖x̂ − x‖" if truth else "‖innovation‖")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize="small", ncol=3)
+    ax.set_title("estimation error of every candidate that ran (log scale)" if truth else
+                 "innovations y − h(x̂⁻) of every candidate (recorded data: no true state)")
+    return fig
+
+
+def model_report(adv: Advice, *, source: str = "") -> str:
+    """The HTML text of the report of one :class:`~nlobs.advise.Advice` (with or without a run)."""
+    rep = adv.observability
+    body: list[str] = []
+    cited_text: list[str] = [adv.description]
+    if adv.description:
+        body.append(f"<p>{_esc(adv.description)}</p>")
+    # -- observability
+    verdict = "observable" if rep.observable else "NOT observable"
+    cls = "ok" if rep.observable and not rep.symmetries else ("warn" if rep.observable else "fail")
+    body.append("<h2 id='observability'>Observability</h2>")
+    body.append(f"<p>Structural verdict (generic rank {rep.rank} of {len(rep.unknowns)} unknowns): "
+                f"<span class='{cls}'>{verdict}</span>. Observable: {_esc(', '.join(rep.observable_states) or 'none')}"
+                + (f"; identifiable: {_esc(', '.join(rep.identifiable_params) or 'none')}" if rep.unknown_params else "") + ".</p>")
+    for b in adv.blockers:
+        body.append(f"<p class='fail'>{_esc(b)}</p>")
+    if adv.notes:
+        body.append("<ul>" + "".join(f"<li class='note'>{_esc(n)}</li>" for n in adv.notes) + "</ul>")
+        cited_text += list(adv.notes)
+    if adv.forms:
+        body.append("<h3>Observer forms</h3><ul>" + "".join(f"<li>{_esc(f)}</li>" for f in adv.forms) + "</ul>")
+        cited_text += list(adv.forms)
+    body.append(f"<details><summary>Observability report</summary><pre>{_esc(rep)}</pre></details>")
+    cited_text.append(str(rep))
+    # -- candidates
+    counts = {s: sum(c.status == s for c in adv.candidates) for s in ("applies", "fails", "needs input", "not tuned")}
+    body.append("<h2 id='candidates'>Observer kinds</h2>")
+    body.append("<p>" + ", ".join(f"{v} {k}" for k, v in counts.items() if v) + ". Each kind was tried with an automatic "
+                "tuning; the options column is what to paste into <code>[observers.NAME]</code>.</p>")
+    rows = []
+    for c in adv.candidates:
+        rows.append({"kind": c.kind, "status": c.status, "why": c.why, "reference": c.reference})
+        cited_text += [c.why, c.reference]
+    body.append(_status_table(rows))
+    designs = [c for c in adv.candidates if c.design is not None]
+    if designs:
+        body.append("<details><summary>Design certificates</summary>"
+                    + "".join(f"<pre>{_esc(c.design)}</pre>" for c in designs) + "</details>")
+        cited_text += [c.design.certificate.reference for c in designs]
+    # -- runs
+    if adv.scores is not None:
+        body.append(f"<h2 id='runs'>Comparison run</h2><p class='ref'>{_esc(adv.scenario)}</p>")
+        srows = []
+        rank = 0
+        for s in adv.scores:
+            rank += s.status == "ok"
+            srows.append({"rank": rank if s.status == "ok" else None, "kind": s.kind, "rms_error": s.rms_error,
+                          "convergence_time": s.convergence_time, "final_error": s.final_error,
+                          "status": s.status + (f": {s.detail}" if s.detail else "")})
+        body.append(table(srows, [("rank", "rank"), ("kind", "observer"), ("rms_error", "RMS error (last 20 %)"),
+                                  ("convergence_time", "convergence time"), ("final_error", "final error"),
+                                  ("status", "status")]))
+        body.append("<p class='note'>Ranked by the RMS error over the last 20 % of the run; errors within a factor 1.25 "
+                    "of each other are ordered by convergence time (— : never within the run).</p>")
+        ok = [s.kind for s in adv.scores if s.status == "ok"]
+        run = adv.run
+        if run is not None and ok:
+            body.append(img(_errors_figure(adv, ok), "error norms"))
+            figs = []
+            for k in ok[:TOP]:
+                fig = run.plot(observers=[k])
+                figs.append(f"<figure><figcaption>#{ok.index(k) + 1} {_esc(k)}</figcaption>{img(fig, k)}</figure>")
+            body.append("<div class='runs'>" + "".join(figs) + "</div>")
+        prow = parameter_estimates(adv)
+        if prow:
+            body.append("<h3>Parameter estimates</h3>" + table(prow, [("observer", "observer"), ("parameter", "parameter"),
+                        ("estimate", "final estimate"), ("pm2sigma", "± 2σ"), ("true", "true value"), ("error", "error")]))
+            body.append("<p class='note'>± 2σ from the observer's covariance, where it carries one (EKF, UKF, Kalman–Bucy); "
+                        "the true value is the simulation's.</p>")
+    # -- model and bibliography
+    body.append(f"<h2 id='model'>Model</h2><pre>{_esc(adv.system)}</pre>")
+    if source:
+        body.append(f"<p class='ref'>source: {_esc(source)}</p>")
+    refs = bibliography(*cited_text)
+    if refs:
+        body.append("<h2 id='references'>References</h2><ol>" + "".join(f"<li>{_esc(r)}</li>" for r in refs) + "</ol>")
+    nav = ("<nav><ul><li><a href='#observability'>Observability</a></li><li><a href='#candidates'>Observer kinds</a></li>"
+           + ("<li><a href='#runs'>Comparison run</a></li>" if adv.scores is not None else "")
+           + "<li><a href='#model'>Model</a></li></ul></nav>")
+    subtitle = (f"nlobs {__version__} · {_esc(adv.model)} · {len(adv.applicable)} of {len(adv.candidates)} observer kinds apply"
+                + (f" · best: {_esc(adv.ranking[0])}" if adv.ranking else "") + f" · {adv.seconds:.1f} s · Python "
+                f"{platform.python_version()}")
+    return page(f"nlobs — observers for {adv.model}", subtitle, [nav, *body])
+
+
+def _status_table(rows: Sequence[dict[str, Any]]) -> str:
+    css = {"applies": "ok", "fails": "fail", "needs input": "warn", "not tuned": "warn"}
+    head = "<tr><th>kind</th><th>status</th><th>why</th><th>reference</th></tr>"
+    body = "".join(f"<tr><td class=l>{_esc(r['kind'])}</td><td class=l><span class='{css.get(r['status'], '')}'>"
+                   f"{_esc(r['status'])}</span></td><td class=l>{_esc(r['why'])}</td><td class=l>{_esc(r['reference'])}</td></tr>"
+                   for r in rows)
+    return f"<table><thead>{head}</thead><tbody>{body}</tbody></table>"
+
+
+def write_model_report(adv: Advice, out_dir: str | Path = "nlobs-report", *, source: str = "") -> Path:
+    """Write ``out_dir/index.html`` (self-contained: plots embedded) and return its path."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / "index.html"
+    path.write_text(model_report(adv, source=source), encoding="utf-8")
+    return path
+
