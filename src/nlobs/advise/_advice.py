@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from .._display import MISSING
 from ..analysis import ObservabilityReport
 from ..design import Check, ObserverDesign
 from ..model import System
@@ -239,12 +240,16 @@ class Advice:
             lines.append(f"Ranking on {self.scenario} (error RMS over the last 20 %, then convergence time):")
             for i, s in enumerate(self.scores):
                 if s.status == "ok":
-                    tc = "never" if s.convergence_time is None else f"{s.convergence_time:.3g}"
+                    tc = MISSING if s.convergence_time is None else f"{s.convergence_time:.3g}"
                     lines.append(f"  {i + 1:>2}. {s.kind:<24} RMS {s.rms_error:.3g}  converged at {tc}  final {s.final_error:.3g}"
                                  + (f"  {s.detail}" if s.detail else ""))
+                    for k, v in s.parameters.items():  # unknown parameters: the estimate at the final time
+                        est = f"{v['estimate']:.6g}" + ("" if v.get("std") is None else f" ± {2 * v['std']:.3g} (2σ)")
+                        lines.append(f"      {k} = {est}" + ("" if v.get("true") is None else f", true {v['true']:.6g}"))
                 else:
                     lines.append(f"   -  {s.kind:<24} {s.status}: {s.detail}")
             if not any(s.status == "ok" and s.convergence_time is not None for s in self.scores):
-                lines.append("  none converged within the run (to 2 % of the initial error): see the report's plots")
-        lines.append(f"({self.seconds:.1f} s)")
+                lines.append("  none converged within the run (into its convergence band): see the report's plots")
+            lines.append(f"  converged at: the time after which the error stays within its band ({MISSING}: not within the run)")
+        lines.append(f"(advice in {self.seconds:.1f} s wall time, after start-up)")
         return "\n".join(lines)
