@@ -2,6 +2,8 @@
 
 Structural (generic rank, Besançon (2010)): :func:`analyze` -> :class:`ObservabilityReport`, :func:`observable_function`;
 piecewise models (abs, min, max, sat) one regime at a time: :func:`visited_regimes`.
+Global (SIAN): :func:`global_identifiability` -> :class:`GlobalResult`; :func:`find_identifiable_functions`;
+:func:`multi_experiment`; :func:`reparametrize`; Gröbner engines :func:`available_engines`.
 Linear: :func:`kalman_rank`, :func:`pbh_test`, :func:`kalman_decomposition`.
 LTV / state-affine along a trajectory (Wang, Ortega & Bobtsov (2021)): :func:`ltv_gramian`, :func:`uco_test`, :func:`state_affine_ltv`.
 Nonlinear along a trajectory (Besançon (2010)): :func:`empirical_gramian`, :func:`indistinguishable`.
@@ -23,8 +25,20 @@ from ._linear import pbh_test as pbh_test
 from ._lie import InputClass as InputClass
 from ._lie import analyze as analyze
 from ._lie import observable_function as observable_function
+from ._global import GlobalResult as GlobalResult
+from ._global import LocallyOnly as LocallyOnly
+from ._global import MultiExperiment as MultiExperiment
+from ._global import NotRational as NotRational
+from ._global import global_identifiability as global_identifiability
+from ._global import multi_experiment as multi_experiment
+from ._global import replicate as replicate
+from ._groebner import available_engines as available_engines
+from ._identifiable import IdentifiableFunctions as IdentifiableFunctions
+from ._identifiable import find_identifiable_functions as find_identifiable_functions
 from ._regimes import Regime as Regime
 from ._regimes import visited_regimes as visited_regimes
+from ._reparam import Reparametrization as Reparametrization
+from ._reparam import reparametrize as reparametrize
 from ._reports import FunctionCheck as FunctionCheck
 from ._reports import ObservabilityReport as ObservabilityReport
 from ._reports import Symmetry as Symmetry

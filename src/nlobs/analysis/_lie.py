@@ -485,7 +485,9 @@ def _regime_evaluator(system: System, regime: Mapping[str, float] | None,
 def analyze(system: System, *, unknown_params: Any = (), inputs: Any = "generic",
             unknown_inputs: Mapping[str, int] | None = None, functions: Sequence[ExprLike] = (),
             at: Mapping[str, float] | None = None, symmetries: bool = True, seed: int = 0,
-            regime: Mapping[str, float] | None = None) -> ObservabilityReport:
+            regime: Mapping[str, float] | None = None, global_check: bool = False,
+            identifiable_functions: bool = False, experiments: int | None = None,
+            engine: str = "auto") -> ObservabilityReport:
     r"""Structural observability (and identifiability) of a model by the generic rank.
 
     The rank condition of Besançon (2010) asks for :math:`\dim d\mathcal O(h)|_x = n`, where the observation
@@ -546,6 +548,17 @@ def analyze(system: System, *, unknown_params: Any = (), inputs: Any = "generic"
     regime : mapping of str to float, optional
         A point (every state; optionally inputs, parameters, t) that selects the branch of each
         piecewise function (abs, sign, min, max, sat): the one active there.
+    global_check : bool, default False
+        Also decide global identifiability/observability (SIAN, :func:`global_identifiability`):
+        fills ``report.global_check``.
+    identifiable_functions : bool, default False
+        Also find generators of the identifiable functions (:func:`find_identifiable_functions`):
+        fills ``report.identifiable_functions``.
+    experiments : int, optional
+        Also analyse this many independent experiments sharing the parameters
+        (:func:`multi_experiment`): fills ``report.experiments``.
+    engine : str, default "auto"
+        Gröbner engine of the global parts ("auto", "msolve", "singular", "sympy").
 
     Returns
     -------
@@ -573,7 +586,15 @@ def analyze(system: System, *, unknown_params: Any = (), inputs: Any = "generic"
     if not isinstance(system, System):
         raise ModelError(f"analyze: `system` must be an nlobs.System, got {type(system).__name__}")
     with symbolic_budget(f"analyze {system.name!r}"):
-        return _analyze(system, unknown_params, inputs, unknown_inputs, functions, at, symmetries, seed, regime)
+        report = _analyze(system, unknown_params, inputs, unknown_inputs, functions, at, symmetries, seed, regime)
+    if global_check or identifiable_functions or experiments is not None:  # the global parts (_global.py)
+        from ._global import extend_report
+
+        report = extend_report(report, system, unknown_params=report.unknown_params, inputs=inputs,
+                               unknown_inputs=dict(unknown_inputs or {}), functions=functions, seed=seed,
+                               global_check=global_check, identifiable_functions=identifiable_functions,
+                               experiments=experiments, engine=engine)
+    return report
 
 
 def _analyze(system: System, unknown_params: Any, inputs: Any, unknown_inputs: Mapping[str, int] | None,
@@ -630,7 +651,7 @@ def _analyze(system: System, unknown_params: Any, inputs: Any, unknown_inputs: M
     if res.rank < M and gap < 1e-6:
         notes.append(f"the real Jacobian at the direction point is ill-conditioned (smallest kept singular value ratio "
                      f"{gap:.1e}); the directions may be inaccurate")
-    return ObservabilityReport(
+    report = ObservabilityReport(
         model=system.name, states=system.states, unknown_params=params_unknown,
         unknown_input_coefficients=st.unknowns[st.n + st.q:], inputs=input_desc, rank=res.rank, observable=res.rank == M,
         observable_states=tuple(s for s in system.states if s in observable_unknowns),
@@ -640,6 +661,7 @@ def _analyze(system: System, unknown_params: Any, inputs: Any, unknown_inputs: M
         notes=tuple(notes), seconds=time.perf_counter() - t_start, numerical_gap=gap,
         extra={"observable_unknowns": tuple(observable_unknowns), "degree_bound": _degree(res, M)},
     )
+    return report
 
 
 def _degree(res: _ModResult, M: int) -> int:

@@ -94,6 +94,13 @@ class ObservabilityReport:
     functions : tuple of FunctionCheck
     notes : tuple of str
     seconds : float
+    global_check : GlobalResult or None
+        Global verdicts (``analyze(..., global_check=True)``): globally / locally only (with the
+        number of solutions) / not identifiable, or the reason the check was refused.
+    identifiable_functions : IdentifiableFunctions or None
+        Generators of the identifiable (observable) functions (``identifiable_functions=True``).
+    experiments : MultiExperiment or None
+        Multi-experiment identifiability of the parameters (``experiments=N``).
     """
 
     model: str
@@ -118,6 +125,9 @@ class ObservabilityReport:
     seconds: float = 0.0
     numerical_gap: float = float("inf")
     extra: dict[str, Any] = field(default_factory=dict)
+    global_check: Any = None
+    identifiable_functions: Any = None
+    experiments: Any = None
 
     @property
     def unknowns(self) -> tuple[str, ...]:
@@ -129,10 +139,16 @@ class ObservabilityReport:
 
     @property
     def globally_observable(self) -> bool | None:
-        """False when a symmetry proves two states indistinguishable; None when not decided (the test is local)."""
+        """False when a symmetry or the global check proves two values indistinguishable; True when the global
+        check proved every unknown globally determined; None when not decided (only the local test ran)."""
         if not self.observable:
             return False
-        return False if self.symmetries else None
+        if self.symmetries:
+            return False
+        g = self.global_check
+        if g is not None and g.ok:
+            return not g.locally_only and not g.non_identifiable
+        return None
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready dictionary (the ``nlobs analyze --json`` contract plus evidence)."""
@@ -157,7 +173,22 @@ class ObservabilityReport:
             "functions": {c.expr: c.observable for c in self.functions},
             "notes": list(self.notes),
             "seconds": self.seconds,
-        }
+        } | self._extensions()
+
+    def _extensions(self) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        if self.global_check is not None:  # "global": exactly the three lists (null when refused); evidence apart
+            d = self.global_check.to_dict()
+            out["global"] = None if self.global_check.refused else {
+                k: d[k] for k in ("globally", "locally_only", "non_identifiable")}
+            out["global_detail"] = d
+        if self.identifiable_functions is not None:
+            idf = self.identifiable_functions
+            out["identifiable_functions"] = None if idf.refused else idf.to_list()
+            out["identifiable_functions_detail"] = self.identifiable_functions.to_dict()
+        if self.experiments is not None:
+            out["experiments"] = self.experiments.to_dict()
+        return out
 
     def __repr__(self) -> str:
         return (f"ObservabilityReport(model={self.model!r}, observable={self.observable}, rank={self.rank}/{len(self.unknowns)}, "
@@ -193,9 +224,17 @@ class ObservabilityReport:
         if self.symmetries:
             lines.append("  NOT globally observable: the output is invariant under " + "; ".join(str(s) for s in self.symmetries)
                          + " (proved symbolically: f(σx) = σf(x), h(σx) = h(x)); these are known only up to sign")
-        elif self.observable:
+        elif self.observable and (self.global_check is None or not self.global_check.ok):
             lines.append(f"  the rank condition is local ({cite('002')}): it proves local weak observability, not global; "
                          + (self.symmetry_search or "no symmetry search was run"))
+        word = "observable/identifiable" if (self.unknown_params or self.unknown_input_coefficients) else "observable"
+        if self.global_check is not None:
+            lines.append("  global check:")
+            lines += [f"    {t}" for t in self.global_check.describe(word)]
+        if self.identifiable_functions is not None:
+            lines += [f"  {t}" for t in self.identifiable_functions.describe()]
+        if self.experiments is not None:
+            lines += [f"  {t}" for t in self.experiments.describe()]
         lines.append(f"  method: {self.method}")
         if self.error_probability > 0:
             lines.append(f"  probability that the rank is underestimated: <= {self.error_probability:.2g}")

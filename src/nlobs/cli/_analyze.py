@@ -37,6 +37,16 @@ def add_parser(sub: Any) -> None:
                    help="for abs/sign/min/max/sat: 'auto' (default: the regimes the file's [simulation] visits, else the "
                         "default branches), 'simulation', 'default' (abs(g) = g, unsaturated min/max/sat), or a point "
                         "'x1=1,x2=12' (its active branches)")
+    a.add_argument("--global", dest="global_check", action="store_true",
+                   help=f"also decide global observability/identifiability ({cite('hong2019')}): globally, locally only "
+                        "(with the number of solutions) or not")
+    a.add_argument("--identifiable-functions", action="store_true",
+                   help="also list generators of the identifiable (observable) functions, simplest first")
+    a.add_argument("--experiments", type=int, default=None, metavar="N",
+                   help="also analyse N experiments sharing the parameters (own initial states and inputs) and "
+                        "count how many experiments are needed")
+    a.add_argument("--engine", default="auto", choices=["auto", "msolve", "singular", "sympy"],
+                   help="Gröbner engine of the global parts (default: msolve, else Singular)")
     a.add_argument("--seed", type=int, default=0, help="seed of the random point and prime (default 0)")
     a.add_argument("--json", action="store_true", help="print one JSON object")
     a.set_defaults(run=run)
@@ -106,7 +116,9 @@ def run(args: argparse.Namespace) -> int:
     mf = load_model(args.model)
     unknown = unknown_params_of(mf, args.params)
     inputs: Any = int(args.inputs) if args.inputs.strip().isdigit() else args.inputs.strip()
-    options = dict(unknown_params=unknown, inputs=inputs, functions=args.function, seed=args.seed)
+    options = dict(unknown_params=unknown, inputs=inputs, functions=args.function, seed=args.seed,
+                   global_check=args.global_check, identifiable_functions=args.identifiable_functions,
+                   experiments=args.experiments, engine=args.engine)
     choice = args.regime.strip()
     regimes: list[Any] = []
     source = ""

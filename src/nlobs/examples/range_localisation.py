@@ -13,6 +13,8 @@ derivation. design_augmented checks the mimicking identities symbolically, so a 
 
 from __future__ import annotations
 
+import dataclasses
+
 import casadi as ca
 import numpy as np
 
@@ -148,7 +150,7 @@ def _gramian(aug: dict, system: System, run, window: float) -> np.ndarray:  # no
 
 @register("range-vel", f"{cite('001')} §IV-A — range-only localisation with velocity input (9-state augmentation)", 20, aliases=("001-range-velocity",))
 def run_velocity() -> ExampleResult:
-    return _run("range-vel", f"{cite('001')} §IV-A — range-only localisation with velocity input (9-state augmentation)",
+    res = _run("range-vel", f"{cite('001')} §IV-A — range-only localisation with velocity input (9-state augmentation)",
                 velocity_model(), velocity_augmentation(), x0=[8.0, -5.0, 3.0, 0.2, -0.1, 0.05], xhat0=[1.0, 1.0, 1.0, 0, 0, 0],
                 rich={"u1": "2*cos(t)", "u2": "2*sin(0.7*t)", "u3": "cos(0.4*t)"},
                 straight={"u1": 1.0, "u2": 0.5, "u3": 0.0}, T=100.0, dt=5e-3,
@@ -159,7 +161,27 @@ def run_velocity() -> ExampleResult:
                        "the result is "
                        "checked symbolically by design_augmented.",
                        "Trajectory, current, input, Q = 0.01 I, R = 0.01, P0 (small on the measured range) and the noise are "
-                       "our choices; the paper gives no simulation for §IV-A."))
+                       "our choices; the paper gives no simulation for §IV-A.",
+                       "Global statements (our addition): y = |p| is not a rational function, so the global check "
+                       f"({cite('hong2019')}) refuses the model as written; y² = |p|² carries the same information "
+                       "(y >= 0) and is rational, and with a generic input it determines p and the current uniquely."))
+    return dataclasses.replace(res, claims=res.claims + tuple(global_claims(velocity_model())))
+
+
+def global_claims(system: System) -> list[Claim]:
+    """The global statements of the range model: refused as written (sqrt), global for the squared range."""
+    from ..analysis import global_identifiability
+
+    as_written = global_identifiability(system)
+    squared = System(states=list(system.states), f=list(system.f), inputs=list(system.inputs), outputs=["y2"],
+                     h=[system.h[0] ** 2], name=f"{system.name} (y² = |p|²)")
+    g = global_identifiability(squared)
+    return [
+        Claim("y = |p| is outside the global algorithm's class (not rational): refused, the local verdict stands",
+              not as_written.ok and "rational" in as_written.refused, as_written.refused or "not refused"),
+        Claim("with a generic input, |p|² (the same information as |p|) determines p and the current globally",
+              g.ok and set(g.globally) == set(system.states), "; ".join(g.describe("observable"))),
+    ]
 
 
 @register("range-acc", f"{cite('001')} §IV-B — range-only localisation with acceleration input (14-state augmentation)", 30, aliases=("001-range-acceleration",))

@@ -1,0 +1,612 @@
+r"""Identifiable (observable) functions: generators of everything the output determines.
+
+When single unknowns are not identifiable, combinations of them may be: for the two-compartment
+model :math:`a_{01} a_{12}` and :math:`a_{01} + a_{12} + a_{21}`. The functions of the unknowns
+that the output determines form a field E; this module returns a small generating set of E, the
+simplest functions first (the role of StructuralIdentifiability.jl's
+``find_identifiable_functions``).
+
+Method (everything over GF(p), on the SIAN systems of ``_global.py``):
+
+1. *Candidates.* Functions P/Q with P a polynomial of degree <= ``max_degree`` in the unknowns
+   and Q = 1 or a single unknown.
+2. *Locally identifiable* candidates: the gradient of P/Q lies in the row space of the Jacobian of
+   the truncated jet equations at a random point (the tangent space of the set of unknowns giving
+   the same output is its kernel). Linear in the coefficients of P; repeated at random points until
+   the solution space stops shrinking.
+3. *Globally identifiable*: P - λ_j Q vanishes on the solutions at the random point j, i.e. its
+   normal form modulo the Gröbner basis is zero, for an unknown value λ_j per point; linear in
+   (coefficients of P, λ_1, λ_2, ...). Points are added until the space stops shrinking.
+4. *Generators, simplest first.* The solutions, brought to reduced echelon form (each with few
+   terms), coefficients recovered from GF(p) as small rationals, are sorted by size; one is kept
+   when it is not already a function of those kept before (membership: its value is constant on the
+   fibre of the kept functions, a normal form modulo their fibre ideal).
+5. *Checks.* Every returned function is checked with :func:`nlobs.analysis.observable_function`
+   (local) and by the global check; with states included the field is compared with the
+   identifiable field itself (the numbers of points of the two fibres on the same random cut).
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import sympy as sp
+
+from ..errors import ModelError
+from ..model import System, symbol
+from ._global import NO_ENGINE, NotRational, _decide, _distinct_roots, _minimal_polynomial, _prepare, _System
+from ._groebner import GroebnerEngine, Poly, get_engine
+from ._modular import RowEchelon, inv
+
+__all__ = ["IdentifiableFunctions", "find_identifiable_functions"]
+
+
+@dataclass(frozen=True)
+class IdentifiableFunctions:
+    """Generators of the identifiable (observable) functions, simplest first.
+
+    Attributes
+    ----------
+    functions : tuple of str
+        The generators, as expressions in the model's names.
+    with_states : bool
+        Whether functions of the states (observable functions) are included, or parameters only.
+    complete : bool or None
+        True when the generators were shown to give every identifiable function (fibre counts
+        agree); False when some are missing (the search space was too small: raise
+        ``max_degree``); None when not checked.
+    local_checks : tuple of bool
+        :func:`nlobs.analysis.observable_function` on each generator (all True when correct).
+    refused : str
+        Why nothing was computed (model outside the class, no engine), or "".
+    notes : tuple of str
+    seconds, engine_seconds : float
+    reparametrization : Reparametrization or None
+        The model rewritten in these functions (with states included; ``found`` False when no
+        rational rewriting of low degree exists), or None when not attempted.
+    """
+
+    functions: tuple[str, ...] = ()
+    with_states: bool = True
+    complete: bool | None = None
+    local_checks: tuple[bool, ...] = ()
+    refused: str = ""
+    notes: tuple[str, ...] = ()
+    seconds: float = 0.0
+    engine_seconds: float = 0.0
+    reparametrization: Any = None
+
+    def to_list(self) -> list[str]:
+        """The generators as strings (``"identifiable_functions"`` of the JSON output)."""
+        return list(self.functions)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Generators with the evidence."""
+        if self.refused:
+            return {"refused": self.refused}
+        out = {"functions": list(self.functions), "with_states": self.with_states, "complete": self.complete,
+               "local_checks": list(self.local_checks), "notes": list(self.notes), "seconds": self.seconds,
+               "engine_seconds": self.engine_seconds}
+        if self.reparametrization is not None:
+            out["reparametrization"] = self.reparametrization.to_dict()
+        return out
+
+    def describe(self) -> list[str]:
+        """The result in words."""
+        if self.refused:
+            return [f"identifiable functions not computed: {self.refused}"]
+        what = "functions of states and parameters" if self.with_states else "functions of the parameters"
+        head = f"identifiable {what} (generators, simplest first): {', '.join(self.functions) or '(none but constants)'}"
+        lines = [head]
+        if self.complete is True:
+            lines.append("  every identifiable function is a rational function of these (fibre counts agree)")
+        elif self.complete is False:
+            lines.append("  INCOMPLETE: some identifiable functions are not generated by these; raise max_degree")
+        for n in self.notes:
+            lines.append(f"  note: {n}")
+        if self.reparametrization is not None:
+            lines += [f"  {t}" for t in self.reparametrization.describe()]
+        return lines
+
+
+# ----------------------------------------------------------------------------------------------
+def _monomials(n: int, deg: int) -> list[tuple[int, ...]]:
+    out = []
+    for d in range(deg + 1):
+        for combo in itertools.combinations_with_replacement(range(n), d):
+            e = [0] * n
+            for i in combo:
+                e[i] += 1
+            out.append(tuple(e))
+    return out
+
+
+#: Largest numerator and denominator accepted for a coefficient recovered from GF(p): identifiable
+#: combinations of published models have small coefficients; a large one means a vector that only
+#: happens to fit the points drawn (it is dropped, and the completeness check tells if anything is missing).
+COEFF_BOUND = 10**4
+
+
+def _ratrec(a: int, p: int, bound: int = COEFF_BOUND) -> tuple[int, int] | None:
+    """Rational reconstruction: n/d = a mod p with |n|, d <= bound (< sqrt(p/2)), or None."""
+    a %= p
+    r0, r1, s0, s1 = p, a, 0, 1
+    while r1 > bound:
+        if r1 == 0:
+            break
+        q = r0 // r1
+        r0, r1 = r1, r0 - q * r1
+        s0, s1 = s1, s0 - q * s1
+    if s1 == 0 or abs(s1) > bound:
+        return None
+    if s1 < 0:
+        r1, s1 = -r1, -s1
+    return r1, s1
+
+
+def _kernel(rows: list[np.ndarray], ncols: int, p: int) -> np.ndarray:
+    ech = RowEchelon(ncols, p)
+    for r in rows:
+        if ech.rank == ncols:
+            break
+        ech.add(r)
+    return ech.kernel()
+
+
+def _mono_value(e: Sequence[int], vals: Sequence[int], p: int) -> int:
+    t = 1
+    for v, k in zip(vals, e):
+        if k:
+            t = t * pow(v, k, p) % p
+    return t
+
+
+def _mono_grad(e: Sequence[int], vals: Sequence[int], p: int) -> list[int]:
+    out = []
+    for i, k in enumerate(e):
+        if not k:
+            out.append(0)
+            continue
+        ee = list(e)
+        ee[i] -= 1
+        out.append(k * _mono_value(ee, vals, p) % p)
+    return out
+
+
+class _Search:
+    def __init__(self, prep: Any, eng: GroebnerEngine, U: list[str], max_degree: int):
+        self.prep, self.eng, self.U = prep, eng, U
+        self.p = prep.p
+        self.monos = _monomials(len(U), max_degree)
+        # most complex first: pivots of the reduced echelon form fall on the complex monomials
+        self.monos.sort(key=lambda e: (-sum(e), tuple(-x for x in e)))
+        self.var = {u: prep.hs.unknown_var[u] for u in U}
+
+    # -- local rows -----------------------------------------------------------------------------
+    def local_rows(self, Q: tuple[int, ...]) -> list[np.ndarray]:
+        prep, p = self.prep, self.p
+        sian = prep.sian
+        J = sian.J
+        pt = sian.point()
+        from ._global import _gradient
+
+        unknown_cols = [J.index[v] for v in sian.rm.params] + [J.index[f"{x}_{k}"] for x in sian.rm.states
+                                                                  for k in range(J.K + 2)]
+        cols = {c: i for i, c in enumerate(unknown_cols)}
+        ech = RowEchelon(len(unknown_cols), p)
+        for kind, i, k in prep.eqs:
+            ech.add(_gradient(sian.sp(kind, i, k), pt.vals, p, cols, len(unknown_cols)))
+        uvals = [pt.vals[J.index[self.var[u]]] for u in self.U]
+        ucol = [cols[J.index[self.var[u]]] for u in self.U]
+        qv = _mono_value(Q, uvals, p)
+        qg = _mono_grad(Q, uvals, p)
+        resid = []
+        for e in self.monos:
+            mv, mg = _mono_value(e, uvals, p), _mono_grad(e, uvals, p)
+            g = np.zeros(len(unknown_cols), dtype=np.int64)
+            for c, a, b in zip(ucol, mg, qg):
+                g[c] = (qv * a - mv * b) % p
+            resid.append(ech.reduce(g))
+        R = np.array(resid, dtype=np.int64).T  # rows: coordinates, columns: candidates
+        return [r for r in R if np.any(r)]
+
+    # -- global rows ----------------------------------------------------------------------------
+    def nf_monos(self, hs: _System, Q: tuple[int, ...]) -> tuple[list[Poly], Poly]:
+        names = hs.names
+        idx = {u: names.index(self.var[u]) for u in self.U}
+        w = hs.weight
+
+        def poly(e: Sequence[int]) -> Poly:
+            m = [0] * len(names)
+            for u, k in zip(self.U, e):
+                if k:
+                    m[idx[u]] += k * w.get(self.var[u], 1)
+            return {tuple(m): 1}
+
+        G = [poly(e) for e in self.monos] + [poly(Q)]
+        nfs = self.eng.normal_forms(names, self.p, hs.F, G)
+        return nfs[:-1], nfs[-1]
+
+    def solve(self, Q: tuple[int, ...], max_points: int = 12) -> np.ndarray:
+        """Basis of the coefficient vectors c with (sum c_m m)/Q identifiable (rows)."""
+        p, k = self.p, len(self.monos)
+        rows: list[np.ndarray] = []
+        dims = []
+        for _ in range(k + 3):  # local constraints until the space stops shrinking (twice in a row)
+            rows += self.local_rows(Q)
+            K = _kernel(rows, k, p)
+            dims.append(K.shape[0])
+            if len(dims) >= 3 and dims[-1] == dims[-2] == dims[-3]:
+                break
+        base = list(rows)
+        gpoints: list[tuple[list[Poly], Poly]] = []
+        prev: list[int] = []
+        Kc = K
+        for j in range(max_points):
+            hs = self.prep.hs if j == 0 else self.prep.point()
+            gpoints.append(self.nf_monos(hs, Q))
+            b = len(gpoints)
+            width = k + b
+            allrows = [np.concatenate([r, np.zeros(b, dtype=np.int64)]) for r in base]
+            for jj, (nfm, nfq) in enumerate(gpoints):
+                support: dict[tuple[int, ...], int] = {}
+                for g in (*nfm, nfq):
+                    for m in g:
+                        support.setdefault(m, len(support))
+                M = np.zeros((len(support), width), dtype=np.int64)
+                for ci, g in enumerate(nfm):
+                    for m, c in g.items():
+                        M[support[m], ci] = c % p
+                for m, c in nfq.items():
+                    M[support[m], k + jj] = (-c) % p
+                allrows += [r for r in M if np.any(r)]
+            K = _kernel(allrows, width, p)
+            Kc = _row_space(K[:, :k], p)
+            if len(prev) >= 2 and Kc.shape[0] == prev[-1] == prev[-2]:
+                break
+            prev.append(Kc.shape[0])
+        return Kc
+
+    def functions(self, Kc: np.ndarray, Q: tuple[int, ...]) -> list[sp.Expr]:
+        """The candidates P/Q of the rows of `Kc`, normalised as :func:`_normalise` does (on exponent dictionaries:
+        SymPy's cancel on hundreds of candidates was most of the running time)."""
+        p = self.p
+        syms = [symbol(u) for u in self.U]
+        order = sorted(range(len(syms)), key=lambda i: str(syms[i]))
+        gens = [syms[i] for i in order]
+        out = []
+        for row in _rref(Kc, p):
+            terms: dict[tuple[int, ...], sp.Rational] = {}
+            ok = True
+            for c, e in zip(row, self.monos):
+                if not c:
+                    continue
+                rr = _ratrec(int(c), p)
+                if rr is None:
+                    ok = False
+                    break
+                terms[e] = sp.Rational(rr[0], rr[1])
+            if not ok or not terms:
+                continue
+            # cancel the common monomial factor of P and Q
+            g = [min([Q[i], *(e[i] for e in terms)]) for i in range(len(syms))]
+            terms = {tuple(a - b for a, b in zip(e, g)): c for e, c in terms.items()}
+            q = tuple(a - b for a, b in zip(Q, g))
+            zero = tuple([0] * len(syms))
+            if not any(q):  # a polynomial: identifiable up to an additive constant too
+                terms.pop(zero, None)
+            if not terms or (list(terms) == [zero] and not any(q)):
+                continue
+            P = sp.Poly.from_dict({tuple(e[i] for i in order): c for e, c in terms.items()}, *gens, domain="QQ")
+            P = P.quo_ground(P.LC())
+            f = P.as_expr() / sp.Mul(*[s**k for s, k in zip(syms, q)])
+            if f.is_number:
+                continue
+            out.append(f)
+        return out
+
+
+def _row_space(K: np.ndarray, p: int) -> np.ndarray:
+    ech = RowEchelon(K.shape[1], p)
+    for r in K:
+        ech.add(r)
+    return np.array(ech.basis, dtype=np.int64).reshape(len(ech.basis), K.shape[1])
+
+
+def _rref(K: np.ndarray, p: int) -> list[np.ndarray]:
+    if K.shape[0] == 0:
+        return []
+    ech = RowEchelon(K.shape[1], p)
+    for r in K:
+        ech.add(r)
+    return [b for _, b in sorted(zip(ech.pivots, ech.basis), key=lambda t: t[0])]
+
+
+def _normalise(f: sp.Expr) -> sp.Expr:
+    """Drop a constant factor (and an additive constant of a polynomial): identifiable up to both."""
+    num, den = sp.fraction(sp.cancel(sp.together(f)))
+    num, den = sp.expand(num), sp.expand(den)
+    if den.is_number:
+        num, den = sp.expand(num / den), sp.Integer(1)
+        num = num - num.as_coeff_Add()[0]
+    gens = sorted(num.free_symbols | den.free_symbols, key=str)
+    lc = sp.Poly(num, *gens).LC() if num.free_symbols else num
+    return sp.cancel(num / lc / den)
+
+
+def _complexity(f: sp.Expr) -> tuple:
+    num, den = sp.fraction(f)
+    terms = len(sp.Add.make_args(sp.expand(num))) + len(sp.Add.make_args(sp.expand(den))) - 1
+    deg = sp.Poly(num, *num.free_symbols).total_degree() if num.free_symbols else 0
+    ddeg = sp.Poly(den, *den.free_symbols).total_degree() if den.free_symbols else 0
+    return (terms, deg + ddeg, len(str(f)), str(f))
+
+
+def _fibre_system(funcs: Sequence[sp.Expr], X: list[str], p: int, rng: np.random.Generator,
+                  point: dict[str, int] | None = None) -> tuple[list[str], list[Poly], dict[str, int]]:
+    """Ideal of {x : f(x) = f(x̂)} at a random x̂ (saturated by the denominators), over GF(p)."""
+    names = list(X) + ["z_sat"]
+    syms = [symbol(u) for u in X]
+    xhat = point or {u: int(rng.integers(1, p)) for u in X}
+    nv = len(names)
+    F: list[Poly] = []
+    den_all: Poly = {tuple([0] * nv): 1}
+
+    def to_poly(e: sp.Expr) -> Poly:
+        P = sp.Poly(e, *syms, domain="QQ")
+        out: Poly = {}
+        for mono, c in P.terms():
+            c = sp.Rational(c)
+            out[tuple(mono) + (0,)] = int(c.p) % p * inv(int(c.q) % p, p) % p
+        return {k: v for k, v in out.items() if v}
+
+    def value(P: Poly) -> int:
+        acc = 0
+        for m, c in P.items():
+            acc += c * _mono_value(m[:-1], [xhat[u] for u in X], p)
+        return acc % p
+
+    from ._global import _mul
+
+    for f in funcs:
+        num, den = sp.fraction(sp.cancel(sp.together(f)))
+        N, D = to_poly(sp.expand(num)), to_poly(sp.expand(den))
+        dv = value(D)
+        if dv == 0:
+            raise ZeroDivisionError
+        fv = value(N) * inv(dv, p) % p
+        eq = dict(N)
+        for m, c in D.items():
+            eq[m] = (eq.get(m, 0) - fv * c) % p
+        F.append({k: v for k, v in eq.items() if v})
+        if not (len(D) == 1 and all(e == 0 for e in next(iter(D)))):
+            den_all = _mul(den_all, D, p)
+    sat = {(*m[:-1], 1): c for m, c in den_all.items()}
+    sat[tuple([0] * nv)] = (sat.get(tuple([0] * nv), 0) - 1) % p
+    F.append(sat)
+    return names, F, xhat
+
+
+def _relation(f: sp.Expr, X: list[str], xhat: dict[str, int], p: int) -> Poly:
+    """num(x) den(x̂) - num(x̂) den(x): zero on the fibre iff f is constant there."""
+    syms = [symbol(u) for u in X]
+    num, den = sp.fraction(sp.together(f))  # candidates are already P/Q in lowest terms
+    vals = {s: xhat[u] for s, u in zip(syms, X)}
+
+    def ev(e: sp.Expr) -> int:
+        P = sp.Poly(e, *syms, domain="QQ")
+        acc = 0
+        for mono, c in P.terms():
+            c = sp.Rational(c)
+            acc += int(c.p) % p * inv(int(c.q) % p, p) * _mono_value(mono, [vals[s] for s in syms], p)
+        return acc % p
+
+    nv, dv = ev(sp.expand(num)), ev(sp.expand(den))
+    out: Poly = {}
+    for e, scale in ((sp.expand(num), dv), (sp.expand(den), (-nv) % p)):
+        P = sp.Poly(e, *syms, domain="QQ")
+        for mono, c in P.terms():
+            c = sp.Rational(c)
+            key = tuple(mono) + (0,)
+            out[key] = (out.get(key, 0) + int(c.p) % p * inv(int(c.q) % p, p) * scale) % p
+    return {k: v for k, v in out.items() if v}
+
+
+def _select(cands: list[sp.Expr], X: list[str], eng: GroebnerEngine, p: int, rng: np.random.Generator) -> list[sp.Expr]:
+    """Greedy, simplest first: keep a candidate unless it is a function of those kept (constant on their fibre)."""
+    chosen: list[sp.Expr] = []
+    rest = list(cands)
+    while rest:
+        names, F, xhat = _fibre_system(chosen, X, p, rng)
+        rels = [_relation(g, X, xhat, p) for g in rest]
+        nfs = eng.normal_forms(names, p, F, rels)
+        new = [g for g, nf in zip(rest, nfs) if nf]
+        if not new:
+            break
+        chosen.append(new[0])
+        rest = new[1:]
+    return chosen
+
+
+def _count(eng: GroebnerEngine, names: list[str], F: list[Poly], ell: Poly, p: int, cap: int) -> int | None:
+    """Number of points of a zero-dimensional system: degree of the minimal polynomial of a random linear form."""
+    names = [*names, "ell_sep"]
+    F = [{(*m, 0): c for m, c in f.items()} for f in F]
+    eq = {(*m, 0): (-c) % p for m, c in ell.items()}
+    eq[(*([0] * (len(names) - 1)), 1)] = 1
+    F.append(eq)
+    powers = [{(*([0] * (len(names) - 1)), k): 1} for k in range(cap + 1)]
+    nfs = eng.normal_forms(names, p, F, powers)
+    mp = _minimal_polynomial(nfs, p)
+    return None if mp is None else _distinct_roots(mp, p)
+
+
+def _complete(prep: Any, eng: GroebnerEngine, chosen: list[sp.Expr], U: list[str], rng: np.random.Generator,
+              cap: int = 48) -> bool | None:
+    """Same number of points on one random cut for the identifiability fibre and the fibre of `chosen`."""
+    hs, p = prep.hs, prep.p
+    var = {u: hs.unknown_var[u] for u in U}
+    r = {u: int(rng.integers(1, p)) for u in U}
+    # the SIAN side (weighted variables: u = V^w)
+    nv = len(hs.names)
+    ell: Poly = {}
+    for u in U:
+        m = [0] * nv
+        m[hs.names.index(var[u])] = hs.weight.get(var[u], 1)
+        ell[tuple(m)] = r[u]
+    n_sian = _count(eng, hs.names, hs.F, ell, p, cap)
+    # the fibre of the chosen functions at the same point, on the same cut
+    xhat = {u: hs.value[var[u]] for u in U}
+    names, F, _ = _fibre_system(chosen, U, p, rng, point=xhat)
+    index = {v: names.index(u) for u, v in var.items()}
+    for sl in hs.slices:
+        eq: Poly = {}
+        for m, c in sl.items():
+            mm = [0] * len(names)
+            for i, e in enumerate(m):
+                if e:
+                    mm[index[hs.names[i]]] += e
+            eq[tuple(mm)] = c
+        F.append(eq)
+    ell2: Poly = {}
+    for u in U:
+        mm = [0] * len(names)
+        mm[names.index(u)] = 1
+        ell2[tuple(mm)] = r[u]
+    n_fun = _count(eng, names, F, ell2, p, cap)
+    if n_sian is None or n_fun is None:
+        return None
+    return n_sian == n_fun
+
+
+def _verified(prep: Any, eng: GroebnerEngine, cands: list[sp.Expr], U: list[str], rounds: int = 2) -> list[sp.Expr]:
+    """Keep the candidates that are constant on the solutions at fresh random points (normal forms)."""
+    for _ in range(rounds):
+        if not cands:
+            break
+        hs = prep.point()
+        p = prep.p
+        var = [hs.unknown_var[u] for u in U]
+        xhat = {u: hs.value[v] for u, v in zip(U, var)}
+        idx = [hs.names.index(v) for v in var]
+        ws = [hs.weight.get(v, 1) for v in var]
+        rels = []
+        for g in cands:
+            rel = _relation(g, U, xhat, p)
+            out: Poly = {}
+            for m, c in rel.items():
+                mm = [0] * len(hs.names)
+                for i, e in enumerate(m[:-1]):
+                    if e:
+                        mm[idx[i]] += e * ws[i]
+                out[tuple(mm)] = (out.get(tuple(mm), 0) + c) % p
+            rels.append({k: v for k, v in out.items() if v})
+        nfs = eng.normal_forms(hs.names, p, hs.F, rels)
+        cands = [g for g, nf in zip(cands, nfs) if not nf]
+    return cands
+
+
+def find_identifiable_functions(system: System, *, unknown_params: Any = "all", inputs: Any = "generic",
+                                with_states: bool = True, max_degree: int | None = None, local: Any = None,
+                                engine: str | GroebnerEngine = "auto", seed: int = 0,
+                                reparametrize_model: bool = True) -> IdentifiableFunctions:
+    r"""Generators of the identifiable (observable) functions of a rational model, simplest first.
+
+    Parameters
+    ----------
+    system : System
+        A model with rational right-hand sides (others are refused, see ``refused``).
+    unknown_params : sequence of str or "all", default "all"
+        The unknown parameters.
+    inputs : "generic", "constant" or int, optional
+        As for :func:`analyze`.
+    with_states : bool, default True
+        Include the states (initial values): observable functions; False gives functions of the
+        parameters only (as StructuralIdentifiability.jl's default).
+    max_degree : int, optional
+        Degree of the numerators searched (denominators: 1 or one unknown). Default 3 for up to 8
+        unknowns, else 2.
+    reparametrize_model : bool, default True
+        With ``with_states``, also rewrite the model in the generators found
+        (:func:`nlobs.analysis.reparametrize`, ``reparametrization``).
+
+    Other Parameters
+    ----------------
+    local : ObservabilityReport, optional
+        The local analysis of the same question, if already computed.
+    engine : str or GroebnerEngine, default "auto"
+    seed : int, default 0
+
+    Returns
+    -------
+    IdentifiableFunctions
+
+    Examples
+    --------
+    >>> from nlobs import System
+    >>> two = System(states=["x0", "x1"], f=["-(a01 + a21)*x0 + a12*x1", "a21*x0 - a12*x1"], outputs=["y"],
+    ...              h=["x0"], params={"a01": 1.0, "a21": 1.0, "a12": 1.0})
+    >>> find_identifiable_functions(two, with_states=False).functions   # doctest: +SKIP
+    ('a01*a12', 'a01 + a12 + a21')
+    """
+    from ._lie import observable_function
+
+    t0 = time.perf_counter()
+    eng = engine if isinstance(engine, GroebnerEngine) else get_engine(engine)
+    if eng is None:
+        return IdentifiableFunctions(with_states=with_states, refused=NO_ENGINE)
+    try:
+        prep = _prepare(system, unknown_params=unknown_params, inputs=inputs, local=local, seed=seed)
+    except NotRational as e:
+        return IdentifiableFunctions(with_states=with_states, refused=str(e))
+    rng = np.random.default_rng([seed, 99])
+    params = [u for u in prep.unknown_names if u not in system.states]
+    U = list(prep.unknown_names) if with_states else params
+    if max_degree is None:
+        max_degree = 3 if len(U) <= 8 else 2
+    if max_degree < 1:
+        raise ModelError(f"`max_degree` must be >= 1, got {max_degree}")
+    notes: list[str] = []
+    dec = _decide(prep, eng, 8)
+    single = [u for u in U if u in dec["globally"]]
+    search = _Search(prep, eng, U, max_degree)
+    cands: list[sp.Expr] = []
+    denominators = [tuple(0 for _ in U)] + [tuple(int(i == j) for j in range(len(U)))
+                                            for i, u in enumerate(U) if u not in single]
+    for Q in denominators:
+        Kc = search.solve(Q)
+        cands += search.functions(Kc, Q)
+    singles = [symbol(u) for u in single]
+    pool = list(dict.fromkeys(c for c in cands if c not in singles))
+    pool = sorted(_verified(prep, eng, pool, U), key=_complexity)  # sort the survivors only (the key prints)
+    chosen = _select([*singles, *pool], U, eng, prep.p, rng)
+    texts = tuple(_text(f) for f in chosen)
+    checks = tuple(observable_function(system, t, unknown_params=prep.local.unknown_params, inputs=inputs,
+                                       seed=seed).observable for t in texts)
+    if not all(checks):
+        notes.append("a returned function failed the local check: " + ", ".join(t for t, c in zip(texts, checks) if not c))
+    complete: bool | None = None
+    if with_states:
+        complete = _complete(prep, eng, chosen, U, rng)
+        if complete is False:
+            notes.append(f"the generators found with numerators of degree <= {max_degree} and monomial denominators "
+                         "do not give every identifiable function")
+    else:
+        notes.append("completeness is checked with the states included (with_states=True)")
+    rep = None
+    if with_states and reparametrize_model and texts and all(checks):
+        from ._reparam import reparametrize
+
+        rep = reparametrize(system, texts, unknown_params=prep.local.unknown_params, seed=seed)
+    return IdentifiableFunctions(functions=texts, with_states=with_states, complete=complete, local_checks=checks,
+                                 notes=tuple(notes), seconds=time.perf_counter() - t0, engine_seconds=eng.seconds,
+                                 reparametrization=rep)
+
+
+def _text(f: sp.Expr) -> str:
+    return str(f)
