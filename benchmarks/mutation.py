@@ -47,7 +47,8 @@ SCRATCH = Path(os.environ.get("NLOBS_MUTATION_DIR", "/tmp/nlobs-mutation"))
 
 #: module (relative to src/nlobs) -> the focused tests that check its equations
 MODULES: dict[str, list[str]] = {
-    "design/_regression.py": ["tests/design/test_regression.py", "tests/design/test_estimators.py"],
+    "design/_regression.py": ["tests/design/test_regression.py", "tests/design/test_estimators.py",
+                              "tests/design/test_regression_edges.py"],
     "design/_kalman.py": ["tests/design/test_kalman.py", "tests/design/test_high_gain.py"],
     "design/_gpebo.py": ["tests/design/test_gpebo.py", "tests/papers/test_000_2gd_not_uco.py::test_2gd_error_follows_the_paper_law_to_round_off"],
     "design/_banks.py": ["tests/design/test_banks.py"],
@@ -153,6 +154,25 @@ def _prepare(module: str, tests: list[str]) -> Path:
     return work
 
 
+def _refresh(module: str, tests: list[str]) -> tuple[Path, list[str]]:
+    """For a re-run of the survivors: the previous scratch copy with today's tests, and the mutants that were not
+    killed. Refused when the module's source changed since (mutant names and numbers would not match)."""
+    work = SCRATCH / module.replace("/", "__").removesuffix(".py")
+    old = work / "src" / "nlobs" / module
+    if not old.exists() or old.read_text() != (ROOT / "src" / "nlobs" / module).read_text():
+        raise SystemExit(f"{module}: no previous run of the same source in {work}; run it in full first")
+    shutil.rmtree(work / "tests")
+    shutil.copytree(ROOT / "tests", work / "tests", ignore=shutil.ignore_patterns("__pycache__"))
+    text = (ROOT / "pyproject.toml").read_text()
+    (work / "pyproject.toml").write_text(text + _SETUP.replace("{module}", module).replace("{tests}", json.dumps(tests)))
+    from mutmut.stats import status_by_exit_code
+
+    names = [name for meta in (work / "mutants").rglob("*.meta")
+             for name, code in json.loads(meta.read_text()).get("exit_code_by_key", {}).items()
+             if status_by_exit_code[code] in ("survived", "no tests", "not checked")]
+    return work, names
+
+
 def _count(work: Path) -> dict[str, object]:
     """Tally mutmut's per-mutant results from its .meta files (mutants/**.meta), with mutmut's own
     exit-code meanings (mutmut.stats.status_by_exit_code)."""
@@ -173,12 +193,12 @@ def _count(work: Path) -> dict[str, object]:
     return counts
 
 
-def run_module(module: str, tests: list[str], max_children: int) -> dict[str, object]:
-    work = _prepare(module, tests)
+def run_module(module: str, tests: list[str], max_children: int, survivors_only: bool = False) -> dict[str, object]:
+    work, names = _refresh(module, tests) if survivors_only else (_prepare(module, tests), [])
     env = {**os.environ, "PYTHONPATH": str(work / "mutants" / "src"), "NLOBS_CACHE": str(work / ".cache")}
     t0 = time.time()
-    proc = subprocess.run(["nice", "-n", "15", sys.executable, "-c", _LAUNCH, "run", "--max-children", str(max_children)],
-                          cwd=work, env=env, capture_output=True, text=True)
+    proc = subprocess.run(["nice", "-n", "15", sys.executable, "-c", _LAUNCH, "run", "--max-children", str(max_children),
+                           *names], cwd=work, env=env, capture_output=True, text=True)
     elapsed = time.time() - t0
     (work / "mutmut.log").write_text(proc.stdout[-200_000:] + "\n--- stderr ---\n" + proc.stderr[-200_000:])
     counts = _count(work)
@@ -226,6 +246,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--only", nargs="*", help="modules to run (keys of MODULES)")
     ap.add_argument("--max-children", type=int, default=2)
     ap.add_argument("--readme", action="store_true", help="only rewrite the README's table from the JSON")
+    ap.add_argument("--survivors", action="store_true",
+                    help="re-run only the previous run's survivors against today's tests (the module's source unchanged); "
+                         "killed mutants stay killed, since tests were only added")
     args = ap.parse_args(argv)
     out = ROOT / "benchmarks" / "results" / "mutation.json"
     if args.readme:
@@ -244,7 +267,10 @@ def main(argv: list[str] | None = None) -> int:
     results = json.loads(out.read_text()) if out.exists() else {}
     for module in chosen:
         print(f"{module}: mutating, tests {' '.join(MODULES[module])} ...", flush=True)
-        res = run_module(module, MODULES[module], args.max_children)
+        res = run_module(module, MODULES[module], args.max_children, args.survivors)
+        if args.survivors:
+            res["seconds"] = round(float(results.get(module, {}).get("seconds", 0.0)) + float(res["seconds"]), 1)  # type: ignore[arg-type]
+            res["survivors_rerun"] = True
         names: list[str] = res["survivor_names"]  # type: ignore[assignment]
         equivalent = [n for n in names if is_equivalent(n)]
         res["equivalent"] = len(equivalent)
