@@ -778,6 +778,16 @@ class SeriesRun:
                 self._leaf(i, k)
         lin = iter(self._lin)
         scal = iter(self._scalar)
+
+        def store(idx, block, deg, kept, k):  # a batch of nodes' coefficient k, and the ones whose history is kept
+            self.cur[idx] = block
+            self.dcur[idx] = deg
+            for r, i in kept:
+                H[i][k] = block[r]
+                DH[i][k] = deg[r]
+                if block[r].any():
+                    self.last[i] = k
+
         for items in self.sched.levels:
             for kind, what in items:
                 if kind == "scalar":  # c(t) = c0 constant: coefficient k of c·s is c0 ⊗ s_k
@@ -789,25 +799,11 @@ class SeriesRun:
                     S_ = self.cur[ss]
                     block = F.red(C0[:, :1] * S_ + S_[:, :1] * C0)
                     block[:, 0] = F.red(C0[:, 0] * S_[:, 0])
-                    deg = D0 + self.dcur[ss]
-                    self.cur[idx] = block
-                    self.dcur[idx] = deg
-                    for r, i in kept:
-                        H[i][k] = block[r]
-                        DH[i][k] = deg[r]
-                        if block[r].any():
-                            self.last[i] = k
+                    store(idx, block, D0 + self.dcur[ss], kept, k)
                     continue
                 if kind == "linear":
                     idx, lmap, kept = next(lin)
-                    block, deg = lmap.apply(self.cur, self.dcur, k == 0)
-                    self.cur[idx] = block
-                    self.dcur[idx] = deg
-                    for r, i in kept:
-                        H[i][k] = block[r]
-                        DH[i][k] = deg[r]
-                        if block[r].any():
-                            self.last[i] = k
+                    store(idx, *lmap.apply(self.cur, self.dcur, k == 0), kept, k)
                     continue
                 i = what
                 nd = nodes[i]

@@ -14,7 +14,10 @@ initial state) and c the target product h·ρ (default 1: well inside RK4's stab
 and about 1 % amplitude error per step on the fastest mode). When the rate measured during the
 interval shows that a step was longer than `reject`/ρ, the interval is redone from its start with
 n_k = max(ceil(dt_k · ρ_measured / c), 2 n_k): a stiff covariance equation or a fast transient
-cannot silently inflate the state between samples. An interval needing more than `max_substeps`
+cannot silently inflate the state between samples. When twice the sub-steps do not shrink h·ρ (by at
+least a quarter), the interval holds a kink or a jump of the flow (abs, sign, min, max: the difference
+quotient grows as 1/h there), not a fast mode: it is finished with those sub-steps and its rate is not
+passed on to the next interval. An interval needing more than `max_substeps`
 sub-steps is refused (with its index and the count needed), and a state that becomes non-finite
 stops the run (with the interval).
 
@@ -54,9 +57,9 @@ long long nlobs_intervals(const double* s0, const double* A, const double* nmin,
   casadi_int iw[NLOBS_SZ_IW + 1];
   double w[NLOBS_SZ_W + 1];
   double start[NS], cur[NS], nxt[NS], th[2], r, o[NO + 1];
-  double rho = rate0, t, dt, n, m, h, rmax;
+  double rho = rate0, t, dt, n, m, h, rmax, hr, prev_hr;
   long long k, i, ni;
-  int j, bad, stiff;
+  int j, bad, stiff, check;
   for (j = 0; j < NS; ++j) start[j] = s0[j];
   for (k = 0; k < n_int; ++k) {
     const double* a = A + k * NA;
@@ -64,6 +67,7 @@ long long nlobs_intervals(const double* s0, const double* A, const double* nmin,
     n = nmin[k];
     m = ceil(dt * rho / target);
     if (m > n) n = m;
+    prev_hr = INFINITY; check = 1;
     for (;;) {
       if (n > max_sub) { need[0] = n; return -(k + 1); }
       ni = (long long)n; h = dt / n; rmax = 0; bad = 0; stiff = 0;
@@ -76,13 +80,19 @@ long long nlobs_intervals(const double* s0, const double* A, const double* nmin,
         if (r > rmax) rmax = r;                 /* a NaN rate compares false: ignored */
         for (j = 0; j < NS; ++j) bad |= !(fabs(nxt[j]) < INFINITY);
         for (j = 0; j < NS; ++j) cur[j] = nxt[j];
-        if (h * rmax > reject) { stiff = 1; break; }
+        if (check && h * rmax > reject) { stiff = 1; break; }
         if (bad) break;
       }
-      if (stiff) { m = ceil(dt * rmax / target); n = m > 2 * n ? m : 2 * n; continue; }
+      if (stiff) {
+        hr = h * rmax;
+        /* more sub-steps did not shrink h*rate: a kink or jump of the flow (abs, sign, min, max), not a fast
+           mode, whose difference quotient grows as 1/h; finish the interval with these sub-steps */
+        if (hr > 0.75 * prev_hr) { check = 0; continue; }
+        prev_hr = hr; m = ceil(dt * rmax / target); n = m > 2 * n ? m : 2 * n; continue;
+      }
       nsub[k] = n; rate[k] = rmax;
       if (bad) return k + 1;
-      rho = rmax;
+      if (check) rho = rmax;  /* a kink's rate (about 2/h) says nothing about the next interval */
       break;
     }
     arg[0] = cur; arg[1] = a; res[0] = out + k * NS; res[1] = NO > 0 ? obuf + k * NO : o;
@@ -214,6 +224,7 @@ class IntervalRunner:
         dt = A[:, 1]
         start, rho, k = s0.copy(), rate0, 0
         forced: float | None = None  # the count for interval k after a rejection
+        stiff_k, stiff_hr, kink_k = -1, np.inf, -1  # the last stiff rejection (interval, h·rate); an interval with a kink
         budget = 4096  # sub-step rows per VM call; shrinks where the predictions fail, grows while they hold
         while k < N:
             n_k = forced if forced is not None else max(nmin[k], np.ceil(dt[k] * rho / target))
@@ -226,12 +237,17 @@ class IntervalRunner:
             finals, rmaxes, rfirst, outs = self._eval_rows(start, A, k, counts, reject)
             # verify: the count each interval needed given the rate measured in the one before it
             m = counts.size
-            prev = np.concatenate([[rho], rmaxes[:-1]])
+            eff = rmaxes.copy()  # the rate each interval passes on; a kink's (about 2/h) says nothing about the next
+            if k <= kink_k < k + m:
+                eff[kink_k - k] = rho if kink_k == k else eff[kink_k - k - 1]
+            prev = np.concatenate([[rho], eff[:-1]])
             need = np.maximum(nmin[k:k + m], np.ceil(dt[k:k + m] * prev / target))
             if forced is not None:
                 need[0] = forced
             recount = need != counts
             stiff = np.isfinite(rfirst)
+            if k <= kink_k < k + m:
+                stiff[kink_k - k] = False
             broken = ~(np.isfinite(finals).all(axis=1) & np.isfinite(outs).all(axis=1))
             bad = np.flatnonzero(recount | stiff | broken)
             accepted = int(bad[0]) if bad.size else m
@@ -245,12 +261,19 @@ class IntervalRunner:
                     substeps[k + b], rate[k + b] = counts[b], rmaxes[b]
                     return IntervalResult(states, outputs, substeps, rate, failed=k + b)
                 rho_stiff = float(rfirst[b])  # the rate where the C loop stops the interval
-            prev_rate = float(rmaxes[accepted - 1]) if accepted else rho
+            prev_rate = float(eff[accepted - 1]) if accepted else rho
             forced = None
             if accepted:
                 start, rho, k = states[k + accepted - 1].copy(), prev_rate, k + accepted
             if reason == "stiff":
-                forced = max(np.ceil(dt[k] * rho_stiff / target), 2 * float(counts[accepted]))
+                hr = dt[k] / counts[accepted] * rho_stiff
+                if k == stiff_k and hr > 0.75 * stiff_hr:
+                    # more sub-steps did not shrink h·rate: a kink or jump of the flow (abs, sign, min, max), not a
+                    # fast mode (its difference quotient grows as 1/h); finish the interval with these sub-steps
+                    kink_k, forced = k, float(counts[accepted])
+                else:
+                    stiff_k, stiff_hr = k, hr
+                    forced = max(np.ceil(dt[k] * rho_stiff / target), 2 * float(counts[accepted]))
                 budget = max(64, budget // 4)
             elif reason == "recount":
                 budget = max(64, budget // 4)

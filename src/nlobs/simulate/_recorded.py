@@ -15,7 +15,7 @@ from ..engine import Backend, evaluate_many
 from ..errors import DataError, FiniteEscapeError, ModelError, ShapeError
 from ..model import ModelFile, System
 from ..observer import AbstractObserver, compiled_observer
-from ._results import ObserverTrace, Run, estimate_std
+from ._results import ObserverTrace, Run
 from ._run import _xhat0_for, named_observers
 
 __all__ = ["Recording", "estimate"]
@@ -309,7 +309,7 @@ def estimate(
                                             "internal state is finite; check the observer's output map x̂ = H(t, z, u, y)")
         innovation = np.where(mask > 0, recording.y - traj.yhat_prior, np.nan)
         traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, traj.z, traj.xhat, traj.xhat_prior,
-                                     innovation=innovation, std=estimate_std(o.design, traj.z))
+                                     innovation=innovation, covariance=getattr(o.design, "covariance", None))
         integration[name] = traj.info()
     system = next(iter(obs.values())).system
     return Run(f"{system.name} (recorded: {recording.source})", t, system.states, recording.input_names, recording.output_names,

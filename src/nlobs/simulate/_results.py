@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -12,7 +13,7 @@ from .._display import MISSING, Column, SummaryTable, fmt_number, short_repr
 from ._metrics import CONVERGENCE_RULE, Metrics, error_metrics
 from ._whiteness import Whiteness, ljung_box
 
-__all__ = ["ObserverTrace", "Run", "write_csv", "estimate_std"]
+__all__ = ["ObserverTrace", "Run", "write_csv"]
 
 
 def write_csv(path: Any, header: Sequence[str], data: np.ndarray) -> None:
@@ -53,22 +54,27 @@ class ObserverTrace:
     #: y_k − h(x̂_k⁻): each output sample against the output predicted before the sample was used
     #: (shape (N, p), NaN where missing); set by :func:`nlobs.estimate`.
     innovation: np.ndarray | None = None
-    std: np.ndarray | None = None  #: (N, n) standard deviation of each estimate, from the covariance the observer carries
+    #: The design's covariance of x̂ as a function of z (None for observers that carry none); see :attr:`std`.
+    covariance: Any = field(default=None, repr=False)
+
+    @cached_property
+    def std(self) -> np.ndarray | None:
+        """(N, n) standard deviation of each estimate, from the covariance the observer carries (None
+        for observers without one). Computed when first read: runs that never ask do not pay for it."""
+        return _std(self.covariance, self.z, self.xhat.shape[1])
 
     def __repr__(self) -> str:
         return short_repr(self, {"name": self.name, "method": self.method, "z": self.z, "xhat": self.xhat})
 
 
-def estimate_std(design: Any, z: np.ndarray) -> np.ndarray | None:
-    """The standard deviation of each entry of x̂ along a trajectory of z, from the design's
-    ``covariance`` (None for observers that carry none). Negative variances (a covariance that
-    lost definiteness) give NaN, not a number that looks fine."""
-    cov = getattr(design, "covariance", None)
+def _std(cov: Any, z: np.ndarray, n: int) -> np.ndarray | None:
+    """The standard deviation of each entry of x̂ along a trajectory of z, from a design's
+    ``covariance`` function (None for observers that carry none). Negative variances (a covariance
+    that lost definiteness) give NaN, not a number that looks fine."""
     if cov is None or z.shape[0] == 0:
         return None
     from ..engine import evaluate_many
 
-    n = design.system.n_states
     P = evaluate_many(cov, z)
     var = P[:, [i * (n + 1) for i in range(n)]]  # diagonal entries of the column-major n x n blocks
     with np.errstate(invalid="ignore"):

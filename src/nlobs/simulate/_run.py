@@ -29,7 +29,7 @@ from ..model import ModelFile, ObserverConfig, System, input_signals
 from ..observer import AbstractObserver, Observer, as_observer
 from ._file import file_arguments, observers_of
 from ._options import Adaptive, Noise, ProcessNoise, Sampling
-from ._results import ObserverTrace, Run, estimate_std
+from ._results import ObserverTrace, Run
 
 __all__ = ["simulate", "Simulation", "prepare", "Prepared", "named_observers", "check_compatible", "stage_inputs",
            "augmented_plant"]
@@ -607,6 +607,7 @@ def _assemble(plant: System, obs: Mapping[str, AbstractObserver], layout: _Layou
         z = O[:, zsl] if zsl is not None else S[:, layout.slices[name]]
         xhat = O[:, xsl] if xsl is not None else z[:, :n]
         prior = o.estimate(t[0], S[0, layout.slices[name]], u[0], y[0])
-        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, z, xhat, prior, std=estimate_std(o.design, z))
+        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, z, xhat, prior,
+                                     covariance=getattr(o.design, "covariance", None))
     return Run(plant.name, t, plant.states, plant.inputs, plant.outputs, u, y, traces, x=S[:, :n], y_true=y_true,
                info={**info, "units": dict(getattr(plant, "units", None) or {})}, estimated_params=plant.estimated_params)
