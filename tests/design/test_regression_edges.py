@@ -154,3 +154,36 @@ def test_matrix_gain_given_as_an_array_or_a_list():
     for gain in (np.diag([2.0, 3.0]), [[2.0, 0.0], [0.0, 3.0]]):
         f = np.asarray(design_gradient(reg, gamma=gain).flow(0.0, np.zeros(2), [1.0, 2.0], [1.0])).ravel()
         assert f.tolist() == [2.0, 6.0]
+
+
+def test_excitation_report_against_a_hand_computed_run():
+    # ψ = a; a = 0, 0, 2, 2 at t = 0..3: ∫ψψᵀ by the trapezoid rule = 0, 0, 2, 6 (the IE level of 000 eq. (15))
+    from nlobs.design import excitation_report
+
+    d = design_gradient(LinearRegression(signals=["a"]))
+    rep = excitation_report(d, [0, 1, 2, 3], [[0], [0], [0], [0]], [0, 0, 2, 2], [1, 1, 1, 1], window=2, tol=2.0)
+    assert rep.ie_level.tolist() == [0.0, 0.0, 2.0, 6.0]
+    assert rep.ie_time == 3.0                    # the first level strictly above tol = 2
+    assert rep.pe_level == 2.0                   # windows [0, 2] and [1, 3]: min(2 - 0, 6 - 0) (Yi, Ortega & Zhang eq. 42)
+    assert rep.delta is None and rep.delta_time is None
+    assert str(rep) == "IE level λmin∫ψψᵀ = 6 at t = 3; IE reached at t_d = 3; PE level over windows of 2: 2"
+    rep0 = excitation_report(d, [0, 1, 2, 3], [[0], [0], [0], [0]])   # no inputs given: ψ = 0, never excited
+    assert rep0.ie_level.tolist() == [0.0] * 4 and rep0.ie_time is None
+    assert str(rep0) == "IE level λmin∫ψψᵀ = 0 at t = 3; IE reached never"
+    with pytest.raises(PreconditionError, match=r"^excitation_report: `window`"):
+        excitation_report(d, [0, 1, 2, 3], [[0]] * 4, [0, 0, 2, 2], window=-1.0)
+    with pytest.raises(PreconditionError, match=r"^excitation_report: `window` = 5 is longer than the run \(3\)"):
+        excitation_report(d, [0, 1, 2, 3], [[0]] * 4, [0, 0, 2, 2], window=5.0)
+
+
+def test_excitation_report_of_drem_reports_delta():
+    # DREM with the Kreisselmeier extension and one parameter: Δ = det Ψe = Ψe, the first internal state
+    from nlobs.design import excitation_report
+
+    d = design_drem(LinearRegression(signals=["a"]))
+    z = [[0, 0, 0], [5e-7, 0, 0], [0.5, 0, 0], [3, 0, 0]]
+    rep = excitation_report(d, [0, 1, 2, 3], z, [0, 0, 2, 2], [1, 1, 1, 1])
+    assert rep.delta.tolist() == [0.0, 5e-7, 0.5, 3.0] and rep.delta_time == 2.0   # |Δ| > 1e-6 from t = 2
+    assert str(rep) == "IE level λmin∫ψψᵀ = 6 at t = 3; IE reached at t_d = 2; |Δ| > 1e-06 from t = 2, final Δ = 3"
+    rep0 = excitation_report(d, [0, 1, 2, 3], [[0, 0, 0]] * 4, [0, 0, 2, 2])
+    assert str(rep0).endswith("|Δ| > 1e-06 never, final Δ = 0")
