@@ -71,6 +71,11 @@ EQUATIONS: dict[str, tuple[str, str]] = {
 #: each with the reason. They stay in the survivor lists and in the raw kill rate; the README also shows the
 #: rate among the non-equivalent mutants. Prefix match on the mutant's name.
 EQUIVALENT: dict[str, str] = {
+    # design/_regression.py
+    "nlobs.design._regression.x_adjugate__mutmut_2": "the matrix is square: shape[1] == shape[0]",
+    "nlobs.design._regression.x_adjugate__mutmut_25": "(-1)^(i - j) == (-1)^(i + j): i - j and i + j have the same parity",
+    "nlobs.design._regression.xǁExcitationMonitorǁof__mutmut_8": "the placeholder Δ of an estimator without Δ is never read "
+                                                                   "(has_delta is False)",
     # design/_gpebo.py, _uniform_stability: 000 assumption (5) for a constant A
     "nlobs.design._gpebo.x__uniform_stability__mutmut_10": "`eig.size` is never 0: a state-affine model has n >= 1 states",
     "nlobs.design._gpebo.x__uniform_stability__mutmut_12": "the empty-spectrum default is never used (n >= 1)",

@@ -12,7 +12,7 @@ import sympy as sp
 
 from nlobs import PreconditionError, ShapeError, System
 from nlobs.model import symbol
-from nlobs.design import DREM, Gradient, LeastSquares, LinearRegression, design_drem, design_gd, design_gradient, design_least_squares
+from nlobs.design import DREM, GD, Gradient, LeastSquares, LinearRegression, design_drem, design_gd, design_gradient, design_least_squares
 
 T = sp.Symbol("t")
 
@@ -187,3 +187,33 @@ def test_excitation_report_of_drem_reports_delta():
     assert str(rep) == "IE level λmin∫ψψᵀ = 6 at t = 3; IE reached at t_d = 2; |Δ| > 1e-06 from t = 2, final Δ = 3"
     rep0 = excitation_report(d, [0, 1, 2, 3], [[0, 0, 0]] * 4, [0, 0, 2, 2])
     assert str(rep0).endswith("|Δ| > 1e-06 never, final Δ = 0")
+
+
+@pytest.mark.parametrize("fn", [design_gradient, design_least_squares, design_drem, design_gd])
+def test_the_estimate_starts_at_xhat0(fn):
+    d = fn(LinearRegression(signals=["a", "b"]), xhat0=[0.5, -0.25])
+    z0 = np.asarray(d.initial(xhat0=[0.5, -0.25])["z0"]).ravel()
+    got = [z0[d.z_names.index(k)] for k in ("theta_hat[0]", "theta_hat[1]")]
+    assert got == [0.5, -0.25]
+    assert d.certificate.values["excitation monitor"].estimator == d.method
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda: Gradient(0.0), r"^Gradient: `gamma` must be positive"),                 # a zero gain never adapts
+    (lambda: DREM([1.0, -1.0]), r"^DREM: `gamma` must be positive"),
+    (lambda: GD(-1.0, 1.0), r"^GD: `gamma_g` must be a positive number"),
+    (lambda: GD(1.0, -1.0), r"^GD: `gamma` must be a positive number"),
+    (lambda: design_least_squares(LinearRegression(signals=["a"]), P0=[[2.0]], p_max=2.0),
+     r"^LeastSquares: `p_max` = 2 must exceed ‖P0‖_F = 2"),
+    (lambda: design_least_squares(LinearRegression(signals=["a"]), P0=[[-2.0]]), r"^LeastSquares: `P0` must be positive definite"),
+])
+def test_more_refusals_name_the_estimator_and_the_argument(make, message):
+    with pytest.raises(PreconditionError, match=message):
+        make()
+
+
+def test_empty_matrices_keep_their_shape():
+    from nlobs.design._regression import sx_matrix
+
+    assert sx_matrix(sp.zeros(2, 0), []).shape == (2, 0)
+    assert sx_matrix(sp.zeros(0, 3), []).shape == (0, 3)
