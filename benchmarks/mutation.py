@@ -47,13 +47,75 @@ SCRATCH = Path(os.environ.get("NLOBS_MUTATION_DIR", "/tmp/nlobs-mutation"))
 
 #: module (relative to src/nlobs) -> the focused tests that check its equations
 MODULES: dict[str, list[str]] = {
-    "design/_regression.py": ["tests/design/test_regression.py", "tests/design/test_estimators.py"],
+    "design/_regression.py": ["tests/design/test_regression.py", "tests/design/test_estimators.py",
+                              "tests/design/test_regression_edges.py"],
     "design/_kalman.py": ["tests/design/test_kalman.py", "tests/design/test_high_gain.py"],
     "design/_gpebo.py": ["tests/design/test_gpebo.py", "tests/papers/test_000_2gd_not_uco.py::test_2gd_error_follows_the_paper_law_to_round_off"],
     "design/_banks.py": ["tests/design/test_banks.py"],
-    "analysis/_conditions.py": ["tests/analysis/test_forms_banks.py", "tests/design/test_banks.py"],
+    "analysis/_conditions.py": ["tests/analysis/test_forms_banks.py", "tests/analysis/test_conditions_edges.py",
+                                "tests/design/test_banks.py"],
     "analysis/_identity.py": ["tests/analysis/test_identity.py", "tests/design/test_pebo.py", "tests/design/test_iandi.py"],
 }
+
+#: module -> the equations it implements, for the README table (cited as a user reads it)
+EQUATIONS: dict[str, tuple[str, str]] = {
+    "design/_regression.py": ("000", "eqs. (16)-(17); gradient, least squares, DREM"),
+    "design/_kalman.py": ("002", "Kalman-like and high-gain observers"),
+    "design/_gpebo.py": ("000", "Lemma 1, eqs. (5), (8)-(13)"),
+    "design/_banks.py": ("003", "Lemma 2.3, Theorem 2.6"),
+    "analysis/_conditions.py": ("003", "λ(A), μ_N, Theorem 2.6"),
+    "analysis/_identity.py": ("004", "PDE (4) and left-inverse identities"),
+}
+
+#: Survivors that are equivalent mutants (no input of the documented domain tells them from the original),
+#: each with the reason. They stay in the survivor lists and in the raw kill rate; the README also shows the
+#: rate among the non-equivalent mutants. Prefix match on the mutant's name.
+EQUIVALENT: dict[str, str] = {
+    # design/_regression.py
+    "nlobs.design._regression.x_adjugate__mutmut_2": "the matrix is square: shape[1] == shape[0]",
+    "nlobs.design._regression.x_adjugate__mutmut_25": "(-1)^(i - j) == (-1)^(i + j): i - j and i + j have the same parity",
+    "nlobs.design._regression.xǁExcitationMonitorǁof__mutmut_8": "the placeholder Δ of an estimator without Δ is never read "
+                                                                   "(has_delta is False)",
+    # design/_gpebo.py, _uniform_stability: 000 assumption (5) for a constant A
+    "nlobs.design._gpebo.x__uniform_stability__mutmut_10": "`eig.size` is never 0: a state-affine model has n >= 1 states",
+    "nlobs.design._gpebo.x__uniform_stability__mutmut_12": "the empty-spectrum default is never used (n >= 1)",
+    "nlobs.design._gpebo.x__uniform_stability__mutmut_30": "`initial=None` only matters for an empty A (n >= 1)",
+    "nlobs.design._gpebo.x__uniform_stability__mutmut_32": "max(1.0, max(|A|, 1.0)) == max(1.0, max|A|)",
+    "nlobs.design._gpebo.x__uniform_stability__mutmut_34": "`>=` vs `>` at Re λ exactly equal to the round-off tolerance",
+    "nlobs.design._gpebo.x__uniform_stability__mutmut_37": "`<` vs `<=` at |Re λ| exactly equal to the round-off tolerance",
+    "nlobs.design._gpebo.x__uniform_stability__mutmut_43": "rounding to 10 instead of 9 digits only groups axis eigenvalues "
+                                                          "that agree to 1e-9; the multiplicity count uses 1e-6 anyway",
+    "nlobs.design._gpebo.x__uniform_stability__mutmut_48": "eig + λ vs eig - λ: for λ on the imaginary axis -λ = conj(λ), and the "
+                                                          "spectrum of a real matrix is conjugate-symmetric with equal multiplicities",
+    "nlobs.design._gpebo.x__uniform_stability__mutmut_49": "`<` vs `<=` at a distance of exactly 1e-6",
+    "nlobs.design._gpebo.x__uniform_stability__mutmut_53": "A is square: shape[1] == shape[0]",
+    "nlobs.design._gpebo.x__uniform_stability__mutmut_61": "A is square: shape[1] == shape[0]",
+    "nlobs.design._gpebo.x__uniform_stability__mutmut_55": "rank tolerance: matrix_rank's default (σ_max·n·eps) vs 1e-8; they differ "
+                                                          "only for a Jordan coupling below 1e-8, which the code treats as round-off",
+    "nlobs.design._gpebo.x__uniform_stability__mutmut_57": "rank tolerance: see mutmut_55",
+    "nlobs.design._gpebo.x_design_gpebo__mutmut_16": "GD's documented default gain γ is 1.0: GD(1.0) == GD(1.0, 1.0)",
+    "nlobs.design._gpebo.x_design_gpebo__mutmut_17": "GD's documented default gain γ is 1.0: GD(1.0, ) == GD(1.0, 1.0)",
+    "nlobs.design._gpebo.x_design_gpebo__mutmut_103": "Regression.names is only checked for its length (θ names are not shown)",
+    "nlobs.design._gpebo.x_design_gpebo__mutmut_104": "Regression.names is only checked for its length (θ names are not shown)",
+    # analysis/_conditions.py, box_sup (the sampled suprema of 003 Lemma 2.4, Theorem 2.6): conversions of arrays that
+    # are already float, the optimiser scipy picks anyway, iteration caps that are never reached
+    "nlobs.analysis._conditions.x_box_sup__mutmut_22": "3^d instead of 2^d corners: the extra indices repeat corners (bits above d unused)",
+    "nlobs.analysis._conditions.x_box_sup__mutmut_43": "the function values are already float arrays",
+    "nlobs.analysis._conditions.x_box_sup__mutmut_45": "the function values are already float arrays",
+    "nlobs.analysis._conditions.x_box_sup__mutmut_85": "maxiter 101 instead of 100: L-BFGS-B converges well before",
+    "nlobs.analysis._conditions.x_box_sup__mutmut_94": "res.x is already a float array",
+    "nlobs.analysis._conditions.x_box_sup__mutmut_96": "res.x is already a float array",
+    "nlobs.analysis._conditions.x_box_sup__mutmut_68": "scipy chooses L-BFGS-B itself for a bounded problem without constraints",
+    "nlobs.analysis._conditions.x_box_sup__mutmut_73": "scipy chooses L-BFGS-B itself for a bounded problem without constraints",
+    "nlobs.analysis._conditions.x_box_sup__mutmut_69": "maxiter default (15000) instead of 100: L-BFGS-B converges well before",
+    "nlobs.analysis._conditions.x_box_sup__mutmut_74": "maxiter default (15000) instead of 100: L-BFGS-B converges well before",
+}
+
+
+def is_equivalent(name: str) -> str | None:
+    """The reason a surviving mutant is equivalent, or None."""
+    return EQUIVALENT.get(name.split(" ")[0])
+
 
 _SETUP = r"""
 [tool.mutmut]
@@ -97,6 +159,43 @@ def _prepare(module: str, tests: list[str]) -> Path:
     return work
 
 
+def _refresh(module: str, tests: list[str]) -> tuple[Path, list[str]]:
+    """For a re-run of the survivors: the previous scratch copy with today's tests, and the mutants that were not
+    killed. Refused when the module's source changed since (mutant names and numbers would not match)."""
+    work = SCRATCH / module.replace("/", "__").removesuffix(".py")
+    old = work / "src" / "nlobs" / module
+    if not old.exists() or old.read_text() != (ROOT / "src" / "nlobs" / module).read_text():
+        raise SystemExit(f"{module}: no previous run of the same source in {work}; run it in full first")
+    shutil.rmtree(work / "tests")
+    shutil.copytree(ROOT / "tests", work / "tests", ignore=shutil.ignore_patterns("__pycache__"))
+    text = (ROOT / "pyproject.toml").read_text()
+    (work / "pyproject.toml").write_text(text + _SETUP.replace("{module}", module).replace("{tests}", json.dumps(tests)))
+    from mutmut.stats import status_by_exit_code
+
+    names = [name for meta in (work / "mutants").rglob("*.meta")
+             for name, code in json.loads(meta.read_text()).get("exit_code_by_key", {}).items()
+             if status_by_exit_code[code] in ("survived", "no tests", "not checked")]
+    return work, names
+
+
+def _codes(work: Path) -> dict[str, int | None]:
+    """mutmut's exit code of every mutant (None: not run)."""
+    return {name: code for meta in (work / "mutants").rglob("*.meta")
+            for name, code in json.loads(meta.read_text()).get("exit_code_by_key", {}).items()}
+
+
+def _merge_previous(work: Path, previous: dict[str, int | None]) -> None:
+    """After a re-run of the survivors, mutmut's .meta files hold codes only for the mutants it ran; the others keep
+    their previous result (killed stays killed: the tests were only added to)."""
+    for meta in (work / "mutants").rglob("*.meta"):
+        data = json.loads(meta.read_text())
+        codes = data.get("exit_code_by_key", {})
+        for name, code in codes.items():
+            if code is None and previous.get(name) is not None:
+                codes[name] = previous[name]
+        meta.write_text(json.dumps(data))
+
+
 def _count(work: Path) -> dict[str, object]:
     """Tally mutmut's per-mutant results from its .meta files (mutants/**.meta), with mutmut's own
     exit-code meanings (mutmut.stats.status_by_exit_code)."""
@@ -117,13 +216,16 @@ def _count(work: Path) -> dict[str, object]:
     return counts
 
 
-def run_module(module: str, tests: list[str], max_children: int) -> dict[str, object]:
-    work = _prepare(module, tests)
+def run_module(module: str, tests: list[str], max_children: int, survivors_only: bool = False) -> dict[str, object]:
+    work, names = _refresh(module, tests) if survivors_only else (_prepare(module, tests), [])
+    previous = _codes(work) if survivors_only else {}
     env = {**os.environ, "PYTHONPATH": str(work / "mutants" / "src"), "NLOBS_CACHE": str(work / ".cache")}
     t0 = time.time()
-    proc = subprocess.run(["nice", "-n", "15", sys.executable, "-c", _LAUNCH, "run", "--max-children", str(max_children)],
-                          cwd=work, env=env, capture_output=True, text=True)
+    proc = subprocess.run(["nice", "-n", "15", sys.executable, "-c", _LAUNCH, "run", "--max-children", str(max_children),
+                           *names], cwd=work, env=env, capture_output=True, text=True)
     elapsed = time.time() - t0
+    if survivors_only:
+        _merge_previous(work, previous)
     (work / "mutmut.log").write_text(proc.stdout[-200_000:] + "\n--- stderr ---\n" + proc.stderr[-200_000:])
     counts = _count(work)
     caught = int(counts["killed"]) + int(counts["timeout"]) + int(counts["segfault"])   # type: ignore[arg-type]
@@ -133,11 +235,51 @@ def run_module(module: str, tests: list[str], max_children: int) -> dict[str, ob
             "rate": rate, **counts, "scratch": str(work)}
 
 
+README_BEGIN = "<!-- mutation rows: generated by `python benchmarks/mutation.py --readme` from benchmarks/results/mutation.json -->"
+README_END = "<!-- end of mutation rows -->"
+
+
+def readme_rows(results: dict[str, dict[str, object]]) -> str:
+    """The README table's rows, from the run's JSON (modules in MODULES order)."""
+    from nlobs.references import cite
+
+    rows = []
+    for module in MODULES:
+        r = results.get(module)
+        key, eqs = EQUATIONS[module]
+        what = f"`{module}` ({cite(key, eqs)})"
+        if r is None or not r.get("exit_code", 1) == 0:
+            rows.append(f"| {what} | – | – | not run | {', '.join(MODULES[module])} |")
+            continue
+        caught = int(r["killed"]) + int(r["timeout"]) + int(r["segfault"])                   # type: ignore[arg-type]
+        total = caught + int(r["survived"]) + int(r["no tests"])                              # type: ignore[arg-type]
+        eq = int(r.get("equivalent", 0))                                                      # type: ignore[arg-type]
+        adj = f"{caught / (total - eq):.1%}" if total - eq else "–"
+        tests = ", ".join(f"`{t.split('::')[0].removeprefix('tests/')}`" for t in MODULES[module])
+        rows.append(f"| {what} | {total} | {caught} | {caught / total:.1%} | {eq} | {adj} | {tests} |")
+    return "\n".join(rows)
+
+
+def write_readme(results: dict[str, dict[str, object]]) -> None:
+    path = ROOT / "README.md"
+    text = path.read_text()
+    start, end = text.index(README_BEGIN) + len(README_BEGIN), text.index(README_END)
+    path.write_text(text[:start] + "\n" + readme_rows(results) + "\n" + text[end:])
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--only", nargs="*", help="modules to run (keys of MODULES)")
     ap.add_argument("--max-children", type=int, default=2)
+    ap.add_argument("--readme", action="store_true", help="only rewrite the README's table from the JSON")
+    ap.add_argument("--survivors", action="store_true",
+                    help="re-run only the previous run's survivors against today's tests (the module's source unchanged); "
+                         "killed mutants stay killed, since tests were only added")
     args = ap.parse_args(argv)
+    out = ROOT / "benchmarks" / "results" / "mutation.json"
+    if args.readme:
+        write_readme(json.loads(out.read_text()))
+        return 0
     try:
         import mutmut  # noqa: F401
     except ImportError:
@@ -148,17 +290,24 @@ def main(argv: list[str] | None = None) -> int:
     if unknown:
         print(f"unknown module(s) {unknown}; choose from {list(MODULES)}", file=sys.stderr)
         return 2
-    out = ROOT / "benchmarks" / "results" / "mutation.json"
     results = json.loads(out.read_text()) if out.exists() else {}
     for module in chosen:
         print(f"{module}: mutating, tests {' '.join(MODULES[module])} ...", flush=True)
-        res = run_module(module, MODULES[module], args.max_children)
+        res = run_module(module, MODULES[module], args.max_children, args.survivors)
+        if args.survivors:
+            res["seconds"] = round(float(results.get(module, {}).get("seconds", 0.0)) + float(res["seconds"]), 1)  # type: ignore[arg-type]
+            res["survivors_rerun"] = True
+        names: list[str] = res["survivor_names"]  # type: ignore[assignment]
+        equivalent = [n for n in names if is_equivalent(n)]
+        res["equivalent"] = len(equivalent)
         results[module] = {k: v for k, v in res.items() if k != "survivor_names"}
         surv = ROOT / "benchmarks" / "results" / f"mutation_survivors_{module.replace('/', '__').removesuffix('.py')}.txt"
-        surv.write_text("\n".join(res["survivor_names"]) + "\n")  # type: ignore[arg-type]
+        surv.write_text("".join(f"{n}" + (f"  [equivalent: {is_equivalent(n)}]" if is_equivalent(n) else "") + "\n"
+                                for n in names))
         print(f"  killed {res['killed']}, timeout {res['timeout']}, survived {res['survived']}, no tests {res['no tests']}: "
               f"kill rate {res['rate']:.1%} ({res['seconds']:.0f} s)", flush=True)
         out.write_text(json.dumps(results, indent=2, sort_keys=True) + "\n")
+        write_readme(results)
     return 0
 
 

@@ -142,3 +142,25 @@ def test_method_certificate_and_reference_name_what_was_built():
     assert design_2gd(sa, L=[[3], [4]]).certificate.method == "2G+D observer and output injection"
     with pytest.raises(PreconditionError, match=r"^design_gpebo: .*not state-affine"):
         design_gpebo(System(states=["x1", "x2"], f=["x2**2", "0"], outputs=["y"], h=["x1"]))
+
+
+def test_assumption_5_tolerance_is_relative_to_the_size_of_a():
+    # the round-off tolerance of assumption (5) is 1e-9·max(1, max|A|): next to 1, an eigenvalue 1.5e-9 is a
+    # real (slow) instability of Φ_A and is refused; at 0.5e-9 it is round-off on the axis
+    with pytest.raises(PreconditionError, match="eigenvalue 1.5e-09"):
+        design_2gd(StateAffine(np.diag([-1.0, 1.5e-9]).tolist(), [0, 0], [[1], [1]]))
+    design_2gd(StateAffine(np.diag([-1.0, 0.5e-9]).tolist(), [0, 0], [[1], [1]]))
+
+
+def test_time_varying_injection_gain_and_estimator_errors_name_the_design():
+    # L(t) = (e^{-t}, 0): A - L(t)Cᵀ depends on t, so assumption (5) is not decidable symbolically
+    # (000 assumption 5 concerns the transition matrix of a time-varying A); the certificate says so
+    d = design_gpebo(OSC, L=[["exp(-t)"], ["0"]])
+    assert d.certificate.values["assumption (5)"].startswith("not decidable symbolically")
+    assert not any("assumption 5" in c.condition for c in d.certificate.checks)
+    z = np.linspace(0.1, 1.4, d.n_z)
+    f0, f1 = (np.asarray(d.flow(t, z, [0.0], [0.7])).ravel() for t in (0.0, 1.0))
+    # ξ' = Aξ + b + L(t)(y - Cᵀξ): the first component changes by (e^0 - e^-1)(y - ξ1) between t = 0 and 1
+    assert f0[0] - f1[0] == pytest.approx((1 - np.exp(-1)) * (0.7 - z[0]), abs=1e-14)
+    with pytest.raises(PreconditionError, match=r"^design_gpebo: `estimator` must be an estimator"):
+        design_gpebo(OSC, estimator="bogus")

@@ -260,3 +260,11 @@ def test_design_of_a_model_file_points_to_observer_system():
         nlobs.design_ekf(mf, Q=[[1.0]], R=[[1.0]])
     assert nlobs.design_ekf(mf.observer_system, Q=[[1.0]], R=[[1.0]]).method == "ekf"
     assert nlobs.design_ekf(system=mf.system, Q=[[1.0]], R=[[1.0]]).method == "ekf"  # by keyword too
+
+
+@pytest.mark.parametrize("text", [None, b"name = 'm'", 3])
+def test_loads_model_refuses_what_is_not_text(text):
+    # issue 10 (API as a new user): loads_model(None) raised AttributeError from inside the parser
+    with pytest.raises(nlobs.ModelFileError, match=r"loads_model takes the text of a model file \(a str\), got "
+                                                   + type(text).__name__ + r"; for a file on disk use load_model\(path\)"):
+        nlobs.loads_model(text)

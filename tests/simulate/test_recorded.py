@@ -228,8 +228,9 @@ def test_huge_values_and_times_stop_with_the_sample_instead_of_nan_estimates(rec
         estimate(d, Recording.from_arrays(PEND, rec.t, y, rec.u))
     t = rec.t.copy()
     t[0] = -1e300
-    with pytest.raises(DataError, match=r"from t = -1e\+300 to 0\.01 \(length 1e\+300\) would need 3e\+300 RK4 steps"):
-        estimate(design_output_injection(PEND, poles=[-2, -3]), Recording.from_arrays(PEND, t, rec.y, rec.u))
+    with pytest.raises(DataError, match=r"^recording \(t0 file\): observer .* from t = -1e\+300 to 0\.01 \(length 1e\+300\) "
+                                        r"would need 3e\+300 RK4 steps"):   # the recording is named (issue 10)
+        estimate(design_output_injection(PEND, poles=[-2, -3]), Recording.from_arrays(PEND, t, rec.y, rec.u, source="t0 file"))
     with pytest.raises(DataError, match="overflows"):
         Recording.from_arrays(PEND, [-1.7e308, 1.7e308], [0, 0], [0, 0])
 
@@ -247,3 +248,16 @@ def test_estimate_options_are_checked(recorded):
     y[3] = np.nan
     with pytest.raises(DataError, match=r"on_missing='skip' \(command line: --skip-missing\)"):
         estimate(d, Recording.from_arrays(PEND, rec.t, y, rec.u))
+
+
+def test_one_row_and_overlong_field_errors_name_the_file(tmp_path):
+    # issue 10: every CSV error names the file (and, where it can, the line) and what to change
+    one = tmp_path / "one.csv"
+    one.write_text("t,u,y\n0,0,1\n")
+    with pytest.raises(ShapeError, match=r"^recording \(.*one\.csv\): a recording needs at least 2 samples \(rows of data\), got 1"):
+        Recording.from_csv(one, PEND)
+    long = tmp_path / "long.csv"
+    long.write_text("t,u,y\n0," + "1" * 200_000 + ",1\n0.1,0,1\n")
+    with pytest.raises(DataError, match=r"long\.csv, line 2: a field is longer than 131072 characters.*delimiter") as e:
+        Recording.from_csv(long, PEND)
+    assert len(str(e.value)) < 300

@@ -197,6 +197,9 @@ def load_model(path: str | Path) -> ModelFile:
 def loads_model(text: str, *, path: str = "<string>", default_name: str = "model") -> ModelFile:
     """Parse model-file `text` (see :func:`load_model`); `path` names it in messages and
     `default_name` is the model's name when the file has no ``name``."""
+    if not isinstance(text, str):
+        raise ModelFileError(f"loads_model takes the text of a model file (a str), got {type(text).__name__}; "
+                             "for a file on disk use load_model(path)", path=path)
     if text.startswith("\ufeff"):  # a byte-order mark, as some editors write it
         text = text[1:]
     try:

@@ -44,7 +44,8 @@ class Recording:
         t_ = np.asarray(t, dtype=float).reshape(-1)
         N = t_.size
         if N < 2:
-            raise ShapeError(f"a recording needs at least 2 samples, got {N}")
+            raise ShapeError(f"recording ({source}): a recording needs at least 2 samples (rows of data), got {N}; "
+                             "record more samples or check the file's rows")
 
         def mat(v: Any, k: int, name: str) -> np.ndarray:
             a = np.zeros((N, 0)) if v is None and k == 0 else np.asarray(v, dtype=float)
@@ -84,13 +85,17 @@ class Recording:
         p = Path(path)
         try:
             with p.open(newline="", encoding="utf-8-sig") as fh:
-                rows = list(csv.reader(fh))
+                reader = csv.reader(fh)
+                rows = list(reader)
         except OSError as e:
             raise DataError(f"cannot read the recording {p}: {e.strerror}") from None
         except UnicodeDecodeError as e:
             raise DataError(f"{p}: not a UTF-8 text file (byte {e.object[e.start]:#04x} at offset {e.start} cannot be decoded); "
                             "save the CSV as UTF-8 (e.g. from a spreadsheet: CSV UTF-8)") from None
         except csv.Error as e:
+            if "field limit" in str(e):   # the csv module's field_size_limit (131072 characters by default)
+                raise DataError(f"{p}, line {reader.line_num}: a field is longer than {csv.field_size_limit()} characters, which "
+                                "a CSV of numbers never needs; check the delimiter (',') and the line endings of the file") from None
             raise DataError(f"{p}: not a readable CSV file ({e})") from None
         if not rows:
             raise DataError(f"{p}: the file is empty; expected a header naming t, {', '.join(system.outputs)}")
@@ -293,6 +298,8 @@ def estimate(
             if getattr(e, "interval", None) is None:
                 raise
             raise _non_finite(name, o, recording, e) from None
+        except DataError as e:   # an interval too long to integrate: name the recording it comes from
+            raise DataError(f"recording ({recording.source}): {e}") from None
         bad = np.argwhere(~np.isfinite(traj.xhat))
         if bad.size:  # the internal state is finite, but the estimate read from it is not
             r, c = (int(v) for v in bad[0])
