@@ -115,7 +115,8 @@ class IdentifiableFunctions:
 
 
 # ----------------------------------------------------------------------------------------------
-def _monomials(n: int, deg: int) -> list[tuple[int, ...]]:
+def monomial_exponents(n: int, deg: int) -> list[tuple[int, ...]]:
+    """Exponent tuples of all monomials in n variables of total degree ≤ `deg` (the constant first)."""
     out = []
     for d in range(deg + 1):
         for combo in itertools.combinations_with_replacement(range(n), d):
@@ -182,7 +183,7 @@ class _Search:
     def __init__(self, prep: Any, eng: GroebnerEngine, U: list[str], max_degree: int):
         self.prep, self.eng, self.U = prep, eng, U
         self.p = prep.p
-        self.monos = _monomials(len(U), max_degree)
+        self.monos = monomial_exponents(len(U), max_degree)
         # most complex first: pivots of the reduced echelon form fall on the complex monomials
         self.monos.sort(key=lambda e: (-sum(e), tuple(-x for x in e)))
         self.var = {u: prep.hs.unknown_var[u] for u in U}

@@ -121,7 +121,7 @@ def _express(target: sp.Expr, gens: Sequence[sp.Expr], new: Sequence[sp.Symbol],
              rng: np.random.Generator) -> sp.Expr | None:
     """`target` (in the old symbols) as a rational function of `gens` (named `new`), verified exactly; or None."""
     from ._global import _eval_poly
-    from ._identifiable import _kernel, _mono_value, _monomials, _ratrec
+    from ._identifiable import _kernel, _mono_value, _ratrec, monomial_exponents
 
     direct = _by_substitution(target, gens, new, old)
     if direct is not None and sp.cancel(sp.together(direct.xreplace(dict(zip(new, gens))) - target)) == 0:
@@ -157,7 +157,7 @@ def _express(target: sp.Expr, gens: Sequence[sp.Expr], new: Sequence[sp.Symbol],
         samples.append((gv, ev(tl[0], vals) * inv(td, p) % p))
 
     for dn, dd in _DEGREES:
-        mn, md = _monomials(n, dn), _monomials(n, dd)
+        mn, md = monomial_exponents(n, dn), monomial_exponents(n, dd)
         width = len(mn) + len(md)
         if width > _MAX_WIDTH:
             continue

@@ -20,13 +20,13 @@ Buisson-Fenet, Bahr, Di Meglio (2022), here without a neural network.
 
 from __future__ import annotations
 
-import itertools
 from collections.abc import Mapping, Sequence
 from typing import Any
 
 import casadi as ca
 import numpy as np
 
+from ..analysis._identifiable import monomial_exponents
 from ..engine import compile_system, rk4_step
 from ..errors import PreconditionError, ShapeError
 from ..model import System
@@ -38,18 +38,6 @@ __all__ = ["design_kkl_learned"]
 
 REF = (f"{cite('004')} Proposition 1 (KKL observer), ref. [1] {cite('andrieu2006')} (n_ξ = (n+1)p, existence "
        "and injectivity of φ); φ^L learned by polynomial ridge regression on simulated (ξ, y) → x pairs")
-
-
-def _monomials(n_vars: int, degree: int) -> list[tuple[int, ...]]:
-    """Exponent tuples of all monomials of total degree ≤ `degree` (the constant first)."""
-    out = []
-    for d in range(degree + 1):
-        for combo in itertools.combinations_with_replacement(range(n_vars), d):
-            e = [0] * n_vars
-            for i in combo:
-                e[i] += 1
-            out.append(tuple(e))
-    return out
 
 
 def _features(V: Any, exps: list[tuple[int, ...]], lib: Any) -> Any:
@@ -200,7 +188,7 @@ def design_kkl_learned(system: System, *, region: Sequence[Sequence[float]], eig
     V_te, X_te = pairs(test)
     mu, sd = V_tr.mean(axis=0), V_tr.std(axis=0)
     sd[sd == 0] = 1.0
-    exps = _monomials(n_xi + p, int(degree))
+    exps = monomial_exponents(n_xi + p, int(degree))
     M = _features((V_tr - mu) / sd, exps, np)
     G = M.T @ M
     if np.linalg.matrix_rank(G, tol=1e-12 * np.trace(G)) < len(exps) and ridge == 0:
