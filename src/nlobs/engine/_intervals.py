@@ -181,7 +181,8 @@ class IntervalRunner:
         N = A.shape[0]
         if not np.isfinite(rate0) or rate0 < 0:
             rate0 = 0.0
-        backend = self.backend_for(float(nmin.sum()))
+        # the work predicted from the first rate (a long gap needs many sub-steps although nmin is small there)
+        backend = self.backend_for(float(np.maximum(nmin, np.ceil(A[:, 1] * rate0 / target)).sum()))
         if backend == "c":
             if self._c is None:
                 self._c = _CompiledIntervals(self.sub, self.jump, self._sig)
