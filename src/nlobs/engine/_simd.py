@@ -21,7 +21,7 @@ from ._codegen import _ERFINV, _build, bind_batch, built_path, call_batch, signa
 __all__ = ["simd_supported", "CompiledSimdBatch", "LANES"]
 
 LANES = 8
-_KERNEL_VERSION = "fused-lanes-2"  # part of the cache key: bump when _kernel's output changes
+_KERNEL_VERSION = "fused-lanes-3"  # part of the cache key: bump when _kernel's output changes
 
 _BINARY = {
     ca.OP_ADD: "{a} + {b}", ca.OP_SUB: "{a} - {b}", ca.OP_MUL: "{a} * {b}", ca.OP_DIV: "{a} / {b}",
@@ -102,12 +102,13 @@ _DRIVER = r"""
 long long nlobs_batch(const double* S0, const double* A, long long a_stride, const double* C, long long c_stride,
                       double* Sout, double* Oout, long long n_save, long long n_traj, long long n_steps,
                       long long stride, double bound, long long* status) {
-  double buf_s[NS * W], buf_n[NS * W], a[NA * W + 1], c[NC * W + 1], o[NO * W + 1], acc;
+  double buf_s[NS * W], buf_n[NS * W], a[NA * W + 1], c[NC * W + 1], o[NO * W + 1];
   double *s = buf_s, *nxt = buf_n, *tmp;  /* swapped after each step: no copy */
   const double* arg[3];
   double* res[2];
   long long j0, k, isave, next_save, j;
   int i, l, alive[W], n_alive;
+  long long bad;
   for (j0 = 0; j0 < n_traj; j0 += W) {
     for (l = 0; l < W; ++l) {
       j = j0 + l < n_traj ? j0 + l : n_traj - 1;  /* padding lanes repeat the last trajectory */
@@ -136,9 +137,11 @@ long long nlobs_batch(const double* S0, const double* A, long long a_stride, con
         next_save = next_save + stride < n_steps ? next_save + stride : n_steps;
       }
       if (k == n_steps) break;
-      acc = 0;
-      for (i = 0; i < NS * W; ++i) acc += fabs(nxt[i]) <= bound ? 0.0 : 1.0;  /* compare + blend + add: SIMD; NaN is bad */
-      if (acc != 0) {
+      /* any state out of bound or NaN: an integer OR of the compare masks, which the compiler vectorises
+         (a floating-point sum could not be reordered, and its chain of dependent additions took a third of the step) */
+      bad = 0;
+      for (i = 0; i < NS * W; ++i) bad |= fabs(nxt[i]) <= bound ? 0 : -1;
+      if (bad) {
         n_alive = 0;
         for (l = 0; l < W; ++l) {
           if (!alive[l]) continue;
