@@ -125,3 +125,29 @@ def test_a_non_finite_estimate_raises_with_the_interval(engine):
     y = np.where(t < 0.5, 1.0, -3.0)
     with pytest.raises(FiniteEscapeError, match=r"observer .custom.*from the sample at t = 0\.[45]"):
         estimate(obs, Recording.from_arrays(sys_, t, y[:, None], None), engine=engine)
+
+
+def test_the_vm_does_not_finish_a_long_gap_it_will_redo(vdp_rec, monkeypatch):
+    """A long gap whose first prediction proves too coarse (the rate grows inside it) is redone with more
+    sub-steps. The VM stops the rejected attempt where the rate is exceeded, as the C loop does, instead of
+    running it to the gap's end: the rows evaluated stay close to the sub-steps kept."""
+    from nlobs.engine._intervals import IntervalRunner
+
+    rows: list[int] = []
+    real = IntervalRunner._rows_fn
+
+    def counting(self, K, jumps=True):
+        rows.append(K)
+        return real(self, K, jumps)
+
+    monkeypatch.setattr(IntervalRunner, "_rows_fn", counting)
+    t = vdp_rec.t.copy()
+    t[1000:] += 1e4
+    gap = Recording.from_arrays(VDP, t, vdp_rec.y, vdp_rec.u, vdp_rec.x)
+    res = estimate(_ekf(), gap, engine="vm")
+    info = res.info["integration"]["ekf"]
+    # here the gap is first tried with 26,980 sub-steps and redone with 54,151 (56,150 in all): running the
+    # rejected attempt to its end would evaluate about 83,000 rows; stopped early, the rows (padded to whole
+    # VM calls) stay within 15 % of the sub-steps kept
+    assert info["max_substeps"] > 5e4 and sum(rows) < 1.15 * info["substeps"]
+    assert np.all(np.isfinite(res.observers["ekf"].z))

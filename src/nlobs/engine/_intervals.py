@@ -158,7 +158,7 @@ class IntervalRunner:
         self._sig = signature_of(sub) + signature_of(jump) if self.compilable else ""
         self._c: _CompiledIntervals | None = None
         self._ready = False
-        self._vm: dict[int, ca.Function] = {}
+        self._vm: dict[tuple[int, bool], ca.Function] = {}
         self._n_instr = (sub.n_instructions() + jump.n_instructions()) if self.compilable else 0
 
     def backend_for(self, work: float) -> str:
@@ -196,9 +196,19 @@ class IntervalRunner:
         return res
 
     # -- the VM path -------------------------------------------------------------------------
-    def _rows_fn(self, K: int) -> ca.Function:
-        """K sub-step rows in one call: row i = (a, t, h, flag); the jump is applied after the rows flagged 1."""
-        fn = self._vm.get(K)
+    def _rows_fn(self, K: int, jumps: bool = True) -> ca.Function:
+        """K sub-step rows in one call: row i = (a, t, h, flag); the jump is applied after the rows flagged 1.
+
+        Without `jumps`, the rows are sub-steps only (the flags are ignored): the bulk of a long gap, where
+        an SX conditional would otherwise evaluate the jump on every row and discard it.
+        """
+        fn = self._vm.get((K, jumps))
+        if fn is None and not jumps:
+            s, row = ca.SX.sym("s", self.ns), ca.SX.sym("row", self.na + 3)
+            s1, r = self.sub(s, row[:self.na], row[self.na:self.na + 2])
+            step = ca.Function("row", [s, row], [s1, ca.vertcat(r, ca.SX.zeros(self.no))])
+            S0, R = ca.MX.sym("s0", self.ns), ca.MX.sym("rows", self.na + 3, K)
+            fn = self._vm[(K, jumps)] = ca.Function(f"subs_{K}", [S0, R], list(step.mapaccum("subs", K)(S0, R)))
         if fn is None:
             # SX when both functions are (the fast VM); MX otherwise, where the jump (an NLP) runs only when flagged
             X = ca.SX if self.compilable else ca.MX
@@ -214,7 +224,7 @@ class IntervalRunner:
             acc = step.mapaccum("rows", K)
             S0, R = ca.MX.sym("s0", self.ns), ca.MX.sym("rows", self.na + 3, K)
             out = acc(S0, R)
-            fn = self._vm[K] = ca.Function(f"rows_{K}", [S0, R], list(out))
+            fn = self._vm[(K, jumps)] = ca.Function(f"rows_{K}", [S0, R], list(out))
         return fn
 
     def _run_vm(self, s0: np.ndarray, A: np.ndarray, nmin: np.ndarray, rate0: float, target: float, reject: float,
@@ -235,7 +245,7 @@ class IntervalRunner:
             rest = np.maximum(nmin[k + 1:], np.ceil(dt[k + 1:] * rho / target))
             fit = int(np.searchsorted(np.cumsum(rest), budget - n_k, side="right")) if n_k < budget else 0
             counts = np.concatenate([[n_k], rest[:fit]]).astype(np.int64)
-            finals, rmaxes, rfirst, outs = self._eval_rows(start, A, k, counts, reject)
+            finals, rmaxes, rfirst, outs = self._eval_rows(start, A, k, counts, reject, keep=kink_k - k)
             # verify: the count each interval needed given the rate measured in the one before it
             m = counts.size
             eff = rmaxes.copy()  # the rate each interval passes on; a kink's (about 2/h) says nothing about the next
@@ -283,11 +293,15 @@ class IntervalRunner:
         return IntervalResult(states, outputs, substeps, rate)
 
     def _eval_rows(self, start: np.ndarray, A: np.ndarray, k: int, counts: np.ndarray,
-                   reject: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+                   reject: float, keep: int = -1) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Run intervals k, k+1, ... with the given sub-step counts from `start`, in VM calls of at most 4096
         sub-step rows built on the fly (a long gap never becomes one big array): the state and the output
         after each interval's jump, the fastest rate measured in each, and the first rate with h·rate > reject
-        in each (NaN where none: the rate at which the C loop abandons the interval)."""
+        in each (NaN where none: the rate at which the C loop abandons the interval).
+
+        Like the C loop, the run stops after the call in which an interval exceeds the rate (except interval
+        k + `keep`, a kink finished at its count) or its state becomes non-finite: that interval is redone
+        anyway, and the intervals after it are left NaN (so a rejected long gap is not run to its end first)."""
         cum = np.cumsum(counts)
         total = int(cum[-1])
         finals = np.full((counts.size, self.ns), np.nan)
@@ -310,7 +324,7 @@ class IntervalRunner:
                 pad[:, self.na + 1:] = 0.0
                 block = np.vstack([block, pad])
             Sk, Ok = np.empty((K2, self.ns)), np.empty((K2, 1 + self.no))
-            buf, ev = self._rows_fn(K2).buffer()  # NumPy buffers in and out: no DM conversion
+            buf, ev = self._rows_fn(K2, jumps=bool(flag.any())).buffer()  # NumPy buffers in and out: no DM conversion
             state_in, rows_in = np.ascontiguousarray(state, dtype=float), np.ascontiguousarray(block)
             buf.set_arg(0, memoryview(state_in))
             buf.set_arg(1, memoryview(rows_in))  # row-major (K2, na + 3) is CasADi's column-major (na + 3, K2)
@@ -331,6 +345,11 @@ class IntervalRunner:
             outs[idx[ends]] = Ok[ends, 1:]
             state = Sk[-1]
             i += K
+            stop = np.isfinite(rfirst)
+            if 0 <= keep < stop.size:
+                stop[keep] = False
+            if stop.any() or not np.isfinite(state).all():
+                break
         return finals, rmax, rfirst, outs
 
 
