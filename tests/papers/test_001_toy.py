@@ -57,5 +57,30 @@ def test_mimicking_is_checked():
 
 def test_example_claims_hold():
     result = ex.run()
-    assert result.ok, [str(c) for c in result.claims if not c.holds]
+    assert all(c.holds is True for c in result.claims), [str(c) for c in result.claims if c.holds is not True]
     assert len(result.table) == 2
+
+
+def test_global_claims_without_an_engine_are_not_checked_never_failed(monkeypatch):
+    """Without a Gröbner engine the global statements cannot be decided: they read "not checked" with
+    what to install, are not counted as failures, and the demo's summary and report say so."""
+    import io
+
+    import nlobs.analysis._global as G
+    from nlobs.examples import ExampleResult
+    from nlobs.examples._base import Claim
+    from nlobs.report import example_section
+    from nlobs.report._demo import _print_summary
+
+    monkeypatch.setattr(G, "get_engine", lambda *a, **k: None)
+    claims = ex.global_claims()
+    assert [c.holds for c in claims] == [None, None]
+    assert all(str(c).startswith("[not checked]") and "msolve" in c.detail for c in claims)
+    res = ExampleResult("aug-toy", "t", "r", "s", "m", claims=(Claim("a checked claim", True), *claims))
+    assert res.ok and res.tally == "1/3 claims hold, 2 not checked"
+    out = io.StringIO()
+    _print_summary([res], [], out, __import__("pathlib").Path("report.html"), 1.0, 1.0)
+    assert "1/3 claims hold, 2 not checked" in out.getvalue() and "NOT CHECKED: c = 0.5" in out.getvalue()
+    assert "FAILS" not in out.getvalue()
+    html = example_section(res, plots=False)
+    assert html.count("class='unchecked'>not checked<") == 2 and "FAILS" not in html

@@ -14,19 +14,43 @@ from typing import Any
 from ..model import System
 from ..simulate import Run
 
-__all__ = ["Claim", "ExampleResult", "Example", "EXAMPLES", "ALIASES", "register", "find_example", "rows_from_run"]
+__all__ = ["Claim", "claim_from_global", "ExampleResult", "Example", "EXAMPLES", "ALIASES", "register", "find_example", "rows_from_run"]
 
 
 @dataclass(frozen=True)
 class Claim:
-    """A claim of the paper (or of nlobs about the paper's example), checked with numbers."""
+    """A claim of the paper (or of nlobs about the paper's example), checked with numbers.
+
+    `holds` is True or False when the claim was checked, None when it could not be (e.g. the global
+    check without a Gröbner engine); `detail` then says why and what to install or change. A claim
+    that was not checked is never shown as holding, nor as failing.
+    """
 
     text: str
-    holds: bool
+    holds: bool | None
     detail: str = ""
 
+    def __post_init__(self) -> None:
+        if self.holds is not None:  # NumPy booleans from comparisons become bool
+            object.__setattr__(self, "holds", bool(self.holds))
+
+    @property
+    def word(self) -> str:
+        """How the claim is shown: "ok", "FAILS" or "not checked"."""
+        return "not checked" if self.holds is None else ("ok" if self.holds else "FAILS")
+
     def __str__(self) -> str:
-        return f"[{'ok' if self.holds else 'FAILS'}] {self.text}" + (f" ({self.detail})" if self.detail else "")
+        return f"[{self.word}] {self.text}" + (f" ({self.detail})" if self.detail else "")
+
+
+def claim_from_global(text: str, result: Any, holds: bool) -> Claim:
+    """A claim decided by a global check (:func:`nlobs.analysis.global_identifiability`): not checked
+    when the check could not run for want of an engine (its reason as the detail), else `holds`."""
+    from ..analysis._global import NO_ENGINE
+
+    if result.refused == NO_ENGINE:
+        return Claim(text, None, result.refused)
+    return Claim(text, holds, "; ".join(result.describe("observable")) if result.ok else (result.refused or ""))
 
 
 @dataclass(frozen=True, eq=False)
@@ -80,13 +104,18 @@ class ExampleResult:
 
     @property
     def ok(self) -> bool:
-        """Whether every claim holds."""
-        return all(c.holds for c in self.claims)
+        """Whether no claim fails (a claim that could not be checked is counted apart, see :attr:`tally`)."""
+        return all(c.holds is not False for c in self.claims)
+
+    @property
+    def tally(self) -> str:
+        """E.g. "5/6 claims hold, 1 not checked"."""
+        n_ok = sum(c.holds is True for c in self.claims)
+        n_none = sum(c.holds is None for c in self.claims)
+        return f"{n_ok}/{len(self.claims)} claims hold" + (f", {n_none} not checked" if n_none else "")
 
     def __repr__(self) -> str:
-        n_ok = sum(c.holds for c in self.claims)
-        return (f"ExampleResult({self.key!r}, claims {n_ok}/{len(self.claims)} hold, runs={list(self.runs)}, "
-                f"figures={list(self.figures)})")
+        return f"ExampleResult({self.key!r}, {self.tally}, runs={list(self.runs)}, figures={list(self.figures)})"
 
     def _repr_html_(self) -> str:
         """The example as the demo report shows it (claims, table, plots, model, evidence, notes)."""

@@ -23,7 +23,7 @@ from ..engine import to_casadi
 from ..model import System, symbol
 from ..model._forms import matrix_of
 from ..simulate import Noise, simulate
-from ._base import Claim, ExampleResult, register, rows_from_run
+from ._base import Claim, ExampleResult, claim_from_global, register, rows_from_run
 from ._classical_util import gramian
 from ..references import cite
 
@@ -179,8 +179,8 @@ def global_claims(system: System) -> list[Claim]:
     return [
         Claim("y = |p| is outside the global algorithm's class (not rational): refused, the local verdict stands",
               not as_written.ok and "rational" in as_written.refused, as_written.refused or "not refused"),
-        Claim("with a generic input, |p|² (the same information as |p|) determines p and the current globally",
-              g.ok and set(g.globally) == set(system.states), "; ".join(g.describe("observable"))),
+        claim_from_global("with a generic input, |p|² (the same information as |p|) determines p and the current globally",
+                          g, g.ok and set(g.globally) == set(system.states)),
     ]
 
 

@@ -16,7 +16,7 @@ from ..analysis import kalman_rank
 from ..design import ObserverDesign, design_augmented
 from ..model import System
 from ..simulate import Noise, simulate
-from ._base import Claim, ExampleResult, register, rows_from_run
+from ._base import Claim, ExampleResult, claim_from_global, register, rows_from_run
 from ._util import bundled, decay_rate
 from ..references import cite
 
@@ -55,10 +55,9 @@ def global_claims() -> list[Claim]:
     g0, g5 = global_identifiability(toy_system(0.0)), global_identifiability(toy_system(0.5))
     sols = {lo.name: lo.solutions for lo in g0.locally_only}
     return [
-        Claim("c = 0: x2's sign is not recoverable — locally observable, not globally (2 solutions)",
-              g0.ok and g0.globally == ("x1",) and sols == {"x2": 2}, "; ".join(g0.describe("observable"))),
-        Claim("c = 0.5: globally observable (x1 and x2 unique)", g5.ok and g5.globally == ("x1", "x2"),
-              "; ".join(g5.describe("observable"))),
+        claim_from_global("c = 0: x2's sign is not recoverable — locally observable, not globally (2 solutions)",
+                          g0, g0.ok and g0.globally == ("x1",) and sols == {"x2": 2}),
+        claim_from_global("c = 0.5: globally observable (x1 and x2 unique)", g5, g5.ok and g5.globally == ("x1", "x2")),
     ]
 
 

@@ -103,11 +103,10 @@ def _print_summary(results: Sequence[ExampleResult], failed: Sequence[tuple[str,
     w(str(summary_table(results)) + "\n\n")
     width = max([len(r.key) for r in results] + [len(k) for k, _ in failed] + [7])
     for r in results:
-        n_ok = sum(c.holds for c in r.claims)
-        w(f"{r.key:<{width}} claims {n_ok}/{len(r.claims)} hold" + ("" if r.ok else "  <-- see the report") + "\n")
+        w(f"{r.key:<{width}} {r.tally}" + ("" if r.ok else "  <-- see the report") + "\n")
         for c in r.claims:
-            if not c.holds:
-                w(textwrap.fill(f"FAILS: {plain(c.text)} ({plain(c.detail)})", width=88, initial_indent="    ",
+            if c.holds is not True:
+                w(textwrap.fill(f"{c.word.upper()}: {plain(c.text)} ({plain(c.detail)})", width=88, initial_indent="    ",
                             subsequent_indent="      ") + "\n")
     for key, err in failed:
         w(f"{key:<{width}} CRASHED: {err.splitlines()[0]}\n")
@@ -174,7 +173,7 @@ def example_section(r: ExampleResult, seconds: float | None = None, *, level: in
     sub = _reference_links(r.reference) + (f" · ran in {seconds:.1f} s" if seconds is not None else "")
     parts = [f"<p>{prose(r.summary)}</p>", f"<h{h}>Claims checked</h{h}><ul class='claims'>"]
     for c in r.claims:
-        cls, word = ("ok", "holds") if c.holds else ("fail", "FAILS")
+        cls, word = {True: ("ok", "holds"), False: ("fail", "FAILS"), None: ("unchecked", "not checked")}[c.holds]
         parts.append(f"<li><span class='{cls}'>{word}</span> — {prose(c.text)}"
                      + (f" <span class='note'>({prose(c.detail)})</span>" if c.detail else "") + "</li>")
     parts.append("</ul>")
@@ -213,7 +212,7 @@ def _extra_columns(r: ExampleResult) -> list[tuple[str, str]]:
 def _html(results: Sequence[ExampleResult], failed: Sequence[tuple[str, str]], timings: dict[str, float], seconds: float) -> str:
     nav = "<nav><h3>Examples</h3><ol>" + "".join(
         f"<li><a href='#{html.escape(r.key)}'>{prose(r.title)}</a> — "
-        f"<span class='{'ok' if r.ok else 'fail'}'>{sum(c.holds for c in r.claims)}/{len(r.claims)} claims</span></li>"
+        f"<span class='{'ok' if r.ok else 'fail'}'>{r.tally}</span></li>"
         for r in results) + "".join(f"<li><span class='fail'>{html.escape(k)} crashed</span></li>" for k, _ in failed) + "</ol></nav>"
     overview = [dict(row, example=r.key) for r in results for row in r.table]
     body = [nav]

@@ -39,7 +39,7 @@ body { font-family: system-ui, -apple-system, 'Segoe UI', sans-serif; margin: 0 
        color: #1d232a; line-height: 1.5; font-size: 16px; }
 h1 { font-size: 1.7rem; margin-bottom: .2rem; } h2 { border-bottom: 2px solid #dfe3e8; padding-bottom: .25rem; margin-top: 2.5rem; }
 h3 { font-size: 1.05rem; margin: 1.2rem 0 .4rem; }
-.ref { color: #57606a; font-size: .9rem; } .ok { color: #1a7f37; font-weight: 600; } .fail { color: #cf222e; font-weight: 600; }
+.ref { color: #57606a; font-size: .9rem; } .ok { color: #1a7f37; font-weight: 600; } .fail { color: #cf222e; font-weight: 600; } .unchecked { color: #9a6700; font-weight: 600; }
 .warn { color: #9a6700; font-weight: 600; }
 .figs { display: flex; flex-wrap: wrap; gap: 16px; } figure { margin: .3rem 0; }
 figcaption { font-weight: 600; margin: .2rem 0; }
