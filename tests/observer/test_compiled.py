@@ -151,3 +151,24 @@ def test_the_vm_does_not_finish_a_long_gap_it_will_redo(vdp_rec, monkeypatch):
     # VM calls) stay within 15 % of the sub-steps kept
     assert info["max_substeps"] > 5e4 and sum(rows) < 1.15 * info["substeps"]
     assert np.all(np.isfinite(res.observers["ekf"].z))
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_estimate_reports_progress_through_a_long_gap(vdp_rec, engine):
+    """Progress is the fraction of the recording's time span covered, over all observers: it never goes
+    back (a rejected attempt at the gap is redone from its start), reports inside the gap on the virtual
+    machine, and ends at 1 only when the run succeeded."""
+    t = vdp_rec.t.copy()
+    t[1000:] += 1e4
+    gap = Recording.from_arrays(VDP, t, vdp_rec.y, vdp_rec.u, vdp_rec.x)
+    seen: list[float] = []
+    estimate({"a": _ekf(), "b": _ekf()}, gap, engine=engine, progress=seen.append)
+    assert seen[-1] == 1.0 and np.all(np.diff(seen) >= 0) and 0 < seen[0] <= 0.5
+    if engine == "vm":  # several reports per observer, some inside the gap (t = 10 ... 10⁴ + 10 of 10⁴ + 20)
+        assert sum(0.01 < f < 0.49 for f in seen) >= 5 and 0.5 in seen
+    seen.clear()
+    bad = vdp_rec.y.copy()
+    bad[1500] = 1e200  # the EKF's state becomes non-finite after this sample: no 100 %
+    with pytest.raises(FiniteEscapeError):
+        estimate(_ekf(), Recording.from_arrays(VDP, vdp_rec.t, bad, vdp_rec.u), engine=engine, progress=seen.append)
+    assert not seen or seen[-1] < 1.0

@@ -77,10 +77,10 @@ def test_global_claims_without_an_engine_are_not_checked_never_failed(monkeypatc
     assert [c.holds for c in claims] == [None, None]
     assert all(str(c).startswith("[not checked]") and "msolve" in c.detail for c in claims)
     res = ExampleResult("aug-toy", "t", "r", "s", "m", claims=(Claim("a checked claim", True), *claims))
-    assert res.ok and res.tally == "1/3 claims hold, 2 not checked"
+    assert res.ok and res.tally == "claims 1/3 hold, 2 not checked"
     out = io.StringIO()
     _print_summary([res], [], out, __import__("pathlib").Path("report.html"), 1.0, 1.0)
-    assert "1/3 claims hold, 2 not checked" in out.getvalue() and "NOT CHECKED: c = 0.5" in out.getvalue()
+    assert "claims 1/3 hold, 2 not checked" in out.getvalue() and "NOT CHECKED: c = 0.5" in out.getvalue()
     assert "FAILS" not in out.getvalue()
     html = example_section(res, plots=False)
     assert html.count("class='unchecked'>not checked<") == 2 and "FAILS" not in html

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import ctypes
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import casadi as ca
@@ -159,6 +160,7 @@ class IntervalRunner:
         self._c: _CompiledIntervals | None = None
         self._ready = False
         self._vm: dict[tuple[int, bool], ca.Function] = {}
+        self._progress: Callable[[float], None] | None = None  # during a VM run: called with the time reached
         self._n_instr = (sub.n_instructions() + jump.n_instructions()) if self.compilable else 0
 
     def backend_for(self, work: float) -> str:
@@ -173,8 +175,12 @@ class IntervalRunner:
                               signature=self._sig)
 
     def run(self, s0: np.ndarray, A: np.ndarray, nmin: np.ndarray, *, rate0: float, target: float = 1.0,
-            reject: float = 2.0, max_substeps: int = MAX_SUBSTEPS) -> IntervalResult:
-        """Integrate from `s0` over the intervals described by the rows of `A` (shape (N, na))."""
+            reject: float = 2.0, max_substeps: int = MAX_SUBSTEPS,
+            on_progress: Callable[[float], None] | None = None) -> IntervalResult:
+        """Integrate from `s0` over the intervals described by the rows of `A` (shape (N, na)).
+
+        `on_progress(fraction)` is called with the fraction of the time span covered: after each VM call
+        on the virtual machine (a long gap reports as it goes), once at the end for the compiled loop."""
         A = np.ascontiguousarray(A, dtype=float)
         nmin = np.ascontiguousarray(nmin, dtype=float)
         s0 = np.ascontiguousarray(s0, dtype=float).reshape(self.ns)
@@ -186,9 +192,26 @@ class IntervalRunner:
         if backend == "c":
             if self._c is None:
                 self._c = _CompiledIntervals(self.sub, self.jump, self._sig)
-            return self._c(s0, A, nmin, rate0, target, reject, max_substeps)
+            res = self._c(s0, A, nmin, rate0, target, reject, max_substeps)
+            if on_progress is not None and res.failed is None and res.refused is None:
+                on_progress(1.0)
+            return res
         t0 = time.perf_counter()
-        res = self._run_vm(s0, A, nmin, rate0, target, reject, max_substeps)
+        span = (A[0, 0], float(A[-1, 0] + A[-1, 1] - A[0, 0])) if N else (0.0, 0.0)
+        reached = [0.0]  # a rejected attempt is redone from its start: the fraction reported never goes back
+
+        def report(t: float) -> None:
+            if on_progress is not None and (t - span[0]) / span[1] > reached[0]:
+                reached[0] = (t - span[0]) / span[1]
+                on_progress(reached[0])
+
+        self._progress = report if on_progress is not None and span[1] > 0 else None
+        try:
+            res = self._run_vm(s0, A, nmin, rate0, target, reject, max_substeps)
+        finally:
+            self._progress = None
+        if on_progress is not None and res.failed is None and res.refused is None:
+            on_progress(1.0)
         if self.compilable:
             spent = time.perf_counter() - t0
             COSTS.spent[self._sig] = COSTS.spent.get(self._sig, 0.0) + spent
@@ -350,6 +373,8 @@ class IntervalRunner:
                 stop[keep] = False
             if stop.any() or not np.isfinite(state).all():
                 break
+            if self._progress is not None and np.isfinite(Sk[ends]).all() and np.isfinite(Ok[ends]).all():
+                self._progress(float(block[K - 1, self.na] + block[K - 1, self.na + 1]))  # the time reached
         return finals, rmax, rfirst, outs
 
 

@@ -109,10 +109,10 @@ class ExampleResult:
 
     @property
     def tally(self) -> str:
-        """E.g. "5/6 claims hold, 1 not checked"."""
+        """E.g. "claims 5/6 hold, 1 not checked"."""
         n_ok = sum(c.holds is True for c in self.claims)
         n_none = sum(c.holds is None for c in self.claims)
-        return f"{n_ok}/{len(self.claims)} claims hold" + (f", {n_none} not checked" if n_none else "")
+        return f"claims {n_ok}/{len(self.claims)} hold" + (f", {n_none} not checked" if n_none else "")
 
     def __repr__(self) -> str:
         return f"ExampleResult({self.key!r}, {self.tally}, runs={list(self.runs)}, figures={list(self.figures)})"

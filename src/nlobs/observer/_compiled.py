@@ -13,6 +13,7 @@ machine and cached on disk.
 from __future__ import annotations
 
 from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -23,6 +24,7 @@ from ..design import ObserverDesign
 from ..engine import Backend, compile_system, rows
 from ..engine._integrate import rk4_step_rate
 from ..engine._intervals import MAX_SUBSTEPS, IntervalRunner
+from .._progress import as_progress
 from ..errors import DataError, FiniteEscapeError, ShapeError
 
 __all__ = ["CompiledObserver", "ObserverTrajectory", "compiled_observer"]
@@ -151,7 +153,8 @@ class CompiledObserver:
 
     # -- running --------------------------------------------------------------------------------
     def run(self, t: Any, y: Any, u: Any = None, *, mask: Any = None, z0: Any = None, xhat0: Any = None,
-            max_step: float | None = None, engine: Backend = "auto", name: str | None = None) -> ObserverTrajectory:
+            max_step: float | None = None, engine: Backend = "auto", name: str | None = None,
+            progress: bool | Callable[[float], None] | None = None) -> ObserverTrajectory:
         """Run the observer on samples: times `t` (N,), outputs `y` (N, p), inputs `u` (N, m).
 
         Parameters
@@ -169,6 +172,9 @@ class CompiledObserver:
         engine : {"auto", "vm", "c"}
         name : str, optional
             The observer's name in error messages.
+        progress : bool or callable, optional
+            Show progress on stderr (True) or call ``progress(fraction)`` with the fraction of the
+            time span covered (reported as it goes on the virtual machine: a long gap takes seconds there).
 
         Raises
         ------
@@ -202,7 +208,8 @@ class CompiledObserver:
         A = np.hstack([t[:-1, None], dts[:, None], u[:-1], y[:-1], m[:-1], u[1:], y[1:], m[1:]])
         nmin = np.ones(N - 1) if max_step is None else np.maximum(1.0, np.ceil(dts / max_step - 1e-9))
         runner = self._runner(engine)
-        res = runner.run(np.concatenate([zs, ys]), A, nmin, rate0=rate0)
+        report = as_progress(progress, f"estimate {name or self.design.method}")
+        res = runner.run(np.concatenate([zs, ys]), A, nmin, rate0=rate0, on_progress=report)
         S = np.vstack([np.concatenate([zs, ys]), res.states])
         if res.refused is not None:
             k, need = res.refused

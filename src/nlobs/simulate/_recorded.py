@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import csv
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -215,6 +215,7 @@ def estimate(
     on_missing: Literal["error", "skip"] = "error",
     hold: Literal["zoh", "linear"] = "zoh",
     engine: Backend = "auto",
+    progress: bool | Callable[[float], None] | None = None,
 ) -> Run:
     """Run observers on recorded data.
 
@@ -250,6 +251,9 @@ def estimate(
         accurate when the signals change fast between samples).
     engine : {"auto", "vm", "c"}
         Numeric backend (see :func:`nlobs.simulate`).
+    progress : bool or callable, optional
+        Show progress on stderr (True; one bar per observer) or call ``progress(fraction)`` with the
+        fraction of all the observers' work done.
 
     Returns
     -------
@@ -288,12 +292,14 @@ def estimate(
     y0 = np.where(mask > 0, recording.y, 0.0)
     t, u = recording.t, recording.u
     traces, integration = {}, {}
-    for name, o in obs.items():
+    for i, (name, o) in enumerate(obs.items()):
+        part = progress if progress is None or isinstance(progress, bool) else (
+            lambda f, i=i: progress((i + f) / len(obs)))  # type: ignore[operator,misc]
         # built once per design and cached (see Observer.compiled); the C code is cached on disk
         z0 = o.initial_state(_xhat0_for(xhat0, name, o.system.n_states))
         try:
             traj = compiled_observer(o.design, hold).run(t, y0, u, mask=mask, z0=z0, max_step=max_step, engine=engine,
-                                                         name=name)
+                                                         name=name, progress=part)
         except FiniteEscapeError as e:
             if getattr(e, "interval", None) is None:
                 raise
