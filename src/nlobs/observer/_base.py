@@ -20,6 +20,7 @@ import numpy as np
 
 from ..design import ObserverDesign, check_positive, design_from_config
 from ..engine import compile_system, raise_deferred, rk4_step
+from ..engine._batch import evaluate_one
 from ..errors import DataError, FiniteEscapeError, ShapeError
 from ..model import ObserverConfig
 from ._compiled import CompiledObserver, compiled_observer
@@ -73,7 +74,7 @@ class AbstractObserver(ABC):
     def initial_state(self, xhat0: Any = None) -> np.ndarray:
         """The internal state that starts from the estimate `xhat0` (default: the design's)."""
         x0 = self.design.xhat0 if xhat0 is None else _vec(xhat0, self.system.n_states, "xhat0")
-        return np.asarray(self.design.initial(x0), dtype=float).reshape(-1)
+        return evaluate_one(self.design.initial, x0)
 
     def start(self, xhat0: Any = None, *, max_step: float | None = None) -> OnlineObserver:
         """An online estimator fed one sample at a time (see :class:`OnlineObserver`)."""
@@ -109,7 +110,7 @@ class Observer(AbstractObserver):
         return np.asarray(self._design.flow(*self._io(t, z, u, y)), dtype=float).reshape(-1)
 
     def estimate(self, t: float, z: Any, u: Any = None, y: Any = None) -> np.ndarray:
-        return np.asarray(self._design.output(*self._io(t, z, u, y)), dtype=float).reshape(-1)
+        return evaluate_one(self._design.output, *self._io(t, z, u, y))
 
     def update(self, t: float, z: Any, u: Any = None, y: Any = None, mask: Any = None) -> np.ndarray:
         if self._design.update is None:

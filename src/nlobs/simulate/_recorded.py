@@ -162,13 +162,16 @@ class Recording:
     def check_finite(self, on_missing: str) -> np.ndarray:
         """The mask of measured outputs (1 = measured), after rejecting what may not be missing."""
         for name, arr, names in (("u", self.u, self.input_names), ("x", self.x, self.state_names)):
-            if arr is None:
+            if arr is None or np.isfinite(arr).all():
                 continue
             bad = np.argwhere(~np.isfinite(arr))
             if bad.size:
                 r, c = bad[0]
                 raise DataError(f"recording ({self.source}): input/state {names[c]!r} is {arr[r, c]} at row {r} (t = {self.t[r]:g}); "
                                 "inputs and states must be finite")
+        finite = np.isfinite(self.y)
+        if finite.all():
+            return finite.astype(float)
         inf = np.argwhere(np.isinf(self.y))
         if inf.size:
             r, c = inf[0]
@@ -306,7 +309,7 @@ def estimate(
             raise _non_finite(name, o, recording, e) from None
         except DataError as e:   # an interval too long to integrate: name the recording it comes from
             raise DataError(f"recording ({recording.source}): {e}") from None
-        bad = np.argwhere(~np.isfinite(traj.xhat))
+        bad = np.argwhere(~np.isfinite(traj.xhat)) if not np.isfinite(traj.xhat).all() else np.empty((0, 2), dtype=int)
         if bad.size:  # the internal state is finite, but the estimate read from it is not
             r, c = (int(v) for v in bad[0])
             raise FiniteEscapeError(f"observer {name!r}", float(t[r]), traj.z[r], o.design.z_names, np.inf,

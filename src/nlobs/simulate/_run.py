@@ -12,6 +12,8 @@ compiled through CasADi (see :mod:`nlobs.engine`). Two measurement modes:
 
 from __future__ import annotations
 
+import functools
+
 import numbers
 from collections import OrderedDict
 from collections.abc import Callable, Mapping, Sequence
@@ -374,7 +376,7 @@ def prepare(plant: System, observers: Any, *, t_final: float, dt: float, inputs:
     kind = _Kind(sampled=sampling is not None, noisy=noise is not None, process=process_noise is not None, adaptive=integrator,
                  folded=tuple(float(v) for v in plant.param_values) if fold_params else None)
     _, layout = _joint_step(plant, obs, kind)
-    t = np.arange(N + 1) * dt
+    t = _grid(N, dt)
     base = t[:, None]
     if plant.n_inputs:
         base = np.hstack([base, stage_inputs(plant, inputs, plant.params, t, np.full(N + 1, dt))])
@@ -382,6 +384,21 @@ def prepare(plant: System, observers: Any, *, t_final: float, dt: float, inputs:
         input_signals(plant, inputs)  # reports unknown input names
     every = sampling.every(dt) if sampling is not None else 1
     return Prepared(plant, obs, kind, layout, N, float(dt), t, base, noise, process_noise, every, caller, x0_tail)
+
+
+@functools.lru_cache(maxsize=8)
+def _cached_grid(N: int, dt: float) -> np.ndarray:
+    t = np.arange(N + 1) * dt
+    t.setflags(write=False)
+    return t
+
+
+def _grid(N: int, dt: float) -> np.ndarray:
+    """The time grid k·dt, k = 0..N: read-only, and shared by runs on the same grid when it is small
+    (up to 10⁶ steps, 8 MB) — a run's `t` is never written to (see :class:`Simulation`)."""
+    if N > 10**6:
+        return np.arange(N + 1) * dt
+    return _cached_grid(N, dt)
 
 
 def augmented_plant(plant: System, obs: Mapping[str, AbstractObserver]) -> tuple[System, tuple[float, ...]]:
