@@ -49,7 +49,7 @@ SCRATCH = Path(os.environ.get("NLOBS_MUTATION_DIR", "/tmp/nlobs-mutation"))
 MODULES: dict[str, list[str]] = {
     "design/_regression.py": ["tests/design/test_regression.py", "tests/design/test_estimators.py",
                               "tests/design/test_regression_edges.py"],
-    "design/_kalman.py": ["tests/design/test_kalman.py", "tests/design/test_high_gain.py"],
+    "design/_kalman.py": ["tests/design/test_kalman.py", "tests/design/test_kalman_edges.py", "tests/design/test_high_gain.py"],
     "design/_gpebo.py": ["tests/design/test_gpebo.py", "tests/papers/test_000_2gd_not_uco.py::test_2gd_error_follows_the_paper_law_to_round_off"],
     "design/_banks.py": ["tests/design/test_banks.py"],
     "analysis/_conditions.py": ["tests/analysis/test_forms_banks.py", "tests/analysis/test_conditions_edges.py",
@@ -76,6 +76,29 @@ EQUIVALENT: dict[str, str] = {
     "nlobs.design._regression.x_adjugate__mutmut_25": "(-1)^(i - j) == (-1)^(i + j): i - j and i + j have the same parity",
     "nlobs.design._regression.xǁExcitationMonitorǁof__mutmut_8": "the placeholder Δ of an estimator without Δ is never read "
                                                                    "(has_delta is False)",
+    # design/_kalman.py (002 Kalman, Kalman-like and LTV-based high-gain observers)
+    "nlobs.design._kalman.x__riccati_design__mutmut_3": "A is square (n x n from state_affine_parts): shape[1] == shape[0]",
+    "nlobs.design._kalman.x__riccati_design__mutmut_154": "the high-gain branch (lam given) is only reached with V = None, so Vm = 0 "
+                                                          "and lam*Ric + 0 == lam*Ric - 0",
+    "nlobs.design._kalman.x__riccati_design__mutmut_253": "M0 is exactly symmetric (check_matrix symmetrises it): its C-order and "
+                                                          "F-order ravel are the same vector",
+    "nlobs.design._kalman.x__riccati_design__mutmut_255": "M0 is exactly symmetric: C-order (the default) == F-order ravel",
+    "nlobs.design._kalman.x__riccati_design__mutmut_257": "reshape(-2) == reshape(-1): numpy reads any negative size as the inferred one",
+    "nlobs.design._kalman.x__sup_norm__mutmut_28": "box_of does not read its `system` argument (design/_common.py)",
+    "nlobs.design._kalman.x__sup_norm__mutmut_71": "A is square: C-order reshape gives Aᵀ, and ‖Aᵀ‖₂ == ‖A‖₂",
+    "nlobs.design._kalman.x__sup_norm__mutmut_73": "A is square: C-order reshape (the default) gives Aᵀ, and ‖Aᵀ‖₂ == ‖A‖₂",
+    "nlobs.design._kalman.x_design_high_gain_kalman__mutmut_2": "the public design_high_gain_kalman (design/_registry.py wrapper) "
+                                                                "refuses a non-System before require_system runs",
+    "nlobs.design._kalman.x_design_high_gain_kalman__mutmut_31": "sp.zeros(n, None) == sp.zeros(n) == sp.zeros(n, n)",
+    "nlobs.design._kalman.x_design_high_gain_kalman__mutmut_32": "sp.zeros(n) == sp.zeros(n, n)",
+    "nlobs.design._kalman.x_design_high_gain_kalman__mutmut_33": "sp.zeros(n, ) == sp.zeros(n, n)",
+    "nlobs.design._kalman.x_design_high_gain_kalman__mutmut_65": "parts.b is not read on the high-gain branch (φ carries the drift): "
+                                                                 "its shape does not matter",
+    "nlobs.design._kalman.x_design_high_gain_kalman__mutmut_66": "parts.b is not read on the high-gain branch (see mutmut_65)",
+    "nlobs.design._kalman.x_design_high_gain_kalman__mutmut_67": "parts.b is not read on the high-gain branch (see mutmut_65)",
+    "nlobs.design._kalman.x_design_high_gain_kalman__mutmut_68": "parts.b is not read on the high-gain branch (see mutmut_65)",
+    "nlobs.design._kalman.x_state_affine_parts__mutmut_40": "the caller only enters measured_states' PreconditionError, which "
+                                                            "state_affine_parts catches and drops (meas = [])",
     # design/_gpebo.py, _uniform_stability: 000 assumption (5) for a constant A
     "nlobs.design._gpebo.x__uniform_stability__mutmut_10": "`eig.size` is never 0: a state-affine model has n >= 1 states",
     "nlobs.design._gpebo.x__uniform_stability__mutmut_12": "the empty-spectrum default is never used (n >= 1)",

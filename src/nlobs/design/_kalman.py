@@ -297,7 +297,10 @@ def design_kalman_bucy(model: System | StateAffine, *, Q: Any, R: Any, P0: Any =
     if np.linalg.eigvalsh(Qm).min() <= 0:
         raise PreconditionError(f"{caller}: `Q` must be positive definite (smallest eigenvalue {np.linalg.eigvalsh(Qm).min():.3g}); "
                                 "with a singular Q use design_kalman_like with forgetting δ > 2‖A‖")
-    return _riccati_design("kalman_bucy", "Kalman-Bucy filter (LTV)", REF_KALMAN, parts, V=Qm, W=R, delta=0.0, M0=P0,
+    # R and P0 are checked under their own names here (_riccati_design would call them W and M0)
+    Rm = check_matrix(R, parts.system.n_outputs, parts.system.n_outputs, "R", caller, definite="positive")
+    P0m = None if P0 is None else check_matrix(P0, n, n, "P0", caller, definite="positive")
+    return _riccati_design("kalman_bucy", "Kalman-Bucy filter (LTV)", REF_KALMAN, parts, V=Qm, W=Rm, delta=0.0, M0=P0m,
                            xhat0=xhat0, region=None, caller=caller)
 
 
