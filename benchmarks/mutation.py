@@ -271,14 +271,14 @@ def readme_rows(results: dict[str, dict[str, object]]) -> str:
         r = results.get(module)
         key, eqs = EQUATIONS[module]
         what = f"`{module}` ({cite(key, eqs)})"
+        tests = ", ".join(f"`{t.split('::')[0].removeprefix('tests/')}`" for t in MODULES[module])
         if r is None or not r.get("exit_code", 1) == 0:
-            rows.append(f"| {what} | – | – | not run | {', '.join(MODULES[module])} |")
+            rows.append(f"| {what} | – | – | not run | – | – | {tests} |")
             continue
         caught = int(r["killed"]) + int(r["timeout"]) + int(r["segfault"])                   # type: ignore[arg-type]
         total = caught + int(r["survived"]) + int(r["no tests"])                              # type: ignore[arg-type]
         eq = int(r.get("equivalent", 0))                                                      # type: ignore[arg-type]
         adj = f"{caught / (total - eq):.1%}" if total - eq else "–"
-        tests = ", ".join(f"`{t.split('::')[0].removeprefix('tests/')}`" for t in MODULES[module])
         rows.append(f"| {what} | {total} | {caught} | {caught / total:.1%} | {eq} | {adj} | {tests} |")
     return "\n".join(rows)
 
