@@ -54,7 +54,8 @@ MODULES: dict[str, list[str]] = {
     "design/_banks.py": ["tests/design/test_banks.py"],
     "analysis/_conditions.py": ["tests/analysis/test_forms_banks.py", "tests/analysis/test_conditions_edges.py",
                                 "tests/design/test_banks.py"],
-    "analysis/_identity.py": ["tests/analysis/test_identity.py", "tests/design/test_pebo.py", "tests/design/test_iandi.py"],
+    "analysis/_identity.py": ["tests/analysis/test_identity.py", "tests/analysis/test_identity_exact.py",
+                              "tests/design/test_pebo.py", "tests/design/test_iandi.py"],
 }
 
 #: module -> the equations it implements, for the README table (cited as a user reads it)

@@ -44,12 +44,13 @@ def test_a_tiny_residual_is_not_zero():
     (sp.sin(x1) ** 2 + sp.cos(x1) ** 2, 1),
     (sp.sin(2 * x1), 2 * sp.sin(x1) * sp.cos(x1)),
     (sp.sin(x1 - x2), sp.sin(x1) * sp.cos(x2) - sp.cos(x1) * sp.sin(x2)),
-    (sp.exp(x1 + 2 * x2), sp.exp(x1) * sp.exp(x2) ** 2),
+    (sp.exp(x1 + 2 * x2), sp.exp(x1) * (sp.cosh(x2) + sp.sinh(x2)) ** 2),
     (sp.tanh(x1), (sp.exp(2 * x1) - 1) / (sp.exp(2 * x1) + 1)),
-    (sp.sqrt(x1**2 + x2**2) ** 3, (x1**2 + x2**2) * sp.sqrt(x1**2 + x2**2)),
+    (sp.sqrt(x1**2 + x1 * x2) ** 3, (x1**2 + x1 * x2) * sp.sqrt(x1 * (x1 + x2))),
 ])
 def test_transcendental_identities_hold(lhs, rhs):
-    v = decide_identity(lhs, rhs)
+    assert sp.sympify(lhs) - sp.sympify(rhs) != 0              # not zero as written: the test has work to do
+    v = decide_identity(lhs, rhs, simplify=False)
     assert v.holds, v
 
 

@@ -9,24 +9,31 @@ identities of an augmentation, Ψ of a high-gain observer, symmetries) goes thro
    :math:`e \not\equiv 0` (a witness is returned). If e is not identically zero, its numerator
    after putting everything over one denominator is a non-zero polynomial N of total degree at
    most d (bounded from the expression tree), and by the Schwartz-Zippel lemma a point drawn
-   uniformly from :math:`\{1, \dots, B\}^m` is a root of N with probability at most d/B. Points
-   where a denominator vanishes are redrawn, which raises the bound to at most d/(B - d'), d' the
-   degree of the denominators. k independent points that all give 0 leave a probability at most
-   :math:`(d/(B - d'))^k` that a non-identity is declared to hold; k is chosen so that this is
-   below 2⁻⁶⁴ and the bound is reported.
+   uniformly from :math:`\{1, \dots, B\}^m`, B = 2⁴⁰, is a root of N with probability at most
+   d/B. Points where a denominator vanishes are redrawn, which raises the bound to at most
+   d/(B - d'), d' the degree of the denominators. k independent points that all give 0 leave a
+   probability at most :math:`(d/(B - d'))^k` that a non-identity is declared to hold; k is chosen
+   so that this is below 2⁻⁶⁴ and the bound is reported. Degrees d + d' above 10⁵ (values of
+   more than 4·10⁶ bits) are not evaluated: the identity is then decided by steps 2-3 or left
+   undecided. If a denominator vanishes at 50 points in a row it is taken to be identically zero
+   and the identity is undecided.
 2. **Expressions with sin, cos, tan, exp, sinh, ... and other functions** are made rational by
    substitution: after :func:`sympy.expand_trig`, :math:`\sin a = 2\tau/(1+\tau^2)`,
    :math:`\cos a = (1-\tau^2)/(1+\tau^2)`, :math:`\tan a = 2\tau/(1-\tau^2)` with a fresh τ per
    argument a (the rational parametrisation of the circle, τ = tan(a/2)); :math:`e^{k g} = E_g^k`
    (k an integer) with a fresh :math:`E_g`; hyperbolic functions through exp; every other
-   non-rational sub-term (log, sqrt, atan, abs, ...) becomes a fresh variable. If the result is
+   non-rational sub-term (log, atan, abs, x**y, ...) becomes a fresh variable, and so does the
+   principal root :math:`b^{1/q}` of :math:`b^{p/q} = b^m (b^{1/q})^r` (p = mq + r, 0 ≤ r < q).
+   If the result is
    identically zero *with the new variables independent*, the original identity holds (substituting
    the actual functions back is a ring homomorphism), and the test of step 1 decides that with the
    same error bound. A non-zero result proves nothing (the functions may be related), so then
-3. :func:`sympy.simplify` is tried (a symbolic proof when it reaches 0), and otherwise the
-   difference is evaluated at random points to 30 significant digits: clearly non-zero there
-   (relative size above 1e-20) means the identity **fails**, with the point; agreement at every
-   point leaves the identity **undecided**, reported as such, never as holding.
+3. the difference is evaluated at 6 random points of the grid {0.1, 0.100001, ..., 0.9}^m to 30
+   significant digits (points where it is not a finite number are skipped): clearly non-zero there
+   (relative size above 1e-20 of its largest term) means the identity **fails**, with the point.
+   Otherwise :func:`sympy.simplify` is tried for at most 5 s (a symbolic proof when it reaches 0);
+   agreement at every point without a proof leaves the identity **undecided**, reported as such,
+   never as holding.
 
 References
 ----------
@@ -36,22 +43,34 @@ J. ACM 27 (1980); R. Zippel, "Probabilistic algorithms for sparse polynomials", 
 
 from __future__ import annotations
 
+import cmath
+import math
 import random
-from collections.abc import Iterable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Any
 
+import mpmath
 import sympy as sp
 
-__all__ = ["Identity", "decide_identity", "decide_identities", "ExactRank", "exact_generic_rank", "is_rational"]
+from ..errors import SymbolicBudgetError
+from ..model._budget import SymbolicTimeLimit, symbolic_time_limit
+
+__all__ = ["Identity", "decide_identity", "ExactRank", "exact_generic_rank", "is_rational"]
 
 #: The largest probability of a wrong "holds" verdict that :func:`decide_identity` accepts.
 TARGET_ERROR = 2.0 ** -64
 #: Sample points are drawn from {1, ..., B}.
 _BOUND = 2 ** 40
-#: Largest estimated size (bits) of one exact evaluation before the test gives up (undecided).
-_MAX_BITS = 4_000_000
+#: Largest degree bound d + d' evaluated exactly (a value then has at most ~4·10⁶ bits); far below B.
+_MAX_DEGREE = 100_000
+#: Denominators that vanish at this many random points in a row are taken as identically zero.
+_REDRAWS = 50
+#: Points of the floating-point evaluation (step 3).
+_SAMPLES = 6
+#: Time SymPy's simplify may take on one identity (step 3) before the identity is left undecided.
+_SIMPLIFY_SECONDS = 5.0
 #: Relative size above which a high-precision value counts as certainly non-zero.
 _NONZERO = 1e-20
 _DIGITS = 30
@@ -110,10 +129,7 @@ class Identity:
         return f" (at {self.at()} the difference is {self.value})" if self.witness else ""
 
     def __str__(self) -> str:
-        text = f"{self.status}: {self.method}"
-        if self.witness:
-            text += f" (at {self.at()} the difference is {self.value})"
-        return text
+        return f"{self.status}: {self.method}{self.where()}"
 
 
 # ---------------------------------------------------------------------------------------------
@@ -143,7 +159,7 @@ class _Degrees:
             return got
         if isinstance(e, sp.Symbol):
             out = (1, 0)
-        elif isinstance(e, (sp.Rational, sp.Float)) or e.is_Number:
+        elif isinstance(e, (sp.Rational, sp.Float)):
             out = (0, 0)
         elif isinstance(e, sp.Add):
             parts = [self.of(a) for a in e.args]
@@ -155,11 +171,11 @@ class _Degrees:
         elif isinstance(e, sp.Pow) and e.exp.is_Integer:
             n, d = self.of(e.base)
             k = int(e.exp)
-            if k >= 0:
-                out = (k * n, k * d)
-            else:
+            if k < 0:
                 self.inverted += n
                 out = (-k * d, -k * n)
+            else:
+                out = (k * n, k * d)
         else:
             raise _Undecidable(f"not rational: {type(e).__name__}")
         self.cache[e] = out
@@ -187,19 +203,13 @@ def _evaluate(e: sp.Expr, point: Mapping[sp.Symbol, int]) -> Fraction | None:
             val = Fraction(0)
             for a in node.args:
                 val += ev(a)
-        elif isinstance(node, sp.Mul):
+        elif isinstance(node, sp.Mul):   # every factor, even after a 0: a vanishing denominator anywhere means None
             val = Fraction(1)
             for a in node.args:
                 val *= ev(a)
-                if val == 0:
-                    break
         elif isinstance(node, sp.Pow):
             b, k = ev(node.base), int(node.exp)
-            if k < 0:
-                if b == 0:
-                    raise ZeroDivisionError
-                b, k = 1 / b, -k
-            val = b ** k
+            val = b ** k   # a negative k with b == 0 raises ZeroDivisionError
         else:  # pragma: no cover - excluded by _Degrees
             raise _Undecidable(type(node).__name__)
         cache[node] = val
@@ -211,130 +221,143 @@ def _evaluate(e: sp.Expr, point: Mapping[sp.Symbol, int]) -> Fraction | None:
         return None
 
 
+def _draw(rng: random.Random, syms: list[sp.Symbol]) -> dict[sp.Symbol, int]:
+    """A point drawn uniformly from {1, ..., B}^m (B = 2⁴⁰), the sample space of the Schwartz-Zippel bound."""
+    return {s: rng.randint(1, _BOUND) for s in syms}
+
+
+def _sorted_symbols(e: sp.Basic) -> list[sp.Symbol]:
+    return sorted(e.free_symbols, key=lambda s: s.name)
+
+
 def _rational_test(e: sp.Expr, rng: random.Random, what: str) -> Identity:
     """Decide a rational expression by exact evaluation at random integer points (see the module)."""
     deg = _Degrees()
     dn, dd = deg.of(e)
-    syms = sorted(e.free_symbols, key=lambda s: s.name)
+    syms = _sorted_symbols(e)
     d_bad = dd + deg.inverted
-    if dn == 0 and not syms:
+    if not syms:
         val = _evaluate(e, {})
         if val is None:
             return Identity("undecided", f"{what}: a constant with a zero denominator", "division by zero")
         return (Identity("holds", f"{what}: the difference is the constant 0", "exact arithmetic", 0.0) if val == 0 else
-                Identity("fails", f"{what}: the difference is the non-zero constant {val}", "exact arithmetic",
-                         witness={}, value=str(val)))
-    B = max(_BOUND, 2 ** 20 * (dn + d_bad + 1))
-    if (dn + d_bad + 1) * B.bit_length() > _MAX_BITS:
-        raise _Undecidable(f"degree bound {dn} too large for exact evaluation")
-    q = dn / (B - d_bad) if B > d_bad else 1.0
-    k, bound = 0, 1.0
-    redraws = 0
+                Identity("fails", f"{what}: the difference is the non-zero constant {_short(val)}", "exact arithmetic",
+                         witness={}, value=_short(val)))
+    if dn + d_bad > _MAX_DEGREE:
+        raise _Undecidable(f"degree bound {dn + d_bad} too large for exact evaluation")
+    q = dn / (_BOUND - d_bad)
+    k, bound, redraws = 0, 1.0, 0
     while bound > TARGET_ERROR:
-        point = {s: rng.randint(1, B) for s in syms}
+        point = _draw(rng, syms)
         val = _evaluate(e, point)
         if val is None:
             redraws += 1
-            if redraws > 50:
-                return Identity("undecided", f"{what}: a denominator vanished at 50 random points", "division by zero")
+            if redraws == _REDRAWS:
+                return Identity("undecided", f"{what}: a denominator vanished at {redraws} random points in a row",
+                                "division by zero")
             continue
+        redraws = 0
         k += 1
         if val != 0:
             wit = {s.name: str(v) for s, v in point.items()}
             return Identity("fails", f"{what}: not identically zero", "exact arithmetic at a witness point", 0.0, wit,
                             _short(val))
-        if q == 0:
-            bound = 0.0
-            break
         bound *= q
-    how = (f"{what}: 0 at {k} random integer point(s) in [1, 2^{B.bit_length() - 1}]^{len(syms)}, exact arithmetic; "
+    how = (f"{what}: 0 at {k} random integer point(s) in [1, 2^{_BOUND.bit_length() - 1}]^{len(syms)}, exact arithmetic; "
            f"numerator degree <= {dn}, so P(wrong) <= {bound:.1e} (Schwartz-Zippel)")
     return Identity("holds", how, f"exact arithmetic (Schwartz-Zippel, P(wrong) <= {bound:.0e})", bound)
 
 
 def _short(v: Fraction) -> str:
-    s = str(v)
-    return s if len(s) <= 60 else f"{float(v):.6g}"
+    """v exactly if that takes at most 60 characters, else to 6 digits (any size: no float overflow, and
+    no decimal string of a huge integer, which Python refuses above 4300 digits)."""
+    if abs(v.numerator).bit_length() + v.denominator.bit_length() <= 256:
+        s = str(v)
+        if len(s) <= 60:
+            return s
+    return mpmath.nstr(mpmath.mpf(v.numerator) / v.denominator, 6, strip_zeros=False)
 
 
 # ---------------------------------------------------------------------------------------------
 # Making non-rational expressions rational by substitution
 # ---------------------------------------------------------------------------------------------
 class _Rationaliser:
-    """Replaces non-rational sub-terms by fresh variables (see the module docstring, step 2)."""
+    """Replaces non-rational sub-terms by fresh variables (see the module docstring, step 2).
+
+    Each fresh variable is keyed by what it stands for: ``("tan", a)`` for tan(a/2), ``("exp", g)``
+    for exp(g), ``("root", b, q)`` for the principal root b^(1/q) (b expanded, so equal bases written
+    differently share it), and any other non-rational term by itself (its arguments expanded).
+    """
 
     def __init__(self) -> None:
-        self.atoms: dict[tuple[str, sp.Expr], sp.Symbol] = {}
-        self.count = 0
+        self.atoms: dict[object, sp.Symbol] = {}
 
-    def _fresh(self, kind: str, key: sp.Expr) -> sp.Symbol:
-        k = (kind, key)
-        if k not in self.atoms:
-            self.count += 1
-            self.atoms[k] = sp.Dummy(f"{kind}{self.count}")
-        return self.atoms[k]
+    def _fresh(self, key: object) -> sp.Symbol:
+        if key not in self.atoms:
+            self.atoms[key] = sp.Dummy()
+        return self.atoms[key]
 
     def __call__(self, e: sp.Expr) -> sp.Expr:
         if e.is_Atom:
-            return e if (e.is_Symbol or e.is_Rational or e.is_Float) else self._fresh("const", e)  # pi, E, I: fresh
+            return e if (e.is_Symbol or e.is_Rational or e.is_Float) else self._fresh(e)  # pi, E, I: fresh
         if isinstance(e, (sp.Add, sp.Mul)):
             return e.func(*[self(a) for a in e.args])
         if isinstance(e, sp.Pow):
             if e.exp.is_Integer:
                 return self(e.base) ** e.exp
-            if e.base == sp.E:
-                return self(sp.exp(e.exp))
-            if e.exp.is_Rational:  # b**(p/q) = (b**(1/q))**p (principal branch)
-                return self._fresh("root", sp.Pow(sp.expand(e.base), sp.Rational(1, e.exp.q), evaluate=False)) ** int(e.exp.p)
-            return self._fresh("pow", sp.expand(e))
+            if e.exp.is_Rational:  # b**(p/q) = b**m * (b**(1/q))**r, p = m q + r, 0 <= r < q (principal branch)
+                m, r = divmod(int(e.exp.p), int(e.exp.q))
+                return self(e.base) ** m * self._fresh(("root", sp.expand(e.base), int(e.exp.q))) ** r
+            return self._fresh(sp.expand(e))
         if isinstance(e, (sp.sin, sp.cos, sp.tan)):
-            tau = self._fresh("tau", sp.expand(e.args[0]))   # multiple angles were expanded by expand_trig
+            tau = self._fresh(("tan", sp.expand(e.args[0])))   # multiple angles were expanded by expand_trig
             if isinstance(e, sp.sin):
                 return 2 * tau / (1 + tau**2)
             if isinstance(e, sp.cos):
                 return (1 - tau**2) / (1 + tau**2)
             return 2 * tau / (1 - tau**2)
         if isinstance(e, sp.exp):
-            arg = sp.expand(e.args[0])
             out = sp.Integer(1)
-            for term in sp.Add.make_args(arg):
+            for term in sp.Add.make_args(sp.expand(e.args[0])):
                 c, g = term.as_coeff_Mul()
-                if c.is_Integer and abs(int(c)) <= 64:
-                    out *= self._fresh("E", g) ** int(c)
+                if c.is_Integer and abs(c) <= 64:
+                    out *= self._fresh(("exp", g)) ** c
                 else:
-                    out *= self._fresh("E", term)
+                    out *= self._fresh(("exp", term))
             return out
         if isinstance(e, (sp.sinh, sp.cosh, sp.tanh)):
             return self(e.rewrite(sp.exp))
-        return self._fresh(type(e).__name__, e.func(*[sp.expand(a) for a in e.args]))
+        return self._fresh(e.func(*[sp.expand(a) if isinstance(a, sp.Expr) else a for a in e.args]))  # Piecewise: pairs
 
 
 # ---------------------------------------------------------------------------------------------
 # The decision
 # ---------------------------------------------------------------------------------------------
-def _numeric(e: sp.Expr, rng: random.Random, samples: int = 6) -> tuple[str, dict[str, str] | None, str, float]:
-    """Evaluate e at random points in (0.1, 0.9) to 30 digits: ("nonzero", point, value) or ("zero", ...)."""
-    syms = sorted(e.free_symbols, key=lambda s: s.name)
+def _grid_point(rng: random.Random, syms: list[sp.Symbol]) -> dict[sp.Symbol, sp.Rational]:
+    """A point of the grid {0.1, 0.100001, ..., 0.9}^m (exact rationals), away from 0 and 1."""
+    return {s: sp.Rational(rng.randint(100_000, 900_000), 1_000_000) for s in syms}
+
+
+def _numeric(e: sp.Expr, rng: random.Random) -> tuple[str, dict[str, str] | None, str, float]:
+    """Evaluate e to 30 digits at `_SAMPLES` grid points: ("nonzero", point, value, |e|/scale) at the first
+    point where it is clearly not zero, else ("zero", None, points evaluated, largest |e|/scale), or
+    ("none", ...) if it is not a finite number at any point. The scale is the largest |term| of e there."""
+    syms = _sorted_symbols(e)
     terms = sp.Add.make_args(e)
-    worst = 0.0
-    seen = 0
-    for _ in range(samples):
-        point = {s: sp.Rational(rng.randint(100, 900), 1000) + sp.Rational(rng.randint(1, 999), 10**6) for s in syms}
+    worst, seen = 0.0, 0
+    for _ in range(_SAMPLES):
+        point = _grid_point(rng, syms)
         try:
-            v = sp.N(e.xreplace(point), _DIGITS)
-            scale = max([abs(complex(sp.N(t.xreplace(point), 15))) for t in terms] + [1e-300])
+            cv = complex(sp.N(e.xreplace(point), _DIGITS))
+            scale = max(abs(complex(sp.N(t.xreplace(point), _DIGITS))) for t in terms)
+        except SymbolicBudgetError:
+            raise
         except (TypeError, ValueError, ZeroDivisionError, OverflowError):
             continue
-        if not v.is_number or v.has(sp.zoo, sp.nan, sp.oo, -sp.oo):
-            continue
-        try:
-            cv = complex(v)
-        except (TypeError, ValueError):
-            continue
-        if cv != cv or abs(cv) == float("inf"):
+        if not (cmath.isfinite(cv) and math.isfinite(scale)):
             continue
         seen += 1
-        rel = abs(cv) / max(scale, 1e-300)
+        rel = abs(cv) / scale if scale else 0.0
         if rel > _NONZERO:
             return "nonzero", {s.name: str(p) for s, p in point.items()}, f"{cv.real:.6g}" if cv.imag == 0 else f"{cv:.6g}", rel
         worst = max(worst, rel)
@@ -367,7 +390,7 @@ def decide_identity(lhs: Any, rhs: Any = 0, *, seed: int = 0, simplify: bool = T
         Seed of the random points (the verdict is reproducible for a seed).
     simplify : bool
         Try :func:`sympy.simplify` when the exact tests cannot decide (it can be slow on large
-        expressions; it is skipped above 3000 operations).
+        expressions: it is skipped above 3000 operations and given up after 5 s inside SymPy).
 
     Returns
     -------
@@ -385,8 +408,8 @@ def decide_identity(lhs: Any, rhs: Any = 0, *, seed: int = 0, simplify: bool = T
         r = _Rationaliser()
         er = r(sp.expand_trig(e))
         if is_rational(er):
-            got = _rational_test(er, rng, "with sin/cos/tan by tan(a/2), exp(k g) by E_g^k and other functions as independent "
-                                          "variables")
+            got = _rational_test(er, rng, "with sin/cos/tan by tan(a/2), exp(k g) by E_g^k, roots b^(1/q) and other functions "
+                                          "as independent variables")
             if got.holds:
                 return got
     except _Undecidable:
@@ -395,23 +418,24 @@ def decide_identity(lhs: Any, rhs: Any = 0, *, seed: int = 0, simplify: bool = T
     if nonzero[0] == "nonzero":
         return Identity("fails", "the difference is not zero at a random point", f"evaluation to {_DIGITS} digits", 0.0,
                         nonzero[1], nonzero[2])
+    gave_up = ""
     if simplify and sp.count_ops(e) <= 3000:
         try:
-            if sp.simplify(e) == 0:
-                return Identity("holds", "SymPy simplify reduces the difference to 0", "symbolic (SymPy simplify)")
+            with symbolic_time_limit(_SIMPLIFY_SECONDS):
+                if sp.simplify(e) == 0:
+                    return Identity("holds", "SymPy simplify reduces the difference to 0", "symbolic (SymPy simplify)")
+        except SymbolicTimeLimit:
+            gave_up = f"; SymPy simplify gave up after {_SIMPLIFY_SECONDS:g} s"
+        except SymbolicBudgetError:   # the step's own budget (a ValueError): never swallowed
+            raise
         except (TypeError, ValueError, RecursionError, NotImplementedError):
             pass
     if nonzero[0] == "zero":
         return Identity("undecided", f"not proved; |difference| <= {max(nonzero[3], 1e-30):.0e} × the size of its terms at "
-                        f"{nonzero[2]} random point(s) in (0.1, 0.9), evaluated to {_DIGITS} digits",
-                        f"numerical agreement only (not a proof)")
-    return Identity("undecided", "not proved, and the difference could not be evaluated at random points",
+                        f"{nonzero[2]} random point(s) in (0.1, 0.9), evaluated to {_DIGITS} digits{gave_up}",
+                        "numerical agreement only (not a proof)")
+    return Identity("undecided", f"not proved, and the difference could not be evaluated at random points{gave_up}",
                     "no evidence")
-
-
-def decide_identities(pairs: Iterable[tuple[Any, Any]], *, seed: int = 0) -> list[Identity]:
-    """:func:`decide_identity` for each (lhs, rhs) pair."""
-    return [decide_identity(a, b, seed=seed + k) for k, (a, b) in enumerate(pairs)]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -431,29 +455,15 @@ class ExactRank:
     error_bound: float
 
 
-def _exact_rank(rows: list[list[Fraction]]) -> int:
-    M = [r[:] for r in rows]
-    rank, ncol = 0, len(M[0]) if M else 0
-    for c in range(ncol):
-        piv = next((i for i in range(rank, len(M)) if M[i][c] != 0), None)
-        if piv is None:
-            continue
-        M[rank], M[piv] = M[piv], M[rank]
-        for i in range(rank + 1, len(M)):
-            if M[i][c] != 0:
-                f = M[i][c] / M[rank][c]
-                M[i] = [a - f * b for a, b in zip(M[i], M[rank])]
-        rank += 1
-    return rank
-
-
 def exact_generic_rank(M: sp.Matrix, *, seed: int = 0, tries: int = 3) -> ExactRank:
     """Generic rank of a matrix of expressions.
 
-    Rational entries: the exact rank at random integer points (the largest seen); a full rank is
-    a proof, a lower rank is the generic rank with probability at least 1 - (d/B)^tries.
-    Otherwise the entries are evaluated in floating point at random points in (0.1, 0.9) and the
-    rank is numpy's (evidence says so).
+    Rational entries: the exact rank (SymPy's DomainMatrix over QQ) at random integer points, the
+    largest seen; a full rank is a proof, a lower rank is the generic rank with probability at
+    least 1 - (d/(B - d'))^tries, d the sum over rows of the largest degree bound of an entry (a
+    bound of the degree of any minor over a common denominator) and d' that of the denominators.
+    Otherwise the entries are evaluated in floating point at random points of (0.1, 0.9) and the
+    rank is numpy's (evidence says so; error_bound is nan).
 
     Parameters
     ----------
@@ -468,38 +478,44 @@ def exact_generic_rank(M: sp.Matrix, *, seed: int = 0, tries: int = 3) -> ExactR
     ExactRank
     """
     import numpy as np
+    from sympy import QQ
+    from sympy.polys.matrices import DomainMatrix
 
     rng = random.Random(seed)
     full = min(M.shape)
-    syms = sorted(M.free_symbols, key=lambda s: s.name)
+    syms = _sorted_symbols(M)
+    rows = [list(M.row(i)) for i in range(M.shape[0])]
+    if full == 0:
+        return ExactRank(0, "an empty matrix", 0.0)
     if all(is_rational(e) for e in M):
         deg = _Degrees()
-        d = sum(max((deg.of(e)[0] + deg.of(e)[1] for e in M.row(i)), default=0) for i in range(M.shape[0]))
+        d = sum(max(sum(deg.of(e)) for e in row) for row in rows)
         d_bad = d + deg.inverted
-        best, k = 0, 0
-        for _ in range(tries + 20):
-            pt = {s: rng.randint(1, _BOUND) for s in syms}
-            vals = [[_evaluate(e, pt) for e in M.row(i)] for i in range(M.shape[0])]
+        best, k, attempts = 0, 0, tries + 20
+        for _ in range(attempts):
+            pt = _draw(rng, syms)
+            vals = [[_evaluate(e, pt) for e in row] for row in rows]
             if any(v is None for row in vals for v in row):
                 continue
             k += 1
-            best = max(best, _exact_rank(vals))
-            if best == full or k >= tries:
+            best = max(best, DomainMatrix([[QQ(v.numerator, v.denominator) for v in row] for row in vals], M.shape, QQ).rank())
+            if best == full:
+                return ExactRank(best, "exact arithmetic at a random point (full rank: a proof)", 0.0)
+            if k == tries:
                 break
-        if best == full:
-            return ExactRank(best, "exact arithmetic at a random point (full rank: a proof)", 0.0)
-        bound = min(1.0, (d / max(_BOUND - d_bad, 1))) ** max(k, 1)
+        if k == 0:
+            return ExactRank(0, f"no evidence: a denominator vanished at all {attempts} random points", 1.0)
+        bound = (d / (_BOUND - d_bad)) ** k
         return ExactRank(best, f"exact arithmetic at {k} random point(s); the generic rank is larger with probability "
                                f"<= {bound:.0e} (Schwartz-Zippel)", bound)
     from ..model._translate import NUMPY, translate
 
     ranks = []
-    nrng = np.random.default_rng(seed)
-    for _ in range(6):
-        pt = {s: float(nrng.uniform(0.1, 0.9)) for s in syms}
+    for _ in range(_SAMPLES):
+        pt = {s: float(v) for s, v in _grid_point(rng, syms).items()}
         with np.errstate(all="ignore"):
-            A = np.array([[float(translate(e, pt, NUMPY)) for e in M.row(i)] for i in range(M.shape[0])], dtype=float)
+            A = np.array([[float(translate(e, pt, NUMPY)) for e in row] for row in rows])
         if np.all(np.isfinite(A)):
             ranks.append(int(np.linalg.matrix_rank(A)))
-    best = max(ranks) if ranks else 0
-    return ExactRank(best, f"floating point at {len(ranks)} random point(s) (numpy matrix_rank)", float("nan"))
+    return ExactRank(max(ranks, default=0), f"floating point at {len(ranks)} of {_SAMPLES} random point(s) "
+                                            "(numpy matrix_rank)", float("nan"))

@@ -21,8 +21,9 @@ import math
 import os
 import signal
 import threading
-from collections.abc import Iterator
-from contextlib import contextmanager
+from collections.abc import Callable, Iterator
+from contextlib import AbstractContextManager, contextmanager
+from dataclasses import dataclass
 from typing import Any
 
 import sympy as sp
@@ -31,7 +32,7 @@ from ..errors import SymbolicBudgetError
 from .._text import shorten
 
 __all__ = ["MAX_TREE", "MAX_TERMS", "symbolic_seconds", "tree_size", "expanded_terms", "check_tree", "expand",
-           "symbolic_budget", "short_str"]
+           "symbolic_budget", "symbolic_time_limit", "SymbolicTimeLimit", "short_str"]
 
 MAX_TREE = 200_000  #: largest expression, in tree nodes (shared sub-expressions counted each time)
 MAX_TERMS = 20_000  #: largest number of terms an expansion may make
@@ -163,39 +164,82 @@ def _inside_sympy(frame: Any) -> bool:
     return False
 
 
-@contextmanager
-def symbolic_budget(what: str, seconds: float | None = None) -> Iterator[None]:
-    """Stop the step `what` with a SymbolicBudgetError once it has spent `seconds` inside SymPy.
+class SymbolicTimeLimit(Exception):
+    """An optional piece of symbolic work (see :func:`symbolic_time_limit`) ran out of its time."""
 
-    Nested budgets are part of the outermost one. Without ``SIGALRM`` (Windows), outside the
-    main thread, or when the process already uses the real-time timer, the step runs unbudgeted.
+
+@dataclass
+class _Limit:
+    limit: float
+    error: Callable[[], Exception]
+    spent: float = 0.0
+
+
+@contextmanager
+def _limited(entry: _Limit) -> Iterator[None]:
+    """Run the block with `entry`'s limit on the time spent inside SymPy (sampled every 50 ms).
+
+    Limits nest: an inner one shares the outer's timer, every open limit is charged, and the
+    outermost exceeded limit raises (so an inner, optional step never swallows the outer budget).
+    An exceeded limit raises again at every tick spent inside SymPy until its block is left.
     """
-    limit = symbolic_seconds() if seconds is None else float(seconds)
-    usable = (getattr(_ACTIVE, "on", False) is False and hasattr(signal, "setitimer")
-              and threading.current_thread() is threading.main_thread()
+    stack = getattr(_ACTIVE, "stack", None)
+    if stack is not None:
+        stack.append(entry)
+        try:
+            yield
+        finally:
+            stack.remove(entry)
+        return
+    usable = (hasattr(signal, "setitimer") and threading.current_thread() is threading.main_thread()
               and signal.getsignal(signal.SIGALRM) in (signal.SIG_DFL, signal.SIG_IGN, None)
               and signal.getitimer(signal.ITIMER_REAL) == (0.0, 0.0))
     if not usable:
         yield
         return
-    spent = [0.0]
+    stack = [entry]
 
     def handler(signum: int, frame: Any) -> None:
-        if _inside_sympy(frame):
-            spent[0] += _TICK
-            if spent[0] > limit:
-                signal.setitimer(signal.ITIMER_REAL, 0)
-                raise SymbolicBudgetError(
-                    f"{what}: the symbolic work (SymPy) took more than {limit:g} s, the budget of one step; the model's "
-                    "expressions are too large for it. Simplify them, use an observer kind that works numerically "
-                    "(ekf, ukf, mhe), or raise the budget with the environment variable NLOBS_SYMBOLIC_SECONDS")
+        if not _inside_sympy(frame):
+            return
+        for e in stack:
+            e.spent += _TICK
+        for e in stack:
+            if e.spent > e.limit:   # raised again at every tick: a broad `except` cannot swallow the budget
+                raise e.error()
 
     previous = signal.signal(signal.SIGALRM, handler)
-    _ACTIVE.on = True
+    _ACTIVE.stack = stack
     signal.setitimer(signal.ITIMER_REAL, _TICK, _TICK)
     try:
         yield
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, previous)
-        _ACTIVE.on = False
+        _ACTIVE.stack = None
+
+
+def symbolic_budget(what: str, seconds: float | None = None) -> AbstractContextManager[None]:
+    """Stop the step `what` with a SymbolicBudgetError once it has spent `seconds` inside SymPy.
+
+    Nested budgets are charged together with the outer ones; the outermost exceeded one raises.
+    Without ``SIGALRM`` (Windows), outside the main thread, or when the process already uses the
+    real-time timer, the step runs unbudgeted.
+    """
+    limit = symbolic_seconds() if seconds is None else float(seconds)
+
+    def error() -> Exception:
+        return SymbolicBudgetError(
+            f"{what}: the symbolic work (SymPy) took more than {limit:g} s, the budget of one step; the model's "
+            "expressions are too large for it. Simplify them, use an observer kind that works numerically "
+            "(ekf, ukf, mhe), or raise the budget with the environment variable NLOBS_SYMBOLIC_SECONDS")
+
+    return _limited(_Limit(limit, error))
+
+
+def symbolic_time_limit(seconds: float) -> AbstractContextManager[None]:
+    """Raise :class:`SymbolicTimeLimit` once the block has spent `seconds` inside SymPy: for optional
+    work (an attempt to simplify) whose caller has an answer without it. Inside a
+    :func:`symbolic_budget` the step's own budget still applies (and wins when it runs out first);
+    where no timer is available (see :func:`symbolic_budget`) the block runs unlimited."""
+    return _limited(_Limit(float(seconds), SymbolicTimeLimit))
