@@ -15,8 +15,8 @@ identities of an augmentation, Ψ of a high-gain observer, symmetries) goes thro
    probability at most :math:`(d/(B - d'))^k` that a non-identity is declared to hold; k is chosen
    so that this is below 2⁻⁶⁴ and the bound is reported. Degrees d + d' above 10⁵ (values of
    more than 4·10⁶ bits) are not evaluated: the identity is then decided by steps 2-3 or left
-   undecided. If a denominator vanishes at 50 points in a row it is taken to be identically zero
-   and the identity is undecided.
+   undecided. If a denominator vanishes at 50 points it is taken to be identically zero and the
+   identity is undecided.
 2. **Expressions with sin, cos, tan, exp, sinh, ... and other functions** are made rational by
    substitution: after :func:`sympy.expand_trig`, :math:`\sin a = 2\tau/(1+\tau^2)`,
    :math:`\cos a = (1-\tau^2)/(1+\tau^2)`, :math:`\tan a = 2\tau/(1-\tau^2)` with a fresh τ per
@@ -240,7 +240,7 @@ def _rational_test(e: sp.Expr, rng: random.Random, what: str) -> Identity:
         val = _evaluate(e, {})
         if val is None:
             return Identity("undecided", f"{what}: a constant with a zero denominator", "division by zero")
-        return (Identity("holds", f"{what}: the difference is the constant 0", "exact arithmetic", 0.0) if val == 0 else
+        return (Identity("holds", f"{what}: the difference is the constant 0", "exact arithmetic") if val == 0 else
                 Identity("fails", f"{what}: the difference is the non-zero constant {_short(val)}", "exact arithmetic",
                          witness={}, value=_short(val)))
     if dn + d_bad > _MAX_DEGREE:
@@ -253,10 +253,9 @@ def _rational_test(e: sp.Expr, rng: random.Random, what: str) -> Identity:
         if val is None:
             redraws += 1
             if redraws == _REDRAWS:
-                return Identity("undecided", f"{what}: a denominator vanished at {redraws} random points in a row",
+                return Identity("undecided", f"{what}: a denominator vanished at {redraws} random points",
                                 "division by zero")
             continue
-        redraws = 0
         k += 1
         if val != 0:
             wit = {s.name: str(v) for s, v in point.items()}
@@ -275,7 +274,7 @@ def _short(v: Fraction) -> str:
         s = str(v)
         if len(s) <= 60:
             return s
-    return mpmath.nstr(mpmath.mpf(v.numerator) / v.denominator, 6, strip_zeros=False)
+    return mpmath.nstr(mpmath.mpf(v.numerator) / v.denominator, strip_zeros=False)   # nstr's default: 6 digits
 
 
 # ---------------------------------------------------------------------------------------------
@@ -376,8 +375,7 @@ def _as_expr(v: Any) -> sp.Expr:
 def _exact_floats(e: sp.Expr) -> sp.Expr:
     """Floats as the exact rationals of their shortest decimal form (0.1 -> 1/10), as the model does
     with parameters; SymPy would otherwise compare 0.1 and 1/10 in floating point."""
-    floats = e.atoms(sp.Float)
-    return e.xreplace({f: sp.Rational(repr(float(f))) for f in floats}) if floats else e
+    return e.xreplace({f: sp.Rational(repr(float(f))) for f in e.atoms(sp.Float)})
 
 
 def decide_identity(lhs: Any, rhs: Any = 0, *, seed: int = 0, simplify: bool = True) -> Identity:
@@ -491,8 +489,9 @@ def exact_generic_rank(M: sp.Matrix, *, seed: int = 0, tries: int = 3) -> ExactR
         deg = _Degrees()
         d = sum(max(sum(deg.of(e)) for e in row) for row in rows)
         d_bad = d + deg.inverted
-        best, k, attempts = 0, 0, tries + 20
-        for _ in range(attempts):
+        best, k, attempts = 0, 0, 0
+        while attempts < tries + 20:
+            attempts += 1
             pt = _draw(rng, syms)
             vals = [[_evaluate(e, pt) for e in row] for row in rows]
             if any(v is None for row in vals for v in row):
