@@ -469,11 +469,15 @@ def test_generic_rank_against_sympy():
         assert exact_generic_rank(M).rank == M.rank() == r
 
 
-def test_rank_edges():
+def test_rank_edges(monkeypatch):
     assert exact_generic_rank(sp.zeros(2, 0)) == ident.ExactRank(0, "an empty matrix", 0.0)
+    draws = []
+    real = ident._draw
+    monkeypatch.setattr(ident, "_draw", lambda rng, syms: draws.append(1) or real(rng, syms))
     zero = (x1 + 1) ** 2 - x1**2 - 2 * x1 - 1
-    r = exact_generic_rank(sp.Matrix([[1 / zero, x1], [x2, 1]]))
+    r = exact_generic_rank(sp.Matrix([[1 / zero, x1], [x2, 1]]))          # tries (3) + 20 points, as the message says
     assert r.rank == 0 and r.error_bound == 1.0 and r.evidence == "no evidence: a denominator vanished at all 23 random points"
+    assert len(draws) == 23
 
 
 def test_floating_rank_reads_every_row():
