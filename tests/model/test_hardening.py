@@ -13,7 +13,8 @@ import nlobs
 from nlobs import ModelError, ModelFileError, System, loads_model
 from nlobs.errors import SymbolicBudgetError
 from nlobs.model import parse_expression, symbol
-from nlobs.model._budget import MAX_TERMS, expand, expanded_terms, symbolic_budget, tree_size
+from nlobs.model._budget import (MAX_TERMS, SymbolicTimeLimit, expand, expanded_terms, symbolic_budget,
+                                 symbolic_time_limit, tree_size)
 from nlobs.model._expr import ExpressionError
 
 X = symbol("x")
@@ -233,6 +234,36 @@ def test_time_budget_stops_sympy_but_not_numeric_work():
         t0 = time.perf_counter()
         while time.perf_counter() - t0 < 0.4:  # numeric work is not symbolic time
             np.linalg.eigvals(np.random.default_rng(0).normal(size=(30, 30)))
+
+
+def test_a_swallowed_budget_error_is_raised_again():
+    # SymbolicBudgetError is a ValueError: a broad `except ValueError` in the step must not end the budget
+    a, b, c, d = (symbol(n) for n in "abcd")
+    swallowed = 0
+    t0 = time.perf_counter()
+    with pytest.raises(SymbolicBudgetError, match="careless step"):
+        with symbolic_budget("careless step", seconds=0.2):
+            for k in range(2, 60):
+                try:
+                    sp.factor(sp.expand((a + b + c + d + 1) ** k))
+                except ValueError:
+                    swallowed += 1
+    assert swallowed >= 1 and time.perf_counter() - t0 < 10
+
+
+def test_an_inner_time_limit_gives_up_alone_and_the_outer_budget_still_counts():
+    a, b, c, d = (symbol(n) for n in "abcd")
+    with symbolic_budget("outer step", seconds=30):
+        with pytest.raises(SymbolicTimeLimit):
+            with symbolic_time_limit(0.2):
+                for k in range(2, 60):
+                    sp.factor(sp.expand((a + b + c + d + 1) ** k))
+        sp.expand((a + b) ** 3)                        # the step goes on after its optional part gave up
+    with pytest.raises(SymbolicBudgetError, match="short step"):
+        with symbolic_budget("short step", seconds=0.2):
+            with symbolic_time_limit(30):              # a generous inner limit does not extend the step's budget
+                for k in range(2, 60):
+                    sp.factor(sp.expand((a + b + c + d + 1) ** k))
 
 
 def test_kalman_like_on_a_high_power_stops_within_the_budget(monkeypatch):

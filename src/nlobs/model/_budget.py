@@ -181,7 +181,9 @@ def _limited(entry: _Limit) -> Iterator[None]:
 
     Limits nest: an inner one shares the outer's timer, every open limit is charged, and the
     outermost exceeded limit raises (so an inner, optional step never swallows the outer budget).
-    An exceeded limit raises again at every tick spent inside SymPy until its block is left.
+    An exceeded limit raises again at every tick spent inside SymPy until its block is left, and once
+    more when the block ends normally: code that swallows the error cannot finish the step as if the
+    budget had held.
     """
     stack = getattr(_ACTIVE, "stack", None)
     if stack is not None:
@@ -190,6 +192,8 @@ def _limited(entry: _Limit) -> Iterator[None]:
             yield
         finally:
             stack.remove(entry)
+        if entry.spent > entry.limit:   # exceeded, and the error was swallowed inside: raise it on leaving
+            raise entry.error()
         return
     usable = (hasattr(signal, "setitimer") and threading.current_thread() is threading.main_thread()
               and signal.getsignal(signal.SIGALRM) in (signal.SIG_DFL, signal.SIG_IGN, None)
@@ -217,6 +221,8 @@ def _limited(entry: _Limit) -> Iterator[None]:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, previous)
         _ACTIVE.stack = None
+    if entry.spent > entry.limit:
+        raise entry.error()
 
 
 def symbolic_budget(what: str, seconds: float | None = None) -> AbstractContextManager[None]:
