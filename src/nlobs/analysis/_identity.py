@@ -54,7 +54,6 @@ from typing import Any
 import mpmath
 import sympy as sp
 
-from ..errors import SymbolicBudgetError
 from ..model._budget import SymbolicTimeLimit, symbolic_time_limit
 
 __all__ = ["Identity", "decide_identity", "ExactRank", "exact_generic_rank", "is_rational"]
@@ -349,8 +348,6 @@ def _numeric(e: sp.Expr, rng: random.Random) -> tuple[str, dict[str, str] | None
         try:
             cv = complex(sp.N(e.xreplace(point), _DIGITS))
             scale = max(abs(complex(sp.N(t.xreplace(point), _DIGITS))) for t in terms)
-        except SymbolicBudgetError:
-            raise
         except (TypeError, ValueError, ZeroDivisionError, OverflowError):
             continue
         if not (cmath.isfinite(cv) and math.isfinite(scale)):
@@ -424,10 +421,8 @@ def decide_identity(lhs: Any, rhs: Any = 0, *, seed: int = 0, simplify: bool = T
                     return Identity("holds", "SymPy simplify reduces the difference to 0", "symbolic (SymPy simplify)")
         except SymbolicTimeLimit:
             gave_up = f"; SymPy simplify gave up after {_SIMPLIFY_SECONDS:g} s"
-        except SymbolicBudgetError:   # the step's own budget (a ValueError): never swallowed
-            raise
         except (TypeError, ValueError, RecursionError, NotImplementedError):
-            pass
+            pass   # a step's SymbolicBudgetError (a ValueError) caught here is raised again by the budget itself
     if nonzero[0] == "zero":
         return Identity("undecided", f"not proved; |difference| <= {max(nonzero[3], 1e-30):.0e} × the size of its terms at "
                         f"{nonzero[2]} random point(s) in (0.1, 0.9), evaluated to {_DIGITS} digits{gave_up}",
