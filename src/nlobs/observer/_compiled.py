@@ -221,7 +221,7 @@ class CompiledObserver:
             raise err
         rate0 = float(np.max(np.abs(np.linalg.eigvals(J)))) if J.size and np.all(np.isfinite(J)) else 0.0
         dts = np.diff(t)
-        A = np.hstack([t[:-1, None], dts[:, None], u[:-1], y[:-1], m[:-1], u[1:], y[1:], m[1:]])
+        A = interval_table(t, u, y, m)
         nmin = np.ones(N - 1) if max_step is None else np.maximum(1.0, np.ceil(dts / max_step - 1e-9))
         runner = self._runner(engine)
         report = as_progress(progress, f"estimate {name or self.design.method}")
@@ -247,6 +247,12 @@ class CompiledObserver:
         xhat = z[:, :self.n] if self.selects_state else np.vstack([xs.reshape(1, -1), res.outputs[:, :self.n]])
         return ObserverTrajectory(t, z, np.ascontiguousarray(xhat), S[:, self.nz:], prior.reshape(-1), yhat_prior,
                                   res.substeps, res.rate, res.backend)
+
+
+def interval_table(t: np.ndarray, u: np.ndarray, y: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """One row per interval k: (t_k, dt_k, u_k, y_k, m_k, u_{k+1}, y_{k+1}, m_{k+1}), as the sub-step and sample
+    functions read it (y: zero where m is 0)."""
+    return np.hstack([t[:-1, None], np.diff(t)[:, None], u[:-1], y[:-1], m[:-1], u[1:], y[1:], m[1:]])
 
 
 def _selects_state(design: ObserverDesign, n: int) -> bool:

@@ -219,8 +219,9 @@ def estimate(
     hold: Literal["zoh", "linear"] = "zoh",
     engine: Backend = "auto",
     progress: bool | Callable[[float], None] | None = None,
+    smooth: bool = False,
 ) -> Run:
-    """Run observers on recorded data.
+    """Run observers on recorded data (filtering, or with ``smooth=True`` fixed-interval smoothing).
 
     Between samples each observer integrates its flow with the last sample of u and y held
     (zero-order hold), in RK4 steps chosen per interval at run time: no longer than `max_step`,
@@ -257,13 +258,23 @@ def estimate(
     progress : bool or callable, optional
         Show progress on stderr (True; one bar per observer) or call ``progress(fraction)`` with the
         fraction of all the observers' work done.
+    smooth : bool
+        Smooth the whole recording after filtering it (fixed-interval Rauch-Tung-Striebel
+        smoother on the sample grid; unscented RTS for the UKF): each estimate then uses the samples
+        after it as well as those before. For the continuous-discrete ``ekf`` and ``ukf`` without
+        bounds; other kinds are refused. The smoother's prediction is the filter's own: the RK4 map
+        it integrates between samples (same sub-steps), linearised by its exact Jacobian (EKF) or
+        statistically (UKF); see :mod:`nlobs.simulate._smooth`.
 
     Returns
     -------
     Run
         With the recording's true states when it has them (then errors and metrics work), and
         each observer's innovations y_k − h(x̂_k⁻) (:meth:`Run.innovations`, :meth:`Run.whiteness`):
-        what recorded data without states can tell about an observer.
+        what recorded data without states can tell about an observer. Smoothed: each trace's
+        ``xhat`` holds the smoothed estimates, ``filtered`` the filter's, ``smoothed_covariance``
+        the smoothed covariance (N, n, n) and ``std`` its standard deviations; the innovations
+        are the filter's.
 
     Raises
     ------
@@ -291,6 +302,10 @@ def estimate(
         if tuple(s.outputs) != recording.output_names or tuple(s.inputs) != recording.input_names:
             raise ModelError(f"estimate: observer {name!r} expects outputs {list(s.outputs)} and inputs {list(s.inputs)}; "
                              f"the recording has {list(recording.output_names)} and {list(recording.input_names)}")
+    if smooth:
+        from ._smooth import check_smoothable
+        for name, o in obs.items():
+            check_smoothable(o.design, name)
     mask = recording.check_finite(on_missing)
     y0 = np.where(mask > 0, recording.y, 0.0)
     t, u = recording.t, recording.u
@@ -317,14 +332,22 @@ def estimate(
                                             f"{o.system.states[c]} is {traj.xhat[r, c]} at t = {t[r]:.6g} (row {r}) although its "
                                             "internal state is finite; check the observer's output map x̂ = H(t, z, u, y)")
         innovation = np.where(mask > 0, recording.y - traj.yhat_prior, np.nan)
-        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, traj.z, traj.xhat, traj.xhat_prior,
-                                     innovation=innovation, covariance=getattr(o.design, "covariance", None))
-        integration[name] = traj.info()
+        smoothed: dict[str, Any] = {}
+        info = traj.info()
+        if smooth:
+            from ._smooth import rts_smooth
+            xs, Ps, how = rts_smooth(o.design, traj, u, y0, mask, hold=hold, engine=engine)
+            smoothed = {"filtered": traj.xhat, "smoothed_covariance": Ps}
+            info.update(smoother="urts" if o.design.method == "ukf" else "rts", **how)
+        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, traj.z, xs if smooth else traj.xhat,
+                                     traj.xhat_prior, innovation=innovation, covariance=getattr(o.design, "covariance", None),
+                                     **smoothed)
+        integration[name] = info
     system = next(iter(obs.values())).system
     return Run(f"{system.name} (recorded: {recording.source})", t, system.states, recording.input_names, recording.output_names,
                u, recording.y, traces, x=recording.x,
                info={"max_step": max_step, "substeps": max(v["max_substeps"] for v in integration.values()),
-                     "integration": integration, "on_missing": on_missing, "hold": hold},
+                     "integration": integration, "on_missing": on_missing, "hold": hold, "smoothed": bool(smooth)},
                estimated_params=system.estimated_params)
 
 

@@ -56,11 +56,25 @@ class ObserverTrace:
     innovation: np.ndarray | None = None
     #: The design's covariance of x̂ as a function of z (None for observers that carry none); see :attr:`std`.
     covariance: Any = field(default=None, repr=False)
+    #: With ``estimate(..., smooth=True)``: the filtered estimates (N, n); `xhat` then holds the smoothed ones.
+    filtered: np.ndarray | None = field(default=None, repr=False)
+    #: With ``estimate(..., smooth=True)``: the smoothed covariance of x̂ at each sample, shape (N, n, n).
+    smoothed_covariance: np.ndarray | None = field(default=None, repr=False)
+
+    @property
+    def smoothed(self) -> bool:
+        """Whether `xhat` holds fixed-interval smoothed estimates (see :func:`nlobs.estimate`)."""
+        return self.smoothed_covariance is not None
 
     @cached_property
     def std(self) -> np.ndarray | None:
         """(N, n) standard deviation of each estimate, from the covariance the observer carries (None
-        for observers without one). Computed when first read: runs that never ask do not pay for it."""
+        for observers without one; the smoothed covariance for a smoothed run). Computed when first
+        read: runs that never ask do not pay for it."""
+        if self.smoothed_covariance is not None:
+            var = np.diagonal(self.smoothed_covariance, axis1=1, axis2=2)
+            with np.errstate(invalid="ignore"):
+                return np.where(var >= 0, np.sqrt(np.abs(var)), np.nan)
         return _std(self.covariance, self.z, self.xhat.shape[1])
 
     def __repr__(self) -> str:
