@@ -27,6 +27,10 @@ def add_parser(sub: Any) -> None:
     e.add_argument("--P0", metavar="MATRIX",
                    help="initial covariance of covariance-carrying observers (ekf, ukf, kalman_bucy, ...): one number "
                         "(times the identity), one number per state (the diagonal) or a JSON matrix '[[..], [..]]'")
+    e.add_argument("--smooth", action="store_true",
+                   help="smooth the whole recording after filtering it (fixed-interval Rauch-Tung-Striebel smoother; "
+                        "unscented for ukf): estimates use the samples after them too; the CSV holds the smoothed values. "
+                        "For the continuous-discrete ekf and ukf")
     e.add_argument("--skip-missing", action="store_true", help="leave empty/NaN output samples out of the update")
     e.add_argument("--hold", choices=("zoh", "linear"), default="zoh", help=HELP_HOLD)
     e.add_argument("--max-step", type=positive_float, metavar="SECONDS",
@@ -53,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
         xhat0 = {n: parse_vector(args.xhat0, estimated.states, "--xhat0", d.xhat0) for n, d in designs.items()}
     rec = Recording.from_csv(args.data, system, columns=parse_columns(args.column))
     run_ = estimate(designs, rec, xhat0=xhat0, on_missing="skip" if args.skip_missing else "error", hold=args.hold,
-                    max_step=args.max_step, engine=args.engine, progress=not args.json)
+                    max_step=args.max_step, engine=args.engine, progress=not args.json, smooth=args.smooth)
     if args.output:
         run_.to_csv(args.output)
     if args.json:
@@ -61,6 +65,9 @@ def run(args: argparse.Namespace) -> int:
     else:
         print(run_.summary())
         for name, tr in run_.observers.items():
+            if tr.smoothed:
+                print(f"{name}: smoothed (fixed-interval RTS{', unscented' if tr.method == 'ukf' else ''}); "
+                      "the estimates below and in the CSV are the smoothed ones")
             print(f"{name}: final estimate " + ", ".join(f"{s}={v:.6g}" for s, v in zip(run_.state_names, tr.xhat[-1])))
         if args.output:
             print(f"estimates: {args.output}")
