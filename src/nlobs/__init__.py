@@ -46,6 +46,9 @@ from .simulate import Sampling as Sampling
 from .simulate import Simulation as Simulation
 from .simulate import estimate as estimate
 from .simulate import fit_parameters as fit_parameters
+from .simulate import LikelihoodFit as LikelihoodFit
+from .simulate import fit_likelihood as fit_likelihood
+from .simulate import log_likelihood as log_likelihood
 from .simulate import montecarlo as montecarlo
 from .simulate import simulate as simulate
 from .design import DREM as DREM

@@ -12,7 +12,7 @@ from ._common import HELP_HOLD, clean, parse_assignments, parse_columns, parse_v
 
 
 def add_parser(sub: Any) -> None:
-    f = sub.add_parser("fit", help="fit unknown parameters to a recording (simulation-error least squares)",
+    f = sub.add_parser("fit", help="fit unknown parameters to a recording (simulation-error least squares, or an EKF/UKF likelihood)",
                        description="Fit unknown parameters (and initial states) of a model file to a recording: the model "
                                    "is simulated over the whole recording, driven by its input, and the unknowns minimise "
                                    "the output error (a batch alternative to estimating them with an observer). Prints the "
@@ -35,6 +35,16 @@ def add_parser(sub: Any) -> None:
                         "halving it changes the outputs)")
     f.add_argument("--hold", choices=("zoh", "linear"), default="zoh", help=HELP_HOLD)
     f.add_argument("--output", metavar="CSV", help="write t, the recorded and the fitted outputs to this CSV")
+    f.add_argument("--method", choices=("simulation", "likelihood"), default="simulation",
+                   help="'simulation' (default): simulation-error least squares; 'likelihood': maximise the innovations "
+                        "likelihood of an EKF or UKF configured in the file (accounts for process noise; can learn Q and R)")
+    f.add_argument("--observer", metavar="NAME",
+                   help="with --method likelihood: the ekf or ukf observer of the file whose Q, R, P0, xhat0 are used "
+                        "(its name, or its kind when the file configures one of that kind)")
+    f.add_argument("--learn-noise", action="store_true",
+                   help="with --method likelihood: also estimate scalings of Q and R (Q = exp(ρ_Q) Q, R = exp(ρ_R) R)")
+    f.add_argument("--skip-missing", action="store_true",
+                   help="with --method likelihood: leave empty/NaN output samples out of the likelihood")
     f.add_argument("--json", action="store_true", help="print one JSON object")
     f.set_defaults(run=run)
 
@@ -65,6 +75,12 @@ def run(args: argparse.Namespace) -> int:
     mf = load_model(args.model)
     system = mf.system
     rec = Recording.from_csv(args.data, system, columns=parse_columns(args.column))
+    if args.method == "likelihood":
+        return _likelihood(args, mf, rec)
+    for flag, given in (("--observer", args.observer), ("--learn-noise", args.learn_noise),
+                        ("--skip-missing", args.skip_missing)):
+        if given:
+            raise ValueError(f"{flag} is an option of --method likelihood (the simulation-error fit does not use it)")
     params, fit_x0 = _names(args.param), _names(args.fit_x0)
     unknown_names = params + [f"{s}(t0)" for s in fit_x0]
     x0 = None
@@ -85,4 +101,46 @@ def run(args: argparse.Namespace) -> int:
         print(res.summary())
         if args.output:
             print(f"fitted outputs: {args.output}")
+    return 0 if res.success else 1
+
+
+def _likelihood(args: argparse.Namespace, mf: Any, rec: Any) -> int:
+    """``nlobs fit --method likelihood``: the innovations likelihood of a configured EKF/UKF."""
+    from ..design import design_from_config
+    from ..simulate import fit_likelihood
+    from ..simulate._likelihood import LIKELIHOOD_KINDS
+
+    unused = [flag for flag, given in (("--fit-x0", args.fit_x0), ("--x0", args.x0), ("--bound", args.bound),
+                                       ("--output-std", args.output_std), ("--output", args.output))
+              if given] + (["--hold linear"] if args.hold != "zoh" else [])
+    if unused:
+        raise ValueError(f"{', '.join(unused)}: not used by --method likelihood (the observer's xhat0 and P0 give the "
+                         "initial state, its R the measurement noise; inputs are held between samples)")
+    configured = mf.observers
+    usable = {n: c for n, c in configured.items() if c.kind in LIKELIHOOD_KINDS}
+    if not args.observer:
+        raise ValueError(f"--method likelihood needs --observer: one of the file's {'/'.join(LIKELIHOOD_KINDS)} observers "
+                         f"({', '.join(usable) or 'none configured'})")
+    name = args.observer
+    if name not in configured:
+        same = [n for n, c in usable.items() if c.kind == name]
+        if len(same) != 1:
+            raise ValueError(f"--observer {name!r}: {mf.path} configures no observer of that name"
+                             + (f" and {len(same)} of that kind" if name in LIKELIHOOD_KINDS else "")
+                             + f"; its {'/'.join(LIKELIHOOD_KINDS)} observers: {', '.join(usable) or 'none'}")
+        name = same[0]
+    config = configured[name]
+    if config.kind not in LIKELIHOOD_KINDS:
+        raise ValueError(f"--observer {name!r} is of kind {config.kind!r}; the likelihood needs the continuous-discrete "
+                         f"kinds {', '.join(LIKELIHOOD_KINDS)}")
+    design = design_from_config(mf.system, config.kind, config.options, where=f"{mf.path}: observers.{name}")
+    params = _names(args.param)
+    initial = parse_assignments(args.initial or [], params + (["log Q scale", "log R scale"] if args.learn_noise else []),
+                                "--initial")
+    res = fit_likelihood(design, rec, params, learn_noise=args.learn_noise, initial=initial, max_step=args.max_step,
+                         on_missing="skip" if args.skip_missing else "error")
+    if args.json:
+        print(json.dumps(clean({"model": mf.system.name, "data": args.data, **res.to_dict()})))
+    else:
+        print(res.summary())
     return 0 if res.success else 1
