@@ -6,7 +6,7 @@ The filter's innovations ν_k = y_k − ŷ_k⁻ with covariances S_k give the pr
 
     \\log p(y_{0:N-1} \\mid \\theta) = \\sum_k -\\tfrac12\\big(\\log\\det(2\\pi S_k) + \\nu_k^\\top S_k^{-1} \\nu_k\\big)
 
-(Schweppe 1965; Harvey 1989, sec. 3.4), exact for a linear-Gaussian model and the usual approximate
+(Schweppe (1965); Harvey (1989), sec. 3.4), exact for a linear-Gaussian model and the usual approximate
 likelihood for a nonlinear one. θ holds model parameters and, optionally, log-scalings of Q and R
 (Q = e^{ρ_Q} Q₀, R = e^{ρ_R} R₀). Outputs missing at a sample are left out of its term.
 
@@ -16,7 +16,7 @@ sub-steps per interval, from the filter's own rule at the initial guess, so the 
 function of θ), then the same update. Its derivatives in θ are carried along the recursion by CasADi's
 forward-mode automatic differentiation (one directional derivative per unknown, no finite differences),
 in one compiled loop over the samples, which also accumulates the Fisher information of the
-innovations (the expected Hessian of −log p; Harvey 1989, eq. 3.4.69)
+innovations (the expected Hessian of −log p; Harvey (1989), sec. 3.4)
 
 .. math::
 
@@ -41,6 +41,7 @@ from ..engine import Backend, compile_system, rows
 from ..engine._codegen import CompiledLoop, _forced, find_compiler
 from ..engine._integrate import rk4_step_rate
 from ..errors import DataError, ModelError, PreconditionError
+from ..references import cite
 from ._recorded import Recording
 
 __all__ = ["log_likelihood", "fit_likelihood", "LikelihoodFit", "LIKELIHOOD_KINDS"]
@@ -370,7 +371,7 @@ class LikelihoodFit:
     def summary(self) -> str:
         w = max(12, *(len(n) for n in self.names))
         head = f"{'unknown':<{w}} {'initial':>12} {'estimate':>12} {'std':>10}"
-        lines = [f"innovations likelihood ({self.kind.upper()}) on {self.info.get('source', 'the recording')}: "
+        lines = [f"innovations likelihood ({self.kind.upper()}; {cite('schweppe1965')}, {cite('harvey1989', 'sec. 3.4')}) on {self.info.get('source', 'the recording')}: "
                  f"{self.info.get('samples', '?')} samples, {self.iterations} iterations, "
                  f"{'converged' if self.success else 'NOT converged'} ({self.message})",
                  f"log-likelihood {self.loglik_initial:.6g} at the initial guess, {self.loglik:.6g} at the estimate",

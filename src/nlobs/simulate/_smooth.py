@@ -2,7 +2,7 @@
 
 The filter gives, at each sample k, the filtered mean and covariance (x̂_k, P_k). Between samples it
 integrated its flow by RK4 in n_k sub-steps, which maps x̂_k to the prediction x̂⁻_{k+1} and P_k to
-P⁻_{k+1}. The backward pass (Rauch, Tung & Striebel 1965; unscented form: Särkkä 2008)
+P⁻_{k+1}. The backward pass (Rauch, Tung & Striebel (1965); unscented form: Särkkä (2008))
 
 .. math::
 
