@@ -467,7 +467,7 @@ def fit_likelihood(design: Any, recording: Recording, params: Sequence[str], *, 
     decrement = float(g @ cov @ g) if np.all(np.isfinite(cov)) else float("nan")
     success = bool(sol.success) or decrement < 1e-6
     message = str(sol.message) if sol.success else (
-        f"Newton decrement {decrement:.2g} < 1e-6 (the optimiser stopped: {sol.message})" if success else str(sol.message))
+        f"Newton decrement gᵀ𝓘⁻¹g = {decrement:.2g} < 1e-6: no scoring step can gain more" if success else str(sol.message))
     fitted = prob.system.with_params(**{p: float(v) for p, v in zip(prob.params, theta)}) if prob.params else prob.system
     return LikelihoodFit(prob.names, theta, std, cov, theta0, ll, ll0, fitted, prob.d.method, prob.n_sub,
                          success, message, int(sol.nit), g,
