@@ -316,7 +316,9 @@ class Run:
         ``final_estimate`` (the same as a list); with true states the :class:`Metrics`
         (``final_error``, ``rms_error``, ``convergence_time`` with its band ``tol``, ...); on
         recorded data the ``innovations`` per output (mean, RMS, Ljung–Box test).
-        With estimated parameters, each observer also has ``"parameters": {k: {"estimate", "std", "true"}}``.
+        With estimated parameters, each observer also has ``"parameters": {k: {"estimate", "std", "true"}}``;
+        a smoothed run (``estimate(..., smooth=True)``) has ``"smoothed": true`` (its estimates and metrics are the
+        smoothed ones, its innovations the filter's).
         """
         obs: dict[str, Any] = {}
         for name, tr in self.observers.items():
@@ -331,6 +333,8 @@ class Run:
                 entry["parameters"] = self.parameters(name)
             if tr.innovation is not None:
                 entry["innovations"] = {o: w.to_dict() for o, w in self.whiteness(name).items()}
+            if tr.smoothed:  # the estimates and metrics above are the smoothed ones; the innovations the filter's
+                entry["smoothed"] = True
             obs[name] = entry
         out = {"model": self.model, "t_final": float(self.t[-1]), "samples": int(self.t.size), "observers": obs}
         if self.x is not None:
