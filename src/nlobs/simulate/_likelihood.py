@@ -13,7 +13,7 @@ likelihood for a nonlinear one. θ holds model parameters and, optionally, log-s
 The filter recursion is a CasADi function of (state, sample, θ): between samples RK4 of the same mean
 and covariance flows as :func:`nlobs.design_ekf` / :func:`nlobs.design_ukf` (a fixed number of
 sub-steps per interval, from the filter's own rule at the initial guess, so the likelihood is a smooth
-function of θ), then the same update. Its derivatives in θ are carried along the recursion by CasADi's
+function of θ; inputs held between samples, zero-order hold), then the same update. Its derivatives in θ are carried along the recursion by CasADi's
 forward-mode automatic differentiation (one directional derivative per unknown, no finite differences),
 in one compiled loop over the samples, which also accumulates the Fisher information of the
 innovations (the expected Hessian of −log p; Harvey (1989), sec. 3.4)
