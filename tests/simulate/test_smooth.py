@@ -207,3 +207,15 @@ def test_cli_estimate_smooth_writes_the_smoothed_estimates(tmp_path, capsys):
     assert main(["estimate", str(model), str(data), "--observer", "hg", "--smooth"]) == 1
     err = capsys.readouterr().err
     assert "ekf, ukf" in err and len(err.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("hold", ["zoh", "linear"])
+def test_the_smoother_predicts_as_the_filter_did(hold):
+    """The replayed prediction (same RK4 sub-steps, same hold of u and y) reproduces the filter's states to rounding."""
+    system, rec = _pendulum()
+    for make in (nlobs.design_ekf, nlobs.design_ukf):
+        d = make(system, Q=np.diag([1e-6, 1e-4]), R=[[0.05**2]], xhat0=[0.0, 0.0])
+        run = nlobs.estimate(d, rec, smooth=True, hold=hold, max_step=0.01)
+        info = run.info["integration"][d.method]
+        assert info["max_substeps"] == 2 and info["replay_difference"] < 1e-12
+        assert np.array_equal(run.observers[d.method].filtered, nlobs.estimate(d, rec, hold=hold, max_step=0.01).observers[d.method].xhat)
