@@ -38,10 +38,10 @@ import numpy as np
 
 from ..design import ObserverDesign
 from ..engine import Backend, compile_system, rows
-from ..engine._codegen import CompiledLoop, _forced, find_compiler
 from ..engine._integrate import rk4_step_rate
 from ..errors import DataError, ModelError, PreconditionError
 from ..references import cite
+from ._loop import Loop
 from ._recorded import Recording
 
 __all__ = ["log_likelihood", "fit_likelihood", "LikelihoodFit", "LIKELIHOOD_KINDS"]
@@ -170,28 +170,15 @@ class _Recursion:
                 info[j, i] = e
         nxt = ca.vertcat(cn, ca.vec(dcore), acc_ll + lln, acc_g + dll.T, ca.vec(acc_I + info))
         self.step = ca.Function(f"{d.method}_likelihood_step", [st, a, cc], [ca.densify(nxt)])
-        self._loop: CompiledLoop | None = None
-        self._vm: dict[int, ca.Function] = {}
+        self.loop = Loop(self.step)
 
     def __call__(self, s0core: np.ndarray, A: np.ndarray, c: np.ndarray, engine: Backend) -> tuple[float, np.ndarray, np.ndarray]:
-        q, N = self.q, A.shape[0]
+        q = self.q
         s0 = np.zeros(self.ns)
         s0[:s0core.size] = s0core
-        if _forced(engine) != "vm" and find_compiler() is not None:
-            if self._loop is None:
-                self._loop = CompiledLoop(self.step)
-            out = np.empty((N, self.ns))
-            good = self._loop(s0, np.ascontiguousarray(A), np.ascontiguousarray(c, dtype=float), out)
-            if good < N:
-                return -np.inf, np.full(q, np.nan), np.full((q, q), np.nan)
-            last = out[-1]
-        else:
-            fn = self._vm.get(N)
-            if fn is None:
-                fn = self._vm[N] = self.step.mapaccum("likelihood", N)
-            last = np.asarray(fn(s0, A.T, c))[:, -1]
-            if not np.all(np.isfinite(last)):
-                return -np.inf, np.full(q, np.nan), np.full((q, q), np.nan)
+        last = self.loop(s0, A, c, engine)[-1]
+        if not np.all(np.isfinite(last)):
+            return -np.inf, np.full(q, np.nan), np.full((q, q), np.nan)
         o = self.ns - 1 - q - q * q
         return float(last[o]), last[o + 1:o + 1 + q].copy(), last[o + 1 + q:].reshape(q, q)
 

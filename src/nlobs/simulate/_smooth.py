@@ -35,10 +35,10 @@ import numpy as np
 
 from ..design import ObserverDesign
 from ..engine import Backend, compile_system, rows
-from ..engine._codegen import CompiledLoop, find_compiler, _forced
 from ..engine._integrate import rk4_step_rate
 from ..engine._intervals import IntervalRunner
 from ..errors import PreconditionError
+from ._loop import Loop
 
 __all__ = ["SMOOTHABLE", "rts_smooth", "check_smoothable"]
 
@@ -145,25 +145,11 @@ class _Backward:
         Ps_new = Pf + G @ (Ps - Pp) @ Gt
         self.step = ca.Function(f"rts_backward_{n}", [acc, a, c],
                                 [ca.densify(ca.vertcat(xs_new, ca.vec((Ps_new + Ps_new.T) / 2)))])
-        self._loop: CompiledLoop | None = None
-        self._vm: dict[int, ca.Function] = {}
+        self.loop = Loop(self.step)
 
     def run(self, last: np.ndarray, data: np.ndarray, engine: Backend) -> np.ndarray:
         """`data` rows in backward order (k = N-2, ..., 0); returns the smoothed [x, vec P] rows in that order."""
-        K = data.shape[0]
-        out = np.empty((K, last.size))
-        if K == 0:
-            return out
-        forced = _forced(engine)
-        if forced != "vm" and find_compiler() is not None:
-            if self._loop is None:
-                self._loop = CompiledLoop(self.step)
-            self._loop(np.ascontiguousarray(last), np.ascontiguousarray(data), np.zeros(1), out)
-            return out
-        fn = self._vm.get(K)
-        if fn is None:
-            fn = self._vm[K] = self.step.mapaccum("rts_backward", K)
-        return np.asarray(fn(last, data.T, 0.0)).T
+        return self.loop(last, data, np.zeros(1), engine)
 
 
 _CACHE: dict[tuple[int, str], tuple[ObserverDesign, _Replay]] = {}  # (id of design, hold)
