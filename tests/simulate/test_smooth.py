@@ -9,6 +9,7 @@ integrated by SciPy at tight tolerance.
 from __future__ import annotations
 
 import csv
+import json
 
 import casadi as ca
 import numpy as np
@@ -204,6 +205,10 @@ def test_cli_estimate_smooth_writes_the_smoothed_estimates(tmp_path, capsys):
     d = nlobs.design_ekf(system, Q=np.diag([1e-6, 1e-4]), R=[[0.0025]], xhat0=[0.0, 0.0])
     ref = nlobs.estimate(d, Recording.from_csv(data, system), smooth=True).observers["ekf"].xhat
     assert np.max(np.abs(np.column_stack([back["ekfth"], back["ekfom"]]) - ref)) < 1e-12
+    assert main(["estimate", str(model), str(data), "--observer", "ekf", "--smooth", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["observers"]["ekf"]["smoothed"] is True
+    assert main(["estimate", str(model), str(data), "--observer", "ekf", "--json"]) == 0
+    assert "smoothed" not in json.loads(capsys.readouterr().out)["observers"]["ekf"]
     assert main(["estimate", str(model), str(data), "--observer", "hg", "--smooth"]) == 1
     err = capsys.readouterr().err
     assert "ekf, ukf" in err and len(err.strip().splitlines()) == 1
