@@ -114,9 +114,13 @@ class Score:
     final_error: float | None = None
     detail: str = ""
     parameters: Mapping[str, Any] = field(default_factory=dict)
+    #: RMS over the last 20 % of the error with each state divided by its scale on the run (its range): what the
+    #: ranking uses, so that the state with the largest units does not decide it alone (None on a recording)
+    normalised_rms: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return jsonable({"kind": self.kind, "status": self.status, "rms_error": self.rms_error,
+                         "normalised_rms": self.normalised_rms,
                          "convergence_time": self.convergence_time, "final_error": self.final_error, "detail": self.detail,
                          **({"parameters": dict(self.parameters)} if self.parameters else {})})
 
@@ -237,12 +241,16 @@ class Advice:
                          "Nothing was run: blocked (see BLOCKED above), no estimation was attempted." if self.blockers else
                          "Nothing to run: no observer kind applies.")
         elif self.scores is not None:
-            lines.append(f"Ranking on {self.scenario} (error RMS over the last 20 %, then convergence time):")
+            normalised = any(s.normalised_rms is not None for s in self.scores)
+            lines.append(f"Ranking on {self.scenario} (error RMS over the last 20 %"
+                         + (", each state relative to its range on the run (rel.)" if normalised else "")
+                         + ", then convergence time):")
             for i, s in enumerate(self.scores):
                 if s.status == "ok":
                     tc = MISSING if s.convergence_time is None else f"{s.convergence_time:.3g}"
-                    lines.append(f"  {i + 1:>2}. {s.kind:<24} RMS {s.rms_error:.3g}  converged at {tc}  final {s.final_error:.3g}"
-                                 + (f"  {s.detail}" if s.detail else ""))
+                    rel = f"rel. {s.normalised_rms:.3g}  " if s.normalised_rms is not None else ""
+                    lines.append(f"  {i + 1:>2}. {s.kind:<24} {rel}RMS {s.rms_error:.3g}  converged at {tc}  "
+                                 f"final {s.final_error:.3g}" + (f"  {s.detail}" if s.detail else ""))
                     for k, v in s.parameters.items():  # unknown parameters: the estimate at the final time
                         est = f"{v['estimate']:.6g}" + ("" if v.get("std") is None else f" ± {2 * v['std']:.3g} (2σ)")
                         lines.append(f"      {k} = {est}" + ("" if v.get("true") is None else f", true {v['true']:.6g}"))

@@ -20,7 +20,7 @@ from ._advice import Advice, Candidate
 from ._constructions import evaluate
 from ._context import Context, build_context, file_true_parameters, file_unknown_params
 from ._kinds import try_kind
-from ._rank import compare
+from ._rank import compare, demoted, screen
 
 __all__ = ["advise"]
 
@@ -204,6 +204,10 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
         if say:
             say(f"advise {system.name}: [{i + 1}/{len(chosen)}] {kind} ...")
         candidates.append(try_kind(ctx, kind))
+    if not run and not ctx.blockers and not ctx.run_blockers:
+        if say:
+            say(f"advise {system.name}: screening the applicable designs on the start of the [simulation] run ...")
+        candidates = demoted(candidates, screen(ctx, candidates), "the start of the [simulation] run")
     scores = runres = None
     scenario = ""
     refused = ""
@@ -215,6 +219,8 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
             n_run = sum(c.applies and c.runnable for c in candidates)
             say(f"advise {system.name}: running {n_run} design(s) ...")
         scores, runres = compare(ctx, candidates, engine=engine)
+        candidates = demoted(candidates, scores, "the comparison run" if ctx.recording is not None else "the [simulation] run")
+        scores = [s for s in scores if s.status != "diverged"]
         if scores and ctx.recording is None and ctx.scenario.process_std is None:
             ctx.notes.append("the comparison run has no process noise and the model is exact: estimators that lean on the "
                              "model (an open-loop copy of a stable model, a tiny Q) look better here than on a real system; "
