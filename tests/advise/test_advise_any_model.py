@@ -142,3 +142,50 @@ def test_symbolic_search_for_the_derivative_map_has_a_budget(monkeypatch):
     psi, why = cons.derivative_map(veh)
     assert psi is None
     assert "within budget" in why or "could not be solved" in why
+
+
+def vehicle() -> nlobs.System:
+    """Single-track vehicle with Pacejka-like tyres (D sin(C atan(B α))), yaw rate measured."""
+    ff = "7000*sin(1.9*atan(10*(d - atan((vy + 1.2*r)/20))))"
+    fr = "7500*sin(1.9*atan(-10*atan((vy - 1.4*r)/20)))"
+    return nlobs.System(states=["vy", "r"], f=[f"({ff}*cos(d) + {fr})/1500 - 20*r", f"(1.2*{ff}*cos(d) - 1.4*{fr})/2500"],
+                        inputs=["d"], outputs=["yr"], h=["r"], name="vehicle")
+
+
+def test_a_kind_whose_symbolic_work_explodes_is_not_checked_within_budget(monkeypatch):
+    monkeypatch.setenv("NLOBS_KIND_SECONDS", "0.5")
+    sim = _sim([0.0, 0.0], {"d": "0.05*sin(0.8*t)"}, t_final=2.0, noise={"yr": 0.002})
+    adv = advise(vehicle(), simulation=sim, kinds=["banks", "ekf"])
+    banks = adv.candidate("banks")
+    assert banks.status == "fails" and banks.why.startswith("not checked within budget") and "0.5 s" in banks.why
+    assert adv.candidate("ekf").applies
+
+
+def test_the_text_shows_the_model_as_written_once(tmp_path):
+    path = tmp_path / "cell.toml"
+    path.write_text('''name = "cell"
+states = ["soc", "v1"]
+inputs = ["I"]
+outputs = ["V"]
+[parameters]
+R0 = 0.015
+g = 9.81
+[definitions]
+ocv = "3.0 + 1.1*soc - 0.9*soc**2 + 0.55*soc**3"
+[dynamics]
+soc = "-I/8280"
+v1 = "-v1/40 + I/2000 + 0*g"
+[output]
+V = "ocv - v1 - R0*I"
+[simulation]
+t_final = 100.0
+dt = 0.1
+x0 = [0.9, 0.0]
+inputs = { I = "2.3" }
+noise = { V = 0.002 }
+sample_period = 1.0
+''')
+    text = str(advise(str(path), kinds=["luenberger", "kalman_like", "high_gain"]))
+    assert "V = ocv - v1 - R0*I" in text and "where ocv = 3.0 + 1.1*soc" in text
+    substituted = "-3*I/200 + 11*soc**3/20 - 9*soc**2/10 + 11*soc/10 - v1 + 3"
+    assert substituted not in text and text.count("[V above]") >= 2

@@ -13,6 +13,7 @@ from ..analysis import ObservabilityReport
 from ..design import Check, ObserverDesign
 from ..model import System
 from ..simulate import Run
+from ._present import ModelText
 
 __all__ = ["Candidate", "Score", "Advice", "STATUSES", "jsonable"]
 
@@ -156,6 +157,9 @@ class Advice:
     run_refused : str
         Why ``run=True`` ran nothing although designs apply (the simulation's inputs do not identify an unknown
         parameter: refused before any estimation); empty otherwise.
+    text : ModelText or None
+        The model as written (the file's strings), shown once at the top of the text; the long substituted
+        equations that messages quote are replaced there by references to it.
     """
 
     model: str
@@ -172,6 +176,7 @@ class Advice:
     seconds: float = 0.0
     description: str = ""  #: the model file's description (it cites the model's source)
     run_refused: str = ""  #: why the comparison run was not made although asked for (an input that identifies nothing)
+    text: ModelText | None = None  #: the model as written, for the text (equations shown once, then referred to)
 
     @property
     def applicable(self) -> tuple[Candidate, ...]:
@@ -260,4 +265,6 @@ class Advice:
                 lines.append("  none converged within the run (into its convergence band): see the report's plots")
             lines.append(f"  converged at: the time after which the error stays within its band ({MISSING}: not within the run)")
         lines.append(f"(advice in {self.seconds:.1f} s wall time, after start-up)")
+        if self.text is not None:   # the model once as written; long equations in the messages refer to it
+            lines = lines[:1] + self.text.lines() + [self.text.refer(line) for line in lines[1:]]
         return "\n".join(lines)

@@ -20,6 +20,7 @@ from ._advice import Advice, Candidate
 from ._constructions import evaluate
 from ._context import Context, build_context, file_true_parameters, file_unknown_params
 from ._kinds import try_kind
+from ._present import model_text
 from ._rank import compare, demoted, screen
 
 __all__ = ["advise"]
@@ -230,6 +231,7 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
                     ctx.scenario.describe() + ", x̂(0) = (" + ", ".join(f"{v:.3g}" for v in ctx.xhat0) + ")")
     if say and progress is True and sys.stderr.isatty():
         sys.stderr.write("\r\033[K")
+    text = model_text(ctx.system, mf.path if mf is not None else None, plant_states=system.states)
     return Advice(system.name, ctx.system, ctx.report, tuple(candidates), tuple(ctx.notes), tuple(ctx.blockers), forms,
                   extra, None if scores is None else tuple(scores), runres, scenario, time.perf_counter() - t0,
-                  mf.description if mf is not None else "", refused)
+                  mf.description if mf is not None else "", refused, text)

@@ -127,7 +127,7 @@ def derivative_map(system: System, *, max_order: int | None = None,
 
 
 #: Symbolic seconds the search for x = Ψ(output derivatives) may take before the advisor gives up on it.
-DERIVATIVE_MAP_SECONDS = 10.0
+DERIVATIVE_MAP_SECONDS = 3.0
 
 
 def _derivative_map(system: System, max_order: int | None,

@@ -8,6 +8,7 @@ Each trial takes the shared :class:`~nlobs.advise._context.Context` and returns 
 
 from __future__ import annotations
 
+import os
 import re
 import time
 import warnings
@@ -21,7 +22,8 @@ from ..design import DESIGNS, ObserverDesign, design_from_config
 from ..design._high_gain import triangular_chains
 from ..design._kkl import MAX_FEATURES, _max_degree
 from ..design._registry import options_of
-from ..errors import FormError, ModelError, NlobsError, PreconditionError, ShapeError
+from ..errors import FormError, ModelError, NlobsError, PreconditionError, ShapeError, SymbolicBudgetError
+from ..model._budget import symbolic_budget, symbolic_seconds
 from ..model import LTI, TIME, System
 from ..references import cite
 from ._advice import Candidate
@@ -33,6 +35,19 @@ __all__ = ["TRIALS", "REFERENCES", "try_kind", "MHE_SAMPLE_BUDGET"]
 
 #: The largest number of measurement updates `--run` gives a moving-horizon estimator (one NLP each).
 MHE_SAMPLE_BUDGET = 200
+
+#: Seconds of symbolic work (SymPy) one kind's trial may take in the advisor before it is reported as "not checked
+#: within budget" (a design called directly keeps the larger budget of one step, NLOBS_SYMBOLIC_SECONDS); the
+#: environment variable NLOBS_KIND_SECONDS overrides it.
+KIND_SECONDS = 5.0
+
+
+def kind_seconds() -> float:
+    """The advisor's symbolic budget per kind: ``$NLOBS_KIND_SECONDS``, else :data:`KIND_SECONDS`."""
+    try:
+        return max(0.1, float(os.environ.get("NLOBS_KIND_SECONDS", KIND_SECONDS)))
+    except ValueError:
+        return KIND_SECONDS
 
 #: The work each kind implements, as a user reads it.
 REFERENCES: dict[str, str] = {
@@ -917,7 +932,13 @@ def try_kind(ctx: Context, kind: str) -> Candidate:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             try:
-                cand = TRIALS[kind](ctx)
+                with symbolic_budget(f"advise: {kind}", seconds=min(kind_seconds(), symbolic_seconds())):
+                    cand = TRIALS[kind](ctx)
+            except SymbolicBudgetError:
+                limit = min(kind_seconds(), symbolic_seconds())
+                cand = Candidate(kind, "fails", f"not checked within budget (its symbolic work took more than {limit:g} s, the "
+                                 "advisor's budget per kind; the environment variable NLOBS_KIND_SECONDS raises it)", {},
+                                 REFERENCES.get(kind, ""))
             except (NlobsError, ValueError, TypeError, ArithmeticError, np.linalg.LinAlgError) as e:
                 cand = Candidate(kind, "fails", f"the automatic design failed: {type(e).__name__}: {_clean(e)}", {},
                                  REFERENCES.get(kind, ""))
