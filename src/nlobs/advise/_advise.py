@@ -231,7 +231,8 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
                     ctx.scenario.describe() + ", x̂(0) = (" + ", ".join(f"{v:.3g}" for v in ctx.xhat0) + ")")
     if say and progress is True and sys.stderr.isatty():
         sys.stderr.write("\r\033[K")
-    text = model_text(ctx.system, mf.path if mf is not None else None, plant_states=system.states)
+    text = model_text(ctx.system, mf.path if mf is not None else None, plant_states=system.states,
+                      units=mf.units if mf is not None else getattr(system, "units", None))
     return Advice(system.name, ctx.system, ctx.report, tuple(candidates), tuple(ctx.notes), tuple(ctx.blockers), forms,
                   extra, None if scores is None else tuple(scores), runres, scenario, time.perf_counter() - t0,
                   mf.description if mf is not None else "", refused, text)

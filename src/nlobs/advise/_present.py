@@ -13,7 +13,7 @@ expressions in that form. A user reads them against the file they wrote, so the 
 from __future__ import annotations
 
 import tomllib
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -33,6 +33,7 @@ class ModelText:
     rows: tuple[tuple[str, str], ...]                 # ("vy'", "(Ff*cos(delta) + Fr)/m - vx*r"), ("yr", "r")
     definitions: tuple[tuple[str, str], ...] = ()     # ("af", "delta - atan((vy + lf*r)/vx)")
     quoted: tuple[tuple[str, str], ...] = ()          # (substituted text, reference) longest first
+    units: tuple[tuple[str, str], ...] = ()           # the file's [units]: ("x", "m"), ("t", "s")
 
     def lines(self, indent: str = "  ") -> list[str]:
         """The model once, as written."""
@@ -59,7 +60,8 @@ def _written(path: str | None) -> dict[str, Any] | None:
         return None
 
 
-def model_text(system: System, path: str | None = None, plant_states: Sequence[str] | None = None) -> ModelText:
+def model_text(system: System, path: str | None = None, plant_states: Sequence[str] | None = None,
+               units: Mapping[str, str] | None = None) -> ModelText:
     """The rows of `system` as the file at `path` writes them (else with parameters by name), with the
     substituted strings that messages quote for each row. `plant_states` limits the rows to the model's own
     states (unknown parameters appended to the state have no equation of their own to show)."""
@@ -87,4 +89,4 @@ def model_text(system: System, path: str | None = None, plant_states: Sequence[s
             quoted.append((sub, f"[{y} above]"))
     definitions = tuple((k, " ".join(v.split())) for k, v in defs.items() if isinstance(v, str))
     quoted.sort(key=lambda q: -len(q[0]))
-    return ModelText(tuple(rows), definitions, tuple(quoted))
+    return ModelText(tuple(rows), definitions, tuple(quoted), tuple((units or {}).items()))
