@@ -221,6 +221,8 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
             say(f"advise {system.name}: running {n_run} design(s) ...")
         scores, runres = compare(ctx, candidates, engine=engine)
         candidates = demoted(candidates, scores, "the comparison run" if ctx.recording is not None else "the [simulation] run")
+        left_out = [c for c in candidates if c.applies and not c.runnable]   # not in the run: screened on its start
+        candidates = demoted(candidates, screen(ctx, left_out), "the start of the [simulation] run")
         scores = [s for s in scores if s.status != "diverged"]
         if scores and ctx.recording is None and ctx.scenario.process_std is None:
             ctx.notes.append("the comparison run has no process noise and the model is exact: estimators that lean on the "

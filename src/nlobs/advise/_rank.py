@@ -125,14 +125,14 @@ def compare(ctx: Context, candidates: Sequence[Candidate], *, progress: bool | C
 
 
 def screen(ctx: Context, candidates: Sequence[Candidate]) -> list[Score]:
-    """The applicable candidates that blow up on the first part of the scenario (2 % of it, at least 20 samples),
-    run on the virtual machine: what "applies" promises without ``--run`` (the design runs on the file's
+    """The applicable candidates (those left out of ``--run`` too: a moving-horizon estimator on many samples) that
+    blow up on the first part of the scenario (2 % of it, at least 20 samples), run on the virtual machine: what "applies" promises without ``--run`` (the design runs on the file's
     [simulation], at least where a tuning mistake shows: an unstable first step, sigma points outside the model's
     domain). Returns one "diverged" score per candidate that blew up."""
     sc = ctx.scenario
     if sc is None or ctx.recording is not None:
         return []
-    designs = {c.kind: c.design for c in candidates if c.applies and c.runnable and c.design is not None}
+    designs = {c.kind: c.design for c in candidates if c.applies and c.design is not None}
     heavy = {k: d for k, d in designs.items() if d.needs_mx}
     light = {k: d for k, d in designs.items() if k not in heavy}
     period = sc.sample_period or sc.dt
