@@ -189,3 +189,15 @@ sample_period = 1.0
     assert "V = ocv - v1 - R0*I" in text and "where ocv = 3.0 + 1.1*soc" in text
     substituted = "-3*I/200 + 11*soc**3/20 - 9*soc**2/10 + 11*soc/10 - v1 + 3"
     assert substituted not in text and text.count("[V above]") >= 2
+
+
+def test_progress_names_a_kind_that_takes_long(monkeypatch):
+    from nlobs.advise import _advise as mod
+
+    monkeypatch.setattr(mod, "SLOW_KIND", 0.0)     # every kind counts as slow: its name must appear on its own line
+    said: list[str] = []
+    sim = _sim([2.0, 1.0], {"D": "0.3"}, t_final=2.0, dt=0.01, sample_period=0.1, noise={"y": 0.02})
+    advise(chemostat(), simulation=sim, kinds=["ekf", "luenberger"], progress=said.append)
+    import time as _t
+    _t.sleep(0.05)
+    assert any("still trying ekf" in m for m in said) or any("still trying luenberger" in m for m in said)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -24,6 +25,10 @@ from ._present import model_text
 from ._rank import compare, demoted, screen
 
 __all__ = ["advise"]
+
+
+#: Seconds after which the progress names the kind being tried on a line of its own (in logs as on a terminal).
+SLOW_KIND = 3.0
 
 
 def _progress_writer(progress: bool | Callable[[str], None] | None) -> Callable[[str], None] | None:
@@ -202,12 +207,22 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
     if say:
         say(f"advise {system.name}: trying {len(chosen)} observer kinds ({time.perf_counter() - t_ctx:.1f} s so far) ...")
     for i, kind in enumerate(chosen):
+        slow = None
         if say:
             say(f"advise {system.name}: [{i + 1}/{len(chosen)}] {kind} ...")
-        candidates.append(try_kind(ctx, kind))
+            # a kind that takes long is named on its own line in logs too (a terminal shows every kind in place)
+            slow = threading.Timer(SLOW_KIND, say, (f"advise {system.name}: still trying {kind} ({i + 1} of {len(chosen)}, "
+                                                    f"more than {SLOW_KIND:g} s) ...",))
+            slow.daemon = True
+            slow.start()
+        try:
+            candidates.append(try_kind(ctx, kind))
+        finally:
+            if slow is not None:
+                slow.cancel()
     if not run and not ctx.blockers and not ctx.run_blockers:
         if say:
-            say(f"advise {system.name}: screening the applicable designs on the start of the [simulation] run ...")
+            say(f"advise {system.name}: screening the applicable designs on the start of the simulation run ...")
         candidates = demoted(candidates, screen(ctx, candidates), "the start of the [simulation] run")
     scores = runres = None
     scenario = ""
