@@ -13,6 +13,7 @@ from ..analysis import ObservabilityReport
 from ..design import Check, ObserverDesign
 from ..model import System
 from ..simulate import Run
+from ._present import ModelText
 
 __all__ = ["Candidate", "Score", "Advice", "STATUSES", "jsonable"]
 
@@ -114,9 +115,13 @@ class Score:
     final_error: float | None = None
     detail: str = ""
     parameters: Mapping[str, Any] = field(default_factory=dict)
+    #: RMS over the last 20 % of the error with each state divided by its scale on the run (its range): what the
+    #: ranking uses, so that the state with the largest units does not decide it alone (None on a recording)
+    normalised_rms: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return jsonable({"kind": self.kind, "status": self.status, "rms_error": self.rms_error,
+                         "normalised_rms": self.normalised_rms,
                          "convergence_time": self.convergence_time, "final_error": self.final_error, "detail": self.detail,
                          **({"parameters": dict(self.parameters)} if self.parameters else {})})
 
@@ -152,6 +157,9 @@ class Advice:
     run_refused : str
         Why ``run=True`` ran nothing although designs apply (the simulation's inputs do not identify an unknown
         parameter: refused before any estimation); empty otherwise.
+    text : ModelText or None
+        The model as written (the file's strings), shown once at the top of the text; the long substituted
+        equations that messages quote are replaced there by references to it.
     """
 
     model: str
@@ -168,6 +176,7 @@ class Advice:
     seconds: float = 0.0
     description: str = ""  #: the model file's description (it cites the model's source)
     run_refused: str = ""  #: why the comparison run was not made although asked for (an input that identifies nothing)
+    text: ModelText | None = None  #: the model as written, for the text (equations shown once, then referred to)
 
     @property
     def applicable(self) -> tuple[Candidate, ...]:
@@ -237,12 +246,16 @@ class Advice:
                          "Nothing was run: blocked (see BLOCKED above), no estimation was attempted." if self.blockers else
                          "Nothing to run: no observer kind applies.")
         elif self.scores is not None:
-            lines.append(f"Ranking on {self.scenario} (error RMS over the last 20 %, then convergence time):")
+            normalised = any(s.normalised_rms is not None for s in self.scores)
+            lines.append(f"Ranking on {self.scenario} (error RMS over the last 20 %"
+                         + (", each state relative to its range on the run (rel.)" if normalised else "")
+                         + ", then convergence time):")
             for i, s in enumerate(self.scores):
                 if s.status == "ok":
                     tc = MISSING if s.convergence_time is None else f"{s.convergence_time:.3g}"
-                    lines.append(f"  {i + 1:>2}. {s.kind:<24} RMS {s.rms_error:.3g}  converged at {tc}  final {s.final_error:.3g}"
-                                 + (f"  {s.detail}" if s.detail else ""))
+                    rel = f"rel. {s.normalised_rms:.3g}  " if s.normalised_rms is not None else ""
+                    lines.append(f"  {i + 1:>2}. {s.kind:<24} {rel}RMS {s.rms_error:.3g}  converged at {tc}  "
+                                 f"final {s.final_error:.3g}" + (f"  {s.detail}" if s.detail else ""))
                     for k, v in s.parameters.items():  # unknown parameters: the estimate at the final time
                         est = f"{v['estimate']:.6g}" + ("" if v.get("std") is None else f" ± {2 * v['std']:.3g} (2σ)")
                         lines.append(f"      {k} = {est}" + ("" if v.get("true") is None else f", true {v['true']:.6g}"))
@@ -252,4 +265,6 @@ class Advice:
                 lines.append("  none converged within the run (into its convergence band): see the report's plots")
             lines.append(f"  converged at: the time after which the error stays within its band ({MISSING}: not within the run)")
         lines.append(f"(advice in {self.seconds:.1f} s wall time, after start-up)")
+        if self.text is not None:   # the model once as written; long equations in the messages refer to it
+            lines = lines[:1] + self.text.lines() + [self.text.refer(line) for line in lines[1:]]
         return "\n".join(lines)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -20,9 +21,14 @@ from ._advice import Advice, Candidate
 from ._constructions import evaluate
 from ._context import Context, build_context, file_true_parameters, file_unknown_params
 from ._kinds import try_kind
-from ._rank import compare
+from ._present import model_text
+from ._rank import compare, demoted, screen
 
 __all__ = ["advise"]
+
+
+#: Seconds after which the progress names the kind being tried on a line of its own (in logs as on a terminal).
+SLOW_KIND = 3.0
 
 
 def _progress_writer(progress: bool | Callable[[str], None] | None) -> Callable[[str], None] | None:
@@ -201,9 +207,23 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
     if say:
         say(f"advise {system.name}: trying {len(chosen)} observer kinds ({time.perf_counter() - t_ctx:.1f} s so far) ...")
     for i, kind in enumerate(chosen):
+        slow = None
         if say:
             say(f"advise {system.name}: [{i + 1}/{len(chosen)}] {kind} ...")
-        candidates.append(try_kind(ctx, kind))
+            # a kind that takes long is named on its own line in logs too (a terminal shows every kind in place)
+            slow = threading.Timer(SLOW_KIND, say, (f"advise {system.name}: still trying {kind} ({i + 1} of {len(chosen)}, "
+                                                    f"more than {SLOW_KIND:g} s) ...",))
+            slow.daemon = True
+            slow.start()
+        try:
+            candidates.append(try_kind(ctx, kind))
+        finally:
+            if slow is not None:
+                slow.cancel()
+    if not run and not ctx.blockers and not ctx.run_blockers:
+        if say:
+            say(f"advise {system.name}: screening the applicable designs on the start of the simulation run ...")
+        candidates = demoted(candidates, screen(ctx, candidates), "the start of the [simulation] run")
     scores = runres = None
     scenario = ""
     refused = ""
@@ -215,6 +235,10 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
             n_run = sum(c.applies and c.runnable for c in candidates)
             say(f"advise {system.name}: running {n_run} design(s) ...")
         scores, runres = compare(ctx, candidates, engine=engine)
+        candidates = demoted(candidates, scores, "the comparison run" if ctx.recording is not None else "the [simulation] run")
+        left_out = [c for c in candidates if c.applies and not c.runnable]   # not in the run: screened on its start
+        candidates = demoted(candidates, screen(ctx, left_out), "the start of the [simulation] run")
+        scores = [s for s in scores if s.status != "diverged"]
         if scores and ctx.recording is None and ctx.scenario.process_std is None:
             ctx.notes.append("the comparison run has no process noise and the model is exact: estimators that lean on the "
                              "model (an open-loop copy of a stable model, a tiny Q) look better here than on a real system; "
@@ -224,6 +248,8 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
                     ctx.scenario.describe() + ", x̂(0) = (" + ", ".join(f"{v:.3g}" for v in ctx.xhat0) + ")")
     if say and progress is True and sys.stderr.isatty():
         sys.stderr.write("\r\033[K")
+    text = model_text(ctx.system, mf.path if mf is not None else None, plant_states=system.states,
+                      units=mf.units if mf is not None else getattr(system, "units", None))
     return Advice(system.name, ctx.system, ctx.report, tuple(candidates), tuple(ctx.notes), tuple(ctx.blockers), forms,
                   extra, None if scores is None else tuple(scores), runres, scenario, time.perf_counter() - t0,
-                  mf.description if mf is not None else "", refused)
+                  mf.description if mf is not None else "", refused, text)

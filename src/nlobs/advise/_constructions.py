@@ -29,6 +29,7 @@ from ..design import observer_gain
 from ..engine import to_casadi
 from ..errors import FormError, PreconditionError
 from ..model import TIME, System, symbol
+from ..model._budget import SymbolicTimeLimit, symbolic_time_limit
 
 __all__ = ["jacobians_at", "find_chains", "derivative_map", "exact_output_injection", "kkl_linear", "pebo_linear", "banks_gain", "banks_necessary",
            "cascade_partition", "rational"]
@@ -115,6 +116,22 @@ def derivative_map(system: System, *, max_order: int | None = None,
     ``D{i}_{output}`` symbols of :func:`nlobs.design.design_high_gain_derivatives`, or None and the reason.
     When `lie` is a dict, it receives each D symbol's Lie derivative in (x, u, t), to evaluate Ψ along a run.
     """
+    try:
+        with symbolic_time_limit(DERIVATIVE_MAP_SECONDS):
+            return _derivative_map(system, max_order, lie)
+    except SymbolicTimeLimit:
+        if lie is not None:
+            lie.clear()
+        return None, (f"not checked within budget (solving the output derivatives for the states took more than "
+                      f"{DERIVATIVE_MAP_SECONDS:g} s of symbolic work); give `xhat` = Ψ(D0_y, D1_y, ...) yourself")
+
+
+#: Symbolic seconds the search for x = Ψ(output derivatives) may take before the advisor gives up on it.
+DERIVATIVE_MAP_SECONDS = 3.0
+
+
+def _derivative_map(system: System, max_order: int | None,
+                    lie: dict[sp.Symbol, sp.Expr] | None) -> tuple[dict[str, sp.Expr] | None, str]:
     n = system.n_states
     order = max_order if max_order is not None else n
     f, h = system.substituted()

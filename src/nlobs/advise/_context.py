@@ -338,6 +338,8 @@ def _region(system: System, run: Run, names_u: Sequence[str]) -> dict[str, tuple
 
 
 def _xhat0(x0: np.ndarray, run: Run | None, scale: np.ndarray, estimated: Sequence[int], guesses: Sequence[float]) -> np.ndarray:
+    """x̂(0): x(0) moved by half each state's scale (alternating signs), inside the box the run visits (so inside
+    every region a design assumes from that box: a state of charge stays below 1, a concentration positive)."""
     out = np.array(x0, dtype=float)
     sign = 1.0
     for i in range(out.size):
@@ -347,9 +349,12 @@ def _xhat0(x0: np.ndarray, run: Run | None, scale: np.ndarray, estimated: Sequen
         # half the state's scale, but no more than its initial size (or a tenth of its range) for a state that grows
         # far from where it starts
         s0 = min(scale[i], max(abs(x0[i]), 0.1 * scale[i]))
-        out[i] = x0[i] + 0.5 * s0 * sign
-        if keeps and out[i] * x0[i] <= 0:  # a state that keeps its sign on the run (a level, a concentration) keeps it
-            out[i] = x0[i] * (1.5 if sign > 0 else 0.5)
+        lo, hi = (float(np.min(run.x[:, i])), float(np.max(run.x[:, i]))) if run is not None else (-np.inf, np.inf)
+        tries = [x0[i] + 0.5 * s0 * sign, x0[i] - 0.5 * s0 * sign]
+        if keeps:  # a state that keeps its sign on the run (a level, a concentration) keeps it
+            tries = [v if v * x0[i] > 0 else x0[i] * (1.5 if v > x0[i] else 0.5) for v in tries]
+        inside = [v for v in tries if lo <= v <= hi]
+        out[i] = inside[0] if inside else float(np.clip(tries[0], lo, hi))
         sign = -sign
     for i, g in zip(estimated, guesses):
         out[i] = g
@@ -454,9 +459,11 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
         xh0 = _xhat0(sc.x0, nominal, scale, est, [float(model.params[k]) for k in unknown])
     else:
         xh0 = np.array([0.0] * model.n_states + [float(model.params[k]) for k in unknown])
-    # P(0): the state's range on the run, and at least the offset of x̂(0) chosen above (the initial uncertainty)
-    offset = np.abs(xh0 - sc.x0) if sc is not None and sc.x0 is not None else np.zeros(system.n_states)
-    P0 = np.diag(np.maximum(scale, offset) ** 2)
+    # P(0): the initial uncertainty, i.e. the offset of x̂(0) from x(0) chosen above, at least a tenth of the state's
+    # range on the run; never the whole range squared (1e4 m² on a position that covers 100 m puts sigma points and
+    # EKF corrections far outside anything the model has seen)
+    offset = np.abs(xh0 - sc.x0) if sc is not None and sc.x0 is not None else scale
+    P0 = np.diag(np.maximum(np.minimum(offset, scale), 0.1 * scale) ** 2)
     ctx = Context(model, system, unknown, truth, sc, nominal, rep, rep_sig, omega_p, omega_o, scale, region, xh0, R, R_rate, Q,
                   P0, noise_note, notes=notes, recording=recording)
     blockers, info = _unobservable(model, rep, nominal, unknown)

@@ -8,6 +8,7 @@ Each trial takes the shared :class:`~nlobs.advise._context.Context` and returns 
 
 from __future__ import annotations
 
+import os
 import re
 import time
 import warnings
@@ -19,8 +20,10 @@ import sympy as sp
 
 from ..design import DESIGNS, ObserverDesign, design_from_config
 from ..design._high_gain import triangular_chains
+from ..design._kkl import MAX_FEATURES, _max_degree
 from ..design._registry import options_of
-from ..errors import FormError, ModelError, NlobsError, PreconditionError, ShapeError
+from ..errors import FormError, ModelError, NlobsError, PreconditionError, ShapeError, SymbolicBudgetError
+from ..model._budget import symbolic_budget, symbolic_seconds
 from ..model import LTI, TIME, System
 from ..references import cite
 from ._advice import Candidate
@@ -32,6 +35,19 @@ __all__ = ["TRIALS", "REFERENCES", "try_kind", "MHE_SAMPLE_BUDGET"]
 
 #: The largest number of measurement updates `--run` gives a moving-horizon estimator (one NLP each).
 MHE_SAMPLE_BUDGET = 200
+
+#: Seconds of symbolic work (SymPy) one kind's trial may take in the advisor before it is reported as "not checked
+#: within budget" (a design called directly keeps the larger budget of one step, NLOBS_SYMBOLIC_SECONDS); the
+#: environment variable NLOBS_KIND_SECONDS overrides it.
+KIND_SECONDS = 5.0
+
+
+def kind_seconds() -> float:
+    """The advisor's symbolic budget per kind: ``$NLOBS_KIND_SECONDS``, else :data:`KIND_SECONDS`."""
+    try:
+        return max(0.1, float(os.environ.get("NLOBS_KIND_SECONDS", KIND_SECONDS)))
+    except ValueError:
+        return KIND_SECONDS
 
 #: The work each kind implements, as a user reads it.
 REFERENCES: dict[str, str] = {
@@ -171,13 +187,13 @@ def _output_injection(ctx: Context) -> Candidate:
 
 # -- filters on the full model --------------------------------------------------------------------------------------
 def _domain_bounds(ctx: Context) -> dict[str, list[float | None]]:
-    """Bounds where the model's own domain needs them: a state under a square root (or another fractional power)
+    """Bounds where the model's own domain needs them: a state under a square root (or another fractional power), in a denominator
     or a logarithm, which keeps its sign along the run, is kept on that side of 0 (tank levels ≥ 0)."""
     if ctx.nominal is None:
         return {}
     f, h = ctx.system.substituted()
     args = [a for e in (*f, *h) for a in e.atoms(sp.Pow, sp.log)
-            if isinstance(a, sp.log) or (isinstance(a, sp.Pow) and not a.exp.is_integer)]
+            if isinstance(a, sp.log) or (isinstance(a, sp.Pow) and (not a.exp.is_integer or a.exp.is_negative))]
     out: dict[str, list[float | None]] = {}
     for i, (name, sym) in enumerate(zip(ctx.system.states, ctx.system.x)):
         if not any(sym in a.args[0].free_symbols for a in args):
@@ -199,11 +215,22 @@ def _filters(ctx: Context, kind: str) -> Candidate:
     bounds = _domain_bounds(ctx)
     if bounds:
         opts["bounds"] = bounds
+    spread = ""
+    if kind == "ukf" and ctx.region:
+        # sigma points at x̂ ± α·√n·σ_i: keep them within half the visited box's width around x̂ (alpha <= 1)
+        width = np.array([ctx.region[s][1] - ctx.region[s][0] for s in ctx.system.states])
+        sd = np.sqrt(np.diag(ctx.P0))
+        alpha = float(min(1.0, np.min(0.5 * width / (np.sqrt(ctx.system.n_states) * np.maximum(sd, 1e-300)))))
+        if alpha < 1.0:
+            alpha = float(f"{max(alpha, 1e-3):.3g}")
+            opts.update({"alpha": alpha, "beta": 2.0})
+            spread = f"; sigma points within half the visited box (α = {alpha:g}, β = 2)"
     local = "locally observable (generic rank condition)" if ctx.report.observable else "observability not established"
     extra = (f"bounds {', '.join(f'{k} ≥ {v[0]:g}' if v[0] is not None else f'{k} ≤ {v[1]:g}' for k, v in bounds.items())} "
-             "(just inside the domain of the model's square roots / logarithms)") if bounds else ""
-    return t.design(opts, f"{local}; {ctx.noise_note}; P(0) = diag(range²). A local method: it converges from an "
-                    "x̂(0) close enough, with no global certificate", extra=extra)
+             "(just inside the domain of the model's square roots, logarithms and denominators)") if bounds else ""
+    return t.design(opts, f"{local}; {ctx.noise_note}; P(0) = diag(σ₀²) with σ₀ the offset of x̂(0) (at least 10 % of the "
+                    f"state's range on the run){spread}. A local method: it converges from an x̂(0) close enough, with no "
+                    "global certificate", extra=extra)
 
 
 def _mhe(ctx: Context) -> Candidate:
@@ -730,11 +757,17 @@ def _kkl_learned(ctx: Context) -> Candidate:
     dt = 0.05 / abs(lam[-1])
     t_final = float(f"{max(t_final, 20 * dt):.6g}")
     dt = t_final / max(1, round(t_final / dt))
-    opts: dict[str, Any] = {"region": box, "eigenvalues": lam, "n_trajectories": 40, "t_final": t_final, "dt": dt}
+    n_vars = (ctx.n + 1) * len(ctx.system.outputs) + len(ctx.system.outputs)   # (ξ, y)
+    degree = _max_degree(n_vars)
+    if not degree:
+        return t.fail(f"learning φᴸ needs more than {MAX_FEATURES:,} polynomial features even at degree 1 ((ξ, y) has {n_vars} "
+                      "entries for this many states and outputs); not tried")
+    opts: dict[str, Any] = {"region": box, "eigenvalues": lam, "n_trajectories": 40, "t_final": t_final, "dt": dt,
+                            "degree": degree}
     if consts:
         opts["inputs"] = consts
     return t.design(opts, f"φᴸ learned by least squares on 40 simulated runs from the visited box (polynomial features of "
-                    f"degree 3), Λ = −ω_o·diag(1, ..., 2); valid inside the box")
+                    f"degree {degree}), Λ = −ω_o·diag(1, ..., 2); valid inside the box")
 
 
 def _augmented(ctx: Context) -> Candidate:
@@ -899,7 +932,13 @@ def try_kind(ctx: Context, kind: str) -> Candidate:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             try:
-                cand = TRIALS[kind](ctx)
+                with symbolic_budget(f"advise: {kind}", seconds=min(kind_seconds(), symbolic_seconds())):
+                    cand = TRIALS[kind](ctx)
+            except SymbolicBudgetError:
+                limit = min(kind_seconds(), symbolic_seconds())
+                cand = Candidate(kind, "fails", f"not checked within budget (its symbolic work took more than {limit:g} s, the "
+                                 "advisor's budget per kind; the environment variable NLOBS_KIND_SECONDS raises it)", {},
+                                 REFERENCES.get(kind, ""))
             except (NlobsError, ValueError, TypeError, ArithmeticError, np.linalg.LinAlgError) as e:
                 cand = Candidate(kind, "fails", f"the automatic design failed: {type(e).__name__}: {_clean(e)}", {},
                                  REFERENCES.get(kind, ""))

@@ -3,8 +3,9 @@ r"""``--run``: every applicable design on the same measurements, ranked.
 The candidates run together in one simulation (one compiled step). A candidate that blows up is
 reported as diverged, with the time, and the others are run again without it.
 
-Ranking: by the error after convergence — the RMS of ‖x̂ − x‖ over the last 20 % of the run
-(:meth:`nlobs.Run.metrics`) — and, among errors within a factor 1.25 of each other (a tie at the
+Ranking: by the error after convergence — the RMS over the last 20 % of the run of x̂ − x with each
+state divided by its scale on the run (its range; so that a position in metres does not outweigh an
+angle in radians) — and, among errors within a factor 1.25 of each other (a tie at the
 precision such a run has), by the convergence time. On a recording there is no true state; the
 candidates are then ranked by the RMS of their innovations y_k − h(x̂_k⁻) over the last 20 % (what
 :func:`nlobs.estimate` records; y − h(x̂) for an observer without them).
@@ -25,7 +26,7 @@ from ..simulate import Run, estimate, simulate
 from ._advice import Candidate, Score
 from ._context import Context
 
-__all__ = ["compare", "rank", "residuals", "TIE"]
+__all__ = ["compare", "screen", "demoted", "rank", "residuals", "TIE"]
 
 #: Errors within this factor count as a tie, broken by the convergence time.
 TIE = 1.25
@@ -40,7 +41,11 @@ def _score(run: Run, name: str, ctx: Context) -> Score:
     params = _parameters(run, name, ctx)
     if run.x is not None:
         m = run.metrics(name)
-        return Score(name, "ok", m.rms_error, m.convergence_time, m.final_error, parameters=params)
+        err = run.error(name)
+        tail = run.t >= run.t[-1] - 0.2 * (run.t[-1] - run.t[0])
+        scaled = err[tail] / ctx.scale[:err.shape[1]]
+        nrms = float(np.sqrt(np.mean(scaled ** 2)))
+        return Score(name, "ok", m.rms_error, m.convergence_time, m.final_error, parameters=params, normalised_rms=nrms)
     resid, what = residuals(run, name, ctx.system)
     tail = run.t >= run.t[-1] - 0.2 * (run.t[-1] - run.t[0])
     ok = np.all(np.isfinite(resid), axis=1) & tail
@@ -80,17 +85,23 @@ def residuals(run: Run, name: str, system: System) -> tuple[np.ndarray, str]:
     return run.y - np.asarray(h, dtype=float).T, "output residual RMS"
 
 
+def _key(s: Score) -> float:
+    """The error a score is ranked by: per-state normalised when there is a true state, else the residual RMS."""
+    return s.normalised_rms if s.normalised_rms is not None else s.rms_error
+
+
 def rank(scores: Sequence[Score]) -> list[Score]:
-    """Best first: finite errors grouped within a factor :data:`TIE`, each group by convergence time; then the failures."""
-    ok = sorted((s for s in scores if s.status == "ok"), key=lambda s: s.rms_error)
+    """Best first: finite errors (per-state normalised, :attr:`Score.normalised_rms`) grouped within a factor
+    :data:`TIE`, each group by convergence time; then the failures."""
+    ok = sorted((s for s in scores if s.status == "ok"), key=_key)
     out: list[Score] = []
     i = 0
     while i < len(ok):
         j = i
-        while j + 1 < len(ok) and ok[j + 1].rms_error <= TIE * ok[i].rms_error:
+        while j + 1 < len(ok) and _key(ok[j + 1]) <= TIE * _key(ok[i]):
             j += 1
         group = ok[i:j + 1]
-        out += sorted(group, key=lambda s: (s.convergence_time is None, s.convergence_time or 0.0, s.rms_error))
+        out += sorted(group, key=lambda s: (s.convergence_time is None, s.convergence_time or 0.0, _key(s)))
         i = j + 1
     return out + [s for s in scores if s.status != "ok"]
 
@@ -111,6 +122,36 @@ def compare(ctx: Context, candidates: Sequence[Candidate], *, progress: bool | C
         if part is not None:
             run = part if run is None else _merge(run, part)
     return rank(scores), run
+
+
+def screen(ctx: Context, candidates: Sequence[Candidate]) -> list[Score]:
+    """The applicable candidates (those left out of ``--run`` too: a moving-horizon estimator on many samples) that
+    blow up on the first part of the scenario (2 % of it, at least 20 samples), run on the virtual machine: what "applies" promises without ``--run`` (the design runs on the file's
+    [simulation], at least where a tuning mistake shows: an unstable first step, sigma points outside the model's
+    domain). Returns one "diverged" score per candidate that blew up."""
+    sc = ctx.scenario
+    if sc is None or ctx.recording is not None:
+        return []
+    designs = {c.kind: c.design for c in candidates if c.applies and c.design is not None}
+    heavy = {k: d for k, d in designs.items() if d.needs_mx}
+    light = {k: d for k, d in designs.items() if k not in heavy}
+    period = sc.sample_period or sc.dt
+    t_pre = min(sc.t_final, max(0.02 * sc.t_final, 20 * period))
+    t_pre = max(sc.dt, round(t_pre / period) * period)
+    failed: list[Score] = []
+    for group in (light, *({k: d} for k, d in heavy.items())):
+        if group:
+            failed += _without_diverging(ctx, group, t_pre, "vm", None)[2]
+    return failed
+
+
+def demoted(candidates: Sequence[Candidate], scores: Sequence[Score], where: str) -> list[Candidate]:
+    """The candidates with each one whose run blew up (a "diverged" score) moved to "fails", with the measured reason:
+    "applies" means the auto-tuned design runs."""
+    bad = {s.kind: s for s in scores if s.status == "diverged"}
+    return [replace(c, status="fails", why=f"the auto-tuned design blew up on {where}: {bad[c.kind].detail} "
+                                         f"(tuning tried: {c.why})") if c.kind in bad and c.applies else c
+            for c in candidates]
 
 
 def _run_group(ctx: Context, designs: dict[str, Any], engine: str, progress: Any) -> tuple[Run | None, list[Score]]:

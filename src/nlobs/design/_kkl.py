@@ -20,6 +20,8 @@ Buisson-Fenet, Bahr, Di Meglio (2022), here without a neural network.
 
 from __future__ import annotations
 
+import math
+
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -52,6 +54,15 @@ def _features(V: Any, exps: list[tuple[int, ...]], lib: Any) -> Any:
                 term = term * V[i] ** k
         cols.append(term)
     return ca.vertcat(*cols)
+
+
+#: The most polynomial features the learned inverse fits (a dense normal matrix of this size is solved).
+MAX_FEATURES = 2000
+
+
+def _max_degree(n_vars: int, cap: int = 3) -> int:
+    """The largest polynomial degree ≤ `cap` whose monomials in `n_vars` variables stay within MAX_FEATURES (0: none)."""
+    return max((d for d in range(1, cap + 1) if math.comb(n_vars + d, d) <= MAX_FEATURES), default=0)
 
 
 def design_kkl_learned(system: System, *, region: Sequence[Sequence[float]], eigenvalues: Sequence[float] | None = None,
@@ -143,6 +154,13 @@ def design_kkl_learned(system: System, *, region: Sequence[Sequence[float]], eig
         raise PreconditionError(f"{caller}: `burn_in` = {burn:g} must be shorter than `t_final` = {t_final:g}")
 
     n_xi = (n + 1) * p
+    n_features = math.comb(n_xi + p + int(degree), int(degree))
+    if n_features > MAX_FEATURES:
+        raise PreconditionError(
+            f"{caller}: the learned inverse would need {n_features:,} monomial features (degree ≤ {int(degree)} in the "
+            f"n_ξ + p = {n_xi + p} inputs (ξ, y)); the limit is {MAX_FEATURES:,} (the least-squares fit grows as the cube of "
+            f"the feature count). Lower `degree`" + (f" (degree {_max_degree(n_xi + p)} fits)" if _max_degree(n_xi + p) else "")
+            + " or use another observer for a model with this many states and outputs")
     Lam = np.kron(np.eye(p), np.diag(lam))
     Bm = np.kron(np.eye(p), np.ones((n + 1, 1)))
     f, h = compile_system(system).bind()

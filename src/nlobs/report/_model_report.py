@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import html
 import platform
+from dataclasses import replace
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -15,7 +16,7 @@ from matplotlib.figure import Figure
 from .. import __version__
 from ..advise import Advice
 from ..references import bibliography
-from ._html import img, page, table
+from ._html import equations, img, page, table
 
 __all__ = ["model_report", "write_model_report", "parameter_estimates"]
 
@@ -52,7 +53,8 @@ def _errors_figure(adv: Advice, kinds: Sequence[str]) -> Figure:
     for j, k in enumerate(kinds):
         e = run.error_norm(k) if truth else np.linalg.norm(residuals(run, k, adv.system)[0], axis=1)
         ax.semilogy(run.t, np.maximum(e, 1e-16), lw=1.1, color=f"C{j % 10}", ls="-" if j < 10 else "--", label=k)
-    ax.set_xlabel("t")
+    t_unit = dict(adv.text.units).get("t") if adv.text is not None else None
+    ax.set_xlabel(f"t [{t_unit}]" if t_unit else "t")
     ax.set_ylabel("‖x̂ − x‖" if truth else "‖innovation‖")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize="small", ncol=3)
@@ -81,7 +83,8 @@ def model_report(adv: Advice, *, source: str = "") -> str:
         body.append("<ul>" + "".join(f"<li class='note'>{_esc(n)}</li>" for n in adv.notes) + "</ul>")
         cited_text += list(adv.notes)
     if adv.forms:
-        body.append("<h3>Observer forms</h3><ul>" + "".join(f"<li>{_esc(f)}</li>" for f in adv.forms) + "</ul>")
+        text_of = adv.text.refer if adv.text is not None else str
+        body.append("<h3>Observer forms</h3><ul>" + "".join(f"<li>{_esc(text_of(f))}</li>" for f in adv.forms) + "</ul>")
         cited_text += list(adv.forms)
     body.append(f"<details><summary>Observability report</summary><pre>{_esc(rep)}</pre></details>")
     cited_text.append(str(rep))
@@ -91,8 +94,9 @@ def model_report(adv: Advice, *, source: str = "") -> str:
     body.append("<p>" + ", ".join(f"{v} {k}" for k, v in counts.items() if v) + ". Each kind was tried with an automatic "
                 "tuning; the options column is what to paste into <code>[observers.NAME]</code>.</p>")
     rows = []
+    refer = adv.text.refer if adv.text is not None else (lambda text: text)
     for c in adv.candidates:
-        rows.append({"kind": c.kind, "status": c.status, "why": c.why, "reference": c.reference})
+        rows.append({"kind": c.kind, "status": c.status, "why": refer(c.why), "reference": c.reference})
         cited_text += [c.why, c.reference]
     body.append(_status_table(rows))
     designs = [c for c in adv.candidates if c.design is not None]
@@ -107,16 +111,21 @@ def model_report(adv: Advice, *, source: str = "") -> str:
         rank = 0
         for s in adv.scores:
             rank += s.status == "ok"
-            srows.append({"rank": rank if s.status == "ok" else None, "kind": s.kind, "rms_error": s.rms_error,
-                          "convergence_time": s.convergence_time, "final_error": s.final_error,
+            srows.append({"rank": rank if s.status == "ok" else None, "kind": s.kind, "normalised": s.normalised_rms,
+                          "rms_error": s.rms_error, "convergence_time": s.convergence_time, "final_error": s.final_error,
                           "status": s.status + (f": {s.detail}" if s.detail else "")})
-        body.append(table(srows, [("rank", "rank"), ("kind", "observer"), ("rms_error", "RMS error (last 20 %)"),
-                                  ("convergence_time", "convergence time"), ("final_error", "final error"),
-                                  ("status", "status")]))
-        body.append("<p class='note'>Ranked by the RMS error over the last 20 % of the run; errors within a factor 1.25 "
-                    "of each other are ordered by convergence time (— : never within the run).</p>")
+        body.append(table(srows, [("rank", "rank"), ("kind", "observer"),
+                                  ("normalised", "relative RMS error (each state / its range)"),
+                                  ("rms_error", "RMS error (last 20 %)"), ("convergence_time", "convergence time"),
+                                  ("final_error", "final error"), ("status", "status")]))
+        body.append("<p class='note'>Ranked by the RMS error over the last 20 % of the run with each state divided by its "
+                    "range on the run (so that no state's units decide alone); errors within a factor 1.25 of each other are "
+                    "ordered by convergence time (— : never within the run). A kind whose auto-tuned design blew up is listed "
+                    "above as not applying, with the time.</p>")
         ok = [s.kind for s in adv.scores if s.status == "ok"]
         run = adv.run
+        if run is not None and adv.text is not None and adv.text.units:
+            run = replace(run, info={**run.info, "units": dict(adv.text.units)})   # the file's [units] on the axes
         if run is not None and ok:
             body.append(img(_errors_figure(adv, ok), "error norms"))
             figs = []
@@ -131,7 +140,13 @@ def model_report(adv: Advice, *, source: str = "") -> str:
             body.append("<p class='note'>± 2σ from the observer's covariance, where it carries one (EKF, UKF, Kalman–Bucy); "
                         "the true value is the simulation's.</p>")
     # -- model and bibliography
-    body.append(f"<h2 id='model'>Model</h2><pre>{_esc(adv.system)}</pre>")
+    body.append("<h2 id='model'>Model</h2>" + equations(adv.system))
+    if adv.text is not None:
+        written = [{"row": k, "as written": v} for k, v in (*adv.text.rows, *adv.text.definitions)]
+        body.append("<details><summary>As written in the model file (definitions last)</summary>"
+                    + table(written, [("row", "equation / definition"), ("as written", "expression")]) + "</details>")
+        if adv.text.units:
+            body.append("<p class='note'>units: " + ", ".join(f"{_esc(k)} [{_esc(v)}]" for k, v in adv.text.units) + "</p>")
     if source:
         body.append(f"<p class='ref'>source: {_esc(source)}</p>")
     refs = bibliography(*cited_text)
