@@ -180,6 +180,10 @@ def test_refuses_observers_without_a_likelihood():
         fit_likelihood(nlobs.design_high_gain(system, theta=5.0), rec, ["a1"])
     with pytest.raises(nlobs.errors.ModelError, match="'b' is not a parameter"):
         fit_likelihood(nlobs.design_ekf(system, Q=np.eye(2), R=[[1.0]]), rec, ["b"])
+    t = np.r_[np.arange(50) * 0.1, 200 + np.arange(50) * 0.1]  # a gap the filter crosses in 235 sub-steps
+    gap = Recording.from_arrays(LINEAR, t, np.cos(t)[:, None], np.zeros((100, 1)))
+    with pytest.raises(nlobs.errors.DataError, match="from t = 4.9 to 200 .* split the recording at long gaps"):
+        log_likelihood(nlobs.design_ekf(LINEAR, Q=Q, R=R), gap, params=["k"])
 
 
 MODEL = '''name = "pend"

@@ -48,6 +48,8 @@ __all__ = ["log_likelihood", "fit_likelihood", "LikelihoodFit", "LIKELIHOOD_KIND
 
 #: Observer kinds whose innovations give a likelihood here (continuous-discrete, without state bounds).
 LIKELIHOOD_KINDS = ("ekf", "ukf")
+#: The most RK4 sub-steps per interval in the likelihood's recursion (all intervals take the same number).
+MAX_SUBSTEPS = 64
 INFORMATION = ("Fisher information of the innovations (expected Hessian of −log-likelihood, exact derivatives by "
                "forward automatic differentiation through the filter)")
 
@@ -229,10 +231,15 @@ class _Problem:
         t, u = recording.t, recording.u
         y = np.where(mask > 0, recording.y, 0.0)
         # sub-steps: the filter's own rule, run at the initial guess (the most it takes in one interval)
-        from ._recorded import estimate
+        from ..observer._compiled import compiled_observer
 
-        run = estimate(d, recording, on_missing=on_missing, max_step=max_step, engine=engine)
-        self.n_sub = max(1, int(run.info["integration"][d.method]["max_substeps"]))
+        traj = compiled_observer(d).run(t, y, u, mask=mask, max_step=max_step, engine=engine, name=caller)
+        self.n_sub = max(1, int(traj.substeps.max()))
+        if self.n_sub > MAX_SUBSTEPS:
+            k = int(np.argmax(traj.substeps))
+            raise DataError(f"{caller}: the filter takes {self.n_sub} RK4 sub-steps in the interval from t = {t[k]:g} to "
+                            f"{t[k + 1]:g} (the most in any interval); the likelihood's recursion takes the same number in "
+                            f"every interval, at most {MAX_SUBSTEPS}: split the recording at long gaps, or resample it")
         first = np.concatenate([[t[0], 0.0], u[0], u[0], y[0], mask[0]])
         rest = np.hstack([t[:-1, None], np.diff(t)[:, None], u[:-1], u[1:], y[1:], mask[1:]])
         self.A = np.vstack([first, rest])
