@@ -224,3 +224,15 @@ def test_the_smoother_predicts_as_the_filter_did(hold):
         info = run.info["integration"][d.method]
         assert info["max_substeps"] == 2 and info["replay_difference"] < 1e-12
         assert np.array_equal(run.observers[d.method].filtered, nlobs.estimate(d, rec, hold=hold, max_step=0.01).observers[d.method].xhat)
+
+
+def test_plot_of_a_smoothed_run_shows_the_filtered_estimate_too():
+    system, rec = _pendulum()
+    d = nlobs.design_ekf(system, Q=np.diag([1e-6, 1e-4]), R=[[0.05**2]], xhat0=[0.0, 0.0])
+    run = nlobs.estimate(d, rec, smooth=True)
+    fig = run.plot()
+    labels = [ln.get_label() for ln in fig.axes[1].get_lines()]
+    assert labels == ["true", "ekf (filtered)", "ekf (smoothed)"]
+    ys = [ln.get_ydata() for ln in fig.axes[1].get_lines()]
+    assert np.allclose(ys[1], run.observers["ekf"].filtered[:, 1]) and np.allclose(ys[2], run.observers["ekf"].xhat[:, 1])
+    assert len(fig.axes[2].get_lines()) == 2  # error norms: filtered (dotted) and smoothed

@@ -64,8 +64,9 @@ def _label(name: str, units: Mapping[str, str]) -> str:
 
 def plot_run(run: Run, path: str | None = None, *, observers: Sequence[str] | None = None, width: float = 6.4,
              title: str | None = None) -> Figure:
-    """One panel per state (true state in black, one line per observer) and, when the truth is
-    known, a last panel with ‖x̂ - x‖ on a log scale. Uses no GUI backend.
+    """One panel per state (true state in black, one line per observer; for a smoothed run the
+    smoothed estimate and, dotted, the filtered one) and, when the truth is known, a last panel with
+    ‖x̂ - x‖ on a log scale. Uses no GUI backend.
 
     Parameters
     ----------
@@ -96,13 +97,21 @@ def plot_run(run: Run, path: str | None = None, *, observers: Sequence[str] | No
         if run.x is not None and i < run.x.shape[1]:  # recorded truth may lack the estimated parameters
             ax.plot(t, run.x[::k, i], color="k", lw=2.2, alpha=0.35, label="true", zorder=1)
         for j, name in enumerate(names):
-            ax.plot(t, run.observers[name].xhat[::k, i], color=f"C{j % 10}", lw=1.3, ls=LINESTYLES[j % len(LINESTYLES)],
-                    label=name, zorder=2 + j)
+            tr = run.observers[name]
+            if tr.filtered is not None:  # a smoothed run: the filter's estimate too, thin
+                ax.plot(t, tr.filtered[::k, i], color=f"C{j % 10}", lw=0.8, alpha=0.6, ls=":", label=f"{name} (filtered)",
+                        zorder=2 + j)
+            ax.plot(t, tr.xhat[::k, i], color=f"C{j % 10}", lw=1.3, ls=LINESTYLES[j % len(LINESTYLES)],
+                    label=f"{name} (smoothed)" if tr.smoothed else name, zorder=2 + j)
         ax.set_ylabel(_label(state, units))
         style_axes(ax)
     if rows > n:
         ax = axes[-1]
         for j, name in enumerate(names):
+            filtered = run.observers[name].filtered
+            if filtered is not None:
+                ef = np.linalg.norm(filtered[::k, :run.x.shape[1]] - run.x[::k], axis=1)
+                ax.plot(t, np.maximum(ef, 1e-16), color=f"C{j % 10}", lw=0.8, alpha=0.6, ls=":")
             e = run.error_norm(name)[::k]
             ax.plot(t, np.maximum(e, 1e-16), color=f"C{j % 10}", lw=1.3, ls=LINESTYLES[j % len(LINESTYLES)], label=name)
         ax.set_ylabel("‖x̂ − x‖")
