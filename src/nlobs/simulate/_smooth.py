@@ -17,9 +17,10 @@ of x_{k+1} and x_k):
   integrating Φ' = (∂f/∂x) Φ, Φ(t_k) = I, with the same RK4 stages as x (for explicit Runge-Kutta,
   the scheme applied to the variational equation gives exactly the Jacobian of the scheme's map).
 - UKF: the statistical linearisation of the sigma-point flow, F̄ = Σᵢ Wᶜᵢ (f(𝒳ᵢ) − f̄)(𝒳ᵢ − m)ᵀ P⁻¹
-  (for which the UKF's covariance flow is Ṗ = F̄P + PF̄ᵀ + Q), integrated the same way; this is the
-  continuous-discrete form of Särkkä's unscented RTS smoother, and for a linear model both are the
-  exact Kalman smoother.
+  (for which the UKF's covariance flow is Ṗ = F̄P + PF̄ᵀ + Q), integrated the same way: the cross-covariance
+  Φ P_k of x(t) and x_k then follows the extra differential equation of the continuous-discrete Gaussian
+  smoother of Särkkä & Sarmavuori (2013), the continuous-discrete counterpart of the unscented RTS
+  smoother of Särkkä (2008). For a linear model both smoothers are the exact Kalman smoother.
 
 The predictions x̂⁻, P⁻ and A_k come from one compiled replay of the filter over the same intervals with
 the same sub-step counts (so prediction and filter agree to rounding); the backward pass is a compiled
