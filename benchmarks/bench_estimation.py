@@ -140,7 +140,7 @@ def p11(runs: int) -> list[dict]:
                           params={"a1": A1 * 0.8, "a2": A2 * 1.2})
     d = nlobs.design_ekf(system, Q=np.diag([1e-10, SQ**2]), R=[[SR**2]], P0=np.eye(2), xhat0=[1.0, 0.0])
     t, u, Y, _ = pendulum_runs(runs)
-    print(f"P11: likelihood fit of a1, a2, log Q scale, log R scale, {runs} runs of {t.size} samples")
+    print(f"P11: likelihood fit of a1, a2, log_Q_scale, log_R_scale, {runs} runs of {t.size} samples")
     truth = np.array([A1, A2, 0.0, 0.0])
     inside, times, est, std, ok = [], [], [], [], 0
     first = None
@@ -160,7 +160,7 @@ def p11(runs: int) -> list[dict]:
     inside = np.array(inside)
     cover = inside.mean(axis=0)
     est, std = np.array(est), np.array(std)
-    names = ["a1", "a2", "log Q scale", "log R scale"]
+    names = ["a1", "a2", "log_Q_scale", "log_R_scale"]
     for j, n in enumerate(names):
         print(f"  {n:<12} coverage of ±2σ {100 * cover[j]:.1f} %   mean estimate {est[:, j].mean():.4f} (true {truth[j]:g})   "
               f"spread of estimates {est[:, j].std():.4f}   mean stated σ {std[:, j].mean():.4f}")

@@ -73,7 +73,7 @@ def test_linear_gaussian_loglik_matches_the_kalman_filter(kind):
     ll, g = log_likelihood(d, rec, on_missing="skip")
     assert g.shape == (0,)
     assert abs(ll - _numpy_loglik(t, u, y, 1.0, 1.0)) < 1e-9 * abs(ll)
-    ll2, g2 = log_likelihood(d, rec, learn_noise=True, values={"log Q scale": np.log(3.0), "log R scale": np.log(0.5)},
+    ll2, g2 = log_likelihood(d, rec, learn_noise=True, values={"log_Q_scale": np.log(3.0), "log_R_scale": np.log(0.5)},
                              on_missing="skip")
     assert abs(ll2 - _numpy_loglik(t, u, y, 3.0, 0.5)) < 1e-9 * abs(ll2)
     assert g2.shape == (2,)
@@ -145,8 +145,8 @@ def test_gradient_matches_central_differences(kind):
     system, rec = _pendulum(0, N=400)
     make = nlobs.design_ekf if kind == "ekf" else nlobs.design_ukf
     d = make(system.with_params(a1=5.0, a2=0.4), Q=np.diag([1e-6, 0.01]), R=[[0.0025]], xhat0=[1.0, 0.0])
-    names = ["a1", "a2", "log Q scale", "log R scale"]
-    at = {"a1": 5.0, "a2": 0.4, "log Q scale": 0.3, "log R scale": -0.2}
+    names = ["a1", "a2", "log_Q_scale", "log_R_scale"]
+    at = {"a1": 5.0, "a2": 0.4, "log_Q_scale": 0.3, "log_R_scale": -0.2}
     ll, g = log_likelihood(d, rec, params=["a1", "a2"], learn_noise=True, values=at)
     for i, name in enumerate(names):
         eps = 1e-5

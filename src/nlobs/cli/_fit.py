@@ -135,7 +135,7 @@ def _likelihood(args: argparse.Namespace, mf: Any, rec: Any) -> int:
                          f"kinds {', '.join(LIKELIHOOD_KINDS)}")
     design = design_from_config(mf.system, config.kind, config.options, where=f"{mf.path}: observers.{name}")
     params = _names(args.param)
-    initial = parse_assignments(args.initial or [], params + (["log Q scale", "log R scale"] if args.learn_noise else []),
+    initial = parse_assignments(args.initial or [], params + (["log_Q_scale", "log_R_scale"] if args.learn_noise else []),
                                 "--initial")
     res = fit_likelihood(design, rec, params, learn_noise=args.learn_noise, initial=initial, max_step=args.max_step,
                          on_missing="skip" if args.skip_missing else "error")

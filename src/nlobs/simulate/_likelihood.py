@@ -48,6 +48,8 @@ __all__ = ["log_likelihood", "fit_likelihood", "LikelihoodFit", "LIKELIHOOD_KIND
 
 #: Observer kinds whose innovations give a likelihood here (continuous-discrete, without state bounds).
 LIKELIHOOD_KINDS = ("ekf", "ukf")
+#: The names of the learnt noise log-scalings ρ_Q, ρ_R among the unknowns.
+NOISE_NAMES = ("log_Q_scale", "log_R_scale")
 #: The most RK4 sub-steps per interval in the likelihood's recursion (all intervals take the same number).
 MAX_SUBSTEPS = 64
 INFORMATION = ("Fisher information of the innovations (expected Hessian of −log-likelihood, exact derivatives by "
@@ -220,13 +222,16 @@ class _Problem:
                              f"{', '.join(system.param_names) or '(none)'}")
         if len(set(params)) != len(params):
             raise ModelError(f"{caller}: a parameter is named twice in {params}")
+        if learn_noise and set(params) & set(NOISE_NAMES):
+            raise ModelError(f"{caller}: a model parameter named {sorted(set(params) & set(NOISE_NAMES))[0]!r} clashes with the "
+                             "learnt noise scalings; rename it")
         mask = recording.check_finite(on_missing)
         if not mask.any():
             raise DataError(f"{caller}: the recording ({recording.source}) has no measured output sample")
         self.d, self.system, self.params, self.learn_noise = d, system, params, learn_noise
         npar = system.n_params
         self.free = [system.param_names.index(p) for p in params] + ([npar, npar + 1] if learn_noise else [])
-        self.names = tuple(params) + (("log Q scale", "log R scale") if learn_noise else ())
+        self.names = tuple(params) + (NOISE_NAMES if learn_noise else ())
         self.c = np.concatenate([np.asarray(system.param_values, dtype=float), [0.0, 0.0]])
         t, u = recording.t, recording.u
         y = np.where(mask > 0, recording.y, 0.0)
@@ -275,7 +280,7 @@ def log_likelihood(design: Any, recording: Recording, *, params: Sequence[str] =
     learn_noise : bool
         Also differentiate with respect to ρ_Q, ρ_R (Q = e^{ρ_Q} Q, R = e^{ρ_R} R), the gradient's last two entries.
     values : mapping, optional
-        Values replacing the model's (names from `params`, and ``"log Q scale"``, ``"log R scale"``).
+        Values replacing the model's (names from `params`, and ``"log_Q_scale"``, ``"log_R_scale"``).
     max_step, on_missing, engine
         As for :func:`nlobs.estimate` (the sub-steps per interval are the most the filter takes in one).
 
@@ -302,7 +307,7 @@ class LikelihoodFit:
     Attributes
     ----------
     names : tuple of str
-        The unknowns: parameter names, then ``"log Q scale"``, ``"log R scale"`` when the noise was learnt.
+        The unknowns: parameter names, then ``"log_Q_scale"``, ``"log_R_scale"`` when the noise was learnt.
     estimate, std : numpy.ndarray
         Estimates and standard errors (from the inverse Fisher information; NaN where it is singular).
     covariance : numpy.ndarray
@@ -340,14 +345,14 @@ class LikelihoodFit:
     def parameters(self) -> dict[str, dict[str, float]]:
         """``{name: {"estimate", "std"}}`` of the model parameters."""
         return {n: {"estimate": float(v), "std": float(s)} for n, v, s in zip(self.names, self.estimate, self.std)
-                if not n.startswith("log ")}
+                if n not in NOISE_NAMES}
 
     @property
     def noise(self) -> dict[str, dict[str, float]]:
         """``{"Q": {"scale", "log_scale", "log_std"}, "R": ...}`` when the noise was learnt (else empty)."""
         out = {}
         for key in ("Q", "R"):
-            name = f"log {key} scale"
+            name = f"log_{key}_scale"
             if name in self.names:
                 i = self.names.index(name)
                 out[key] = {"scale": float(np.exp(self.estimate[i])), "log_scale": float(self.estimate[i]),
