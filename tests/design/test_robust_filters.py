@@ -121,3 +121,42 @@ def test_iekf_options_are_checked():
         design_iekf(VDP, Q=np.eye(2), R=[[1.0]], iterations=0)
     with pytest.raises(PreconditionError, match="tol"):
         design_iekf(VDP, Q=np.eye(2), R=[[1.0]], tol=-1.0)
+
+
+def test_srukf_process_noise_is_first_order_in_the_interval():
+    # Q·τ added at the end of an interval differs from the UKF's ∫ΦQΦᵀ by O(τ²) per interval: halving
+    # the sampling interval at least halves the covariance gap (without the Q·τ term the gap would not shrink)
+    gaps = []
+    for ts in (0.1, 0.05):
+        a = design_srukf(LTI, Q=0.1 * np.eye(2), R=[[0.01]], P0=P0)
+        run = nlobs.simulate(LTI, {"a": a, "b": design_ukf(LTI, Q=0.1 * np.eye(2), R=[[0.01]], P0=P0)},
+                             t_final=3.0, dt=1e-3, x0=[1.0, 0.0], noise=nlobs.Noise.gaussian(0.1),
+                             sampling=nlobs.Sampling(ts), seed=0)
+        Pa = np.array([np.array(a.covariance(z)) for z in run.observers["a"].z[-5:]])
+        Pb = run.observers["b"].z[-5:, 2:].reshape(-1, 2, 2, order="F")
+        gaps.append(np.abs(Pa - Pb).max() / np.abs(Pb).max())
+    assert gaps[0] < 0.05 and gaps[0] / gaps[1] > 1.8, gaps
+
+
+def test_iekf_update_is_gauss_newton():
+    # an independent NumPy transcription of Bell & Cathey (1993): iterate, then the Joseph form with the last K, H
+    P = np.array([[4.0, 0.5], [0.5, 3.0]])
+    R = 1e-4 * np.eye(2)
+    xm, y = np.array([1.0, 1.0]), np.array([5.0, np.hypot(1.0, 4.0)])
+
+    def hH(x):
+        d1, d2 = np.hypot(*x), np.hypot(x[0] - 2, x[1])
+        return np.array([d1, d2]), np.array([[x[0] / d1, x[1] / d1], [(x[0] - 2) / d2, x[1] / d2]])
+
+    xi = xm.copy()
+    for _ in range(8):
+        hi, H = hH(xi)
+        K = P @ H.T @ np.linalg.inv(H @ P @ H.T + R)
+        xi = xm + K @ (y - hi - H @ (xm - xi))
+    IKH = np.eye(2) - K @ H
+    P_plus = IKH @ P @ IKH.T + K @ R @ K.T
+    d = design_iekf(RANGE, Q=np.zeros((2, 2)), R=R, P0=P, iterations=8, tol=0.0)
+    z = nlobs.Observer(d).update(0.0, np.concatenate([xm, P.reshape(-1)]), None, y)
+    np.testing.assert_allclose(z[:2], xi, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(z[2:].reshape(2, 2), P_plus, rtol=0, atol=1e-12)
+    assert np.abs(xi - [3.0, 4.0]).max() < 1e-3  # near the true point (exact ranges, a weak prior)
