@@ -22,7 +22,7 @@ __all__ = ["ParticleRun", "ParticleRunner"]
 
 _C_PF = r"""
 /* nlobs particle filter loop (see nlobs.observer._particles). Returns 0, or k + 1 when every particle's
-   weight vanished (or became non-finite) at sample k. */
+   weight vanished at sample k (every output non-finite: outside the model's domain). */
 #include <math.h>
 #include <stdint.h>
 #include <string.h>
@@ -102,7 +102,8 @@ static double loglik(const double* x, double t, const double* u, const double* y
   nlobs_meas(arg, res, iw, w, 0);
   for (i = 0; i < NY; ++i) e[i] = y[i] - yh[i];
   for (i = 0; i < NY; ++i) { v = 0; for (j = 0; j < NY; ++j) v += W[i * NY + j] * e[j]; q += v * v; }
-  return cst - 0.5 * q;
+  q = cst - 0.5 * q;
+  return q == q ? q : -INFINITY;  /* outside the model's domain (NaN output): weight 0 */
 }
 /* move every particle over one interval: nsub RK4 steps of length h, each followed by sqrt(h) Lq xi */
 static void move(double* X, long long M, double t0, double h, long long nsub, const double* u, const double* Lq, int noise) {
@@ -291,7 +292,15 @@ class ParticleRunner:
         dbl, ll = ctypes.POINTER(ctypes.c_double), ctypes.c_longlong
         fn.argtypes = [dbl] * 9 + [ll, ll, ll, ctypes.c_double, ll] + [dbl] * 6 + [ctypes.POINTER(ctypes.c_longlong)] + [dbl] * 5
         fn.restype = ll
+        lib.nlobs_normals.argtypes = [ll, ll, ctypes.POINTER(ctypes.c_double)]
+        lib.nlobs_normals.restype = ll
         self._fn, self._lib = fn, lib
+
+    def normals(self, n: int, seed: int) -> np.ndarray:
+        """`n` standard normal draws of the filter's generator (for checking it)."""
+        out = np.empty(int(n))
+        self._lib.nlobs_normals(int(seed), int(n), out.ctypes.data_as(ctypes.POINTER(ctypes.c_double)))
+        return out
 
     def run(self, t: Any, y: Any, u: Any = None, *, mask: Any = None, xhat0: Any = None, seed: int | None = None,
             particles: int | None = None, name: str | None = None) -> ParticleRun:
@@ -341,8 +350,9 @@ class ParticleRunner:
             k = int(rc - 1)
             last = xhat[k - 1] if k > 0 else x0
             raise FiniteEscapeError(label, float(t[k - 1] if k > 0 else t[0]), last, d.system.states, np.inf,
-                                    hint=f"at the sample t = {t[k]:g} every particle's likelihood vanished (the particles "
-                                         "missed the measurement): use more particles, a larger Q or R, or a better x̂0")
+                                    hint=f"at the sample t = {t[k]:g} every particle's likelihood vanished (the model's output is "
+                                         "not finite at all of them: outside its domain): start x̂0 inside the domain, "
+                                         "or use a smaller P0 or Q")
         return ParticleRun(t, xhat, P, ess, res > 0, llk, X.copy(), np.exp(lw))
 
 
