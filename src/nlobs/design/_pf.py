@@ -7,7 +7,7 @@ model, and the output map); :mod:`nlobs.observer._particles` runs them in a comp
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import casadi as ca
 import numpy as np
@@ -53,6 +53,10 @@ class ParticleDesign:
         Seed of the filter's random numbers: the same seed gives the same estimates.
     max_step : float or None
         Largest RK4 step between samples (None: one step per interval).
+    z_names : tuple of str
+        The columns of the filter's trace: x̂, P (column-major), ESS, resampled (0/1), log-likelihood.
+    covariance : casadi.Function
+        ``(z) -> P`` from a row of the trace.
     prop : casadi.Function
         ``(x, t, h, u) -> x(t + h)``, one RK4 step of the model.
     meas : casadi.Function
@@ -75,19 +79,14 @@ class ParticleDesign:
     meas: ca.Function
     certificate: Certificate
     z_names: tuple[str, ...] = field(default=())
+    covariance: ca.Function | None = None
 
-    sampled = True
-    update = True  # runs at sample instants (it has no continuous-time flow)
-    needs_mx = False
+    sampled: ClassVar[bool] = True
+    needs_mx: ClassVar[bool] = False
 
     @property
     def n_z(self) -> int:
         return len(self.z_names)
-
-    def covariance(self, z: Any) -> np.ndarray:
-        """The weighted particle covariance stored in a row `z` of the filter's trace."""
-        n = self.system.n_states
-        return np.asarray(z, dtype=float).reshape(-1)[n:n + n * n].reshape(n, n)
 
     def __str__(self) -> str:
         return f"pf observer for {self.system.name!r} ({self.scheme}, {self.particles} particles)\n" + str(self.certificate)
@@ -176,8 +175,10 @@ def design_pf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = No
     cert = Certificate(f"Particle filter ({scheme}, continuous-discrete)", REF, tuple(checks), values)
     names = ([f"xhat_{v}" for v in system.states] + [f"P_{i}_{j}" for j in range(n) for i in range(n)]
              + ["ess", "resampled", "loglik"])
+    zs = ca.SX.sym("z", len(names))
+    cov = ca.Function("pf_covariance", [zs], [ca.reshape(zs[n:n + n * n], n, n)], ["z"], ["P"])
     return ParticleDesign("pf", system, x0v, P0m, Qm, Rm, int(particles), scheme, float(threshold), int(seed),
-                          None if max_step is None else float(max_step), prop, meas, cert, tuple(names))
+                          None if max_step is None else float(max_step), prop, meas, cert, tuple(names), cov)
 
 
 def square_roots(d: ParticleDesign) -> tuple[np.ndarray, np.ndarray]:

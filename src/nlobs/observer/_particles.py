@@ -15,10 +15,11 @@ from typing import Any
 import numpy as np
 
 from ..design._pf import ParticleDesign, square_roots
+from ._base import AbstractObserver
 from ..engine._codegen import _build, _generate, _renamed, built_path, signature_of
 from ..errors import DataError, FiniteEscapeError, ShapeError
 
-__all__ = ["ParticleRun", "ParticleRunner"]
+__all__ = ["ParticleObserver", "ParticleRun", "ParticleRunner", "particle_runner"]
 
 _C_PF = r"""
 /* nlobs particle filter loop (see nlobs.observer._particles). Returns 0, or k + 1 when every particle's
@@ -142,6 +143,12 @@ static void systematic(const double* wk, long long M, long long* idx) {
     idx[i] = j;
   }
 }
+static void wmean(const double* X, const double* wk, long long M, double* out) {
+  long long i;
+  int a;
+  for (a = 0; a < NX; ++a) out[a] = 0;
+  for (i = 0; i < M; ++i) for (a = 0; a < NX; ++a) out[a] += wk[i] * X[i * NX + a];
+}
 static void gather(const double* X, const long long* idx, long long M, double* out) {
   long long i;
   for (i = 0; i < M; ++i) memcpy(out + i * NX, X + idx[i] * NX, sizeof(double) * NX);
@@ -151,7 +158,7 @@ long long nlobs_pf(const double* t, const double* U, const double* Y, const doub
                    const double* nsub, const double* x0, const double* L0, const double* Lq, long long N, long long M,
                    long long aux, double thresh, long long seed, double* X, double* Xb, double* lw, double* wk,
                    double* mu, double* lmu, long long* idx, double* xhat, double* P, double* ess, double* resampled,
-                   double* ll) {
+                   double* ll, double* xprior) {
   long long k, i;
   int a, b;
   double xi[NX + 1], s, sw2;
@@ -159,7 +166,7 @@ long long nlobs_pf(const double* t, const double* U, const double* Y, const doub
   for (i = 0; i < M; ++i) {
     for (a = 0; a < NX; ++a) xi[a] = gauss();
     for (a = 0; a < NX; ++a) { double acc = 0; for (b = 0; b <= a; ++b) acc += L0[a * NX + b] * xi[b]; X[i * NX + a] = x0[a] + acc; }
-    lw[i] = -log((double)M);
+    lw[i] = -log((double)M); wk[i] = 1.0 / M;
   }
   for (k = 0; k < N; ++k) {
     const double* y = Y + k * NY; const double* Wk = W + k * NY * NY;
@@ -170,6 +177,7 @@ long long nlobs_pf(const double* t, const double* U, const double* Y, const doub
       if (aux) {  /* Pitt & Shephard: first stage on the noise-free moves mu_i */
         memcpy(mu, X, sizeof(double) * M * NX);
         move(mu, M, t[k - 1], h, (long long)nsub[k - 1], u, Lq, 0);
+        wmean(mu, wk, M, xprior + k * NX);
         for (i = 0; i < M; ++i) { lmu[i] = loglik(mu + i * NX, t[k], U + k * NU, y, Wk, cst[k]); lw[i] += lmu[i]; }
         s = normalise(lw, wk, M);
         if (!(s == s)) return k + 1;
@@ -186,7 +194,10 @@ long long nlobs_pf(const double* t, const double* U, const double* Y, const doub
         ll[k] += s - log((double)M);
       } else {
         move(X, M, t[k - 1], h, (long long)nsub[k - 1], u, Lq, 1);
+        wmean(X, wk, M, xprior + k * NX);
       }
+    } else {
+      wmean(X, wk, M, xprior);
     }
     if (!aux || k == 0) {
       for (i = 0; i < M; ++i) lw[i] += loglik(X + i * NX, t[k], U + k * NU, y, Wk, cst[k]);
@@ -220,7 +231,7 @@ long long nlobs_pf(const double* t, const double* U, const double* Y, const doub
       systematic(wk, M, idx);
       gather(X, idx, M, Xb);
       memcpy(X, Xb, sizeof(double) * M * NX);
-      for (i = 0; i < M; ++i) lw[i] = -log((double)M);
+      for (i = 0; i < M; ++i) { lw[i] = -log((double)M); wk[i] = 1.0 / M; }
       resampled[k] = 1;
     }
   }
@@ -248,6 +259,9 @@ class ParticleRun:
     particles : numpy.ndarray of shape (M, n)
         The final particles (after the last resampling, if any).
     weights : numpy.ndarray of shape (M,)
+    xhat_prior : numpy.ndarray of shape (N, n)
+        The weighted mean of the particles moved to each sample, before its measurement is used (the
+        auxiliary filter: moved without noise).
     """
 
     t: np.ndarray
@@ -258,6 +272,7 @@ class ParticleRun:
     loglik: np.ndarray
     particles: np.ndarray
     weights: np.ndarray
+    xhat_prior: np.ndarray
 
     @property
     def z(self) -> np.ndarray:
@@ -290,7 +305,7 @@ class ParticleRunner:
         lib = ctypes.CDLL(str(path))
         fn = lib.nlobs_pf
         dbl, ll = ctypes.POINTER(ctypes.c_double), ctypes.c_longlong
-        fn.argtypes = [dbl] * 9 + [ll, ll, ll, ctypes.c_double, ll] + [dbl] * 6 + [ctypes.POINTER(ctypes.c_longlong)] + [dbl] * 5
+        fn.argtypes = [dbl] * 9 + [ll, ll, ll, ctypes.c_double, ll] + [dbl] * 6 + [ctypes.POINTER(ctypes.c_longlong)] + [dbl] * 6
         fn.restype = ll
         lib.nlobs_normals.argtypes = [ll, ll, ctypes.POINTER(ctypes.c_double)]
         lib.nlobs_normals.restype = ll
@@ -337,7 +352,7 @@ class ParticleRunner:
         lw, wk, lmu = np.empty(M), np.empty(M), np.empty(M)
         idx = np.empty(M, dtype=np.int64)
         xhat, P = np.full((N, self.n), np.nan), np.full((N, self.n, self.n), np.nan)
-        ess, res, llk = np.full(N, np.nan), np.zeros(N), np.full(N, np.nan)
+        ess, res, llk, prior = np.full(N, np.nan), np.zeros(N), np.full(N, np.nan), np.full((N, self.n), np.nan)
         p = ctypes.POINTER(ctypes.c_double)
         rc = self._fn(t.ctypes.data_as(p), U.ctypes.data_as(p), y.ctypes.data_as(p), W.ctypes.data_as(p), cst.ctypes.data_as(p),
                       nsub.ctypes.data_as(p), x0.ctypes.data_as(p), L0.ctypes.data_as(p), Lq.ctypes.data_as(p), N, M,
@@ -345,7 +360,7 @@ class ParticleRunner:
                       X.ctypes.data_as(p), Xb.ctypes.data_as(p), lw.ctypes.data_as(p), wk.ctypes.data_as(p),
                       mu.ctypes.data_as(p), lmu.ctypes.data_as(p), idx.ctypes.data_as(ctypes.POINTER(ctypes.c_longlong)),
                       xhat.ctypes.data_as(p), P.ctypes.data_as(p), ess.ctypes.data_as(p), res.ctypes.data_as(p),
-                      llk.ctypes.data_as(p))
+                      llk.ctypes.data_as(p), prior.ctypes.data_as(p))
         if rc:
             k = int(rc - 1)
             last = xhat[k - 1] if k > 0 else x0
@@ -353,7 +368,7 @@ class ParticleRunner:
                                     hint=f"at the sample t = {t[k]:g} every particle's likelihood vanished (the model's output is "
                                          "not finite at all of them: outside its domain): start x̂0 inside the domain, "
                                          "or use a smaller P0 or Q")
-        return ParticleRun(t, xhat, P, ess, res > 0, llk, X.copy(), np.exp(lw))
+        return ParticleRun(t, xhat, P, ess, res > 0, llk, X.copy(), np.exp(lw), prior)
 
 
 def _precision_factors(R: np.ndarray, measured: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -382,3 +397,60 @@ def particle_runner(design: ParticleDesign) -> ParticleRunner:
     if r is None or r.design is not design:
         r = _RUNNERS[id(design)] = ParticleRunner(design)
     return r
+
+
+class ParticleObserver(AbstractObserver):
+    """A particle filter as an observer of :func:`nlobs.simulate` and :func:`nlobs.estimate`.
+
+    A particle filter is not an ODE observer: its state is a random cloud of particles, run over a whole
+    recording at once by :class:`ParticleRunner`. The per-step calls of :class:`AbstractObserver`
+    (rhs, update, step, online use) are therefore refused with a clear error.
+    """
+
+    def __init__(self, design: ParticleDesign, name: str | None = None):
+        if not isinstance(design, ParticleDesign):
+            raise TypeError(f"ParticleObserver needs a ParticleDesign (from design_pf), got {type(design).__name__}")
+        self._design = design
+        self.name = name or design.method
+
+    @property
+    def design(self) -> ParticleDesign:  # type: ignore[override]
+        return self._design
+
+    def _refuse(self, what: str) -> Any:
+        raise TypeError(f"{what}: a particle filter ({self.name!r}) runs on a whole recording, not step by step; use "
+                        "nlobs.simulate, nlobs.estimate, or nlobs.observer.particle_runner(design).run(t, y, u)")
+
+    def rhs(self, t: float, z: Any, u: Any = None, y: Any = None) -> np.ndarray:
+        return self._refuse("rhs")
+
+    def estimate(self, t: float, z: Any, u: Any = None, y: Any = None) -> np.ndarray:
+        return self._refuse("estimate")
+
+    def update(self, t: float, z: Any, u: Any = None, y: Any = None, mask: Any = None) -> np.ndarray:
+        return self._refuse("update")
+
+    def step(self, z: Any, t: float, dt: float, u: Any, y: Any, *, substeps: int = 1) -> np.ndarray:
+        return self._refuse("step")
+
+    def start(self, xhat0: Any = None, *, max_step: float | None = None) -> Any:
+        return self._refuse("start")
+
+    def initial_state(self, xhat0: Any = None) -> np.ndarray:
+        """The mean of the initial particles (the design's x̂0 unless given)."""
+        x0 = self._design.xhat0 if xhat0 is None else np.asarray(xhat0, dtype=float).reshape(-1)
+        if x0.size != self.system.n_states:
+            raise ShapeError(f"`xhat0` must have {self.system.n_states} entries, got {x0.size}")
+        return x0
+
+    def trace_on(self, t: np.ndarray, y: np.ndarray, u: np.ndarray, *, mask: Any = None, xhat0: Any = None,
+                 name: str | None = None) -> tuple[ParticleRun, np.ndarray]:
+        """Run on samples and return the run and the output predicted before each sample, h(x̂⁻)."""
+        run = particle_runner(self._design).run(t, y, u, mask=mask, xhat0=xhat0, name=name or self.name)
+        N = run.t.size
+        uu = np.zeros((N, self.system.n_inputs)) if u is None else np.asarray(u, dtype=float).reshape(N, -1)
+        yp = np.asarray(self._design.meas.map(N)(run.xhat_prior.T, run.t[None, :], uu.T), dtype=float).T
+        return run, yp.reshape(N, self.system.n_outputs)
+
+    def __repr__(self) -> str:
+        return f"ParticleObserver({self.name!r}, scheme={self._design.scheme!r}, particles={self._design.particles})"
