@@ -27,10 +27,11 @@ _C_PF = r"""
 #include <math.h>
 #include <stdint.h>
 #include <string.h>
+#include <stdlib.h>
 static uint64_t rs[4];
 static void zigset(void);
 static uint64_t rotl(const uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
-static uint64_t next64(void) {
+static inline uint64_t next64(void) {
   const uint64_t result = rotl(rs[1] * 5, 7) * 9, t = rs[1] << 17;
   rs[2] ^= rs[0]; rs[3] ^= rs[1]; rs[1] ^= rs[2]; rs[0] ^= rs[3]; rs[2] ^= t; rs[3] = rotl(rs[3], 45);
   return result;
@@ -63,20 +64,31 @@ static void zigset(void) {
     fn[i] = exp(-.5 * dn * dn); wn[i] = dn / m1;
   }
 }
-static double gauss(void) {
+static double gauss_slow(int iz, int32_t hz);
+static inline double gauss(void) {  /* the fast path (about 99 % of the draws), inlined */
+  uint64_t b = next64();
+  int iz = (int)(b & 127);
+  int32_t hz = (int32_t)(uint32_t)(b >> 32);
+  long long ahz = hz < 0 ? -(long long)hz : (long long)hz;
+  if (ahz < kn[iz]) return hz * wn[iz];
+  return gauss_slow(iz, hz);
+}
+static __attribute__((noinline)) double gauss_slow(int iz, int32_t hz) {
   const double r = 3.442620;
   for (;;) {
-    uint64_t b = next64();
-    int iz = (int)(b & 127);
-    int32_t hz = (int32_t)(uint32_t)(b >> 32);
-    long long ahz = hz < 0 ? -(long long)hz : (long long)hz;
     double x = hz * wn[iz], y;
-    if (ahz < kn[iz]) return x;
+    uint64_t b;
+    long long ahz;
     if (iz == 0) {  /* the tail beyond r */
       do { x = -log(unif_open()) / r; y = -log(unif_open()); } while (y + y < x * x);
       return hz > 0 ? r + x : -r - x;
     }
     if (fn[iz] + unif() * (fn[iz - 1] - fn[iz]) < exp(-.5 * x * x)) return x;
+    b = next64();
+    iz = (int)(b & 127);
+    hz = (int32_t)(uint32_t)(b >> 32);
+    ahz = hz < 0 ? -(long long)hz : (long long)hz;
+    if (ahz < kn[iz]) return hz * wn[iz];
   }
 }
 long long nlobs_normals(long long seed, long long n, double* out) {
@@ -107,19 +119,24 @@ static double loglik(const double* x, double t, const double* u, const double* y
   return q == q ? q : -INFINITY;  /* outside the model's domain (NaN output): weight 0 */
 }
 /* move every particle over one interval: nsub RK4 steps of length h, each followed by sqrt(h) Lq xi */
+static double* nbuf;  /* M * NX standard normals, drawn in one tight loop per step */
 static void move(double* X, long long M, double t0, double h, long long nsub, const double* u, const double* Lq, int noise) {
-  double tmp[NX + 1], xi[NX + 1], sq = sqrt(h);
-  long long i, s;
+  double tmp[NX + 1], sq = sqrt(h);
+  long long i, s, j;
   int a, b;
-  for (i = 0; i < M; ++i) {
-    double* x = X + i * NX;
-    for (s = 0; s < nsub; ++s) {
+  for (s = 0; s < nsub; ++s) {
+    for (i = 0; i < M; ++i) {
+      double* x = X + i * NX;
       prop(x, t0 + s * h, h, u, tmp);
-      if (noise) {
-        for (a = 0; a < NX; ++a) xi[a] = gauss();
-        for (a = 0; a < NX; ++a) { double acc = 0; for (b = 0; b < NX; ++b) acc += Lq[a * NX + b] * xi[b]; tmp[a] += sq * acc; }
-      }
       for (a = 0; a < NX; ++a) x[a] = tmp[a];
+    }
+    if (noise) {
+      for (j = 0; j < M * NX; ++j) nbuf[j] = gauss();
+      for (i = 0; i < M; ++i) {
+        double* x = X + i * NX;
+        const double* xi = nbuf + i * NX;
+        for (a = 0; a < NX; ++a) { double acc = 0; for (b = 0; b < NX; ++b) acc += Lq[a * NX + b] * xi[b]; x[a] += sq * acc; }
+      }
     }
   }
 }
@@ -131,7 +148,8 @@ static double normalise(double* lw, double* wk, long long M) {
   if (!(m > -INFINITY && m < INFINITY)) return NAN;
   for (i = 0; i < M; ++i) { wk[i] = exp(lw[i] - m); s += wk[i]; }
   m += log(s);
-  for (i = 0; i < M; ++i) { wk[i] /= s; lw[i] -= m; }
+  s = 1 / s;
+  for (i = 0; i < M; ++i) { wk[i] *= s; lw[i] -= m; }
   return m;
 }
 /* systematic resampling (Kitagawa 1996): idx[i] = the particle whose cumulative weight first exceeds (i + U)/M */
@@ -154,7 +172,7 @@ static void gather(const double* X, const long long* idx, long long M, double* o
   for (i = 0; i < M; ++i) memcpy(out + i * NX, X + idx[i] * NX, sizeof(double) * NX);
 }
 
-long long nlobs_pf(const double* t, const double* U, const double* Y, const double* W, const double* cst,
+static long long pf_loop(const double* t, const double* U, const double* Y, const double* W, const double* cst,
                    const double* nsub, const double* x0, const double* L0, const double* Lq, long long N, long long M,
                    long long aux, double thresh, long long seed, double* X, double* Xb, double* lw, double* wk,
                    double* mu, double* lmu, long long* idx, double* xhat, double* P, double* ess, double* resampled,
@@ -163,6 +181,8 @@ long long nlobs_pf(const double* t, const double* U, const double* Y, const doub
   int a, b;
   double xi[NX + 1], s, sw2;
   seed_rng((uint64_t)seed);
+  nbuf = (double*)malloc(sizeof(double) * M * NX);
+  if (!nbuf) return -1;
   for (i = 0; i < M; ++i) {
     for (a = 0; a < NX; ++a) xi[a] = gauss();
     for (a = 0; a < NX; ++a) { double acc = 0; for (b = 0; b <= a; ++b) acc += L0[a * NX + b] * xi[b]; X[i * NX + a] = x0[a] + acc; }
@@ -236,6 +256,18 @@ long long nlobs_pf(const double* t, const double* U, const double* Y, const doub
     }
   }
   return 0;
+}
+
+long long nlobs_pf(const double* t, const double* U, const double* Y, const double* W, const double* cst,
+                   const double* nsub, const double* x0, const double* L0, const double* Lq, long long N, long long M,
+                   long long aux, double thresh, long long seed, double* X, double* Xb, double* lw, double* wk,
+                   double* mu, double* lmu, long long* idx, double* xhat, double* P, double* ess, double* resampled,
+                   double* ll, double* xprior) {
+  long long rc = pf_loop(t, U, Y, W, cst, nsub, x0, L0, Lq, N, M, aux, thresh, seed, X, Xb, lw, wk, mu, lmu, idx, xhat, P,
+                         ess, resampled, ll, xprior);
+  free(nbuf);
+  nbuf = 0;
+  return rc;
 }
 """
 
@@ -361,6 +393,8 @@ class ParticleRunner:
                       mu.ctypes.data_as(p), lmu.ctypes.data_as(p), idx.ctypes.data_as(ctypes.POINTER(ctypes.c_longlong)),
                       xhat.ctypes.data_as(p), P.ctypes.data_as(p), ess.ctypes.data_as(p), res.ctypes.data_as(p),
                       llk.ctypes.data_as(p), prior.ctypes.data_as(p))
+        if rc < 0:
+            raise MemoryError(f"{label}: no memory for {M} particles' random numbers")
         if rc:
             k = int(rc - 1)
             last = xhat[k - 1] if k > 0 else x0
