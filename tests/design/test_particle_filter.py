@@ -68,17 +68,22 @@ def _run(scheme="bootstrap", particles=4000, seed=1, **kw):
 @pytest.mark.parametrize("scheme", ["bootstrap", "auxiliary"])
 def test_pf_matches_the_exact_kalman_filter_within_monte_carlo_error(data, scheme):
     y, (xk, Pk, llk) = data
-    out = _run(scheme).run(T, y)
-    # Monte Carlo variance of a weighted mean ≈ posterior variance / ESS (resampling adds to it: allow 4x)
-    var = np.diagonal(Pk, axis1=1, axis2=2) / out.ess[:, None]
-    z2 = (out.xhat - xk) ** 2 / var
-    assert z2.mean() < 4.0, z2.mean()
-    assert np.abs(out.xhat - xk).max() < 0.1
+    runner = _run(scheme, particles=2000)
+    runs = [runner.run(T, y, seed=s) for s in range(1, 9)]
+    xs = np.array([r.xhat for r in runs])                        # (seeds, N, n)
+    # the Monte Carlo error, measured: the spread of independent runs (resampling makes it larger than
+    # the posterior variance / ESS); the mean of 8 runs must sit on the KF within it (bias O(1/N) is far smaller)
+    sd = xs.std(axis=0, ddof=1)
+    z2 = (xs.mean(axis=0) - xk) ** 2 / (sd ** 2 / len(runs))
+    assert z2.mean() < 2.5, z2.mean()                            # about 1 (a t-statistic squared, 7 d.o.f.: mean 1.4)
+    assert np.abs(xs - xk).max() < 0.2 and np.abs(xs - xk).mean() < 0.02
     # the particle covariance is the posterior covariance, and the log-likelihood estimate the KF's
+    out = runs[0]
     sd = np.sqrt(np.diagonal(Pk, axis1=1, axis2=2))
     rel = np.abs(out.P - Pk) / (sd[:, :, None] * sd[:, None, :])
     assert rel.mean() < 0.1 and rel.max() < 0.5, (rel.mean(), rel.max())
-    assert abs(out.loglik.sum() - llk) < 1.5, (out.loglik.sum(), llk)
+    lls = np.array([r.loglik.sum() for r in runs])
+    assert abs(lls.mean() - llk) < 4 * lls.std(ddof=1) / np.sqrt(len(runs)) + 0.05, (lls, llk)
 
 
 def test_same_seed_same_estimates_and_another_seed_differs(data):

@@ -30,6 +30,7 @@ _C_PF = r"""
 #include <stdlib.h>
 static uint64_t rs[4];
 static void zigset(void);
+static void seed_lanes(uint64_t seed);
 static uint64_t rotl(const uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
 static inline uint64_t next64(void) {
   const uint64_t result = rotl(rs[1] * 5, 7) * 9, t = rs[1] << 17;
@@ -43,6 +44,7 @@ static void seed_rng(uint64_t seed) {
     z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL; z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
     rs[i] = z ^ (z >> 31);
   }
+  seed_lanes(seed);
   zigset();
 }
 static double unif(void) { return (next64() >> 11) * 0x1.0p-53; }
@@ -91,10 +93,42 @@ static __attribute__((noinline)) double gauss_slow(int iz, int32_t hz) {
     if (ahz < kn[iz]) return hz * wn[iz];
   }
 }
+/* four independent xoshiro256** streams stepped together (the loop over lanes vectorises), for filling
+   arrays of normals: the serial dependence of one stream's state was the particle loop's bottleneck */
+#define LANES 4
+static uint64_t ls[4][LANES];
+static void seed_lanes(uint64_t seed) {
+  int i, l;
+  for (l = 0; l < LANES; ++l) for (i = 0; i < 4; ++i) {
+    uint64_t z = (seed += 0x9e3779b97f4a7c15ULL);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL; z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    ls[i][l] = z ^ (z >> 31);
+  }
+}
+static void fill_normals(double* out, long long n) {
+  uint64_t b[LANES];
+  long long j = 0;
+  int l;
+  for (; j + LANES <= n; j += LANES) {
+    for (l = 0; l < LANES; ++l) {
+      const uint64_t t = ls[1][l] << 17;
+      b[l] = rotl(ls[1][l] * 5, 7) * 9;
+      ls[2][l] ^= ls[0][l]; ls[3][l] ^= ls[1][l]; ls[1][l] ^= ls[2][l]; ls[0][l] ^= ls[3][l]; ls[2][l] ^= t;
+      ls[3][l] = rotl(ls[3][l], 45);
+    }
+    for (l = 0; l < LANES; ++l) {
+      int iz = (int)(b[l] & 127);
+      int32_t hz = (int32_t)(uint32_t)(b[l] >> 32);
+      long long ahz = hz < 0 ? -(long long)hz : (long long)hz;
+      out[j + l] = ahz < kn[iz] ? hz * wn[iz] : gauss_slow(iz, hz);
+    }
+  }
+  for (; j < n; ++j) out[j] = gauss();
+}
 long long nlobs_normals(long long seed, long long n, double* out) {
   long long i;
   seed_rng((uint64_t)seed);
-  for (i = 0; i < n; ++i) out[i] = gauss();
+  fill_normals(out, n);
   return 0;
 }
 
@@ -131,7 +165,7 @@ static void move(double* X, long long M, double t0, double h, long long nsub, co
       for (a = 0; a < NX; ++a) x[a] = tmp[a];
     }
     if (noise) {
-      for (j = 0; j < M * NX; ++j) nbuf[j] = gauss();
+      fill_normals(nbuf, M * NX);
       for (i = 0; i < M; ++i) {
         double* x = X + i * NX;
         const double* xi = nbuf + i * NX;
