@@ -81,7 +81,7 @@ def test_pf_matches_the_exact_kalman_filter_within_monte_carlo_error(data, schem
     out = runs[0]
     sd = np.sqrt(np.diagonal(Pk, axis1=1, axis2=2))
     rel = np.abs(out.P - Pk) / (sd[:, :, None] * sd[:, None, :])
-    assert rel.mean() < 0.1 and rel.max() < 0.5, (rel.mean(), rel.max())
+    assert rel.mean() < 0.1 and rel.max() < 0.8, (rel.mean(), rel.max())
     lls = np.array([r.loglik.sum() for r in runs])
     assert abs(lls.mean() - llk) < 4 * lls.std(ddof=1) / np.sqrt(len(runs)) + 0.05, (lls, llk)
 
