@@ -47,6 +47,8 @@ class ParticleDesign:
         Initial covariance, process-noise intensity, measurement covariance.
     particles : int
     scheme : {"bootstrap", "auxiliary"}
+        Bootstrap (propagate, weight, resample below the threshold) or auxiliary (first-stage weights
+        on the noise-free moves, resampling at every sample).
     threshold : float
         Resample when ESS < threshold · particles (bootstrap); the auxiliary filter resamples at every sample.
     seed : int
