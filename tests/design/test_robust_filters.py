@@ -80,19 +80,26 @@ def test_srekf_equals_the_ekf_without_process_noise(system):
     np.testing.assert_allclose(run.observers["a"].xhat, run.observers["b"].xhat, rtol=0, atol=1e-11)
 
 
+def _covariance_gaps(square_root, reference):
+    """Relative gap between the last covariances of a square-root filter and its covariance-form reference
+    (same tuning, Q ≠ 0) on the linear model, sampled every 0.1 and every 0.05."""
+    gaps = []
+    for ts in (0.1, 0.05):
+        a = square_root(LTI, Q=0.1 * np.eye(2), R=[[0.01]], P0=P0)
+        run = nlobs.simulate(LTI, {"a": a, "b": reference(LTI, Q=0.1 * np.eye(2), R=[[0.01]], P0=P0)},
+                             t_final=3.0, dt=1e-3, x0=[1.0, 0.0], noise=nlobs.Noise.gaussian(0.1),
+                             sampling=nlobs.Sampling(ts), seed=0)
+        Pa = np.array([np.array(a.covariance(z)) for z in run.observers["a"].z[-5:]])
+        Pb = run.observers["b"].z[-5:, 2:].reshape(-1, 2, 2, order="F")
+        gaps.append(np.abs(Pa - Pb).max() / np.abs(Pb).max())
+    return gaps
+
+
 def test_srekf_process_noise_by_the_trapezoid_rule():
     # with Q the prediction differs from the Riccati ODE by the trapezoid rule's O(τ³) per interval:
     # halving the sampling interval must shrink the difference about 4x (global O(τ²))
-    diffs = []
-    for ts in (0.1, 0.05):
-        a = design_srekf(LTI, Q=0.1 * np.eye(2), R=[[0.01]], P0=P0)
-        run = nlobs.simulate(LTI, {"a": a, "b": design_ekf(LTI, Q=0.1 * np.eye(2), R=[[0.01]], P0=P0)},
-                             t_final=3.0, dt=1e-3, x0=[1.0, 0.0], noise=nlobs.Noise.gaussian(0.1),
-                             sampling=nlobs.Sampling(ts), seed=0)
-        da = np.array([np.array(a.covariance(z)) for z in run.observers["a"].z[-5:]])
-        db = run.observers["b"].z[-5:, 2:].reshape(-1, 2, 2, order="F")
-        diffs.append(np.abs(da - db).max())
-    assert 2.5 < diffs[0] / diffs[1] < 6.0, diffs
+    gaps = _covariance_gaps(design_srekf, design_ekf)
+    assert 2.5 < gaps[0] / gaps[1] < 6.0, gaps
 
 
 # -- iterated EKF ----------------------------------------------------------------------------------
@@ -126,15 +133,7 @@ def test_iekf_options_are_checked():
 def test_srukf_process_noise_is_first_order_in_the_interval():
     # Q·τ added at the end of an interval differs from the UKF's ∫ΦQΦᵀ by O(τ²) per interval: halving
     # the sampling interval at least halves the covariance gap (without the Q·τ term the gap would not shrink)
-    gaps = []
-    for ts in (0.1, 0.05):
-        a = design_srukf(LTI, Q=0.1 * np.eye(2), R=[[0.01]], P0=P0)
-        run = nlobs.simulate(LTI, {"a": a, "b": design_ukf(LTI, Q=0.1 * np.eye(2), R=[[0.01]], P0=P0)},
-                             t_final=3.0, dt=1e-3, x0=[1.0, 0.0], noise=nlobs.Noise.gaussian(0.1),
-                             sampling=nlobs.Sampling(ts), seed=0)
-        Pa = np.array([np.array(a.covariance(z)) for z in run.observers["a"].z[-5:]])
-        Pb = run.observers["b"].z[-5:, 2:].reshape(-1, 2, 2, order="F")
-        gaps.append(np.abs(Pa - Pb).max() / np.abs(Pb).max())
+    gaps = _covariance_gaps(design_srukf, design_ukf)
     assert gaps[0] < 0.05 and gaps[0] / gaps[1] > 1.8, gaps
 
 
