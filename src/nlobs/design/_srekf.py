@@ -10,7 +10,7 @@ import numpy as np
 from ..engine import compile_system
 from ..model import System
 from ..references import cite
-from ._base import Certificate, Check, ObserverDesign, Symbols, check_vector
+from ._base import Certificate, ObserverDesign, Symbols, check_vector
 from ._common import require_system
 from ._sqrt import covariance_inputs, lower_solve, sqrt_psd, tria
 
@@ -95,8 +95,6 @@ def design_srekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any =
     values: dict[str, Any] = {"Q": Qm, "R": Rm, "P0": P0m,
                               "square root": "lower Cholesky factor S (P = SSᵀ) from Givens QR at each sample; "
                                              "between samples G = ΦS, process noise by the trapezoid rule"}
-    checks.append(Check("no Cholesky factorisation or downdate during the run", True,
-                        "S is only ever the triangular factor of a sum of squares (Tria)", "by construction"))
     cert = Certificate("Square-root extended Kalman filter (continuous-discrete)", REF, tuple(checks), values)
     names = ([f"xhat_{v}" for v in system.states] + [f"G_{i}_{j}" for j in range(n) for i in range(n)]
              + [f"Gq_{i}_{j}" for j in range(n) for i in range(n)] + ["tau"])
