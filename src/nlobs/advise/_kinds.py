@@ -22,6 +22,7 @@ from ..design import DESIGNS, ObserverDesign, design_from_config
 from ..design._high_gain import triangular_chains
 from ..design._kkl import MAX_FEATURES, _max_degree
 from ..design._registry import options_of
+from ..engine import compile_system
 from ..errors import FormError, ModelError, NlobsError, PreconditionError, ShapeError, SymbolicBudgetError
 from ..model._budget import symbolic_budget, symbolic_seconds
 from ..model import LTI, TIME, System
@@ -280,28 +281,30 @@ def output_symmetries(system: Any, *, samples: int = 4, seed: int = 0) -> list[t
 
     _, h = system.substituted()
     xs = list(system.x)
-    used = [x for x in xs if any(x in e.free_symbols for e in h)]
-    flips = [(x,) for x in used] + ([tuple(used)] if len(used) > 1 else [])
+    used = [i for i, x in enumerate(xs) if any(x in e.free_symbols for e in h)]
+    flips = [(i,) for i in used] + ([tuple(used)] if len(used) > 1 else [])
     rng = np.random.default_rng(seed)
-    free = sorted(set().union(*(e.free_symbols for e in h)), key=str)
-    f_h = sp.lambdify(free, list(h), "numpy")
+    _, h_num = compile_system(system).bind()  # CasADi, at generic points (no evaluation of model strings)
+    n, nu = system.n_states, system.n_inputs
     found = []
     for flip in flips:
-        sub = {x: -x for x in flip}
-        diff = [sp.expand(e.xreplace(sub) - e) for e in h]
-        if all(d == 0 for d in diff):
-            found.append(tuple(str(x) for x in flip))
+        sign = np.ones(n)
+        sign[list(flip)] = -1
+        sub = {xs[i]: -xs[i] for i in flip}
+        if all(sp.expand(e.xreplace(sub) - e) == 0 for e in h):
+            found.append(tuple(system.states[i] for i in flip))
             continue
         ok = True
         for _ in range(samples):
-            pt = {v: float(rng.uniform(0.3, 1.7) * rng.choice([-1, 1])) for v in free}
-            a = np.asarray(f_h(*[pt[v] for v in free]), dtype=float)
-            b = np.asarray(f_h(*[-pt[v] if v in flip else pt[v] for v in free]), dtype=float)
+            x = rng.uniform(0.3, 1.7, n) * rng.choice([-1.0, 1.0], n)
+            t, u = float(rng.uniform(0.3, 1.7)), rng.uniform(0.3, 1.7, nu)
+            a = np.asarray(h_num(t, x, u), dtype=float).ravel()
+            b = np.asarray(h_num(t, sign * x, u), dtype=float).ravel()
             if not (np.all(np.isfinite(a)) and np.allclose(a, b, rtol=1e-9, atol=1e-12)):
                 ok = False
                 break
         if ok:
-            found.append(tuple(str(x) for x in flip))
+            found.append(tuple(system.states[i] for i in flip))
     return found
 
 

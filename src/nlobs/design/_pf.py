@@ -1,4 +1,4 @@
-"""Particle filter, continuous-discrete: bootstrap (Gordon, Salmond & Smith 1993) and auxiliary (Pitt & Shephard 1999).
+"""Particle filter, continuous-discrete: bootstrap (Gordon, Salmond & Smith (1993)) and auxiliary (Pitt & Shephard (1999)).
 
 The design checks the options and builds the two model functions the particle loop calls (one RK4 step of the
 model, and the output map); :mod:`nlobs.observer._particles` runs them in a compiled C loop.
