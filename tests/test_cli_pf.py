@@ -48,3 +48,18 @@ def test_pf_from_a_model_file_simulate_then_estimate(tmp_path, capsys):
     data = np.genfromtxt(csv, delimiter=",", names=True)
     # the same samples and the same seed: the same particles, so the same estimates to the last bit
     np.testing.assert_array_equal([data["pfx1"][-1], data["pfx2"][-1]], est["observers"]["pf"]["final_estimate"])
+
+
+def test_simulate_reports_the_effective_sample_size(tmp_path):
+    import nlobs
+
+    path = tmp_path / "bimodal.toml"
+    path.write_text(MODEL)
+    mf = nlobs.load_model(path)
+    run = nlobs.simulate(mf.system, {"pf": mf.observers["pf"]}, t_final=1.0, dt=0.01, x0=[1.5, 0.0],
+                         noise=nlobs.Noise.gaussian(0.05), sampling=nlobs.Sampling(0.05), seed=1)
+    info = run.info["particles"]["pf"]
+    trace = run.observers["pf"]
+    ess = trace.z[:, trace.z_names.index("ess")]
+    assert info["samples"] == 21 and 1 <= info["min_ess"] <= 3000 and info["min_ess"] == ess.min()
+    assert np.all(np.isfinite(trace.std))  # ±σ from the particle covariance

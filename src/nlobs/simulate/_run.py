@@ -422,13 +422,15 @@ def _with_particles(run: Run, prep: Prepared, A: np.ndarray, xhat0: Any) -> Run:
     (every step without `sampling`); between samples their estimate is held."""
     flags = A[:, prep.layout.flag] > 0 if prep.kind.sampled else np.ones(run.t.size, dtype=bool)
     held = np.cumsum(flags) - 1
-    traces = dict(run.observers)
+    traces, info = dict(run.observers), dict(run.info)
     for name, o in prep.particle.items():
         pr, _ = o.trace_on(run.t[flags], run.y[flags], run.u[flags], xhat0=_xhat0_for(xhat0, name, prep.plant.n_states),
                            name=name)
         traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, pr.z[held], pr.xhat[held], pr.xhat_prior[0],
                                      covariance=o.design.covariance)
-    return replace(run, observers=traces)
+        info.setdefault("particles", {})[name] = {"particles": o.design.particles, "samples": int(flags.sum()),
+                                                  "min_ess": float(pr.ess.min()), "resampled": int(pr.resampled.sum())}
+    return replace(run, observers=traces, info=info)
 
 
 def _xhat0_for(xhat0: Any, name: str, n: int) -> Any:
