@@ -55,3 +55,13 @@ def test_no_choice_without_a_symmetry(tmp_path):
     path.write_text(BIMODAL.format(h="x1"))
     adv = nlobs.advise(nlobs.load_model(path), kinds=["ekf", "pf"])
     assert adv.choice is None and adv.candidate("pf").applies and "no sign symmetry" in adv.candidate("pf").why
+
+
+def test_a_tiny_R_marks_the_square_root_ukf_as_the_choice(tmp_path):
+    path = tmp_path / "accurate.toml"
+    path.write_text(BIMODAL.format(h="x1").replace("y = 0.05", "y = 1e-5"))  # R = σ² = 1e-10
+    adv = nlobs.advise(nlobs.load_model(path), kinds=["ukf", "srukf", "srekf"])
+    assert adv.choice is not None and adv.choice[0] == "srukf" and "loses definiteness" in adv.choice[1]
+    assert "the square-root form is the choice here" in adv.candidate("srekf").why
+    path.write_text(BIMODAL.format(h="x1"))  # σ = 0.05: no choice made
+    assert nlobs.advise(nlobs.load_model(path), kinds=["ukf", "srukf"]).choice is None

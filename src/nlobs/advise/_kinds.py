@@ -266,8 +266,22 @@ def _robust_filters(ctx: Context, kind: str) -> Candidate:
            "srekf": "the EKF carrying a square root of P (QR Joseph update): for a tiny R or an ill-conditioned P",
            "iekf": "Gauss-Newton iterations of the EKF's update: for a strongly nonlinear output (ranges, angles, squares), "
                    "where one linearisation at x̂⁻ overshoots"}[kind]
+    extra = ""
+    ratio = float(np.linalg.eigvalsh(np.atleast_2d(ctx.R)).min() / np.linalg.eigvalsh(np.atleast_2d(ctx.P0)).max())
+    if kind in ("srukf", "srekf") and ratio < TINY_R:
+        extra = (f"R is {ratio:.1g} of the largest prior variance (below {TINY_R:g}): the covariance forms' P − KSKᵀ then "
+                 "loses definiteness in floating point and their Cholesky factorisation fails; the square-root form is the "
+                 "choice here")
+        if ctx.choice is None and kind == "srukf":
+            ctx.choice = ("srukf", extra)
+            ctx.notes.append(f"R is {ratio:.1g} of the prior variance: the square-root UKF (kind 'srukf') is the choice")
     return t.design(opts, f"{local}; {ctx.noise_note}; P(0) = diag(σ₀²) with σ₀ the offset of x̂(0){spread}; {use}. "
-                    "A local method: it converges from an x̂(0) close enough, with no global certificate")
+                    "A local method: it converges from an x̂(0) close enough, with no global certificate", extra=extra)
+
+
+#: Below this ratio λmin(R)/λmax(P(0)) the advisor marks the square-root UKF as the choice: P − KSKᵀ keeps
+#: only −log10(ratio) of the 16 digits of P, and its rounding (about 1e-16·‖P‖) reaches the smallest eigenvalue
+TINY_R = 1e-8
 
 
 def output_symmetries(system: Any, *, samples: int = 4, seed: int = 0) -> list[tuple[str, ...]]:
