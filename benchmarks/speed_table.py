@@ -14,7 +14,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).parent))
 from _common import RESULTS, fmt_time  # noqa: E402
 
-ORDER = ["P1", "P2", "P3", "P3b", "P4", "P5", "P6"]
+ORDER = ["P1", "P2", "P3", "P3b", "P4", "P5", "P6", "P7", "P8"]
 
 
 def main() -> int:
@@ -33,10 +33,12 @@ def main() -> int:
     print("| row | nlobs (min / median) | peer (min / median) | ratio (min / median) | target |")
     print("|---|---|---|---|---|")
     for r in rows:
-        ratio = f"{r['ratio_min']:.3g}× / {r['ratio_median']:.3g}×" + (" (peer/nlobs)" if r["ratio_kind"] == "peer/nlobs" else " (nlobs/peer)")
+        ratio = "—" if r["ratio_min"] is None else (  # a peer that failed has no time to compare
+            f"{r['ratio_min']:.3g}× / {r['ratio_median']:.3g}×" + (" (peer/nlobs)" if r["ratio_kind"] == "peer/nlobs" else " (nlobs/peer)"))
+        peer_t = "" if r["peer_min"] is None else f": {fmt_time(r['peer_min'])} / {fmt_time(r['peer_median'])}"
         mark = {True: " ✔", False: " ✘", None: ""}[r.get("met")]
         cells = [f"{r['id']} {r['what']}", f"{r['nlobs']}: {fmt_time(r['nlobs_min'])} / {fmt_time(r['nlobs_median'])}; {r['nlobs_error']}",
-                 f"{r['peer']}: {fmt_time(r['peer_min'])} / {fmt_time(r['peer_median'])}; {r['peer_error']}", ratio, f"{r['target']}{mark}"]
+                 f"{r['peer']}{peer_t}; {r['peer_error']}", ratio, f"{r['target']}{mark}"]
         print("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")  # a | inside a cell would split it
     if machines:
         print("\nMeasured: " + "; ".join(machines))

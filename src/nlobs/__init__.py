@@ -81,6 +81,10 @@ from .design import design_kalman_like as design_kalman_like  # noqa: E402
 from .design import design_banks as design_banks  # noqa: E402
 from .design import design_ukf as design_ukf  # noqa: E402
 from .design import design_mhe as design_mhe  # noqa: E402
+from .design import design_srukf as design_srukf  # noqa: E402
+from .design import design_srekf as design_srekf  # noqa: E402
+from .design import design_iekf as design_iekf  # noqa: E402
+from .design import design_pf as design_pf  # noqa: E402
 from .analysis import analyze as analyze  # noqa: E402
 from .observer import CExport as CExport  # noqa: E402
 from .observer import export_c as export_c  # noqa: E402

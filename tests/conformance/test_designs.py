@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from nlobs import ModelError, Observer, Recording, StateAffine, System, estimate, simulate
-from nlobs.design import DESIGNS, design_from_config
+from nlobs.design import DESIGNS, ParticleDesign, design_from_config
+from nlobs.observer import particle_runner
 
 OSC = System(states=["x1", "x2"], f=["x2", "-x1 - 0.5*x2 + u"], inputs=["u"], outputs=["y"], h=["x1"], name="osc")
 PEND = System(states=["x1", "x2"], f=["x2", "-2*sin(x1) - 0.5*x2 + u"], inputs=["u"], outputs=["y"], h=["x1"], name="pend")
@@ -42,6 +43,11 @@ CASES = {
     "ukf": (PEND, dict(Q=np.eye(2) * 1e-3, R=[[1e-4]]), [1.0, 0.0], [0.0, 0.0], 8.0, 1e-4),
     # sampled every dt = 1e-3 here (continuous measurements): a short window of many samples, IPOPT at each
     "mhe": (OSC, dict(horizon=5, R=[[1e-4]], P0=np.eye(2) * 1e-3), [1.0, 0.0], [0.0, 0.0], 2.0, 1e-3),
+    "srukf": (PEND, dict(Q=np.eye(2) * 1e-3, R=[[1e-4]]), [1.0, 0.0], [0.0, 0.0], 8.0, 1e-4),
+    "srekf": (PEND, dict(Q=np.eye(2) * 1e-3, R=[[1e-4]]), [1.0, 0.0], [0.0, 0.0], 8.0, 1e-4),
+    "iekf": (PEND, dict(Q=np.eye(2) * 1e-3, R=[[1e-4]], iterations=3), [1.0, 0.0], [0.0, 0.0], 8.0, 1e-4),
+    # a particle cloud: Monte Carlo error ~ σ/√ESS (σ = 0.01 from R), not 1e-4
+    "pf": (PEND, dict(Q=np.eye(2) * 1e-3, R=[[1e-4]], P0=np.eye(2) * 0.5, particles=500), [1.0, 0.0], [0.0, 0.0], 8.0, 2e-2),
 }
 
 # Parameter-estimation based designs (issue 4; 000 and 004). Regression plant: θ' = 0, Y = ψ(t)ᵀθ with a regressor
@@ -100,6 +106,12 @@ def test_declared_shapes_and_determinism(case):
     d2 = DESIGNS[kind](model, **copy.deepcopy(tuning), xhat0=xhat0)
     plant = _plant(model)
     n, nu, ny = plant.n_states, plant.n_inputs, plant.n_outputs
+    if isinstance(d1, ParticleDesign):  # no ODE (a particle cloud run over the samples): same seed, same run
+        t = np.arange(50) * 0.01
+        r1, r2 = particle_runner(d1).run(t, np.sin(t), np.zeros((50, nu))), particle_runner(d2).run(t, np.sin(t), np.zeros((50, nu)))
+        assert r1.z.shape == (50, d1.n_z) and r1.xhat.shape == (50, n) and np.array_equal(r1.z, r2.z)
+        assert str(d1.certificate) and d1.certificate.reference
+        return
     assert len(d1.z_names) == d1.n_z and d1.flow.size1_out(0) == d1.n_z and d1.output.size1_out(0) == n
     assert d1.flow.size1_in(2) == nu and d1.flow.size1_in(3) == ny
     if d1.update is not None:

@@ -160,6 +160,9 @@ class Advice:
     text : ModelText or None
         The model as written (the file's strings), shown once at the top of the text; the long substituted
         equations that messages quote are replaced there by references to it.
+    choice : (str, str) or None
+        The kind a rule marks as the choice for this model, with the reason (the particle filter for an output
+        symmetric in a state: a multimodal posterior), when that kind applies.
     """
 
     model: str
@@ -177,6 +180,7 @@ class Advice:
     description: str = ""  #: the model file's description (it cites the model's source)
     run_refused: str = ""  #: why the comparison run was not made although asked for (an input that identifies nothing)
     text: ModelText | None = None  #: the model as written, for the text (equations shown once, then referred to)
+    choice: tuple[str, str] | None = None  #: (kind, why) when a rule marks one applicable kind as the choice
 
     @property
     def applicable(self) -> tuple[Candidate, ...]:
@@ -204,6 +208,8 @@ class Advice:
         out: dict[str, Any] = {"model": self.model, "description": self.description, "states": list(self.system.states),
                                "estimated_params": list(self.system.estimated_params), "observability": jsonable(obs),
                                "candidates": [c.to_dict() for c in self.candidates], "notes": list(self.notes)}
+        if self.choice is not None:
+            out["choice"] = {"kind": self.choice[0], "why": self.choice[1]}
         if self.scores is not None:
             out["ranking"] = list(self.ranking or ())
             out["scores"] = [s.to_dict() for s in self.scores]
@@ -228,6 +234,8 @@ class Advice:
             lines.append(f"  form: {f}")
         for n in self.notes:
             lines.append(f"  note: {n}")
+        if self.choice is not None:
+            lines.append(f"  choice: {self.choice[0]}")
         groups = [("applies", "Applies"), ("fails", "Does not apply"), ("needs input", "Needs input"), ("not tuned", "Not tuned")]
         blocked = "; ".join(self.blockers)
         for status, title in groups:

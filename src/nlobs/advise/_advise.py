@@ -252,4 +252,5 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
                       units=mf.units if mf is not None else getattr(system, "units", None))
     return Advice(system.name, ctx.system, ctx.report, tuple(candidates), tuple(ctx.notes), tuple(ctx.blockers), forms,
                   extra, None if scores is None else tuple(scores), runres, scenario, time.perf_counter() - t0,
-                  mf.description if mf is not None else "", refused, text)
+                  mf.description if mf is not None else "", refused, text,
+                  ctx.choice if ctx.choice is not None and any(c.kind == ctx.choice[0] and c.applies for c in candidates) else None)

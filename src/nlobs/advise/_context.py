@@ -117,6 +117,7 @@ class Context:
     recording: Recording | None = None  # recorded data to compare on (the tuning still comes from [simulation])
     run_blockers: list[str] = field(default_factory=list)   # why the comparison run cannot show what it should
     configs: dict[str, tuple[str, Mapping[str, Any]]] = field(default_factory=dict)  # kind -> the file's [observers.NAME]
+    choice: tuple[str, str] | None = None  # (kind, why) when a rule marks one kind as the choice (e.g. pf for a symmetric output)
 
     @property
     def n(self) -> int:

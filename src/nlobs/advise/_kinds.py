@@ -22,6 +22,7 @@ from ..design import DESIGNS, ObserverDesign, design_from_config
 from ..design._high_gain import triangular_chains
 from ..design._kkl import MAX_FEATURES, _max_degree
 from ..design._registry import options_of
+from ..engine import compile_system
 from ..errors import FormError, ModelError, NlobsError, PreconditionError, ShapeError, SymbolicBudgetError
 from ..model._budget import symbolic_budget, symbolic_seconds
 from ..model import LTI, TIME, System
@@ -55,6 +56,10 @@ REFERENCES: dict[str, str] = {
     "output_injection": f"{cite('002', 'Result [Error linearization]')}",
     "ekf": cite("kalman1961") + " (extended, continuous-discrete)",
     "ukf": cite("julier2004"),
+    "srukf": cite("vandermerwe2001") + " (square root by QR, " + cite("arasaratnam2009") + ")",
+    "srekf": cite("kaminski1971") + " (square-root covariance, QR Joseph update)",
+    "iekf": cite("bell1993"),
+    "pf": cite("gordon1993") + "; " + cite("pitt1999") + " (auxiliary)",
     "mhe": f"{cite('002', 'trajectory-based observers')}" + " (moving horizon)",
     "high_gain": f"{cite('002', 'Result [High Gain Observer]')}",
     "high_gain_derivatives": f"{cite('004', 'Table I (HGO with linear dynamics)')}",
@@ -231,6 +236,112 @@ def _filters(ctx: Context, kind: str) -> Candidate:
     return t.design(opts, f"{local}; {ctx.noise_note}; P(0) = diag(σ₀²) with σ₀ the offset of x̂(0) (at least 10 % of the "
                     f"state's range on the run){spread}. A local method: it converges from an x̂(0) close enough, with no "
                     "global certificate", extra=extra)
+
+
+def _sigma_spread(ctx: Context) -> tuple[dict[str, float], str]:
+    """α keeping the sigma points within half the visited box around x̂ (as for the UKF)."""
+    if not ctx.region:
+        return {}, ""
+    width = np.array([ctx.region[s][1] - ctx.region[s][0] for s in ctx.system.states])
+    sd = np.sqrt(np.diag(ctx.P0))
+    alpha = float(min(1.0, np.min(0.5 * width / (np.sqrt(ctx.system.n_states) * np.maximum(sd, 1e-300)))))
+    if alpha >= 1.0:
+        return {}, ""
+    alpha = float(f"{max(alpha, 1e-3):.3g}")
+    beta = float(f"{max(2.0, (1 / alpha - alpha) ** 2):.6g}")  # W0 of the covariance ≥ 0: β ≥ (1/α − α)²
+    return {"alpha": alpha, "beta": beta}, f"; sigma points within half the visited box (α = {alpha:g}, β = {beta:g})"
+
+
+def _robust_filters(ctx: Context, kind: str) -> Candidate:
+    """Square-root UKF/EKF and the iterated EKF: the tuning of the EKF/UKF (Q, R, P0 from the run)."""
+    t = _Trial(ctx, kind)
+    opts: dict[str, Any] = {"Q": _sq(ctx.Q), "R": _sq(ctx.R), "P0": _sq(ctx.P0)}
+    spread = ""
+    if kind == "srukf":
+        extra_opts, spread = _sigma_spread(ctx)
+        opts.update(extra_opts)
+    local = "locally observable (generic rank condition)" if ctx.report.observable else "observability not established"
+    use = {"srukf": "the UKF carrying a Cholesky factor (QR updates, no Cholesky factorisation or downdate): for a tiny R or an "
+                    "ill-conditioned P, where the UKF's P loses definiteness",
+           "srekf": "the EKF carrying a square root of P (QR Joseph update): for a tiny R or an ill-conditioned P",
+           "iekf": "Gauss-Newton iterations of the EKF's update: for a strongly nonlinear output (ranges, angles, squares), "
+                   "where one linearisation at x̂⁻ overshoots"}[kind]
+    extra = ""
+    ratio = float(np.linalg.eigvalsh(np.atleast_2d(ctx.R)).min() / np.linalg.eigvalsh(np.atleast_2d(ctx.P0)).max())
+    if kind in ("srukf", "srekf") and ratio < TINY_R:
+        extra = (f"R is {ratio:.1g} of the largest prior variance (below {TINY_R:g}): the covariance forms' P − KSKᵀ then "
+                 "loses definiteness in floating point and their Cholesky factorisation fails; the square-root form is the "
+                 "choice here")
+        if ctx.choice is None and kind == "srukf":
+            ctx.choice = ("srukf", extra)
+            ctx.notes.append(f"R is {ratio:.1g} of the prior variance: the square-root UKF (kind 'srukf') is the choice")
+    return t.design(opts, f"{local}; {ctx.noise_note}; P(0) = diag(σ₀²) with σ₀ the offset of x̂(0){spread}; {use}. "
+                    "A local method: it converges from an x̂(0) close enough, with no global certificate", extra=extra)
+
+
+#: Below this ratio λmin(R)/λmax(P(0)) the advisor marks the square-root UKF as the choice: P − KSKᵀ keeps
+#: only −log10(ratio) of the 16 digits of P, and its rounding (about 1e-16·‖P‖) reaches the smallest eigenvalue
+TINY_R = 1e-8
+
+
+def output_symmetries(system: Any, *, samples: int = 4, seed: int = 0) -> list[tuple[str, ...]]:
+    """Sign flips of states that leave every output unchanged at generic points: h(x) = h(σx).
+
+    Each state the outputs depend on is flipped alone, then all of them together; a flip counts when
+    h(σx) − h(x) expands to zero (SymPy), or, when that is not decided quickly, when it vanishes at
+    `samples` random points (the inputs and t random too) to 1e-9 relative.
+    """
+    import sympy as sp
+
+    _, h = system.substituted()
+    xs = list(system.x)
+    used = [i for i, x in enumerate(xs) if any(x in e.free_symbols for e in h)]
+    flips = [(i,) for i in used] + ([tuple(used)] if len(used) > 1 else [])
+    rng = np.random.default_rng(seed)
+    _, h_num = compile_system(system).bind()  # CasADi, at generic points (no evaluation of model strings)
+    n, nu = system.n_states, system.n_inputs
+    found = []
+    for flip in flips:
+        sign = np.ones(n)
+        sign[list(flip)] = -1
+        sub = {xs[i]: -xs[i] for i in flip}
+        if all(sp.expand(e.xreplace(sub) - e) == 0 for e in h):
+            found.append(tuple(system.states[i] for i in flip))
+            continue
+        ok = True
+        for _ in range(samples):
+            x = rng.uniform(0.3, 1.7, n) * rng.choice([-1.0, 1.0], n)
+            t, u = float(rng.uniform(0.3, 1.7)), rng.uniform(0.3, 1.7, nu)
+            a = np.asarray(h_num(t, x, u), dtype=float).ravel()
+            b = np.asarray(h_num(t, sign * x, u), dtype=float).ravel()
+            if not (np.all(np.isfinite(a)) and np.allclose(a, b, rtol=1e-9, atol=1e-12)):
+                ok = False
+                break
+        if ok:
+            found.append(tuple(system.states[i] for i in flip))
+    return found
+
+
+def _pf(ctx: Context) -> Candidate:
+    t = _Trial(ctx, "pf")
+    n = ctx.system.n_states
+    particles = int(min(20000, 1000 * max(2, n)))
+    opts: dict[str, Any] = {"Q": _sq(ctx.Q), "R": _sq(ctx.R), "P0": _sq(4 * np.asarray(ctx.P0)), "particles": particles, "seed": 0}
+    sym = output_symmetries(ctx.system)
+    if sym:
+        flips = "; ".join(("−" + ", −".join(f)) if len(f) > 1 else f"{f[0]} → −{f[0]}" for f in sym)
+        why = (f"the output is symmetric in the state: h(x) = h(σx) for the sign flip {flips} at generic points (decided "
+               "symbolically, or at random points), so the posterior of x̂ can have two modes that the measurements alone "
+               "cannot tell apart; a Gaussian filter (EKF, UKF and their square-root and iterated forms) commits to one mode and "
+               "can converge to the mirror state; the particle filter carries both until the dynamics separate them — the "
+               "choice here")
+        ctx.notes.append(f"output symmetric under {flips}: multimodal posterior, the particle filter (kind 'pf') is the choice")
+        ctx.choice = ("pf", why)
+    else:
+        why = ("no sign symmetry of the output found: a Gaussian filter (EKF/UKF) is cheaper here; the particle filter fits "
+               "multimodal or non-Gaussian posteriors")
+    return t.design(opts, f"{ctx.noise_note}; {particles} particles, systematic resampling when ESS < N/2, P(0) = 4·diag(σ₀²) "
+                    f"(a wide cloud), seed 0; {why}")
 
 
 def _mhe(ctx: Context) -> Candidate:
@@ -878,6 +989,10 @@ TRIALS: dict[str, Callable[[Context], Candidate]] = {
     "output_injection": _output_injection,
     "ekf": lambda ctx: _filters(ctx, "ekf"),
     "ukf": lambda ctx: _filters(ctx, "ukf"),
+    "srukf": lambda ctx: _robust_filters(ctx, "srukf"),
+    "srekf": lambda ctx: _robust_filters(ctx, "srekf"),
+    "iekf": lambda ctx: _robust_filters(ctx, "iekf"),
+    "pf": _pf,
     "mhe": _mhe,
     "high_gain": _high_gain,
     "high_gain_derivatives": _high_gain_derivatives,

@@ -26,6 +26,11 @@ from ._kalman import design_kalman_bucy as design_kalman_bucy
 from ._kalman import design_kalman_like as design_kalman_like
 from ._banks import design_banks as design_banks
 from ._ukf import design_ukf as design_ukf
+from ._srukf import design_srukf as design_srukf
+from ._srekf import design_srekf as design_srekf
+from ._iekf import design_iekf as design_iekf
+from ._pf import ParticleDesign as ParticleDesign
+from ._pf import design_pf as design_pf
 from ._mhe import design_mhe as design_mhe
 from ._cascade import design_kkl_pebo_cascade as design_kkl_pebo_cascade
 from ._gpebo import design_2gd as design_2gd

@@ -44,6 +44,10 @@ from ._linear import design_luenberger, design_output_injection
 from ._lipschitz import design_lipschitz
 from ._mhe import design_mhe
 from ._ukf import design_ukf
+from ._srukf import design_srukf
+from ._srekf import design_srekf
+from ._iekf import design_iekf
+from ._pf import design_pf
 
 __all__ = ["DESIGNS", "register_design", "design_from_config", "designs_from_file", "check_identifiable", "requires_model"]
 
@@ -63,6 +67,10 @@ DESIGNS: dict[str, Callable[..., ObserverDesign]] = {
     "banks": design_banks,
     "ukf": design_ukf,
     "mhe": design_mhe,
+    "srukf": design_srukf,
+    "srekf": design_srekf,
+    "iekf": design_iekf,
+    "pf": design_pf,
 }
 
 

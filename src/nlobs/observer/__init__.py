@@ -9,3 +9,7 @@ from ._compiled import ObserverTrajectory as ObserverTrajectory
 from ._compiled import compiled_observer as compiled_observer
 from ._export import CExport as CExport
 from ._export import export_c as export_c
+from ._particles import ParticleObserver as ParticleObserver
+from ._particles import ParticleRun as ParticleRun
+from ._particles import ParticleRunner as ParticleRunner
+from ._particles import particle_runner as particle_runner

@@ -166,12 +166,17 @@ class Observer(AbstractObserver):
 def as_observer(obj: Any, name: str | None = None) -> AbstractObserver:
     """An observer from an observer, a design, or a model file's observer configuration
     (:class:`nlobs.model.ObserverConfig`, designed here by :func:`nlobs.design.design_from_config`)."""
+    from ._particles import ParticleDesign, ParticleObserver  # the particle loop builds on this module
+
     if isinstance(obj, AbstractObserver):
         return obj
     if isinstance(obj, ObserverDesign):
         return Observer(obj, name)
+    if isinstance(obj, ParticleDesign):
+        return ParticleObserver(obj, name)
     if isinstance(obj, ObserverConfig):
-        return Observer(design_from_config(obj), name or obj.name)
+        d = design_from_config(obj)
+        return ParticleObserver(d, name or obj.name) if isinstance(d, ParticleDesign) else Observer(d, name or obj.name)
     raise TypeError(f"expected an observer or an ObserverDesign (from a design_* function), or a model file's "
                     f"ObserverConfig ([observers.NAME]), got {type(obj).__name__}")
 

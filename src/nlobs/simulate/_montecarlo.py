@@ -20,7 +20,7 @@ from .._display import Column, SummaryTable, short_repr
 from .._progress import as_progress
 from ..design import check_positive
 from ..engine import Backend, evaluate_many, run_batch, saved_steps
-from ..errors import FiniteEscapeError, ShapeError
+from ..errors import FiniteEscapeError, ModelError, ShapeError
 from ..model import System
 from ._metrics import convergence_band, convergence_time
 from ._options import Noise, ProcessNoise, Sampling
@@ -308,6 +308,9 @@ def montecarlo(
     # parameters nobody varies are compiled in as constants (one build per model and values)
     prep = prepare(plant, observers, t_final=t_final, dt=dt, inputs=inputs, params=None, noise=noise,
                    process_noise=process_noise, sampling=sampling, caller="montecarlo", fold_params=not params)
+    if prep.particle:
+        raise ModelError(f"montecarlo: particle filters ({', '.join(prep.particle)}) are not run in Monte Carlo batches; "
+                         "run nlobs.simulate once per seed for them")
     plant, n = prep.plant, prep.plant.n_states
     sizes = [np.shape(x0)[0]] if np.ndim(x0) == 2 else []
     if isinstance(xhat0, Mapping):

@@ -14,7 +14,7 @@ from ..design import check_positive
 from ..engine import Backend, evaluate_many
 from ..errors import DataError, FiniteEscapeError, ModelError, ShapeError
 from ..model import ModelFile, System
-from ..observer import AbstractObserver, compiled_observer
+from ..observer import AbstractObserver, ParticleObserver, compiled_observer
 from ._results import ObserverTrace, Run
 from ._run import _xhat0_for, named_observers
 
@@ -315,6 +315,14 @@ def estimate(
             lambda f, i=i: progress((i + f) / len(obs)))  # type: ignore[operator,misc]
         # built once per design and cached (see Observer.compiled); the C code is cached on disk
         z0 = o.initial_state(_xhat0_for(xhat0, name, o.system.n_states))
+        if isinstance(o, ParticleObserver):  # a random particle cloud, run over the samples at once
+            pr, yp = o.trace_on(t, y0, u, mask=mask, xhat0=z0, name=name)
+            traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, pr.z, pr.xhat, pr.xhat_prior[0],
+                                         innovation=np.where(mask > 0, recording.y - yp, np.nan), covariance=o.design.covariance)
+            integration[name] = {"substeps": 0, "max_substeps": 1, "fastest_rate": 0.0, "engine": "c",
+                                 "particles": o.design.particles, "min_ess": float(pr.ess.min()),
+                                 "resampled": int(pr.resampled.sum())}
+            continue
         try:
             traj = compiled_observer(o.design, hold).run(t, y0, u, mask=mask, z0=z0, max_step=max_step, engine=engine,
                                                          name=name, progress=part)

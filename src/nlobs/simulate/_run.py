@@ -17,7 +17,7 @@ import functools
 import numbers
 from collections import OrderedDict
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import casadi as ca
@@ -25,10 +25,11 @@ import numpy as np
 
 from .._progress import as_progress
 from ..design import ObserverDesign
+from ..design._pf import ParticleDesign
 from ..engine import Backend, StepRunner, compile_system, evaluate_many, rk4_step, rows
 from ..errors import FiniteEscapeError, ModelError, ShapeError
 from ..model import ModelFile, ObserverConfig, System, input_signals
-from ..observer import AbstractObserver, Observer, as_observer
+from ..observer import AbstractObserver, Observer, ParticleObserver, as_observer
 from ._file import file_arguments, observers_of
 from ._options import Adaptive, Noise, ProcessNoise, Sampling
 from ._results import ObserverTrace, Run
@@ -45,7 +46,7 @@ def named_observers(observers: Any) -> dict[str, AbstractObserver]:
         return {}
     if isinstance(observers, Mapping):
         return {str(k): as_observer(v, str(k)) for k, v in observers.items()}
-    if isinstance(observers, (ObserverDesign, AbstractObserver, ObserverConfig)):
+    if isinstance(observers, (ObserverDesign, ParticleDesign, AbstractObserver, ObserverConfig)):
         observers = [observers]
     out: dict[str, AbstractObserver] = {}
     for obj in observers:
@@ -254,7 +255,8 @@ class Simulation:
             err.partial = _assemble(plant, obs, layout, S[:r + 1], O[:r + 1], t[:r + 1], A[:r + 1], info)
             raise err
         O[N] = runner.outputs(S[N:], A[N:], c)[0]  # measurements and estimates at t_final
-        return _assemble(plant, obs, layout, S, O, t, A, info)
+        run = _assemble(plant, obs, layout, S, O, t, A, info)
+        return _with_particles(run, prep, A, xhat0) if prep.particle else run
 
 
 def _plant_output_failure(plant: System, S: np.ndarray, A: np.ndarray, c: np.ndarray, layout: _Layout, runner: _Runner,
@@ -299,6 +301,8 @@ class Prepared:
     every: int
     caller: str
     x0_tail: tuple[float, ...] = ()  # true values of the estimated parameters, appended to a model-state x0
+    #: particle filters: run on the sampled measurements after the plant (not in the joint step)
+    particle: Mapping[str, ParticleObserver] = field(default_factory=dict)
 
     def initial_state(self, x0: Sequence[float], xhat0: Any) -> np.ndarray:
         n, ny = self.plant.n_states, self.plant.n_outputs
@@ -371,6 +375,8 @@ def prepare(plant: System, observers: Any, *, t_final: float, dt: float, inputs:
         raise ModelError(f"{caller}: the plant {plant.name!r} has no outputs; an observer needs a measurement")
     for name, o in obs.items():
         check_compatible(plant, name, o)
+    particle = {k: o for k, o in obs.items() if isinstance(o, ParticleObserver)}
+    obs = {k: o for k, o in obs.items() if k not in particle}
     if integrator is not None and not isinstance(integrator, Adaptive):
         raise TypeError(f"{caller}: `integrator` must be an nlobs.Adaptive (or None for fixed-step RK4), got {integrator!r}")
     kind = _Kind(sampled=sampling is not None, noisy=noise is not None, process=process_noise is not None, adaptive=integrator,
@@ -383,7 +389,7 @@ def prepare(plant: System, observers: Any, *, t_final: float, dt: float, inputs:
     elif inputs:
         input_signals(plant, inputs)  # reports unknown input names
     every = sampling.every(dt) if sampling is not None else 1
-    return Prepared(plant, obs, kind, layout, N, float(dt), t, base, noise, process_noise, every, caller, x0_tail)
+    return Prepared(plant, obs, kind, layout, N, float(dt), t, base, noise, process_noise, every, caller, x0_tail, particle)
 
 
 @functools.lru_cache(maxsize=8)
@@ -409,6 +415,22 @@ def augmented_plant(plant: System, obs: Mapping[str, AbstractObserver]) -> tuple
     if not est or plant.estimated_params or any(k not in plant.params for k in est):
         return plant, ()  # nothing to do, or check_compatible reports the mismatch
     return plant.augmented(est), tuple(plant.params[k] for k in est)
+
+
+def _with_particles(run: Run, prep: Prepared, A: np.ndarray, xhat0: Any) -> Run:
+    """`run` with the traces of the particle filters, run on the measurements at the sample instants
+    (every step without `sampling`); between samples their estimate is held."""
+    flags = A[:, prep.layout.flag] > 0 if prep.kind.sampled else np.ones(run.t.size, dtype=bool)
+    held = np.cumsum(flags) - 1
+    traces, info = dict(run.observers), dict(run.info)
+    for name, o in prep.particle.items():
+        pr, _ = o.trace_on(run.t[flags], run.y[flags], run.u[flags], xhat0=_xhat0_for(xhat0, name, prep.plant.n_states),
+                           name=name)
+        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, pr.z[held], pr.xhat[held], pr.xhat_prior[0],
+                                     covariance=o.design.covariance)
+        info.setdefault("particles", {})[name] = {"particles": o.design.particles, "samples": int(flags.sum()),
+                                                  "min_ess": float(pr.ess.min()), "resampled": int(pr.resampled.sum())}
+    return replace(run, observers=traces, info=info)
 
 
 def _xhat0_for(xhat0: Any, name: str, n: int) -> Any:

@@ -1,0 +1,188 @@
+"""Particle filter, continuous-discrete: bootstrap (Gordon, Salmond & Smith (1993)) and auxiliary (Pitt & Shephard (1999)).
+
+The design checks the options and builds the two model functions the particle loop calls (one RK4 step of the
+model, and the output map); :mod:`nlobs.observer._particles` runs them in a compiled C loop.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Literal
+
+import casadi as ca
+import numpy as np
+
+from ..engine import compile_system, rk4_step
+from ..errors import PreconditionError
+from ..model import System
+from ..references import cite
+from ._base import Certificate, Check, check_vector
+from ._common import require_system
+from ._sqrt import covariance_inputs, sqrt_psd
+
+__all__ = ["ParticleDesign", "design_pf"]
+
+REF = (f"Bootstrap particle filter ({cite('gordon1993')}); auxiliary particle filter ({cite('pitt1999')}); "
+       f"systematic resampling ({cite('kitagawa1996')}); effective sample size ({cite('kong1994')})")
+
+Scheme = Literal["bootstrap", "auxiliary"]
+
+
+@dataclass(frozen=True, eq=False)
+class ParticleDesign:
+    """A designed particle filter: its options, model functions and certificate.
+
+    It is not an ODE observer (its state is a random cloud of particles), so it has no ``flow``; it runs
+    on sampled measurements only, through :func:`nlobs.observer.compiled_observer` (or
+    :func:`nlobs.simulate`, which runs it on the recorded samples after the plant).
+
+    Attributes
+    ----------
+    method : str
+        ``"pf"``.
+    system : System
+    xhat0 : numpy.ndarray
+        Mean of the initial particles.
+    P0, Q, R : numpy.ndarray
+        Initial covariance, process-noise intensity, measurement covariance.
+    particles : int
+    scheme : {"bootstrap", "auxiliary"}
+        Bootstrap (propagate, weight, resample below the threshold) or auxiliary (first-stage weights
+        on the noise-free moves, resampling at every sample).
+    threshold : float
+        Resample when ESS < threshold · particles (bootstrap); the auxiliary filter resamples at every sample.
+    seed : int
+        Seed of the filter's random numbers: the same seed gives the same estimates.
+    max_step : float or None
+        Largest RK4 step between samples (None: one step per interval).
+    z_names : tuple of str
+        The columns of the filter's trace: x̂, P (column-major), ESS, resampled (0/1), log-likelihood.
+    covariance : casadi.Function
+        ``(z) -> P`` from a row of the trace.
+    prop : casadi.Function
+        ``(x, t, h, u) -> x(t + h)``, one RK4 step of the model.
+    meas : casadi.Function
+        ``(x, t, u) -> y``.
+    certificate : Certificate
+    """
+
+    method: str
+    system: System
+    xhat0: np.ndarray
+    P0: np.ndarray
+    Q: np.ndarray
+    R: np.ndarray
+    particles: int
+    scheme: str
+    threshold: float
+    seed: int
+    max_step: float | None
+    prop: ca.Function
+    meas: ca.Function
+    certificate: Certificate
+    z_names: tuple[str, ...] = field(default=())
+    covariance: ca.Function | None = None
+
+    sampled: ClassVar[bool] = True
+    needs_mx: ClassVar[bool] = False
+
+    @property
+    def n_z(self) -> int:
+        return len(self.z_names)
+
+    def __str__(self) -> str:
+        return f"pf observer for {self.system.name!r} ({self.scheme}, {self.particles} particles)\n" + str(self.certificate)
+
+
+def design_pf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None, particles: int = 1000,
+              scheme: Scheme = "bootstrap", threshold: float = 0.5, seed: int = 0,
+              max_step: float | None = None) -> ParticleDesign:
+    r"""Particle filter (continuous-discrete): bootstrap or auxiliary, systematic resampling, seeded.
+
+    The particles start from :math:`\mathcal N(\hat x_0, P_0)`. Between samples each particle follows
+    the model in RK4 steps of length h (one per interval, or enough that h ≤ `max_step`), with
+    :math:`\sqrt h\,Q^{1/2}\xi`, ξ ~ N(0, I), added after each step (process noise of intensity Q).
+    At a sample the weights are multiplied by the Gaussian likelihood
+    :math:`\mathcal N(y; h(x_i), R)` of the measured outputs and normalised; the estimate is the weighted mean
+    (and covariance), and the effective sample size :math:`\mathrm{ESS} = 1/\sum_i w_i^2` (Kong, Liu & Wong
+    (1994)) is reported for every sample.
+
+    - ``scheme="bootstrap"`` (Gordon, Salmond & Smith (1993)): propagate with the model, weight by the
+      likelihood, resample (systematic, Kitagawa (1996)) when ESS < `threshold` · `particles`.
+    - ``scheme="auxiliary"`` (Pitt & Shephard (1999)): first-stage weights :math:`w_i\,p(y\mid\mu_i)` with
+      :math:`\mu_i` the particle moved without noise; ancestors drawn by systematic resampling with them;
+      the chosen particles moved with noise and weighted by :math:`p(y\mid x_i)/p(y\mid\mu_{a_i})`. It
+      resamples at every sample; `threshold` is not used.
+
+    The run is a compiled C loop (model functions generated by CasADi, the filter in C with a xoshiro256**
+    generator seeded by `seed`): the same seed gives the same estimates, bit for bit. The log-likelihood
+    estimate of each sample, :math:`\log\hat p(y_k\mid y_{1:k-1})`, is reported as well.
+
+    Parameters
+    ----------
+    system : System
+    Q : array_like of shape (n, n)
+        Process-noise intensity, positive semidefinite.
+    R : array_like of shape (p, p)
+        Covariance of one measurement sample, positive definite (Gaussian likelihood).
+    P0 : array_like of shape (n, n), optional
+        Covariance of the initial particles (identity), positive definite.
+    particles : int
+        Number of particles (≥ 2).
+    scheme : {"bootstrap", "auxiliary"}
+    threshold : float
+        Resampling threshold on ESS / particles, in [0, 1] (0: never, 1: every sample).
+    seed : int
+        Seed of the random numbers (a non-negative integer).
+    max_step : float, optional
+        Largest RK4 step between samples.
+
+    Other Parameters
+    ----------------
+    xhat0 : array_like of shape (n,), optional
+
+    Raises
+    ------
+    PreconditionError, ShapeError
+        For matrices of the wrong shape or definiteness, or options out of range.
+    """
+    require_system(system, "design_pf")
+    caller = "design_pf"
+    n, p = system.n_states, system.n_outputs
+    Qm, Rm, P0m, checks = covariance_inputs(Q, R, P0, n, p, caller)
+    if isinstance(particles, bool) or not isinstance(particles, (int, np.integer)) or particles < 2:
+        raise PreconditionError(f"{caller}: `particles` must be an integer ≥ 2, got {particles!r}")
+    if scheme not in ("bootstrap", "auxiliary"):
+        raise PreconditionError(f"{caller}: `scheme` must be 'bootstrap' or 'auxiliary', got {scheme!r}")
+    if not (isinstance(threshold, (int, float)) and 0 <= threshold <= 1):
+        raise PreconditionError(f"{caller}: `threshold` (of ESS / particles) must be in [0, 1], got {threshold!r}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**63:
+        raise PreconditionError(f"{caller}: `seed` must be a non-negative integer, got {seed!r}")
+    if max_step is not None and not (np.isfinite(max_step) and max_step > 0):
+        raise PreconditionError(f"{caller}: `max_step` must be a positive number, got {max_step!r}")
+    x0v = check_vector(np.zeros(n) if xhat0 is None else xhat0, n, "xhat0", caller)
+    f, h = compile_system(system).bind()
+    x, t, hh, u = ca.SX.sym("x", n), ca.SX.sym("t"), ca.SX.sym("h"), ca.SX.sym("u", system.n_inputs)
+    prop = ca.Function("pf_prop", [x, t, hh, u], [rk4_step(lambda tt, xx, _k: f(tt, xx, u), t, x, hh)])
+    meas = ca.Function("pf_meas", [x, t, u], [h(t, x, u)])
+    checks.append(Check("particles and resampling", True,
+                        f"{int(particles)} particles, {scheme}, systematic resampling"
+                        + (f" when ESS < {threshold:g}·N" if scheme == "bootstrap" else " at every sample")))
+    checks.append(Check.assumed("the measurement noise is Gaussian with covariance R and the process noise white with intensity Q",
+                                "the likelihood and the particles' noise are built on it"))
+    values: dict[str, Any] = {"Q": Qm, "R": Rm, "P0": P0m, "particles": int(particles), "scheme": scheme,
+                              "threshold": float(threshold), "seed": int(seed),
+                              "max_step": "one RK4 step per interval" if max_step is None else float(max_step),
+                              "random numbers": "xoshiro256** seeded by splitmix64; normals by the ziggurat of Marsaglia & Tsang (2000)"}
+    cert = Certificate(f"Particle filter ({scheme}, continuous-discrete)", REF, tuple(checks), values)
+    names = ([f"xhat_{v}" for v in system.states] + [f"P_{i}_{j}" for j in range(n) for i in range(n)]
+             + ["ess", "resampled", "loglik"])
+    zs = ca.SX.sym("z", len(names))
+    cov = ca.Function("pf_covariance", [zs], [ca.reshape(zs[n:n + n * n], n, n)], ["z"], ["P"])
+    return ParticleDesign("pf", system, x0v, P0m, Qm, Rm, int(particles), scheme, float(threshold), int(seed),
+                          None if max_step is None else float(max_step), prop, meas, cert, tuple(names), cov)
+
+
+def square_roots(d: ParticleDesign) -> tuple[np.ndarray, np.ndarray]:
+    """L0, Lq with L0 L0ᵀ = P0 and Lq Lqᵀ = Q."""
+    return np.linalg.cholesky(d.P0), sqrt_psd(d.Q)

@@ -1,0 +1,126 @@
+"""Square-root building blocks for the square-root Kalman filters (symbolic, CasADi SX).
+
+- :func:`tria`: a lower-triangular L with L Lᵀ = A Aᵀ, by Givens rotations (the R factor of the QR
+  decomposition of Aᵀ, transposed; Arasaratnam & Haykin (2009) call it Tria). P = L Lᵀ is never formed.
+- :func:`lower_solve`: L⁻¹ B by forward substitution.
+- :func:`phi`: Φ(A), the lower triangle of A with half its diagonal (Särkkä (2007), eq. of the square-root
+  continuous-time UKF): with Ṡ = S Φ(S⁻¹ M S⁻ᵀ), d(SSᵀ)/dt = M for symmetric M.
+- :func:`sqrt_psd`: a numerical square root of a positive semidefinite matrix (Cholesky when definite).
+- :func:`covariance_checks`: the common checks of Q, R, P0.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from ._base import Check
+from ._checks import check_matrix
+
+__all__ = ["tria", "lower_solve", "phi", "sqrt_psd", "covariance_inputs", "unpack_lower", "pack_lower"]
+
+
+def _cells(A: ca.SX) -> list[list[ca.SX]]:
+    return [[A[i, j] for j in range(A.shape[1])] for i in range(A.shape[0])]
+
+
+def tria(A: ca.SX) -> ca.SX:
+    """Lower-triangular L (n x n, non-negative diagonal) with L Lᵀ = A Aᵀ for A of shape (n, k), k >= n.
+
+    Givens rotations of the columns of A zero row i right of the diagonal, for i = 0..n-1; each rotation
+    is orthogonal, so A Aᵀ is unchanged. A zero pair (a, b) = (0, 0) is left alone.
+    """
+    n, k = A.shape
+    if k < n:
+        A = ca.horzcat(A, ca.SX.zeros(n, n - k))
+        k = n
+    M = _cells(A)
+    for i in range(n):
+        for j in range(i + 1, k):
+            a, b = M[i][i], M[i][j]
+            if ca.is_equal(b, 0):  # structurally zero: nothing to rotate
+                continue
+            r = ca.sqrt(a * a + b * b)
+            pos = r > 0
+            rs = ca.if_else(pos, r, 1)
+            c, s = ca.if_else(pos, a / rs, 1), b / rs
+            for row in range(i, n):
+                x, w = M[row][i], M[row][j]
+                M[row][i], M[row][j] = c * x + s * w, c * w - s * x
+            M[i][j] = ca.SX(0)
+    L = ca.SX.zeros(n, n)
+    for i in range(n):
+        for j in range(i + 1):
+            L[i, j] = M[i][j]
+    return L
+
+
+def lower_solve(L: ca.SX, B: ca.SX) -> ca.SX:
+    """L⁻¹ B for a lower-triangular L, by forward substitution (no symbolic factorisation)."""
+    n = L.shape[0]
+    X = ca.SX.zeros(n, B.shape[1])
+    for c in range(B.shape[1]):
+        xs: list[ca.SX] = []
+        for i in range(n):
+            acc = B[i, c]
+            for j in range(i):
+                if not ca.is_equal(L[i, j], 0):
+                    acc = acc - L[i, j] * xs[j]
+            xs.append(acc / L[i, i])
+        for i in range(n):
+            X[i, c] = xs[i]
+    return X
+
+
+def phi(A: ca.SX) -> ca.SX:
+    """Φ(A): the strictly lower triangle of A plus half its diagonal."""
+    n = A.shape[0]
+    out = ca.SX.zeros(n, n)
+    for i in range(n):
+        out[i, i] = A[i, i] / 2
+        for j in range(i):
+            out[i, j] = A[i, j]
+    return out
+
+
+def sqrt_psd(M: np.ndarray) -> np.ndarray:
+    """A square root G with G Gᵀ = M: the lower Cholesky factor when M is definite, else from eigenvectors."""
+    try:
+        return np.linalg.cholesky(M)
+    except np.linalg.LinAlgError:
+        w, V = np.linalg.eigh((M + M.T) / 2)
+        return V * np.sqrt(np.clip(w, 0, None))
+
+
+def pack_lower(L: Any) -> ca.SX | ca.DM:
+    """The lower triangle of L, column by column (n(n+1)/2 entries)."""
+    n = L.shape[0]
+    return ca.vertcat(*[L[i, j] for j in range(n) for i in range(j, n)])
+
+
+def unpack_lower(v: ca.SX, n: int) -> ca.SX:
+    """The lower-triangular matrix whose packed lower triangle is `v` (see :func:`pack_lower`)."""
+    L = ca.SX.zeros(n, n)
+    k = 0
+    for j in range(n):
+        for i in range(j, n):
+            L[i, j] = v[k]
+            k += 1
+    return L
+
+
+def lower_names(prefix: str, n: int) -> list[str]:
+    return [f"{prefix}_{i}_{j}" for j in range(n) for i in range(j, n)]
+
+
+def covariance_inputs(Q: Any, R: Any, P0: Any, n: int, p: int, caller: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[Check]]:
+    """Q (semidefinite), R, P0 (definite) checked, and the certificate's checks for them."""
+    Qm = check_matrix(Q, n, n, "Q", caller, definite="semidefinite")
+    Rm = check_matrix(R, p, p, "R", caller, definite="positive")
+    P0m = np.eye(n) if P0 is None else check_matrix(P0, n, n, "P0", caller, definite="positive")
+    checks = [Check("Q positive semidefinite", True, f"min eig {np.linalg.eigvalsh(Qm).min():.3g}"),
+              Check("R positive definite", True, f"min eig {np.linalg.eigvalsh(Rm).min():.3g}"),
+              Check("P0 positive definite", True, f"min eig {np.linalg.eigvalsh(P0m).min():.3g}")]
+    return Qm, Rm, P0m, checks

@@ -1,0 +1,524 @@
+"""The particle filter's compiled loop: CasADi-generated model functions called from a C loop over samples and particles.
+
+See :func:`nlobs.design.design_pf` for the filter. One call runs the whole recording: per sample, the particles'
+RK4 steps with process noise, the Gaussian log-likelihoods, normalisation, the weighted mean and covariance,
+the effective sample size and systematic resampling. Random numbers come from xoshiro256** (Blackman & Vigna)
+seeded by splitmix64 from the design's seed, so a run is reproducible bit for bit.
+"""
+
+from __future__ import annotations
+
+import ctypes
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..design._pf import ParticleDesign, square_roots
+from ._base import AbstractObserver
+from ..engine._codegen import _build, _generate, _renamed, built_path, signature_of
+from ..errors import DataError, FiniteEscapeError, ShapeError
+
+__all__ = ["ParticleObserver", "ParticleRun", "ParticleRunner", "particle_runner"]
+
+_C_PF = r"""
+/* nlobs particle filter loop (see nlobs.observer._particles). Returns 0, or k + 1 when every particle's
+   weight vanished at sample k (every output non-finite: outside the model's domain). */
+#include <math.h>
+#include <stdint.h>
+#include <string.h>
+#include <stdlib.h>
+static uint64_t rs[4];
+static void zigset(void);
+static void seed_lanes(uint64_t seed);
+static uint64_t rotl(const uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
+static inline uint64_t next64(void) {
+  const uint64_t result = rotl(rs[1] * 5, 7) * 9, t = rs[1] << 17;
+  rs[2] ^= rs[0]; rs[3] ^= rs[1]; rs[1] ^= rs[2]; rs[0] ^= rs[3]; rs[2] ^= t; rs[3] = rotl(rs[3], 45);
+  return result;
+}
+static void seed_rng(uint64_t seed) {
+  int i;
+  for (i = 0; i < 4; ++i) {
+    uint64_t z = (seed += 0x9e3779b97f4a7c15ULL);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL; z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    rs[i] = z ^ (z >> 31);
+  }
+  seed_lanes(seed);
+  zigset();
+}
+static double unif(void) { return (next64() >> 11) * 0x1.0p-53; }
+static double unif_open(void) { return ((next64() >> 11) + 0.5) * 0x1.0p-53; }  /* in (0, 1) */
+/* standard normals by the ziggurat method of Marsaglia & Tsang (2000), 128 layers; the layer index and the
+   32-bit value come from separate bits of one 64-bit draw (Doornik (2005): they must not share bits) */
+static long long kn[128];
+static double wn[128], fn[128];
+static void zigset(void) {
+  const double m1 = 2147483648.0, vn = 9.91256303526217e-3;
+  double dn = 3.442619855899, tn = dn, q = vn / exp(-.5 * dn * dn);
+  int i;
+  kn[0] = (long long)((dn / q) * m1); kn[1] = 0;
+  wn[0] = q / m1; wn[127] = dn / m1;
+  fn[0] = 1.; fn[127] = exp(-.5 * dn * dn);
+  for (i = 126; i >= 1; i--) {
+    dn = sqrt(-2. * log(vn / dn + exp(-.5 * dn * dn)));
+    kn[i + 1] = (long long)((dn / tn) * m1); tn = dn;
+    fn[i] = exp(-.5 * dn * dn); wn[i] = dn / m1;
+  }
+}
+static double gauss_slow(int iz, int32_t hz);
+static inline double gauss(void) {  /* the fast path (about 99 % of the draws), inlined */
+  uint64_t b = next64();
+  int iz = (int)(b & 127);
+  int32_t hz = (int32_t)(uint32_t)(b >> 32);
+  long long ahz = hz < 0 ? -(long long)hz : (long long)hz;
+  if (ahz < kn[iz]) return hz * wn[iz];
+  return gauss_slow(iz, hz);
+}
+static __attribute__((noinline)) double gauss_slow(int iz, int32_t hz) {
+  const double r = 3.442620;
+  for (;;) {
+    double x = hz * wn[iz], y;
+    uint64_t b;
+    long long ahz;
+    if (iz == 0) {  /* the tail beyond r */
+      do { x = -log(unif_open()) / r; y = -log(unif_open()); } while (y + y < x * x);
+      return hz > 0 ? r + x : -r - x;
+    }
+    if (fn[iz] + unif() * (fn[iz - 1] - fn[iz]) < exp(-.5 * x * x)) return x;
+    b = next64();
+    iz = (int)(b & 127);
+    hz = (int32_t)(uint32_t)(b >> 32);
+    ahz = hz < 0 ? -(long long)hz : (long long)hz;
+    if (ahz < kn[iz]) return hz * wn[iz];
+  }
+}
+/* four independent xoshiro256** streams stepped together (the loop over lanes vectorises), for filling
+   arrays of normals: the serial dependence of one stream's state was the particle loop's bottleneck */
+#define LANES 4
+static uint64_t ls[4][LANES];
+static void seed_lanes(uint64_t seed) {
+  int i, l;
+  for (l = 0; l < LANES; ++l) for (i = 0; i < 4; ++i) {
+    uint64_t z = (seed += 0x9e3779b97f4a7c15ULL);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL; z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    ls[i][l] = z ^ (z >> 31);
+  }
+}
+static void fill_normals(double* out, long long n) {
+  uint64_t b[LANES];
+  long long j = 0;
+  int l;
+  for (; j + LANES <= n; j += LANES) {
+    for (l = 0; l < LANES; ++l) {
+      const uint64_t t = ls[1][l] << 17;
+      b[l] = rotl(ls[1][l] * 5, 7) * 9;
+      ls[2][l] ^= ls[0][l]; ls[3][l] ^= ls[1][l]; ls[1][l] ^= ls[2][l]; ls[0][l] ^= ls[3][l]; ls[2][l] ^= t;
+      ls[3][l] = rotl(ls[3][l], 45);
+    }
+    for (l = 0; l < LANES; ++l) {
+      int iz = (int)(b[l] & 127);
+      int32_t hz = (int32_t)(uint32_t)(b[l] >> 32);
+      long long ahz = hz < 0 ? -(long long)hz : (long long)hz;
+      out[j + l] = ahz < kn[iz] ? hz * wn[iz] : gauss_slow(iz, hz);
+    }
+  }
+  for (; j < n; ++j) out[j] = gauss();
+}
+long long nlobs_normals(long long seed, long long n, double* out) {
+  long long i;
+  seed_rng((uint64_t)seed);
+  fill_normals(out, n);
+  return 0;
+}
+
+static const double* arg[SZ_ARG];
+static double* res[SZ_RES];
+static casadi_int iw[SZ_IW + 1];
+static double w[SZ_W + 1];
+
+static void prop(double* x, double t, double h, const double* u, double* out) {
+  arg[0] = x; arg[1] = &t; arg[2] = &h; arg[3] = u; res[0] = out;
+  nlobs_prop(arg, res, iw, w, 0);
+}
+/* log N(y; h(x), R) over the measured outputs: W is the inverse Cholesky factor (rows of missing outputs zero) */
+static double loglik(const double* x, double t, const double* u, const double* y, const double* W, double cst) {
+  double yh[NY + 1], e[NY + 1], q = 0, v;
+  int i, j;
+  arg[0] = x; arg[1] = &t; arg[2] = u; res[0] = yh;
+  nlobs_meas(arg, res, iw, w, 0);
+  for (i = 0; i < NY; ++i) e[i] = y[i] - yh[i];
+  for (i = 0; i < NY; ++i) { v = 0; for (j = 0; j < NY; ++j) v += W[i * NY + j] * e[j]; q += v * v; }
+  q = cst - 0.5 * q;
+  return q == q ? q : -INFINITY;  /* outside the model's domain (NaN output): weight 0 */
+}
+/* move every particle over one interval: nsub RK4 steps of length h, each followed by sqrt(h) Lq xi */
+static double* nbuf;  /* M * NX standard normals, drawn in one tight loop per step */
+static void move(double* X, long long M, double t0, double h, long long nsub, const double* u, const double* Lq, int noise) {
+  double tmp[NX + 1], sq = sqrt(h);
+  long long i, s, j;
+  int a, b;
+  for (s = 0; s < nsub; ++s) {
+    for (i = 0; i < M; ++i) {
+      double* x = X + i * NX;
+      prop(x, t0 + s * h, h, u, tmp);
+      for (a = 0; a < NX; ++a) x[a] = tmp[a];
+    }
+    if (noise) {
+      fill_normals(nbuf, M * NX);
+      for (i = 0; i < M; ++i) {
+        double* x = X + i * NX;
+        const double* xi = nbuf + i * NX;
+        for (a = 0; a < NX; ++a) { double acc = 0; for (b = 0; b < NX; ++b) acc += Lq[a * NX + b] * xi[b]; x[a] += sq * acc; }
+      }
+    }
+  }
+}
+/* normalise log-weights in place to weights summing to 1; returns log of the sum of exp(lw) (or NaN) */
+static double normalise(double* lw, double* wk, long long M) {
+  double m = -INFINITY, s = 0;
+  long long i;
+  for (i = 0; i < M; ++i) if (lw[i] > m) m = lw[i];
+  if (!(m > -INFINITY && m < INFINITY)) return NAN;
+  for (i = 0; i < M; ++i) { wk[i] = exp(lw[i] - m); s += wk[i]; }
+  m += log(s);
+  s = 1 / s;
+  for (i = 0; i < M; ++i) { wk[i] *= s; lw[i] -= m; }
+  return m;
+}
+/* systematic resampling (Kitagawa 1996): idx[i] = the particle whose cumulative weight first exceeds (i + U)/M */
+static void systematic(const double* wk, long long M, long long* idx) {
+  double c = wk[0], step = 1.0 / M, p = unif() * step;
+  long long i, j = 0;
+  for (i = 0; i < M; ++i, p += step) {
+    while (p > c && j < M - 1) { ++j; c += wk[j]; }
+    idx[i] = j;
+  }
+}
+static void wmean(const double* X, const double* wk, long long M, double* out) {
+  long long i;
+  int a;
+  for (a = 0; a < NX; ++a) out[a] = 0;
+  for (i = 0; i < M; ++i) for (a = 0; a < NX; ++a) out[a] += wk[i] * X[i * NX + a];
+}
+static void gather(const double* X, const long long* idx, long long M, double* out) {
+  long long i;
+  for (i = 0; i < M; ++i) memcpy(out + i * NX, X + idx[i] * NX, sizeof(double) * NX);
+}
+
+static long long pf_loop(const double* t, const double* U, const double* Y, const double* W, const double* cst,
+                   const double* nsub, const double* x0, const double* L0, const double* Lq, long long N, long long M,
+                   long long aux, double thresh, long long seed, double* X, double* Xb, double* lw, double* wk,
+                   double* mu, double* lmu, long long* idx, double* xhat, double* P, double* ess, double* resampled,
+                   double* ll, double* xprior) {
+  long long k, i;
+  int a, b;
+  double xi[NX + 1], s, sw2;
+  seed_rng((uint64_t)seed);
+  nbuf = (double*)malloc(sizeof(double) * M * NX);
+  if (!nbuf) return -1;
+  for (i = 0; i < M; ++i) {
+    for (a = 0; a < NX; ++a) xi[a] = gauss();
+    for (a = 0; a < NX; ++a) { double acc = 0; for (b = 0; b <= a; ++b) acc += L0[a * NX + b] * xi[b]; X[i * NX + a] = x0[a] + acc; }
+    lw[i] = -log((double)M); wk[i] = 1.0 / M;
+  }
+  for (k = 0; k < N; ++k) {
+    const double* y = Y + k * NY; const double* Wk = W + k * NY * NY;
+    resampled[k] = 0;
+    if (k > 0) {
+      const double* u = U + (k - 1) * NU;
+      double h = (t[k] - t[k - 1]) / nsub[k - 1];
+      if (aux) {  /* Pitt & Shephard: first stage on the noise-free moves mu_i */
+        memcpy(mu, X, sizeof(double) * M * NX);
+        move(mu, M, t[k - 1], h, (long long)nsub[k - 1], u, Lq, 0);
+        wmean(mu, wk, M, xprior + k * NX);
+        for (i = 0; i < M; ++i) { lmu[i] = loglik(mu + i * NX, t[k], U + k * NU, y, Wk, cst[k]); lw[i] += lmu[i]; }
+        s = normalise(lw, wk, M);
+        if (!(s == s)) return k + 1;
+        systematic(wk, M, idx);
+        gather(X, idx, M, Xb);
+        memcpy(X, Xb, sizeof(double) * M * NX);
+        move(X, M, t[k - 1], h, (long long)nsub[k - 1], u, Lq, 1);
+        for (i = 0; i < M; ++i) lw[i] = loglik(X + i * NX, t[k], U + k * NU, y, Wk, cst[k]) - lmu[idx[i]];
+        resampled[k] = 1;
+        /* log p(y_k | y_1:k-1) ~ log sum_i w_i p(y|mu_i) + log mean_i of the second-stage weights */
+        ll[k] = s;
+        s = normalise(lw, wk, M);
+        if (!(s == s)) return k + 1;
+        ll[k] += s - log((double)M);
+      } else {
+        move(X, M, t[k - 1], h, (long long)nsub[k - 1], u, Lq, 1);
+        wmean(X, wk, M, xprior + k * NX);
+      }
+    } else {
+      wmean(X, wk, M, xprior);
+    }
+    if (!aux || k == 0) {
+      for (i = 0; i < M; ++i) lw[i] += loglik(X + i * NX, t[k], U + k * NU, y, Wk, cst[k]);
+      s = normalise(lw, wk, M);
+      if (!(s == s)) return k + 1;
+      ll[k] = s;
+    }
+    /* estimate, covariance and ESS before resampling: one pass for the mean, one for the covariance */
+    {
+      double mean[NX + 1], cov[NX * NX + 1], d[NX + 1];
+      for (a = 0; a < NX; ++a) mean[a] = 0;
+      for (a = 0; a < NX * NX; ++a) cov[a] = 0;
+      sw2 = 0;
+      for (i = 0; i < M; ++i) {
+        const double* x = X + i * NX;
+        for (a = 0; a < NX; ++a) mean[a] += wk[i] * x[a];
+        sw2 += wk[i] * wk[i];
+      }
+      for (i = 0; i < M; ++i) {
+        const double* x = X + i * NX;
+        for (a = 0; a < NX; ++a) d[a] = x[a] - mean[a];
+        for (a = 0; a < NX; ++a) for (b = 0; b <= a; ++b) cov[a * NX + b] += wk[i] * d[a] * d[b];
+      }
+      for (a = 0; a < NX; ++a) {
+        xhat[k * NX + a] = mean[a];
+        for (b = 0; b <= a; ++b) { P[k * NX * NX + a * NX + b] = cov[a * NX + b]; P[k * NX * NX + b * NX + a] = cov[a * NX + b]; }
+      }
+    }
+    ess[k] = 1 / sw2;
+    if (!aux && ess[k] < thresh * M) {
+      systematic(wk, M, idx);
+      gather(X, idx, M, Xb);
+      memcpy(X, Xb, sizeof(double) * M * NX);
+      for (i = 0; i < M; ++i) { lw[i] = -log((double)M); wk[i] = 1.0 / M; }
+      resampled[k] = 1;
+    }
+  }
+  return 0;
+}
+
+long long nlobs_pf(const double* t, const double* U, const double* Y, const double* W, const double* cst,
+                   const double* nsub, const double* x0, const double* L0, const double* Lq, long long N, long long M,
+                   long long aux, double thresh, long long seed, double* X, double* Xb, double* lw, double* wk,
+                   double* mu, double* lmu, long long* idx, double* xhat, double* P, double* ess, double* resampled,
+                   double* ll, double* xprior) {
+  long long rc = pf_loop(t, U, Y, W, cst, nsub, x0, L0, Lq, N, M, aux, thresh, seed, X, Xb, lw, wk, mu, lmu, idx, xhat, P,
+                         ess, resampled, ll, xprior);
+  free(nbuf);
+  nbuf = 0;
+  return rc;
+}
+"""
+
+
+@dataclass(frozen=True, eq=False)
+class ParticleRun:
+    """What :meth:`ParticleRunner.run` returns (time on the first axis).
+
+    Attributes
+    ----------
+    t : numpy.ndarray of shape (N,)
+    xhat : numpy.ndarray of shape (N, n)
+        Weighted particle mean after each sample's weighting.
+    P : numpy.ndarray of shape (N, n, n)
+        Weighted particle covariance.
+    ess : numpy.ndarray of shape (N,)
+        Effective sample size 1/Σw² after weighting (before resampling).
+    resampled : numpy.ndarray of shape (N,), bool
+    loglik : numpy.ndarray of shape (N,)
+        log p̂(y_k | y_1..k-1), the particle estimate of each sample's predictive likelihood.
+    particles : numpy.ndarray of shape (M, n)
+        The final particles (after the last resampling, if any).
+    weights : numpy.ndarray of shape (M,)
+    xhat_prior : numpy.ndarray of shape (N, n)
+        The weighted mean of the particles moved to each sample, before its measurement is used (the
+        auxiliary filter: moved without noise).
+    """
+
+    t: np.ndarray
+    xhat: np.ndarray
+    P: np.ndarray
+    ess: np.ndarray
+    resampled: np.ndarray
+    loglik: np.ndarray
+    particles: np.ndarray
+    weights: np.ndarray
+    xhat_prior: np.ndarray
+
+    @property
+    def z(self) -> np.ndarray:
+        """The trace rows of the filter (x̂, P column-major, ESS, resampled, log-likelihood), as its ``z_names``."""
+        N, n = self.xhat.shape
+        return np.hstack([self.xhat, self.P.transpose(0, 2, 1).reshape(N, n * n), self.ess[:, None],
+                          self.resampled[:, None].astype(float), self.loglik[:, None]])
+
+
+class ParticleRunner:
+    """A particle filter design compiled to run on recordings (the C loop is built once per machine, cached)."""
+
+    def __init__(self, design: ParticleDesign):
+        self.design = design
+        s = design.system
+        self.n, self.nu, self.ny = s.n_states, s.n_inputs, s.n_outputs
+        rp, rm = _renamed(design.prop, "nlobs_prop"), _renamed(design.meas, "nlobs_meas")
+
+        def code() -> str:
+            defs = {"SZ_ARG": max(rp.sz_arg(), rm.sz_arg()), "SZ_RES": max(rp.sz_res(), rm.sz_res()),
+                    "SZ_IW": max(rp.sz_iw(), rm.sz_iw()), "SZ_W": max(rp.sz_w(), rm.sz_w()),
+                    "NX": self.n, "NY": self.ny, "NU": max(self.nu, 1)}
+            driver = _C_PF
+            for k, v in defs.items():
+                driver = driver.replace(k, str(int(v)))
+            return _generate(rp, rm) + driver
+
+        sig = signature_of(design.prop) + signature_of(design.meas) + f"{self.n},{self.ny},{self.nu}"
+        path = _build(code, "particles", built_path("particles", sig, _C_PF))
+        lib = ctypes.CDLL(str(path))
+        fn = lib.nlobs_pf
+        dbl, ll = ctypes.POINTER(ctypes.c_double), ctypes.c_longlong
+        fn.argtypes = [dbl] * 9 + [ll, ll, ll, ctypes.c_double, ll] + [dbl] * 6 + [ctypes.POINTER(ctypes.c_longlong)] + [dbl] * 6
+        fn.restype = ll
+        lib.nlobs_normals.argtypes = [ll, ll, ctypes.POINTER(ctypes.c_double)]
+        lib.nlobs_normals.restype = ll
+        self._fn, self._lib = fn, lib
+
+    def normals(self, n: int, seed: int) -> np.ndarray:
+        """`n` standard normal draws of the filter's generator (for checking it)."""
+        out = np.empty(int(n))
+        self._lib.nlobs_normals(int(seed), int(n), out.ctypes.data_as(ctypes.POINTER(ctypes.c_double)))
+        return out
+
+    def run(self, t: Any, y: Any, u: Any = None, *, mask: Any = None, xhat0: Any = None, seed: int | None = None,
+            particles: int | None = None, name: str | None = None) -> ParticleRun:
+        """Run the filter on samples: times `t` (N,), outputs `y` (N, p), inputs `u` (N, m), held between samples.
+
+        `mask` (N, p) marks measured outputs (1) and missing ones (0); `xhat0`, `seed` and `particles`
+        override the design's.
+
+        Raises
+        ------
+        FiniteEscapeError
+            When every particle's likelihood vanishes at a sample (the particles missed the measurement:
+            more particles, a larger Q or R, or a better x̂0).
+        """
+        d = self.design
+        label = f"observer {name or d.method!r}"
+        t = np.ascontiguousarray(t, dtype=float).reshape(-1)
+        N = t.size
+        if N < 1 or np.any(np.diff(t) <= 0):
+            raise ShapeError(f"{label}: the sample times must be strictly increasing")
+        y = np.ascontiguousarray(y, dtype=float).reshape(N, self.ny)
+        U = np.zeros((N, 1)) if self.nu == 0 else np.ascontiguousarray(u, dtype=float).reshape(N, self.nu)
+        m = np.ones((N, self.ny)) if mask is None else np.asarray(mask, dtype=float).reshape(N, self.ny)
+        y = np.ascontiguousarray(np.where(m > 0, y, 0.0))
+        if not (np.all(np.isfinite(y)) and np.all(np.isfinite(U))):
+            raise DataError(f"{label}: non-finite samples (give missing outputs by `mask`)")
+        W, cst = _precision_factors(d.R, m > 0)
+        dts = np.diff(t)
+        nsub = np.ones(max(N - 1, 1)) if d.max_step is None else np.maximum(1.0, np.ceil(dts / d.max_step - 1e-9))
+        M = d.particles if particles is None else int(particles)
+        x0 = np.ascontiguousarray(d.xhat0 if xhat0 is None else np.asarray(xhat0, dtype=float).reshape(self.n))
+        L0, Lq = (np.ascontiguousarray(a) for a in square_roots(d))
+        X, Xb, mu = (np.empty((M, self.n)) for _ in range(3))
+        lw, wk, lmu = np.empty(M), np.empty(M), np.empty(M)
+        idx = np.empty(M, dtype=np.int64)
+        xhat, P = np.full((N, self.n), np.nan), np.full((N, self.n, self.n), np.nan)
+        ess, res, llk, prior = np.full(N, np.nan), np.zeros(N), np.full(N, np.nan), np.full((N, self.n), np.nan)
+        p = ctypes.POINTER(ctypes.c_double)
+        rc = self._fn(t.ctypes.data_as(p), U.ctypes.data_as(p), y.ctypes.data_as(p), W.ctypes.data_as(p), cst.ctypes.data_as(p),
+                      nsub.ctypes.data_as(p), x0.ctypes.data_as(p), L0.ctypes.data_as(p), Lq.ctypes.data_as(p), N, M,
+                      int(d.scheme == "auxiliary"), d.threshold, int(d.seed if seed is None else seed),
+                      X.ctypes.data_as(p), Xb.ctypes.data_as(p), lw.ctypes.data_as(p), wk.ctypes.data_as(p),
+                      mu.ctypes.data_as(p), lmu.ctypes.data_as(p), idx.ctypes.data_as(ctypes.POINTER(ctypes.c_longlong)),
+                      xhat.ctypes.data_as(p), P.ctypes.data_as(p), ess.ctypes.data_as(p), res.ctypes.data_as(p),
+                      llk.ctypes.data_as(p), prior.ctypes.data_as(p))
+        if rc < 0:
+            raise MemoryError(f"{label}: no memory for {M} particles' random numbers")
+        if rc:
+            k = int(rc - 1)
+            last = xhat[k - 1] if k > 0 else x0
+            raise FiniteEscapeError(label, float(t[k - 1] if k > 0 else t[0]), last, d.system.states, np.inf,
+                                    hint=f"at the sample t = {t[k]:g} every particle's likelihood vanished (the model's output is "
+                                         "not finite at all of them: outside its domain): start x̂0 inside the domain, "
+                                         "or use a smaller P0 or Q")
+        return ParticleRun(t, xhat, P, ess, res > 0, llk, X.copy(), np.exp(lw), prior)
+
+
+def _precision_factors(R: np.ndarray, measured: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per sample: W with WᵀW = R_sub⁻¹ on the measured outputs (zero elsewhere), and the Gaussian's log constant."""
+    N, p = measured.shape
+    W, cst = np.zeros((N, p, p)), np.zeros(N)
+    for pattern in {tuple(r) for r in measured}:
+        rows = np.all(measured == np.array(pattern), axis=1)
+        sel = np.flatnonzero(pattern)
+        Wk = np.zeros((p, p))
+        c = 0.0
+        if sel.size:
+            L = np.linalg.cholesky(R[np.ix_(sel, sel)])
+            Wk[np.ix_(sel, sel)] = np.linalg.inv(L)
+            c = -0.5 * sel.size * np.log(2 * np.pi) - np.log(np.diag(L)).sum()
+        W[rows], cst[rows] = Wk, c
+    return np.ascontiguousarray(W), cst
+
+
+_RUNNERS: dict[int, ParticleRunner] = {}
+
+
+def particle_runner(design: ParticleDesign) -> ParticleRunner:
+    """The compiled runner for `design` (built on first use, then cached for the process)."""
+    r = _RUNNERS.get(id(design))
+    if r is None or r.design is not design:
+        r = _RUNNERS[id(design)] = ParticleRunner(design)
+    return r
+
+
+class ParticleObserver(AbstractObserver):
+    """A particle filter as an observer of :func:`nlobs.simulate` and :func:`nlobs.estimate`.
+
+    A particle filter is not an ODE observer: its state is a random cloud of particles, run over a whole
+    recording at once by :class:`ParticleRunner`. The per-step calls of :class:`AbstractObserver`
+    (rhs, update, step, online use) are therefore refused with a clear error.
+    """
+
+    def __init__(self, design: ParticleDesign, name: str | None = None):
+        if not isinstance(design, ParticleDesign):
+            raise TypeError(f"ParticleObserver needs a ParticleDesign (from design_pf), got {type(design).__name__}")
+        self._design = design
+        self.name = name or design.method
+
+    @property
+    def design(self) -> ParticleDesign:  # type: ignore[override]
+        return self._design
+
+    def _refuse(self, what: str) -> Any:
+        raise TypeError(f"{what}: a particle filter ({self.name!r}) runs on a whole recording, not step by step; use "
+                        "nlobs.simulate, nlobs.estimate, or nlobs.observer.particle_runner(design).run(t, y, u)")
+
+    def rhs(self, t: float, z: Any, u: Any = None, y: Any = None) -> np.ndarray:
+        return self._refuse("rhs")
+
+    def estimate(self, t: float, z: Any, u: Any = None, y: Any = None) -> np.ndarray:
+        return self._refuse("estimate")
+
+    def update(self, t: float, z: Any, u: Any = None, y: Any = None, mask: Any = None) -> np.ndarray:
+        return self._refuse("update")
+
+    def step(self, z: Any, t: float, dt: float, u: Any, y: Any, *, substeps: int = 1) -> np.ndarray:
+        return self._refuse("step")
+
+    def start(self, xhat0: Any = None, *, max_step: float | None = None) -> Any:
+        return self._refuse("start")
+
+    def initial_state(self, xhat0: Any = None) -> np.ndarray:
+        """The mean of the initial particles (the design's x̂0 unless given)."""
+        x0 = self._design.xhat0 if xhat0 is None else np.asarray(xhat0, dtype=float).reshape(-1)
+        if x0.size != self.system.n_states:
+            raise ShapeError(f"`xhat0` must have {self.system.n_states} entries, got {x0.size}")
+        return x0
+
+    def trace_on(self, t: np.ndarray, y: np.ndarray, u: np.ndarray, *, mask: Any = None, xhat0: Any = None,
+                 name: str | None = None) -> tuple[ParticleRun, np.ndarray]:
+        """Run on samples and return the run and the output predicted before each sample, h(x̂⁻)."""
+        run = particle_runner(self._design).run(t, y, u, mask=mask, xhat0=xhat0, name=name or self.name)
+        N = run.t.size
+        uu = np.zeros((N, self.system.n_inputs)) if u is None else np.asarray(u, dtype=float).reshape(N, -1)
+        yp = np.asarray(self._design.meas.map(N)(run.xhat_prior.T, run.t[None, :], uu.T), dtype=float).T
+        return run, yp.reshape(N, self.system.n_outputs)
+
+    def __repr__(self) -> str:
+        return f"ParticleObserver({self.name!r}, scheme={self._design.scheme!r}, particles={self._design.particles})"
