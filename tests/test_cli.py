@@ -268,3 +268,21 @@ def test_vector_and_matrix_options():
     assert parse_columns(["time=t,level=y", "force=u"]) == {"time": "t", "level": "y", "force": "u"}
     with pytest.raises(ValueError, match="expected CSV_NAME=MODEL_NAME"):
         parse_columns(["time"])
+
+
+def test_a_closed_pipe_ends_the_command_quietly(monkeypatch, capsys):
+    # `nlobs analyze M | head`: the reader goes away; the command stops with status 0 and no error line
+    # (before: "nlobs: error: [Errno 32] Broken pipe" and status 1)
+    import nlobs.cli as cli_mod
+    from nlobs.cli import _kinds
+
+    called = []
+
+    def run(args):
+        called.append(True)
+        raise BrokenPipeError(32, "Broken pipe")
+
+    monkeypatch.setattr(_kinds, "run", run)
+    monkeypatch.setattr(cli_mod, "_closed_pipe", lambda: 0)   # keep pytest's own stdout open
+    assert cli_mod.main(["kinds"]) == 0 and called
+    assert "Broken pipe" not in capsys.readouterr().err

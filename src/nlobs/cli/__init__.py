@@ -3,7 +3,8 @@
 Each command module defines ``add_parser(sub)`` (its sub-parser, with ``set_defaults(run=...)``)
 and the function that runs it. Errors print one line (``nlobs: error: ...``) and exit non-zero;
 with ``--json`` they print one JSON object ``{"error": {"type": ..., "message": ...}}`` on stderr;
-``--debug`` shows the traceback.
+``--debug`` shows the traceback. A reader that closes the pipe early (``nlobs analyze M | head``) ends the
+command quietly with status 0.
 """
 
 from __future__ import annotations
@@ -31,10 +32,28 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def _closed_pipe() -> int:
+    """stdout was closed by the reader (``nlobs analyze ... | head``): stop quietly, as Unix tools do. Python
+    would otherwise report the broken pipe again when it flushes stdout at exit, so stdout is pointed at devnull
+    (the recipe of the Python documentation, "Note on SIGPIPE")."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
-        return args.run(args)
+        status = args.run(args)
+        sys.stdout.flush()   # a reader that went away shows here, inside the handler below
+        return status
+    except BrokenPipeError:
+        return _closed_pipe()
     except KeyboardInterrupt:
         print("nlobs: interrupted", file=sys.stderr)
         return 130
