@@ -43,7 +43,7 @@ from ..model import TIME, System, symbol
 from ..model._system import ExprLike, exact
 from ..references import cite
 from ._groebner import GroebnerEngine, Poly, get_engine
-from ._modular import PRIME_BITS, RowEchelon, inv
+from ._modular import PRIME_BITS, RowEchelon, inv, random_prime
 
 __all__ = ["GlobalResult", "LocallyOnly", "global_identifiability", "NotRational"]
 
@@ -770,16 +770,6 @@ def _distinct_roots(coeffs: Sequence[int], p: int) -> int:
     return int(P.degree() - P.gcd(P.diff(T)).degree())
 
 
-def _random_prime(rng: np.random.Generator) -> int:
-    from ._modular import _is_prime
-
-    lo, hi = _PRIME_RANGE
-    while True:
-        c = int(rng.integers(lo, hi)) | 1
-        if _is_prime(c):
-            return c
-
-
 def global_identifiability(system: System, *, unknown_params: Any = (), inputs: Any = "generic",
                            unknown_inputs: Mapping[str, int] | None = None, functions: Sequence[ExprLike] = (),
                            local: Any = None, engine: str | GroebnerEngine = "auto", seed: int = 0,
@@ -935,7 +925,7 @@ def _prepare(system: System, *, unknown_params: Any = (), inputs: Any = "generic
     max_orders = [max(o, 0) + 1 for o in orders]
     K = max(max_orders) + 2
     for _ in range(8):
-        p = _random_prime(rng)
+        p = random_prime(rng, interval=_PRIME_RANGE, three_mod_four=False)
         try:
             sian = _Sian(rm, K, p, rng)
             pt = sian.point()

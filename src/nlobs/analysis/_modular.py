@@ -44,16 +44,19 @@ def _is_prime(n: int) -> bool:
     return True
 
 
-def random_prime(rng: np.random.Generator, odd_roots: frozenset[int] = frozenset()) -> int:
-    """A random prime p ≡ 3 (mod 4) in [2^26, 2^27) with gcd(r, p - 1) = 1 for every r in `odd_roots`.
+def random_prime(rng: np.random.Generator, odd_roots: frozenset[int] = frozenset(), *,
+                 interval: tuple[int, int] | None = None, three_mod_four: bool = True) -> int:
+    """A random prime p in `interval` (default [2^26, 2^27)), p ≡ 3 (mod 4) unless `three_mod_four` is False
+    (then any odd prime), with gcd(r, p - 1) = 1 for every r in `odd_roots`.
 
     p ≡ 3 (mod 4) makes square roots a single power, and gcd(r, p - 1) = 1 makes every element an
     r-th power with the unique root ``a ** (r⁻¹ mod p-1)``.
     """
-    lo = 1 << (PRIME_BITS - 1)
+    lo, hi = interval if interval is not None else (1 << (PRIME_BITS - 1), 1 << PRIME_BITS)
+    low_bits = 3 if three_mod_four else 1
     while True:
-        c = int(rng.integers(lo, 2 * lo)) | 3
-        if c < 2 * lo and _is_prime(c) and all(np.gcd(r, c - 1) == 1 for r in odd_roots):
+        c = int(rng.integers(lo, hi)) | low_bits
+        if c < hi and _is_prime(c) and all(np.gcd(r, c - 1) == 1 for r in odd_roots):
             return c
 
 
