@@ -71,7 +71,7 @@ from .design import design_least_squares as design_least_squares
 from .design import design_pebo as design_pebo
 from .design import excitation_report as excitation_report
 
-__version__ = "0.1.0"
+from ._version import __version__ as __version__
 from .design import design_high_gain as design_high_gain  # noqa: E402
 from .design import design_high_gain_derivatives as design_high_gain_derivatives  # noqa: E402
 from .design import design_lipschitz as design_lipschitz  # noqa: E402

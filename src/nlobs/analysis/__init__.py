@@ -23,7 +23,7 @@ from ._linear import kalman_rank as kalman_rank
 from ._linear import observability_matrix as observability_matrix
 from ._linear import pbh_test as pbh_test
 from ._lie import InputClass as InputClass
-from ._lie import analyze as analyze
+from ._analyze import analyze as analyze
 from ._lie import observable_function as observable_function
 from ._global import GlobalResult as GlobalResult
 from ._global import LocallyOnly as LocallyOnly

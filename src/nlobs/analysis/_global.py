@@ -43,7 +43,7 @@ from ..model import TIME, System, symbol
 from ..model._system import ExprLike, exact
 from ..references import cite
 from ._groebner import GroebnerEngine, Poly, get_engine
-from ._modular import PRIME_BITS, RowEchelon, inv
+from ._modular import PRIME_BITS, RowEchelon, inv, random_prime
 
 __all__ = ["GlobalResult", "LocallyOnly", "global_identifiability", "NotRational"]
 
@@ -770,16 +770,6 @@ def _distinct_roots(coeffs: Sequence[int], p: int) -> int:
     return int(P.degree() - P.gcd(P.diff(T)).degree())
 
 
-def _random_prime(rng: np.random.Generator) -> int:
-    from ._modular import _is_prime
-
-    lo, hi = _PRIME_RANGE
-    while True:
-        c = int(rng.integers(lo, hi)) | 1
-        if _is_prime(c):
-            return c
-
-
 def global_identifiability(system: System, *, unknown_params: Any = (), inputs: Any = "generic",
                            unknown_inputs: Mapping[str, int] | None = None, functions: Sequence[ExprLike] = (),
                            local: Any = None, engine: str | GroebnerEngine = "auto", seed: int = 0,
@@ -910,7 +900,8 @@ class _Prepared:
 def _prepare(system: System, *, unknown_params: Any = (), inputs: Any = "generic",
              unknown_inputs: Mapping[str, int] | None = None, functions: Sequence[ExprLike] = (), local: Any = None,
              seed: int = 0, weighted: bool = True) -> _Prepared:
-    from ._lie import _input_classes, _parse_functions, _unknown_params, analyze, observable_function
+    from ._lie import _input_classes, _parse_functions, _unknown_params, observable_function
+    from ._lie import local_analysis as analyze
 
     if not isinstance(system, System):
         raise ModelError(f"global_identifiability: `system` must be an nlobs.System, got {type(system).__name__}")
@@ -934,7 +925,7 @@ def _prepare(system: System, *, unknown_params: Any = (), inputs: Any = "generic
     max_orders = [max(o, 0) + 1 for o in orders]
     K = max(max_orders) + 2
     for _ in range(8):
-        p = _random_prime(rng)
+        p = random_prime(rng, interval=_PRIME_RANGE, three_mod_four=False)
         try:
             sian = _Sian(rm, K, p, rng)
             pt = sian.point()
@@ -1168,7 +1159,8 @@ def multi_experiment(system: System, experiments: int = 1, *, unknown_params: An
     >>> multi_experiment(s, 2, global_check=False).needed   # Example 7.7 of Ovchinnikov et al.: two are needed
     2
     """
-    from ._lie import _unknown_params, analyze
+    from ._lie import _unknown_params
+    from ._lie import local_analysis as analyze
 
     t0 = time.perf_counter()
     if not isinstance(experiments, (int, np.integer)) or isinstance(experiments, bool) or experiments < 1:
@@ -1212,27 +1204,3 @@ def multi_experiment(system: System, experiments: int = 1, *, unknown_params: An
     return MultiExperiment(experiments=int(experiments), needed=needed, parameter_ranks=tuple(ranks),
                            parameters=tuple(params), locally_identifiable=tuple(rep.identifiable_params),
                            global_check=glob, seconds=time.perf_counter() - t0)
-
-
-def extend_report(report: Any, system: System, *, unknown_params: Any, inputs: Any, unknown_inputs: Any,
-                  functions: Sequence[ExprLike], seed: int, global_check: bool, identifiable_functions: bool,
-                  experiments: int | None, engine: str) -> Any:
-    """The local report with the global parts requested from :func:`nlobs.analysis.analyze` filled in."""
-    import dataclasses
-
-    changes: dict[str, Any] = {}
-    eng = get_engine(engine) if engine != "sympy" else get_engine("sympy")
-    if global_check:
-        changes["global_check"] = global_identifiability(
-            system, unknown_params=unknown_params, inputs=inputs, unknown_inputs=unknown_inputs, functions=functions,
-            local=report, engine=eng if eng is not None else engine, seed=seed)
-    if identifiable_functions:
-        from ._identifiable import find_identifiable_functions
-
-        changes["identifiable_functions"] = find_identifiable_functions(
-            system, unknown_params=unknown_params, inputs=inputs, local=report,
-            engine=eng if eng is not None else engine, seed=seed)
-    if experiments is not None:
-        changes["experiments"] = multi_experiment(system, experiments, unknown_params=unknown_params or "all",
-                                                  inputs=inputs, engine=eng if eng is not None else engine, seed=seed)
-    return dataclasses.replace(report, **changes)

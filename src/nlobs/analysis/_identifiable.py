@@ -39,7 +39,12 @@ import sympy as sp
 
 from ..errors import ModelError
 from ..model import System, symbol
+from ._modular import COEFF_BOUND, monomial_exponents
+from ._modular import kernel_mod_p as _kernel
+from ._modular import monomial_value as _mono_value
+from ._modular import ratrec as _ratrec
 from ._global import NO_ENGINE, NotRational, _decide, _distinct_roots, _minimal_polynomial, _prepare, _System
+from ._reparam import reparametrize
 from ._groebner import GroebnerEngine, Poly, get_engine
 from ._modular import RowEchelon, inv
 
@@ -115,58 +120,6 @@ class IdentifiableFunctions:
 
 
 # ----------------------------------------------------------------------------------------------
-def monomial_exponents(n: int, deg: int) -> list[tuple[int, ...]]:
-    """Exponent tuples of all monomials in n variables of total degree ≤ `deg` (the constant first)."""
-    out = []
-    for d in range(deg + 1):
-        for combo in itertools.combinations_with_replacement(range(n), d):
-            e = [0] * n
-            for i in combo:
-                e[i] += 1
-            out.append(tuple(e))
-    return out
-
-
-#: Largest numerator and denominator accepted for a coefficient recovered from GF(p): identifiable
-#: combinations of published models have small coefficients; a large one means a vector that only
-#: happens to fit the points drawn (it is dropped, and the completeness check tells if anything is missing).
-COEFF_BOUND = 10**4
-
-
-def _ratrec(a: int, p: int, bound: int = COEFF_BOUND) -> tuple[int, int] | None:
-    """Rational reconstruction: n/d = a mod p with |n|, d <= bound (< sqrt(p/2)), or None."""
-    a %= p
-    r0, r1, s0, s1 = p, a, 0, 1
-    while r1 > bound:
-        if r1 == 0:
-            break
-        q = r0 // r1
-        r0, r1 = r1, r0 - q * r1
-        s0, s1 = s1, s0 - q * s1
-    if s1 == 0 or abs(s1) > bound:
-        return None
-    if s1 < 0:
-        r1, s1 = -r1, -s1
-    return r1, s1
-
-
-def _kernel(rows: list[np.ndarray], ncols: int, p: int) -> np.ndarray:
-    ech = RowEchelon(ncols, p)
-    for r in rows:
-        if ech.rank == ncols:
-            break
-        ech.add(r)
-    return ech.kernel()
-
-
-def _mono_value(e: Sequence[int], vals: Sequence[int], p: int) -> int:
-    t = 1
-    for v, k in zip(vals, e):
-        if k:
-            t = t * pow(v, k, p) % p
-    return t
-
-
 def _mono_grad(e: Sequence[int], vals: Sequence[int], p: int) -> list[int]:
     out = []
     for i, k in enumerate(e):
@@ -601,8 +554,6 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
         notes.append("completeness is checked with the states included (with_states=True)")
     rep = None
     if with_states and reparametrize_model and texts and all(checks):
-        from ._reparam import reparametrize
-
         rep = reparametrize(system, texts, unknown_params=prep.local.unknown_params, seed=seed)
     return IdentifiableFunctions(functions=texts, with_states=with_states, complete=complete, local_checks=checks,
                                  notes=tuple(notes), seconds=time.perf_counter() - t0, engine_seconds=eng.seconds,

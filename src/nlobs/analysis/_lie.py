@@ -32,7 +32,7 @@ from ._reports import FunctionCheck, ObservabilityReport, Symmetry
 from ._series import AffineJets, FloatField, ModField, Node, Program, Resample, SeriesRun, affine_structure, build_program
 from ..references import cite
 
-__all__ = ["analyze", "observable_function", "InputClass"]
+__all__ = ["local_analysis", "observable_function", "InputClass"]
 
 _REF = f"{cite('002')} (observation space, rank condition); {cite('sedoglavic2002')}"
 
@@ -482,119 +482,16 @@ def _regime_evaluator(system: System, regime: Mapping[str, float] | None,
     return evaluate
 
 
-def analyze(system: System, *, unknown_params: Any = (), inputs: Any = "generic",
-            unknown_inputs: Mapping[str, int] | None = None, functions: Sequence[ExprLike] = (),
-            at: Mapping[str, float] | None = None, symmetries: bool = True, seed: int = 0,
-            regime: Mapping[str, float] | None = None, global_check: bool = False,
-            identifiable_functions: bool = False, experiments: int | None = None,
-            engine: str = "auto") -> ObservabilityReport:
-    r"""Structural observability (and identifiability) of a model by the generic rank.
-
-    The rank condition of Besançon (2010) asks for :math:`\dim d\mathcal O(h)|_x = n`, where the observation
-    space :math:`\mathcal O(h)` is spanned by the outputs and their repeated Lie derivatives along
-    :math:`f_u` for constant u. Its generic value is the rank of
-
-    .. math::
-
-        J = \frac{\partial\,(y, \dot y, \ddot y, \dots, y^{(N)})}{\partial (x_0, \theta, w)}
-
-    for a generic input, with N = number of unknowns (the ranks of the jets increase strictly until
-    they stop). J is evaluated at a random point of GF(p), p a random 27-bit prime, through
-    truncated power series of the solution carrying gradients (Sedoglavic (2002)), and reduced over
-    GF(p): rank, observable unknowns (unit vector in the row space), kernel.
-
-    *Error.* A rank over GF(p) at one point is never above the generic rank over Q, so a full rank
-    is a proof of local observability. A smaller rank is wrong only if a nonzero minor of degree D
-    vanishes at the random point: probability at most D/p (Schwartz-Zippel); D is bounded by
-    propagating degrees through the evaluation program, and a deficient rank is confirmed at a
-    second independent point and prime, so the bound is (D/p)^2.
-
-    *Piecewise models.* ``abs``, ``sign``, ``min``, ``max`` and ``sat`` are analysed on one regime,
-    where each equals one smooth branch, named in the notes: the branch active at the point
-    `regime` (e.g. a state the simulation visits), else abs(g) = g, sign(g) = 1 and the
-    unsaturated branch of min/max/sat. :func:`visited_regimes` finds the regimes a trajectory
-    goes through.
-
-    *Local, not global.* The rank condition proves local weak observability (Besançon (2010)). When a sign
-    change of some unknowns leaves f and h invariant (checked for every sign pattern of up to 12
-    unknowns, proved symbolically), x and σx are indistinguishable: reported in ``symmetries``
-    (Viegas, Batista, Oliveira & Silvestre (2015), §IV-C: x1' = x2², x2' = 0, y = x1).
-
-    Parameters
-    ----------
-    system : System
-    unknown_params : sequence of str, "all" or bool, optional
-        Parameters taken as unknown constants (identifiability); the others keep their values.
-    inputs : "generic", "constant", int or mapping, optional
-        How known inputs are taken: ``"generic"`` (default; the observation space of Besançon (2010)),
-        ``"constant"`` (one generic constant), an int d (generic polynomials of degree d), or a
-        mapping ``{input: class or signal}`` where a signal is a number or an expression of t
-        (``{"u": 0}`` analyses the singular input u = 0).
-    unknown_inputs : mapping of str to int, optional
-        Inputs that are not measured, each a polynomial of the given degree with unknown coefficients.
-    functions : sequence of expressions, optional
-        Functions of the states (and unknown parameters) to test: observable iff the gradient lies
-        in the row space of J (e.g. ``"x1**2 + x2**2"``).
-
-    Other Parameters
-    ----------------
-    at : mapping of str to float, optional
-        Real point (states, unknown parameters) where the unobservable directions are computed;
-        default a random point with entries in [0.5, 1.5] (unknown parameters at their values).
-    symmetries : bool, default True
-        Search sign symmetries (global non-observability).
-    seed : int, default 0
-        Seed of the random point, prime and input coefficients.
-    regime : mapping of str to float, optional
-        A point (every state; optionally inputs, parameters, t) that selects the branch of each
-        piecewise function (abs, sign, min, max, sat): the one active there.
-    global_check : bool, default False
-        Also decide global identifiability/observability (SIAN, :func:`global_identifiability`):
-        fills ``report.global_check``.
-    identifiable_functions : bool, default False
-        Also find generators of the identifiable functions (:func:`find_identifiable_functions`):
-        fills ``report.identifiable_functions``.
-    experiments : int, optional
-        Also analyse this many independent experiments sharing the parameters
-        (:func:`multi_experiment`): fills ``report.experiments``.
-    engine : str, default "auto"
-        Gröbner engine of the global parts ("auto", "msolve", "singular", "sympy").
-
-    Returns
-    -------
-    ObservabilityReport
-
-    Raises
-    ------
-    ModelError
-        On unknown names, an unsupported function, or an input specification that is not understood.
-
-    References
-    ----------
-    Besançon (2010), "Observation space", "Observability rank condition", "Local weak
-    observability"; Viegas, Batista, Oliveira & Silvestre (2015), §IV-C (local vs global); A. Sedoglavic, "A
-    probabilistic algorithm to test local algebraic observability in polynomial time", J. Symb.
-    Comput. 33(5), 2002.
-
-    Examples
-    --------
-    >>> from nlobs import System
-    >>> s = System(states=["x1", "x2"], f=["u*x2", "0"], outputs=["y"], h=["x1"], inputs=["u"])
-    >>> analyze(s).observable, analyze(s, inputs={"u": 0}).observable
-    (True, False)
-    """
+def local_analysis(system: System, *, unknown_params: Any = (), inputs: Any = "generic",
+                   unknown_inputs: Mapping[str, int] | None = None, functions: Sequence[ExprLike] = (),
+                   at: Mapping[str, float] | None = None, symmetries: bool = True, seed: int = 0,
+                   regime: Mapping[str, float] | None = None) -> ObservabilityReport:
+    """The local route of :func:`nlobs.analyze` (generic rank of the output jets; see its documentation for the
+    arguments): what the global routes build on, without their parts."""
     if not isinstance(system, System):
         raise ModelError(f"analyze: `system` must be an nlobs.System, got {type(system).__name__}")
     with symbolic_budget(f"analyze {system.name!r}"):
-        report = _analyze(system, unknown_params, inputs, unknown_inputs, functions, at, symmetries, seed, regime)
-    if global_check or identifiable_functions or experiments is not None:  # the global parts (_global.py)
-        from ._global import extend_report
-
-        report = extend_report(report, system, unknown_params=report.unknown_params, inputs=inputs,
-                               unknown_inputs=dict(unknown_inputs or {}), functions=functions, seed=seed,
-                               global_check=global_check, identifiable_functions=identifiable_functions,
-                               experiments=experiments, engine=engine)
-    return report
+        return _analyze(system, unknown_params, inputs, unknown_inputs, functions, at, symmetries, seed, regime)
 
 
 def _analyze(system: System, unknown_params: Any, inputs: Any, unknown_inputs: Mapping[str, int] | None,
@@ -691,5 +588,5 @@ def observable_function(system: System, expr: ExprLike, **options: Any) -> Funct
     -------
     FunctionCheck
     """
-    rep = analyze(system, functions=[expr], symmetries=False, **options)
+    rep = local_analysis(system, functions=[expr], symmetries=False, **options)
     return rep.functions[0]

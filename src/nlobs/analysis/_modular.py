@@ -7,9 +7,12 @@ product of at most :data:`MAX_TERMS` such products stays below 2⁶³, so int64 
 
 from __future__ import annotations
 
+import itertools
+from collections.abc import Sequence
+
 import numpy as np
 
-__all__ = ["PRIME_BITS", "MAX_TERMS", "random_prime", "inv", "modsqrt", "root", "RowEchelon"]
+__all__ = ["PRIME_BITS", "MAX_TERMS", "random_prime", "inv", "modsqrt", "root", "RowEchelon", "COEFF_BOUND", "monomial_exponents", "ratrec", "kernel_mod_p", "monomial_value"]
 
 #: Primes are drawn from [2**(PRIME_BITS-1), 2**PRIME_BITS).
 PRIME_BITS = 27
@@ -41,16 +44,19 @@ def _is_prime(n: int) -> bool:
     return True
 
 
-def random_prime(rng: np.random.Generator, odd_roots: frozenset[int] = frozenset()) -> int:
-    """A random prime p ≡ 3 (mod 4) in [2^26, 2^27) with gcd(r, p - 1) = 1 for every r in `odd_roots`.
+def random_prime(rng: np.random.Generator, odd_roots: frozenset[int] = frozenset(), *,
+                 interval: tuple[int, int] | None = None, three_mod_four: bool = True) -> int:
+    """A random prime p in `interval` (default [2^26, 2^27)), p ≡ 3 (mod 4) unless `three_mod_four` is False
+    (then any odd prime), with gcd(r, p - 1) = 1 for every r in `odd_roots`.
 
     p ≡ 3 (mod 4) makes square roots a single power, and gcd(r, p - 1) = 1 makes every element an
     r-th power with the unique root ``a ** (r⁻¹ mod p-1)``.
     """
-    lo = 1 << (PRIME_BITS - 1)
+    lo, hi = interval if interval is not None else (1 << (PRIME_BITS - 1), 1 << PRIME_BITS)
+    low_bits = 3 if three_mod_four else 1
     while True:
-        c = int(rng.integers(lo, 2 * lo)) | 3
-        if c < 2 * lo and _is_prime(c) and all(np.gcd(r, c - 1) == 1 for r in odd_roots):
+        c = int(rng.integers(lo, hi)) | low_bits
+        if c < hi and _is_prime(c) and all(np.gcd(r, c - 1) == 1 for r in odd_roots):
             return c
 
 
@@ -175,3 +181,59 @@ class RowEchelon:
         if self.pivots:
             out[:, self.pivots] = (-self.basis[:, free].T) % p
         return out
+
+
+# -- helpers of the identifiable-function search and the reparametrisation (exponents, GF(p) kernels, rational
+#    reconstruction): algebra tools, no verdicts
+def monomial_exponents(n: int, deg: int) -> list[tuple[int, ...]]:
+    """Exponent tuples of all monomials in n variables of total degree ≤ `deg` (the constant first)."""
+    out = []
+    for d in range(deg + 1):
+        for combo in itertools.combinations_with_replacement(range(n), d):
+            e = [0] * n
+            for i in combo:
+                e[i] += 1
+            out.append(tuple(e))
+    return out
+
+
+#: Largest numerator and denominator accepted for a coefficient recovered from GF(p): identifiable
+#: combinations of published models have small coefficients; a large one means a vector that only
+#: happens to fit the points drawn (it is dropped, and the completeness check tells if anything is missing).
+COEFF_BOUND = 10**4
+
+
+def ratrec(a: int, p: int, bound: int = COEFF_BOUND) -> tuple[int, int] | None:
+    """Rational reconstruction: n/d = a mod p with |n|, d <= bound (< sqrt(p/2)), or None."""
+    a %= p
+    r0, r1, s0, s1 = p, a, 0, 1
+    while r1 > bound:
+        if r1 == 0:
+            break
+        q = r0 // r1
+        r0, r1 = r1, r0 - q * r1
+        s0, s1 = s1, s0 - q * s1
+    if s1 == 0 or abs(s1) > bound:
+        return None
+    if s1 < 0:
+        r1, s1 = -r1, -s1
+    return r1, s1
+
+
+def kernel_mod_p(rows: list[np.ndarray], ncols: int, p: int) -> np.ndarray:
+    """A basis of the kernel over GF(p) of the matrix whose rows are `rows` (stops once the rank is full)."""
+    ech = RowEchelon(ncols, p)
+    for r in rows:
+        if ech.rank == ncols:
+            break
+        ech.add(r)
+    return ech.kernel()
+
+
+def monomial_value(e: Sequence[int], vals: Sequence[int], p: int) -> int:
+    """The monomial with exponents `e` at the point `vals`, mod p."""
+    t = 1
+    for v, k in zip(vals, e):
+        if k:
+            t = t * pow(v, k, p) % p
+    return t

@@ -121,7 +121,10 @@ def _express(target: sp.Expr, gens: Sequence[sp.Expr], new: Sequence[sp.Symbol],
              rng: np.random.Generator) -> sp.Expr | None:
     """`target` (in the old symbols) as a rational function of `gens` (named `new`), verified exactly; or None."""
     from ._global import _eval_poly
-    from ._identifiable import _kernel, _mono_value, _ratrec, monomial_exponents
+    from ._modular import kernel_mod_p as _kernel
+    from ._modular import monomial_value as _mono_value
+    from ._modular import monomial_exponents
+    from ._modular import ratrec as _ratrec
 
     direct = _by_substitution(target, gens, new, old)
     if direct is not None and sp.cancel(sp.together(direct.xreplace(dict(zip(new, gens))) - target)) == 0:

@@ -218,6 +218,16 @@ class ObserverDesign:
         MX graphs around it, and it runs on CasADi's virtual machine (no C code generation)."""
         return any(fn is not None and not fn.is_a("SXFunction") for fn in (self.flow, self.output, self.initial, self.update))
 
+    def selects_state(self, n: int) -> bool:
+        """Whether the estimate is exactly the first n internal states (x̂ = z[:n]), so that a loop can read x̂
+        from z instead of evaluating the output map (False for a design that is not plain SX)."""
+        if self.needs_mx:
+            return False
+        z = ca.SX.sym("z", self.n_z)
+        t, u, y = ca.SX.sym("t"), ca.SX.sym("u", self.system.n_inputs), ca.SX.sym("y", self.system.n_outputs)
+        xhat = self.output(t, z, u, y)
+        return self.n_z >= n and all(ca.is_equal(xhat[i], z[i]) for i in range(n))
+
     @property
     def sampled(self) -> bool:
         """Whether the observer updates at sample instants (continuous-discrete)."""

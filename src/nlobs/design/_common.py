@@ -21,7 +21,7 @@ from ..errors import ModelError, PreconditionError, ShapeError
 from ..model import TIME, System
 from ._base import Symbols
 
-__all__ = ["require_system", "leaves_of", "to_sx", "measured_states", "chain_gain", "box_of", "sup_over_box", "saturate", "saturation_bounds", "batch"]
+__all__ = ["require_system", "leaves_of", "to_sx", "measured_states", "chain_gain", "box_of", "sup_over_box", "saturate", "saturation_bounds", "batch", "symmetric_part"]
 
 
 def require_system(system: Any, caller: str) -> System:
@@ -151,3 +151,8 @@ def batch(fn: ca.Function, points: np.ndarray) -> np.ndarray:
     out = np.asarray(fn.map(N)(ca.DM(P.T)), dtype=float)
     r, c = fn.size1_out(0), fn.size2_out(0)
     return out.reshape(r, N, c).transpose(1, 0, 2)  # map() concatenates the N results horizontally
+
+
+def symmetric_part(M: ca.SX) -> ca.SX:
+    """(M + Mᵀ)/2: what a covariance update keeps, so that round-off never makes P asymmetric."""
+    return (M + M.T) / 2

@@ -12,7 +12,7 @@ from ..engine import compile_system
 from ..errors import PreconditionError
 from ..references import cite
 from ..model import System
-from ._common import require_system
+from ._common import require_system, symmetric_part
 from ._base import Certificate, Check, ObserverDesign, Symbols, check_vector
 from ._bounds import POLICY, bounds_check, check_start, clip_const, parse_bounds
 from ._checks import check_matrix
@@ -21,10 +21,6 @@ __all__ = ["design_ekf"]
 
 REF_EKF = (f"Extended Kalman filter ({cite('jazwinski1970')}; {cite('simon2006', 'ch. 13')}); "
            f"Joseph-form update ({cite('bucy1968')})")
-
-
-def _sym(M: ca.SX) -> ca.SX:
-    return (M + M.T) / 2
 
 
 def design_ekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None,
@@ -95,7 +91,7 @@ def design_ekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
     f, h = compile_system(system).bind()
     s = Symbols.make(system, n + n * n)
     xh = s.z[:n]
-    P = _sym(ca.reshape(s.z[n:], n, n))
+    P = symmetric_part(ca.reshape(s.z[n:], n, n))
     if box is None:
         fx = f(s.t, xh, s.u)
         hx = h(s.t, xh, s.u)
@@ -111,18 +107,18 @@ def design_ekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
         Rinv = ca.DM(np.linalg.inv(Rm))
         PHt = P @ H.T
         dx = fx + PHt @ Rinv @ (s.y - hx)
-        dP = _sym(F @ P + P @ F.T + Qd - PHt @ Rinv @ PHt.T)
+        dP = symmetric_part(F @ P + P @ F.T + Qd - PHt @ Rinv @ PHt.T)
     else:
         dx = fx
-        dP = _sym(F @ P + P @ F.T + Qd)
+        dP = symmetric_part(F @ P + P @ F.T + Qd)
         Mdiag = ca.diag(s.m)
         Hm = Mdiag @ H
         Rmask = Mdiag @ Rd @ Mdiag + ca.diag(1 - s.m)  # unmeasured outputs: decoupled unit block, zero gain
-        S = _sym(Hm @ P @ Hm.T + Rmask)
+        S = symmetric_part(Hm @ P @ Hm.T + Rmask)
         K = ca.solve(S, Hm @ P).T
         x_plus = clip_const(xh + K @ (s.m * (s.y - hx)), box)  # projected onto the bounds (identity without)
         IKH = ca.DM.eye(n) - K @ Hm
-        P_plus = _sym(IKH @ P @ IKH.T + K @ Rmask @ K.T)
+        P_plus = symmetric_part(IKH @ P @ IKH.T + K @ Rmask @ K.T)
         update = ca.vertcat(x_plus, ca.vec(P_plus))
     x0 = ca.SX.sym("xhat0", n)
     checks = [Check("Q positive semidefinite", True, f"min eig {np.linalg.eigvalsh(Qm).min():.3g}"),

@@ -12,17 +12,13 @@ from ..errors import PreconditionError
 from ..model import System
 from ..references import cite
 from ._base import Certificate, Check, ObserverDesign, Symbols, check_vector
-from ._common import require_system
+from ._common import require_system, symmetric_part
 from ._sqrt import covariance_inputs
 
 __all__ = ["design_iekf"]
 
 REF = (f"Iterated extended Kalman filter: the measurement update as Gauss-Newton iterations ({cite('bell1993')}); "
        f"{cite('jazwinski1970')}; Joseph-form covariance ({cite('bucy1968')})")
-
-
-def _sym(M: ca.SX) -> ca.SX:
-    return (M + M.T) / 2
 
 
 def design_iekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None, iterations: int = 5,
@@ -78,10 +74,10 @@ def design_iekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = 
     f, h = compile_system(system).bind()
     s = Symbols.make(system, n + n * n)
     xh = s.z[:n]
-    P = _sym(ca.reshape(s.z[n:], n, n))
+    P = symmetric_part(ca.reshape(s.z[n:], n, n))
     fx = f(s.t, xh, s.u)
     F = ca.jacobian(fx, xh)
-    dP = _sym(F @ P + P @ F.T + ca.DM(Qm))
+    dP = symmetric_part(F @ P + P @ F.T + ca.DM(Qm))
     xv = ca.SX.sym("xv", n)
     hv = h(s.t, xv, s.u)
     Hv = ca.Function("h_and_H", [xv, s.t, s.u], [hv, ca.jacobian(hv, xv)])
@@ -92,7 +88,7 @@ def design_iekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = 
     for _ in range(int(iterations)):
         hi, Hi = Hv(xi, s.t, s.u)
         Hi_m = Mdiag @ Hi
-        Ki = ca.solve(_sym(Hi_m @ P @ Hi_m.T + Rmask), Hi_m @ P).T
+        Ki = ca.solve(symmetric_part(Hi_m @ P @ Hi_m.T + Rmask), Hi_m @ P).T
         x_next = xh + Ki @ (s.m * (s.y - hi - Hi @ (xh - xi)))
         step = ca.mmax(ca.fabs(x_next - xi))
         K = Ki if K is None else ca.if_else(done, K, Ki)
@@ -100,7 +96,7 @@ def design_iekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = 
         xi = ca.if_else(done, xi, x_next)
         done = ca.logic_or(done, step < float(tol))
     IKH = ca.DM.eye(n) - K @ Hm
-    P_plus = _sym(IKH @ P @ IKH.T + K @ Rmask @ K.T)
+    P_plus = symmetric_part(IKH @ P @ IKH.T + K @ Rmask @ K.T)
     x0 = ca.SX.sym("xhat0", n)
     checks.append(Check("Gauss-Newton iterations", True, f"at most {int(iterations)} per sample, stop below {tol:g}"))
     values: dict[str, Any] = {"Q": Qm, "R": Rm, "P0": P0m, "iterations": int(iterations), "tol": float(tol)}

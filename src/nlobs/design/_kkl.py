@@ -28,7 +28,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from ..analysis._identifiable import monomial_exponents
+from ..analysis._modular import monomial_exponents
 from ..engine import compile_system, rk4_step
 from ..errors import PreconditionError, ShapeError
 from ..model import System

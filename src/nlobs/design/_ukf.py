@@ -12,7 +12,7 @@ from ..engine import compile_system
 from ..errors import PreconditionError
 from ..references import cite
 from ..model import System
-from ._common import require_system
+from ._common import require_system, symmetric_part
 from ._base import Certificate, Check, ObserverDesign, Symbols, check_vector
 from ._bounds import POLICY, bounds_check, check_start, clip_const, parse_bounds
 from ._checks import check_matrix
@@ -33,10 +33,6 @@ def unscented_weights(n: int, alpha: float, beta: float, kappa: float) -> tuple[
     wm[0] = lam / c
     wc[0] = lam / c + (1 - alpha**2 + beta)
     return wm, wc, c
-
-
-def _sym(M: ca.SX) -> ca.SX:
-    return (M + M.T) / 2
 
 
 def design_ukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None, alpha: float = 1.0,
@@ -102,7 +98,7 @@ def design_ukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
     f, h = compile_system(system).bind()
     s = Symbols.make(system, n + n * n)
     m = s.z[:n]
-    P = _sym(ca.reshape(s.z[n:], n, n))
+    P = symmetric_part(ca.reshape(s.z[n:], n, n))
 
     def sigma(mean: ca.SX, cov: ca.SX) -> list[ca.SX]:
         L = ca.chol(cov).T * np.sqrt(c)  # chol gives upper R with cov = RᵀR
@@ -112,16 +108,16 @@ def design_ukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
     F = [f(s.t, clip_const(xi, box), s.u) for xi in X]
     fbar = sum((float(wm[i]) * F[i] for i in range(2 * n + 1)), ca.SX.zeros(n))
     cross = sum((float(wc[i]) * (X[i] - m) @ (F[i] - fbar).T for i in range(2 * n + 1)), ca.SX.zeros(n, n))
-    dP = _sym(cross + cross.T + ca.DM(Qm))
+    dP = symmetric_part(cross + cross.T + ca.DM(Qm))
     Y = [h(s.t, clip_const(xi, box), s.u) for xi in X]
     yhat = sum((float(wm[i]) * Y[i] for i in range(2 * n + 1)), ca.SX.zeros(p))
     S = sum((float(wc[i]) * (Y[i] - yhat) @ (Y[i] - yhat).T for i in range(2 * n + 1)), ca.SX.zeros(p, p)) + ca.DM(Rm)
     Cxy = sum((float(wc[i]) * (X[i] - m) @ (Y[i] - yhat).T for i in range(2 * n + 1)), ca.SX.zeros(n, p))
     Md = ca.diag(s.m)
-    Sm = _sym(Md @ S @ Md + ca.diag(1 - s.m))  # unmeasured outputs: decoupled unit block, zero gain
+    Sm = symmetric_part(Md @ S @ Md + ca.diag(1 - s.m))  # unmeasured outputs: decoupled unit block, zero gain
     K = ca.solve(Sm, (Cxy @ Md).T).T
     m_plus = clip_const(m + K @ (s.m * (s.y - yhat)), box)  # projected onto the bounds (identity without)
-    P_plus = _sym(P - K @ Sm @ K.T)
+    P_plus = symmetric_part(P - K @ Sm @ K.T)
     x0 = ca.SX.sym("xhat0", n)
     checks = [Check("Q positive semidefinite", True, f"min eig {np.linalg.eigvalsh(Qm).min():.3g}"),
               Check("R positive definite", True, f"min eig {np.linalg.eigvalsh(Rm).min():.3g}"),

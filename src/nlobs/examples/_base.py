@@ -117,11 +117,21 @@ class ExampleResult:
     def __repr__(self) -> str:
         return f"ExampleResult({self.key!r}, {self.tally}, runs={list(self.runs)}, figures={list(self.figures)})"
 
-    def _repr_html_(self) -> str:
-        """The example as the demo report shows it (claims, table, plots, model, evidence, notes)."""
-        from ..report import example_section
+    def _repr_html_(self) -> str | None:
+        """The example as the demo report shows it (claims, table, plots, model, evidence, notes), once
+        :mod:`nlobs.report` is loaded (it registers the renderer: the report renders examples, never the reverse);
+        None before that (a notebook then shows the repr)."""
+        return None if HTML_RENDERER is None else HTML_RENDERER(self)
 
-        return example_section(self)
+
+#: How an ExampleResult shows itself in a notebook: set by :mod:`nlobs.report` when it is imported.
+HTML_RENDERER: Callable[["ExampleResult"], str] | None = None
+
+
+def register_html_renderer(render: Callable[["ExampleResult"], str]) -> None:
+    """Let `render` show an ExampleResult as HTML in a notebook (called once, by :mod:`nlobs.report`)."""
+    global HTML_RENDERER
+    HTML_RENDERER = render
 
 
 @dataclass(frozen=True)

@@ -23,4 +23,4 @@ from ._translate import translate as translate
 from ._library import LibraryEntry as LibraryEntry
 from ._library import bundled_names as bundled_names
 from ._library import bundled_path as bundled_path
-from ._library import library as library
+from ._toml import library as library

@@ -11,18 +11,18 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["LibraryEntry", "bundled_names", "bundled_path", "library"]
+__all__ = ["LibraryEntry", "bundled_names", "bundled_path", "bundled_folder"]
 
 _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 
 
-def _folder() -> Path:
+def bundled_folder() -> Path:
     return Path(__file__).resolve().parent.parent / "models"  # package data (pyproject: nlobs = ["models/*.toml"])
 
 
 def bundled_names() -> tuple[str, ...]:
     """The names of the bundled models, sorted."""
-    return tuple(sorted(p.stem for p in _folder().glob("*.toml")))
+    return tuple(sorted(p.stem for p in bundled_folder().glob("*.toml")))
 
 
 def bundled_path(name: str) -> Path | None:
@@ -34,7 +34,7 @@ def bundled_path(name: str) -> Path | None:
     stem = text[:-5] if text.endswith(".toml") else text
     if not _NAME.match(stem):
         return None
-    path = _folder() / f"{stem}.toml"
+    path = bundled_folder() / f"{stem}.toml"
     return path if path.is_file() else None
 
 
@@ -52,15 +52,3 @@ class LibraryEntry:
     def to_dict(self) -> dict[str, object]:
         return {"name": self.name, "description": self.description, "states": list(self.states),
                 "inputs": list(self.inputs), "outputs": list(self.outputs), "path": self.path}
-
-
-def library() -> tuple[LibraryEntry, ...]:
-    """Every bundled model, parsed (so a broken bundled file fails loudly here, not in a user's session)."""
-    from ._toml import load_model
-
-    out = []
-    for name in bundled_names():
-        mf = load_model(_folder() / f"{name}.toml")
-        s = mf.system
-        out.append(LibraryEntry(name, mf.description, s.states, s.inputs, s.outputs, mf.path))
-    return tuple(out)

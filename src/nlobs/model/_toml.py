@@ -62,10 +62,10 @@ from .._text import LabelError, check_label, shorten, shorten_list
 from ..errors import ModelError, ModelFileError
 from ._budget import check_tree
 from ._expr import CONSTANTS, FUNCTIONS, ExpressionError, parse_expression
-from ._library import bundled_path
+from ._library import LibraryEntry, bundled_folder, bundled_names, bundled_path
 from ._system import _NAME, RESERVED, TIME, System, symbol
 
-__all__ = ["ModelFile", "SimulationConfig", "ObserverConfig", "load_model", "loads_model"]
+__all__ = ["ModelFile", "SimulationConfig", "ObserverConfig", "load_model", "loads_model", "library"]
 
 _TOP = ("name", "description", "states", "inputs", "outputs", "parameters", "definitions", "dynamics", "output", "units",
         "simulation", "observers")
@@ -468,3 +468,13 @@ class _Loader:
         symbols.update(definitions)
         symbols["t"] = TIME
         return self.expr(value, key, symbols)
+
+
+def library() -> tuple[LibraryEntry, ...]:
+    """Every bundled model, parsed (so a broken bundled file fails loudly here, not in a user's session)."""
+    out = []
+    for name in bundled_names():
+        mf = load_model(bundled_folder() / f"{name}.toml")
+        s = mf.system
+        out.append(LibraryEntry(name, mf.description, s.states, s.inputs, s.outputs, mf.path))
+    return tuple(out)

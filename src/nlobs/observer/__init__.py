@@ -3,7 +3,7 @@
 from ._base import AbstractObserver as AbstractObserver
 from ._base import Observer as Observer
 from ._base import OnlineObserver as OnlineObserver
-from ._base import as_observer as as_observer
+from ._convert import as_observer as as_observer
 from ._compiled import CompiledObserver as CompiledObserver
 from ._compiled import ObserverTrajectory as ObserverTrajectory
 from ._compiled import compiled_observer as compiled_observer

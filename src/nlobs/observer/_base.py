@@ -18,14 +18,13 @@ from typing import Any, Literal
 import casadi as ca
 import numpy as np
 
-from ..design import ObserverDesign, check_positive, design_from_config
+from ..design import ObserverDesign, check_positive
 from ..engine import compile_system, raise_deferred, rk4_step
 from ..engine._batch import evaluate_one
 from ..errors import DataError, FiniteEscapeError, ShapeError
-from ..model import ObserverConfig
 from ._compiled import CompiledObserver, compiled_observer
 
-__all__ = ["AbstractObserver", "Observer", "OnlineObserver", "as_observer"]
+__all__ = ["AbstractObserver", "Observer", "OnlineObserver"]
 
 
 def _vec(value: Any, n: int, name: str) -> np.ndarray:
@@ -161,24 +160,6 @@ class Observer(AbstractObserver):
 
     def __str__(self) -> str:
         return str(self._design)
-
-
-def as_observer(obj: Any, name: str | None = None) -> AbstractObserver:
-    """An observer from an observer, a design, or a model file's observer configuration
-    (:class:`nlobs.model.ObserverConfig`, designed here by :func:`nlobs.design.design_from_config`)."""
-    from ._particles import ParticleDesign, ParticleObserver  # the particle loop builds on this module
-
-    if isinstance(obj, AbstractObserver):
-        return obj
-    if isinstance(obj, ObserverDesign):
-        return Observer(obj, name)
-    if isinstance(obj, ParticleDesign):
-        return ParticleObserver(obj, name)
-    if isinstance(obj, ObserverConfig):
-        d = design_from_config(obj)
-        return ParticleObserver(d, name or obj.name) if isinstance(d, ParticleDesign) else Observer(d, name or obj.name)
-    raise TypeError(f"expected an observer or an ObserverDesign (from a design_* function), or a model file's "
-                    f"ObserverConfig ([observers.NAME]), got {type(obj).__name__}")
 
 
 class OnlineObserver:

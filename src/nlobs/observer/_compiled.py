@@ -99,7 +99,7 @@ class CompiledObserver:
         s = design.system
         self.nu, self.ny, self.nz, self.n = s.n_inputs, s.n_outputs, design.n_z, s.n_states
         self.na = 2 + 2 * (self.nu + 2 * self.ny)
-        self.selects_state = _selects_state(design, self.n)
+        self.selects_state = design.selects_state(self.n)
         self._build()
         self._runners: dict[str, IntervalRunner] = {}
 
@@ -253,16 +253,6 @@ def interval_table(t: np.ndarray, u: np.ndarray, y: np.ndarray, m: np.ndarray) -
     """One row per interval k: (t_k, dt_k, u_k, y_k, m_k, u_{k+1}, y_{k+1}, m_{k+1}), as the sub-step and sample
     functions read it (y: zero where m is 0)."""
     return np.hstack([t[:-1, None], np.diff(t)[:, None], u[:-1], y[:-1], m[:-1], u[1:], y[1:], m[1:]])
-
-
-def _selects_state(design: ObserverDesign, n: int) -> bool:
-    """Whether the design's estimate is exactly the first n internal states (x̂ = z[:n])."""
-    if design.needs_mx:
-        return False
-    z = ca.SX.sym("z", design.n_z)
-    t, u, y = ca.SX.sym("t"), ca.SX.sym("u", design.system.n_inputs), ca.SX.sym("y", design.system.n_outputs)
-    xhat = design.output(t, z, u, y)
-    return design.n_z >= n and all(ca.is_equal(xhat[i], z[i]) for i in range(n))
 
 
 _CACHE: OrderedDict[tuple[int, str], CompiledObserver] = OrderedDict()

@@ -26,7 +26,8 @@ import numpy as np
 from ..design import ObserverDesign, check_positive
 from ..engine import compile_system, rk4_step
 from ..errors import PreconditionError
-from ._base import AbstractObserver, Observer, as_observer
+from ._base import AbstractObserver, Observer
+from ._convert import as_observer
 
 __all__ = ["CExport", "export_c"]
 

@@ -13,10 +13,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
 
-from .. import __version__
+from .._version import __version__
 from .._display import Column, SummaryTable
 from ..analysis import analyze
 from ..examples import EXAMPLES, ExampleResult, find_example
+from ..examples._base import register_html_renderer
 from ..references import REFERENCES, cited_keys
 from ..simulate import CONVERGENCE_RULE
 from ._html import HALF_WIDTH, bibliography, details, equations, figure, page, plain, pre, prose, section, table
@@ -226,3 +227,6 @@ def _html(results: Sequence[ExampleResult], failed: Sequence[tuple[str, str]], t
     subtitle = (f"nlobs {__version__} · the papers' examples reproduced · {len(results)} example(s), computed in "
                 f"{seconds:.1f} s · Python {platform.python_version()} on {html.escape(platform.machine())}")
     return page("nlobs — the papers' examples", subtitle, body)
+
+
+register_html_renderer(example_section)   # notebooks show an ExampleResult as its report section

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
-from .. import __version__
+from .._version import __version__
 from ..advise import Advice
 from ..references import bibliography
 from ._html import equations, img, page, table

@@ -486,7 +486,7 @@ class _Layout:
             zsl = xsl = None
             if o.design.update is not None:
                 zsl, k = slice(k, k + o.n_z), k + o.n_z
-            if not _selects_state(o.design, n):
+            if not o.design.selects_state(n):
                 xsl, k = slice(k, k + n), k + n
             self.out[name] = (zsl, xsl)
         self.no = k
@@ -624,14 +624,6 @@ def _adaptive_flow(plant: System, obs: Mapping[str, AbstractObserver], layout: _
                       0.0, 1.0, opts)
     Sm, am, cm, ym = ca.MX.sym("S", S.shape[0]), ca.MX.sym("a", layout.na), ca.MX.sym("c", c.shape[0]), ca.MX.sym("y", ny)
     return ca.Function("adaptive_step", [Sm, am, cm, ym], [F(x0=Sm, p=ca.vertcat(am, cm, ym))["xf"]])
-
-
-def _selects_state(design: ObserverDesign, n: int) -> bool:
-    """Whether the design's estimate is exactly the first n internal states (x̂ = z[:n])."""
-    z = ca.SX.sym("z", design.n_z)
-    t, u, y = ca.SX.sym("t"), ca.SX.sym("u", design.system.n_inputs), ca.SX.sym("y", design.system.n_outputs)
-    xhat = design.output(t, z, u, y)
-    return design.n_z >= n and all(ca.is_equal(xhat[i], z[i]) for i in range(n))
 
 
 def _assemble(plant: System, obs: Mapping[str, AbstractObserver], layout: _Layout, S: np.ndarray, O: np.ndarray,
