@@ -286,3 +286,14 @@ def test_a_closed_pipe_ends_the_command_quietly(monkeypatch, capsys):
     monkeypatch.setattr(cli_mod, "_closed_pipe", lambda: 0)   # keep pytest's own stdout open
     assert cli_mod.main(["kinds"]) == 0 and called
     assert "Broken pipe" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("option, value", [("--t-final", "0"), ("--dt", "0"), ("--tol", "-1")])
+def test_a_bad_number_is_one_line_naming_the_option(option, value, capsys):
+    import nlobs.cli as cli_mod
+
+    with pytest.raises(SystemExit) as e:
+        cli_mod.main(["simulate", "pendulum", option, value])
+    assert e.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and option in err and "positive" in err and "usage:" not in err

@@ -13,6 +13,7 @@ import argparse
 import json
 import sys
 from collections.abc import Sequence
+from typing import NoReturn
 
 from . import _analyze, _demo, _design, _estimate, _export, _fit, _kinds, _models, _report, _simulate
 from ._common import error_message
@@ -23,8 +24,16 @@ __all__ = ["main", "COMMANDS"]
 COMMANDS = [_demo, _models, _analyze, _design, _report, _simulate, _estimate, _fit, _export, _kinds]
 
 
+class _Parser(argparse.ArgumentParser):
+    """Usage errors as one line that names the option (``nlobs simulate: error: argument --dt: expected a positive
+    number ..., got '0'``) and where the usage is, instead of the whole usage block first."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see `{self.prog} --help`)\n")
+
+
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="nlobs", description="Nonlinear observability analysis and state-observer design.")
+    p = _Parser(prog="nlobs", description="Nonlinear observability analysis and state-observer design.")
     p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for module in COMMANDS:
