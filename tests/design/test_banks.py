@@ -119,3 +119,11 @@ def test_certificate_lists_what_is_assumed():
     assert any("stay in the convex region" in a for a in assumed) and any("K = 0.5 given" in a for a in assumed)
     lti = nlobs.System(states=["x1", "x2"], f=["-x1 + 3*x2", "-2*x2"], outputs=["y"], h=["x1"])
     assert not any(c.status == "assumed" for c in design_banks(lti, P=[[-1.0], [0.0]]).certificate.checks)
+
+
+def test_a_single_string_perturbation_says_a_list_is_needed():
+    import nlobs
+
+    pend = nlobs.System(states=["x1", "x2"], f=["x2", "-sin(x1) - x2"], outputs=["y"], h=["x1"])
+    with pytest.raises(nlobs.ShapeError, match=r"`perturbation` must be a list of 2 expressions, one per state \(x1, x2\)"):
+        nlobs.design_banks(pend, P=[[-1], [0]], perturbation="x1")

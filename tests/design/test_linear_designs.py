@@ -144,3 +144,11 @@ def test_check_has_three_states_and_never_prints_an_assumption_as_ok():
     assert str(ok).startswith("[ok]") and str(assumed).startswith("[assumed]") and str(bad).startswith("[FAILED]")
     with pytest.raises(ValueError, match="status"):
         Check("d", "maybe")
+
+
+def test_poles_that_are_not_numbers_name_the_argument():
+    import nlobs
+
+    s = nlobs.System(states=["p", "v"], f=["v", "-p"], outputs=["y"], h=["p"])
+    with pytest.raises(nlobs.ShapeError, match=r"design_luenberger: `poles` must be 2 numbers"):
+        nlobs.design_luenberger(s, poles=["a", "b"])

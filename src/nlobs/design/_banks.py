@@ -16,6 +16,7 @@ import numpy as np
 import sympy as sp
 
 from ..engine import compile_system, to_casadi
+from .._text import shorten
 from ..errors import PreconditionError, ShapeError
 from ..model import TIME, System, symbol
 from ..model._system import ExprLike, exact, to_expr
@@ -180,6 +181,10 @@ def design_banks(system: System, *, P: Any, region: Mapping[str, Sequence[float]
     allowed = {k: symbol(k) for k in (*system.states, *system.inputs, *system.params)}
     allowed["t"] = TIME
     params = {symbol(k): exact(v) for k, v in system.params.items()}
+    if isinstance(perturbation, (str, sp.Basic)):
+        raise ShapeError(f"{caller}: `perturbation` must be a list of {n} expressions, one per state "
+                         f"({', '.join(system.states)}), e.g. {['0'] * (n - 1) + ['0.1*sin(x)']}; got the single "
+                         f"{'string' if isinstance(perturbation, str) else 'expression'} {shorten(str(perturbation), 40)}")
     if perturbation is None:
         f2 = [sp.S.Zero] * n
     else:

@@ -14,6 +14,7 @@ import numpy as np
 
 from ..analysis import kalman_rank, pbh_test
 from ..analysis._identity import Identity
+from .._text import shorten
 from ..errors import PreconditionError, ShapeError
 from ._base import Check
 
@@ -100,7 +101,11 @@ def check_positive(value: Any, name: str, caller: str) -> float:
 
 
 def _poles(poles: Any, n: int, caller: str) -> np.ndarray:
-    p = np.atleast_1d(np.asarray(poles, dtype=complex)).ravel()
+    try:
+        p = np.atleast_1d(np.asarray(poles, dtype=complex)).ravel()
+    except (TypeError, ValueError):
+        raise ShapeError(f"{caller}: `poles` must be {n} numbers (real, or complex in conjugate pairs such as -1+2j, "
+                         f"-1-2j), one per state; got {shorten(str(poles), 60)}") from None
     if p.size != n:
         raise ShapeError(f"{caller}: `poles` must list {n} poles (one per state), got {p.size}")
     if not np.all(np.isfinite(p)):
