@@ -32,6 +32,7 @@ extensions = [
 nlobs_docs.write_gallery_sources()
 nlobs_docs.write_api_pages()
 nlobs_docs.write_references_page()
+nlobs_docs.write_kinds_page()
 
 html_math_renderer = "mathml"
 autosummary_generate = True

@@ -204,6 +204,29 @@ def write_references_page(app: Any = None) -> None:
         target.write_text(text, encoding="utf-8")
 
 
+def write_kinds_page(app: Any = None) -> None:
+    """docs/kinds.rst: every observer kind, read from the registry (nlobs.design.KINDS), as ``nlobs kinds`` lists them."""
+    from nlobs.design import KINDS
+
+    lines = ["Observer kinds", "==============", "",
+             "Every kind a model file can configure (``[observers.NAME] kind = \"...\"``), read from the registry",
+             ":data:`nlobs.design.KINDS`: what it is, the models it runs on, its design function and the works it",
+             "implements. ``nlobs kinds KIND`` prints its options and defaults. *Tuned* kinds are tuned by",
+             "``nlobs design`` (the advisor) by itself; the others need options only you can give.", "",
+             ".. list-table::", "   :header-rows: 1", "   :widths: 14 44 10 8 24", "",
+             "   * - kind", "     - what it is", "     - time base", "     - tuned", "     - implements"]
+    for name, k in KINDS.items():
+        fn = k.design.__name__
+        lines += [f"   * - ``{name}``", f"     - {k.summary} (:func:`nlobs.{fn} <nlobs.design.{fn}>`)",
+                  f"     - {k.time_base}", f"     - {'yes' if k.tune is not None else 'no'}",
+                  f"     - {k.citation or '—'}"]
+    lines.append("")
+    target = HERE / "kinds.rst"
+    text = "\n".join(lines)
+    if not target.exists() or target.read_text(encoding="utf-8") != text:
+        target.write_text(text, encoding="utf-8")
+
+
 def setup(app: Any) -> dict[str, Any]:
     app.add_html_math_renderer("mathml", (_visit_math, None), (_visit_displaymath, None))
     return {"parallel_read_safe": True, "parallel_write_safe": True}

@@ -13,11 +13,6 @@ from . import model as model
 from . import observer as observer
 from .design import Certificate as Certificate
 from .design import ObserverDesign as ObserverDesign
-from .design import design_augmented as design_augmented
-from .design import design_custom as design_custom
-from .design import design_ekf as design_ekf
-from .design import design_luenberger as design_luenberger
-from .design import design_output_injection as design_output_injection
 from .errors import ConvergenceWarning as ConvergenceWarning
 from .errors import DataError as DataError
 from .errors import FiniteEscapeError as FiniteEscapeError
@@ -57,34 +52,14 @@ from .design import Gradient as Gradient
 from .design import LeastSquares as LeastSquares
 from .design import LinearRegression as LinearRegression
 from .design import WindowedNLS as WindowedNLS
-from .design import design_2gd as design_2gd
-from .design import design_drem as design_drem
-from .design import design_gd as design_gd
-from .design import design_gpebo as design_gpebo
-from .design import design_gradient as design_gradient
-from .design import design_iandi as design_iandi
-from .design import design_kkl as design_kkl
-from .design import design_kkl_learned as design_kkl_learned
-from .design import design_kkl_pebo as design_kkl_pebo
-from .design import design_kkl_pebo_cascade as design_kkl_pebo_cascade
-from .design import design_least_squares as design_least_squares
-from .design import design_pebo as design_pebo
 from .design import excitation_report as excitation_report
+from .design import KINDS as KINDS
+from .design import DESIGN_FUNCTIONS as _DESIGN_FUNCTIONS
+
+# one public function per observer kind, read from the registry (nlobs.design_ekf is nlobs.design.KINDS["ekf"].design)
+globals().update(_DESIGN_FUNCTIONS)
 
 from ._version import __version__ as __version__
-from .design import design_high_gain as design_high_gain  # noqa: E402
-from .design import design_high_gain_derivatives as design_high_gain_derivatives  # noqa: E402
-from .design import design_lipschitz as design_lipschitz  # noqa: E402
-from .design import design_high_gain_kalman as design_high_gain_kalman  # noqa: E402
-from .design import design_kalman_bucy as design_kalman_bucy  # noqa: E402
-from .design import design_kalman_like as design_kalman_like  # noqa: E402
-from .design import design_banks as design_banks  # noqa: E402
-from .design import design_ukf as design_ukf  # noqa: E402
-from .design import design_mhe as design_mhe  # noqa: E402
-from .design import design_srukf as design_srukf  # noqa: E402
-from .design import design_srekf as design_srekf  # noqa: E402
-from .design import design_iekf as design_iekf  # noqa: E402
-from .design import design_pf as design_pf  # noqa: E402
 from .analysis import analyze as analyze  # noqa: E402
 from .observer import CExport as CExport  # noqa: E402
 from .observer import export_c as export_c  # noqa: E402
@@ -94,3 +69,9 @@ from .interop import to_control as to_control  # noqa: E402
 from . import advise as _advise_pkg  # noqa: E402
 from .advise import Advice as Advice  # noqa: E402
 from .advise import advise as advise  # noqa: E402
+
+
+def __getattr__(name: str):  # PEP 562: renamed functions keep their old name for one release, with a DeprecationWarning
+    if name in design.RENAMED:
+        return getattr(design, name)
+    raise AttributeError(f"module 'nlobs' has no attribute {name!r}")

@@ -15,7 +15,7 @@ import re
 from dataclasses import dataclass
 from types import MappingProxyType
 
-__all__ = ["Reference", "REFERENCES", "cite", "full_citation", "cited_keys", "bibliography"]
+__all__ = ["Reference", "REFERENCES", "work", "cite", "full_citation", "cited_keys", "bibliography"]
 
 
 @dataclass(frozen=True)
@@ -213,6 +213,16 @@ def _get(key: str) -> Reference:
         return REFERENCES[key]
     except KeyError:
         raise KeyError(f"no reference {key!r}; known: {', '.join(REFERENCES)}") from None
+
+
+def work(key: str, where: str = "") -> tuple[str, str]:
+    """A work (its key, checked now) and a place in it, as an observer kind declares what it implements.
+
+    >>> work("004", "Proposition 1")
+    ('004', 'Proposition 1')
+    """
+    _get(key)
+    return key, where
 
 
 def cite(key: str, where: str = "") -> str:

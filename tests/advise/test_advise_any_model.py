@@ -130,7 +130,7 @@ def test_a_design_that_blows_up_is_not_listed_as_applying():
 
 
 def test_symbolic_search_for_the_derivative_map_has_a_budget(monkeypatch):
-    from nlobs.advise import _constructions as cons
+    from nlobs.design import _constructions as cons
 
     monkeypatch.setattr(cons, "DERIVATIVE_MAP_SECONDS", 0.2)
     # tyre-like transcendental coupling: solving for vy from r's derivative is a transcendental equation

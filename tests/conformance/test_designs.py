@@ -1,6 +1,6 @@
 """One conformance suite over every registered observer design (STYLE §14).
 
-Every kind in ``nlobs.design.DESIGNS`` must have a case here: a small plant the design
+Every kind in the registry ``nlobs.design.KINDS`` must have a case here: a small plant the design
 applies to, with tuning. Each design then must: return the declared shapes, be deterministic,
 leave its inputs unmutated, converge on its plant, reject unknown options (from Python and
 from model files), and run on simulated and recorded data alike.
@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from nlobs import ModelError, Observer, Recording, StateAffine, System, estimate, simulate
-from nlobs.design import DESIGNS, ParticleDesign, design_from_config
+from nlobs.design import KINDS, ParticleDesign, design_from_config
 from nlobs.observer import particle_runner
 
 OSC = System(states=["x1", "x2"], f=["x2", "-x1 - 0.5*x2 + u"], inputs=["u"], outputs=["y"], h=["x1"], name="osc")
@@ -89,21 +89,21 @@ def _plant(model):
 
 
 def test_every_registered_design_has_a_conformance_case():
-    assert set(DESIGNS) <= set(CASES), f"add a conformance case for: {sorted(set(DESIGNS) - set(CASES))}"
+    assert set(KINDS) <= set(CASES), f"add a conformance case for: {sorted(set(KINDS) - set(CASES))}"
 
 
 @pytest.fixture(params=sorted(CASES))
 def case(request):
     kind = request.param
-    if kind not in DESIGNS:
+    if kind not in KINDS:
         pytest.fail(f"{kind} has a case but is not registered")
     return (kind, *CASES[kind])
 
 
 def test_declared_shapes_and_determinism(case):
     kind, model, tuning, x0, xhat0, *_ = case
-    d1 = DESIGNS[kind](model, **copy.deepcopy(tuning), xhat0=xhat0)
-    d2 = DESIGNS[kind](model, **copy.deepcopy(tuning), xhat0=xhat0)
+    d1 = KINDS[kind].design(model, **copy.deepcopy(tuning), xhat0=xhat0)
+    d2 = KINDS[kind].design(model, **copy.deepcopy(tuning), xhat0=xhat0)
     plant = _plant(model)
     n, nu, ny = plant.n_states, plant.n_inputs, plant.n_outputs
     if isinstance(d1, ParticleDesign):  # no ODE (a particle cloud run over the samples): same seed, same run
@@ -128,14 +128,14 @@ def test_declared_shapes_and_determinism(case):
 def test_inputs_are_not_mutated(case):
     kind, model, tuning, _, xhat0, *_ = case
     given = copy.deepcopy(tuning)
-    DESIGNS[kind](model, **given, xhat0=list(xhat0))
+    KINDS[kind].design(model, **given, xhat0=list(xhat0))
     for k, v in tuning.items():
         assert np.array_equal(np.asarray(given[k], dtype=object), np.asarray(v, dtype=object)) if not isinstance(v, dict) else given[k] == v
 
 
 def test_converges_on_its_plant_and_on_recorded_data(case):
     kind, model, tuning, x0, xhat0, horizon, tol = case
-    d = DESIGNS[kind](model, **copy.deepcopy(tuning), xhat0=xhat0)
+    d = KINDS[kind].design(model, **copy.deepcopy(tuning), xhat0=xhat0)
     plant = _plant(model)
     inputs = {"u": "sin(t)"} if plant.n_inputs else None
     run = simulate(plant, {kind: d}, t_final=horizon, dt=1e-3, x0=x0, inputs=inputs)
@@ -148,7 +148,7 @@ def test_converges_on_its_plant_and_on_recorded_data(case):
 def test_unknown_options_are_rejected(case):
     kind, model, tuning, *_ = case
     with pytest.raises(TypeError):
-        DESIGNS[kind](model, **copy.deepcopy(tuning), not_an_option=1)
+        KINDS[kind].design(model, **copy.deepcopy(tuning), not_an_option=1)
     if isinstance(model, System):
         with pytest.raises(ModelError, match=f"unknown option `not_an_option` for kind '{kind}'"):
             design_from_config(model, kind, {**copy.deepcopy(tuning), "not_an_option": 1})

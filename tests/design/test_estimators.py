@@ -14,7 +14,7 @@ from typing import Any, Callable
 import numpy as np
 import pytest
 
-from nlobs import (GD, Gradient, LinearRegression, StateAffine, System, WindowedNLS, design_2gd, design_drem, design_gd,
+from nlobs import (GD, Gradient, LinearRegression, StateAffine, System, WindowedNLS, design_gpebo_2gd, design_drem, design_gd,
                    design_gpebo, design_gradient, design_iandi, design_kkl, design_kkl_learned, design_kkl_pebo,
                    design_kkl_pebo_cascade, design_least_squares, design_pebo, simulate)
 from nlobs.design import DESIGNS, ObserverDesign, design_from_config
@@ -49,7 +49,7 @@ CASES = [
     Case("drem", design_drem, REG, dict(gamma=10.0, lambdas=[2.0]), (1.5, -0.7), REG_IN),
     Case("gd", design_gd, REG, dict(gamma_g=5.0, gamma=50.0), (1.5, -0.7), REG_IN),
     Case("gpebo", design_gpebo, OSC_SA, dict(estimator=Gradient(1.0)), (1.0, -0.5), {"u": "sin(0.5*t)"}, 30.0),
-    Case("gpebo_2gd", design_2gd, OSC_SA, dict(gamma_g=1.0, gamma=10.0, xhat0=np.array([0.1, 0.1])), (1.0, -0.5),
+    Case("gpebo_2gd", design_gpebo_2gd, OSC_SA, dict(gamma_g=1.0, gamma=10.0, xhat0=np.array([0.1, 0.1])), (1.0, -0.5),
          {"u": "sin(0.5*t)"}, 30.0),
     Case("kkl", design_kkl, OSC, dict(phi=["(x1 - x2)/2", "(2*x1 - x2)/5"], left_inverse=["5*xi2 - 2*xi1", "5*xi2 - 4*xi1"],
                                       B=["y", "y"], Lambda=np.array([-1.0, -2.0])), (1.0, 0.5)),
@@ -139,7 +139,7 @@ def test_every_parameter_is_documented(case):
 
 def test_every_design_is_registered_for_model_files():
     for case in CASES:
-        assert DESIGNS[case.fn.__name__.removeprefix("design_").replace("2gd", "gpebo_2gd")] is case.fn
+        assert DESIGNS[case.fn.__name__.removeprefix("design_")] is case.fn
     with pytest.raises(ModelError, match="unknown option `bogus`"):
         design_from_config(PEB, "pebo", {"phi": ["x2"], "left_inverse": ["y", "xi1"], "B": ["-y + u"], "bogus": 1})
 

@@ -19,7 +19,7 @@ BARE_NUMBER = re.compile(r"(?<![\w.])00[0-4](?![\w-])")
 
 
 def _string_literals(path: Path):
-    """(line, text) of every string literal that is not a docstring."""
+    """(line, text) of every string literal that is not a docstring nor the key given to cite(...) or work(...)."""
     src = path.read_text()
     docs = set()
     for node in ast.walk(ast.parse(src)):
@@ -27,6 +27,9 @@ def _string_literals(path: Path):
             first = node.body[0]
             if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant) and isinstance(first.value.value, str):
                 docs.add((first.value.lineno, first.value.col_offset))
+        if isinstance(node, ast.Call) and getattr(node.func, "id", None) in ("cite", "work") and node.args \
+                and isinstance(node.args[0], ast.Constant):
+            docs.add((node.args[0].lineno, node.args[0].col_offset))
     for tok in tokenize.generate_tokens(io.StringIO(src).readline):
         if tok.type == tokenize.STRING and tok.start not in docs:
             yield tok.start[0], tok.string

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from nlobs import design_2gd, simulate
+from nlobs import design_gpebo_2gd, simulate
 from nlobs.examples import gpebo_not_uco as ex
 
 
@@ -51,7 +51,7 @@ def _closed_form_error(t: np.ndarray, gamma_g: float, gamma: float) -> np.ndarra
 def test_2gd_error_follows_the_paper_law_to_round_off():
     # both implementations (nlobs and the closed form above) agree to ~2e-12 and reach 1e-13 by t = 20
     sa = ex.model()
-    d = design_2gd(sa, gamma_g=5.0, gamma=50.0)
+    d = design_gpebo_2gd(sa, gamma_g=5.0, gamma=50.0)
     assert d.n_z == (3 + 2 * 2) * 2
     run = simulate(sa.to_system(), {"2gd": d}, t_final=20.0, dt=1e-3, x0=ex.X0, inputs={"u": "exp(-t)"})
     e = run.error_norm("2gd")[::50]

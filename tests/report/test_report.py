@@ -158,11 +158,11 @@ def test_progress_draws_nothing_when_not_a_terminal_and_ends_its_line_on_a_termi
 
 def test_kinds_lists_every_kind_and_one_kind_its_options_and_references(capsys):
     from nlobs.cli import main
-    from nlobs.design import DESIGNS
+    from nlobs.design import KINDS
 
     assert main(["kinds"]) == 0
     listing = capsys.readouterr().out
-    assert all(re.search(rf"^{re.escape(k)} ", listing, flags=re.M) for k in DESIGNS)
+    assert all(re.search(rf"^{re.escape(k)} ", listing, flags=re.M) for k in KINDS)
     assert main(["kinds", "ekf", "--json"]) == 0
     info = json.loads(capsys.readouterr().out)
     opts = {o["name"]: o for o in info["options"]}

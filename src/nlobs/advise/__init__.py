@@ -5,5 +5,3 @@ from ._advice import Advice as Advice
 from ._advice import Candidate as Candidate
 from ._advice import Score as Score
 from ._advise import advise as advise
-from ._kinds import REFERENCES as REFERENCES
-from ._kinds import TRIALS as TRIALS

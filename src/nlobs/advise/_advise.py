@@ -12,13 +12,13 @@ from typing import Any
 import numpy as np
 
 from ..analysis import ltv_gramian, uco_test
-from ..design import DESIGNS
+from ..design import KINDS
 from ..errors import ModelError
 from ..model import ModelFile, System, load_model
 from ..references import cite
 from ..simulate import Recording
 from ._advice import Advice, Candidate
-from ._constructions import evaluate
+from ..design._constructions import evaluate
 from ._context import Context, build_context, file_true_parameters, file_unknown_params
 from ._kinds import try_kind
 from ._present import model_text
@@ -109,7 +109,7 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
     r"""Which observers fit this model, why the others do not, and (with `run`) which works best.
 
     Runs the structural observability analysis (:func:`nlobs.analyze`) and the form recognition, then tries
-    every registered observer kind (:data:`nlobs.design.DESIGNS`) with an automatic tuning from the model's
+    every registered observer kind (:data:`nlobs.design.KINDS`) with an automatic tuning from the model's
     time scales, the region its simulation visits and the declared noise (rules in
     :mod:`nlobs.advise._context`). Each kind gets a :class:`Candidate`: it applies (the design and its
     certificate), fails (the precondition with its numbers), or needs input only the user can give.
@@ -177,10 +177,10 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
         system = model
     else:
         raise ModelError(f"advise: `model` must be a System, a ModelFile, or a model file path/name; got {type(model).__name__}")
-    chosen = list(kinds) if kinds else list(DESIGNS)
-    unknown_kinds = [k for k in chosen if k not in DESIGNS]
+    chosen = list(kinds) if kinds else list(KINDS)
+    unknown_kinds = [k for k in chosen if k not in KINDS]
     if unknown_kinds:
-        raise ModelError(f"advise: unknown observer kind {unknown_kinds[0]!r}; kinds: {', '.join(DESIGNS)}")
+        raise ModelError(f"advise: unknown observer kind {unknown_kinds[0]!r}; kinds: {', '.join(KINDS)}")
     say = _progress_writer(progress)
     if say:
         say(f"advise {system.name}: observability analysis and time scales ...")

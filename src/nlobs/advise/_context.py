@@ -118,6 +118,7 @@ class Context:
     run_blockers: list[str] = field(default_factory=list)   # why the comparison run cannot show what it should
     configs: dict[str, tuple[str, Mapping[str, Any]]] = field(default_factory=dict)  # kind -> the file's [observers.NAME]
     choice: tuple[str, str] | None = None  # (kind, why) when a rule marks one kind as the choice (e.g. pf for a symmetric output)
+    choice_rank: int = 0                   # the weight of that rule (Tuning.choice_rank): a stronger rule replaces a weaker one
 
     @property
     def n(self) -> int:
@@ -183,7 +184,7 @@ class Context:
     @property
     def output_gain(self) -> float:
         """max ‖∂h/∂x‖₂ on the run (1 without a run)."""
-        from ._constructions import jacobians_at
+        from ..design._constructions import jacobians_at
 
         if self.nominal is None:
             return 1.0
@@ -199,6 +200,12 @@ class Context:
         run = self.nominal
         k = np.unique(np.linspace(0, run.t.size - 1, min(count, run.t.size)).astype(int))
         return {"t": run.t[k], "x": run.x[k], "u": run.u[k], "y": run.y[k]}
+
+    def jacobians(self, count: int = 300) -> np.ndarray:
+        """∂f/∂x at (up to) `count` points of the nominal run, shape (k, n, n); empty without a run."""
+        if self.nominal is None:
+            return np.zeros((0, self.n, self.n))
+        return _jacobians(self.system, self.samples(count))
 
     def box(self, names: Sequence[str]) -> dict[str, tuple[float, float]]:
         return {k: self.region[k] for k in names if k in self.region}
@@ -232,7 +239,7 @@ def _scenario(mf: ModelFile | None, simulation: Any, system: System) -> Scenario
 
 
 def _jacobians(system: System, s: Mapping[str, np.ndarray]) -> np.ndarray:
-    from ._constructions import jacobians_at
+    from ..design._constructions import jacobians_at
 
     return jacobians_at(system, s["t"], s["x"], s["u"])[0]
 
@@ -303,7 +310,7 @@ def _detectability(model: System, bad: Sequence[str], obs: Sequence[str], nomina
     if nominal is None or nominal.x is None:
         return {"detectable": None, "text": "detectability not checked (no [simulation] run to check the unobservable part's "
                 "contraction on)"}
-    from ._constructions import jacobians_at
+    from ..design._constructions import jacobians_at
 
     k = np.unique(np.linspace(0, nominal.t.size - 1, 300).astype(int))
     F, _ = jacobians_at(model, nominal.t[k], nominal.x[k, :model.n_states], nominal.u[k])

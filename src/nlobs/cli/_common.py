@@ -38,8 +38,7 @@ def designs_of(model_file: Any, names: Sequence[str] | None, *, overrides: Mappi
     """
     from dataclasses import replace
 
-    from ..design import DESIGNS, check_identifiable, design_from_config
-    from ..design._registry import options_of
+    from ..design import KINDS, check_identifiable, design_from_config
 
     configured = model_file.observers
     if names:
@@ -52,8 +51,8 @@ def designs_of(model_file: Any, names: Sequence[str] | None, *, overrides: Mappi
     for n in chosen:
         kind, options = configured[n].kind, dict(configured[n].options)
         for key, value in (overrides or {}).items():
-            if kind in DESIGNS and key not in options_of(DESIGNS[kind]):
-                takes = sorted(k for k, fn in DESIGNS.items() if key in options_of(fn))
+            if kind in KINDS and key not in KINDS[kind].options:
+                takes = sorted(k for k, spec in KINDS.items() if key in spec.options)
                 raise ValueError(f"--{key}: observer {n!r} (kind {kind!r}) has no option {key}; "
                                  f"kinds that take it: {', '.join(takes)}")
             options[key] = value

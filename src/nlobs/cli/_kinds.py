@@ -1,9 +1,9 @@
 """``nlobs kinds [KIND]``: the observer kinds a model file can configure, their options and references.
 
-Everything comes from the design functions themselves: the options and defaults from their
-signatures, the descriptions from their NumPy-style docstrings, the references from the works
-those docstrings and the certificates' references (the module's ``REF...`` strings) cite
-(:func:`nlobs.references.cited_keys`).
+Everything comes from the registry (:data:`nlobs.design.KINDS`): the summary, time base and the works each kind
+implements from its declaration, the options and defaults from the design function's signature, their descriptions
+from its NumPy-style docstring; further works that the docstring and the certificate cite (the module's ``REF...``
+strings, :func:`nlobs.references.cited_keys`) follow the kind's own.
 """
 
 from __future__ import annotations
@@ -63,30 +63,32 @@ def _parameter_docs(doc: str) -> dict[str, str]:
 
 
 def kind_info(kind: str) -> dict[str, Any]:
-    """What ``nlobs kinds KIND`` shows: summary, design function, options (default, description), references."""
-    from ..design import DESIGNS
+    """What ``nlobs kinds KIND`` shows: summary, time base, design function, options (default, description), references."""
+    from ..design import KINDS
     from ..references import REFERENCES, cited_keys
 
-    if kind not in DESIGNS:
-        raise KeyError(f"no observer kind {kind!r}; available: {', '.join(sorted(DESIGNS))} (nlobs kinds lists them)")
-    fn: Callable[..., Any] = DESIGNS[kind]
+    if kind not in KINDS:
+        raise KeyError(f"no observer kind {kind!r}; available: {', '.join(sorted(KINDS))} (nlobs kinds lists them)")
+    k = KINDS[kind]
+    fn: Callable[..., Any] = k.design
     doc = inspect.getdoc(fn) or ""
-    module_doc = inspect.getdoc(sys.modules[fn.__module__]) or ""
     params = _parameter_docs(doc)
     options = []
-    for name, p in inspect.signature(fn).parameters.items():
-        if p.kind is not inspect.Parameter.KEYWORD_ONLY:
-            continue
-        default = None if p.default is inspect.Parameter.empty else p.default
-        options.append({"name": name, "required": p.default is inspect.Parameter.empty,
+    for name, default in k.options.items():
+        required = default is inspect.Parameter.empty
+        default = None if required else default
+        options.append({"name": name, "required": required,
                         "default": default if isinstance(default, (int, float, str, bool, type(None))) else repr(default),
                         "description": _clean_rst(params.get(name, ""))})
     module = sys.modules[fn.__module__]
-    certificate_refs = [v for k, v in vars(module).items() if k.startswith("REF") and isinstance(v, str)]
-    keys = cited_keys("\n".join([*certificate_refs, doc])) or cited_keys(module_doc)  # the certificate's works first
-    summary = _clean_rst(" ".join(_sections(doc)[""][:1]).strip()) if doc else ""
-    return {"kind": kind, "function": f"nlobs.{fn.__name__}", "summary": summary, "options": options,
-            "references": [{"key": k, "cite": REFERENCES[k].label, "full": str(REFERENCES[k])} for k in keys]}
+    certificate_refs = [v for key, v in vars(module).items() if key.startswith("REF") and isinstance(v, str)]
+    keys = list(k.reference_keys)
+    keys += [key for key in cited_keys("\n".join([*certificate_refs, doc])) if key not in keys]
+    places = dict(k.references)
+    return {"kind": kind, "function": f"nlobs.{fn.__name__}", "summary": k.summary, "time_base": k.time_base,
+            "tuned_by_advisor": k.tune is not None, "options": options,
+            "references": [{"key": key, "cite": REFERENCES[key].label, "full": str(REFERENCES[key]),
+                            "where": places.get(key, ""), "implements": key in places} for key in keys]}
 
 
 def add_parser(sub: Any) -> None:
@@ -105,7 +107,7 @@ def _fmt_default(o: dict[str, Any]) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..design import DESIGNS
+    from ..design import KINDS
 
     if args.kind:
         info = kind_info(args.kind)
@@ -113,6 +115,7 @@ def run(args: argparse.Namespace) -> int:
             print(json.dumps(info))
             return 0
         print(f"{info['kind']}: {info['summary']}")
+        print(f"time base: {info['time_base']}")
         print(f"design function: {info['function']}(system, **options)")
         print("options ([observers.NAME] keys of a model file):")
         width = max([len(o["name"]) for o in info["options"]] + [4])
@@ -125,15 +128,16 @@ def run(args: argparse.Namespace) -> int:
         if info["references"]:
             print("references:")
             for r in info["references"]:
-                print(textwrap.fill(r["full"], width=88, initial_indent="  ", subsequent_indent="    "))
+                where = f" [{r['where']}]" if r["where"] else ""
+                print(textwrap.fill(r["full"] + where, width=88, initial_indent="  ", subsequent_indent="    "))
         return 0
-    infos = [kind_info(k) for k in sorted(DESIGNS)]
+    infos = [kind_info(k) for k in sorted(KINDS)]
     if args.json:
         print(json.dumps({"kinds": infos}))
         return 0
     width = max(len(i["kind"]) for i in infos)
     for i in infos:
-        refs = "; ".join(r["cite"] for r in i["references"]) or "—"
+        refs = "; ".join(r["cite"] for r in i["references"] if r["implements"]) or "—"
         pad = " " * (width + 2)
         print(textwrap.fill(i["summary"], width=100, initial_indent=f"{i['kind']:<{width}}  ", subsequent_indent=pad))
         print(textwrap.fill(f"[{refs}]", width=100, initial_indent=pad, subsequent_indent=pad))

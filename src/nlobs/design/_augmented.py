@@ -9,17 +9,20 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
+from ..analysis import decide_identity
 from ..engine import to_casadi
-from ..errors import PreconditionError
+from ..errors import FormError, ModelError, PreconditionError
 from ..model import TIME, System, symbol
 from ..model._forms import matrix_of
 from ..model._system import ExprLike, exact
-from ..analysis import decide_identity
-from ._common import require_system
+from ..references import cite, work
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import identity_check, observer_gain
+from ._common import require_system
+from ._constructions import evaluate, text
 from ._kalman import StateAffineParts, _riccati_design
-from ..references import cite
+from ._kind import Tuning, kind
+from ._tune import CA_on_run, clean_message, fmt, poles_for, square
 
 __all__ = ["design_augmented"]
 
@@ -27,6 +30,46 @@ REF = (f"{cite('001')}: mimicking systems (2), Def. 3, Theorem 1 (observable iff
        "Lemma 1 (observer through a left inverse); §IV-A eqs. (15)-(16), §IV-B (17)-(18), §IV-C (20)-(22)")
 
 
+# -- automatic tuning for the advisor (the kinds' `tune`; see design/_kind.py) ------------------------------
+def tune_augmented(ctx: Any) -> Tuning:
+    from ..analysis import propose_augmentation
+
+    try:
+        aug = propose_augmentation(ctx.system, max_degree=3, max_states=min(4 * ctx.n + 2, 18))
+    except (FormError, ModelError) as e:
+        return Tuning.needs(f"T(x), A(u, y, t), C and a left inverse such that the augmented system mimics the model "
+                       f"({cite('001', 'Def. 3')}); nlobs could not close the span automatically: {clean_message(e)}",
+                       T="...", A="...", C="...", left_inverse="...")
+    if aug.n_w == ctx.n:
+        return Tuning.fails("not needed: the model is already state-affine in its own coordinates (the span of the outputs' "
+                      "derivatives closes on x itself); this would be the filter of `kalman_bucy`")
+    opts: dict[str, Any] = {"T": [text(e) for e in aug.T], "A": [[text(e) for e in row] for row in aug.A.tolist()],
+                            "C": [[text(e) for e in row] for row in aug.C.tolist()],
+                            "left_inverse": [text(e) for e in aug.left_inverse], "b": [text(e) for e in aug.b]}
+    tuning = f"constructed: w = T(x) with {aug.n_w} states mimics the model (span of the output derivatives closed)"
+    params = {sp.Symbol(k, real=True): v for k, v in ctx.system.params.items()}
+    ys = set(ctx.system.y)
+    if not any(e.xreplace(params).free_symbols for e in aug.A) and not any(e.free_symbols & ys for e in aug.b):
+        opts["poles"] = poles_for(aug.n_w, ctx.omega_o)
+        return Tuning.tuned(opts, tuning + f"; A constant: Luenberger with poles {fmt(opts['poles'])}")
+    if ctx.nominal is None:
+        return Tuning.needs("Q and R for the Kalman–Bucy filter on the augmented system, and a run to scale them", **opts)
+    W = evaluate(list(aug.T), ctx.system, ctx.samples(300))
+    span, mag = W.max(axis=0) - W.min(axis=0), np.abs(W).max(axis=0)
+    sw = np.maximum(np.where(span > 0.05 * mag, span, 0.5 * mag), 1e-6)        # the states' scale rule, for w = T(x)
+    for i, e in enumerate(aug.T):                                                 # components that are states: their P(0)
+        if e in ctx.system.x:
+            sw[i] = float(np.sqrt(ctx.P0[ctx.system.x.index(e), ctx.system.x.index(e)]))
+    Qw = np.diag((0.01 * sw) ** 2 * ctx.omega_p)
+    Cw = np.array(aug.C.xreplace(params), dtype=float) if not aug.C.xreplace(params).free_symbols else None
+    W, M0, note = ctx.riccati_weights(ctx.R_rate, np.diag(sw ** 2), Qw, Cw, CA_on_run(ctx, (aug.C * aug.A).xreplace(params)))
+    opts.update({"Q": square(Qw), "R": square(W), "P0": square(M0)})
+    return Tuning.tuned(opts, tuning + "; A(u, y, t) or b(u, y, t) varies: Kalman–Bucy filter on the augmented system, Q, R as for kalman_bucy",
+                    extra=note)
+
+
+@kind('augmented', summary='linear observer on a system that mimics the model through w = T(x)',
+      references=(work("001", "Theorem 1, Lemma 1"),), tune=tune_augmented)
 def design_augmented(system: System, *, T: Sequence[ExprLike], A: Any, C: Any, left_inverse: Sequence[ExprLike],
                      b: Sequence[ExprLike] | None = None, poles: Any = None, L: Any = None, Q: Any = None, R: Any = None,
                      P0: Any = None, xhat0: Any = None) -> ObserverDesign:

@@ -15,16 +15,19 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from ..engine import compile_system, to_casadi
 from .._text import shorten
+from ..analysis import matrix_measure
+from ..engine import compile_system, to_casadi
 from ..errors import PreconditionError, ShapeError
 from ..model import TIME, System, symbol
 from ..model._system import ExprLike, exact, to_expr
+from ..references import cite, work
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import check_matrix
-from ..analysis import matrix_measure
 from ._common import batch, box_of, require_system, sup_over_box
-from ..references import cite
+from ._constructions import banks_gain, banks_necessary
+from ._kind import Tuning, kind
+from ._tune import region_inputs, region_states, rounded
 
 __all__ = ["design_banks", "banks_conditions", "BanksConditions"]
 
@@ -120,6 +123,45 @@ def banks_conditions(system: System, P: np.ndarray, perturbation: Sequence[sp.Ex
     return BanksConditions(-lam, where, K, slope, exact_)
 
 
+# -- automatic tuning for the advisor (the kinds' `tune`; see design/_kind.py) ------------------------------
+def tune_banks(ctx: Any) -> Tuning:
+    if not ctx.region or ctx.nominal is None:
+        return Tuning.needs("P (n × p) and a region Ω: add [simulation] x0 so that nlobs can search P over the visited region")
+    box = region_states(ctx)
+    pts = ctx.samples(100)
+    rng = np.random.default_rng(0)
+    lo = np.array([box[s][0] for s in ctx.system.states])
+    hi = np.array([box[s][1] for s in ctx.system.states])
+    rand = lo + (hi - lo) * rng.random((100, ctx.n))
+    ulo = np.array([ctx.region[k][0] for k in ctx.system.inputs]) if ctx.system.inputs else np.zeros(0)
+    uhi = np.array([ctx.region[k][1] for k in ctx.system.inputs]) if ctx.system.inputs else np.zeros(0)
+    urand = ulo + (uhi - ulo) * rng.random((100, ctx.system.n_inputs))
+    X = np.vstack([pts["x"], rand])
+    U = np.vstack([pts["u"], urand]) if ctx.system.inputs else np.zeros((X.shape[0], 0))
+    T = np.concatenate([pts["t"], rng.random(100) * (ctx.scenario.t_final if ctx.scenario else 1.0)])
+    blocked = banks_necessary(ctx.system, X, U, T)
+    if blocked:
+        return Tuning.fails(blocked)
+    P, best, _ = banks_gain(ctx.system, X, U, T, limit=ctx.step_limit())
+    if P is None or not np.isfinite(best):
+        return Tuning.fails("the Jacobians are not finite on the region")
+    if best >= 0:
+        return Tuning.fails(f"no gain P found with λ(∂f/∂x + P ∂h/∂x) < 0 on the visited region: the best max matrix measure is "
+                      f"{best:.3g} ≥ 0 ({cite('003', 'Theorem 2.6')} needs it negative everywhere on Ω, a much stronger "
+                      "condition than a stable linearisation)", P=rounded(P))
+    speed = float(np.linalg.norm(P, 2)) * ctx.output_gain
+    if speed > ctx.step_limit():
+        return Tuning.fails(f"a gain with λ(∂f/∂x + P ∂h/∂x) < 0 on the region needs ‖P‖·‖∂h/∂x‖ ≈ {speed:.3g} s⁻¹, beyond what the "
+                      f"step allows ({ctx.step_limit():.3g} s⁻¹); reduce dt / the sample period, or shrink the region", P=rounded(P))
+    region = {k: list(v) for k, v in {**box, **region_inputs(ctx)}.items()}
+    if ctx.system.is_time_varying:
+        region["t"] = [0.0, float(ctx.scenario.t_final)]
+    return Tuning.tuned({"P": rounded(P), "region": region},
+                    f"P searched over the visited region (max matrix measure {best:.3g} on the sampled points)")
+
+
+@kind('banks', summary="Banks' exponential observer, his conditions checked over a region",
+      references=(work("003", "Theorem 2.6"),), tune=tune_banks)
 def design_banks(system: System, *, P: Any, region: Mapping[str, Sequence[float]] | None = None,
                  perturbation: Sequence[ExprLike] | None = None, perturbation_bound: float | None = None,
                  xhat0: Any = None) -> ObserverDesign:

@@ -36,15 +36,39 @@ import sympy as sp
 from ..engine import to_casadi
 from ..errors import PreconditionError
 from ..model import System
+from ..references import cite, work
 from ._base import Certificate, Check, ObserverDesign
+from ._constructions import cascade_partition, evaluate
+from ._kind import Tuning, kind
 from ._regression import ExcitationMonitor, Gradient, Regression, StateStack, estimator_from, lowpass
-from ..references import cite
 
 __all__ = ["design_kkl_pebo_cascade"]
 
 REF = f"{cite('004')} Proposition 7: class (40)-(42), observer (43)-(47)"
 
 
+# -- automatic tuning for the advisor (the kinds' `tune`; see design/_kind.py) ------------------------------
+def tune_cascade(ctx: Any) -> Tuning:
+    part, why = cascade_partition(ctx.system)
+    if part is None:
+        return Tuning.fails(f"not in the class of {cite('004', 'Proposition 7')}: {why}")
+    alpha = round(float(min(ctx.omega_o, ctx.step_limit())), 6)
+    gamma = float(ctx.omega_o)
+    if ctx.nominal is not None:  # the gradient acts at the rate γ‖F[b]‖²: scale γ by the regressor b along the run
+        f, _ = ctx.system.substituted()
+        fk = f[ctx.system.states.index(part["k"])]
+        b = [sp.diff(fk, sp.Symbol(v, real=True)) for v in part["x4"]]
+        vals = evaluate(b, ctx.system, ctx.samples(300))
+        b2 = np.sum(vals ** 2, axis=1)
+        if np.all(np.isfinite(b2)) and b2.max() > 0:
+            gamma = float(min(ctx.omega_o / max(b2.mean(), 1e-300), ctx.step_limit() / b2.max()))
+    opts = {**part, "alpha": alpha, "estimator": {"kind": "gradient", "gamma": float(f"{gamma:.6g}")}}
+    return Tuning.tuned(opts, f"blocks found: x2 = {part['x2']}, x3 = {part['x3']}, x4 = {part['x4']}, k = {part['k']}; "
+                    f"gradient gain γ = {gamma:.3g} = ω_o / mean ‖b‖² on the run; θ converges if b is persistently exciting")
+
+
+@kind('kkl_pebo_cascade', summary='KKL+PEBO observer for the cascade class, from a partition of the states',
+      references=(work("004", "Proposition 7"),), tune=tune_cascade)
 def design_kkl_pebo_cascade(system: System, *, x2: Sequence[str], x3: Sequence[str], x4: Sequence[str], k: str,
                             alpha: float = 1.0, estimator: Any = None, xhat0: Any = None) -> ObserverDesign:
     r"""KKL+PEBO observer for the class of Yi, Ortega & Zhang (2019), Proposition 7, from the partition of the states.

@@ -12,9 +12,9 @@ from typing import Any
 
 import numpy as np
 
+from .._text import shorten
 from ..analysis import kalman_rank, pbh_test
 from ..analysis._identity import Identity
-from .._text import shorten
 from ..errors import PreconditionError, ShapeError
 from ._base import Check
 

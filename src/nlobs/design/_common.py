@@ -15,8 +15,8 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from ..engine import to_casadi
 from ..analysis._conditions import box_sup
+from ..engine import to_casadi
 from ..errors import ModelError, PreconditionError, ShapeError
 from ..model import TIME, System
 from ._base import Symbols

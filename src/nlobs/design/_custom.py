@@ -12,12 +12,21 @@ from ..engine import to_casadi
 from ..errors import ModelError
 from ..model import TIME, System, symbol
 from ..model._system import RESERVED, ExprLike, _equations, exact
-from ._common import require_system
 from ._base import Certificate, Check, ObserverDesign, Symbols
+from ._tune import needs_only
+from ._kind import kind
+from ._common import require_system
 
 __all__ = ["design_custom"]
 
 
+# -- automatic tuning for the advisor (the kinds' `tune`; see design/_kind.py) ------------------------------
+tune_custom = needs_only("your own observer equations: `states`, `flow` (their derivatives in u, y and the states) and "
+                         "`estimate` (x̂ in terms of them)", states="...", flow="...", estimate="...")
+
+
+@kind('custom', summary='an observer given by its equations (one from a paper, or your own)',
+      references=(), tune=tune_custom)
 def design_custom(system: System, *, states: Sequence[str], flow: Sequence[ExprLike] | Mapping[str, ExprLike],
                   estimate: Sequence[ExprLike] | Mapping[str, ExprLike] | None = None,
                   params: Mapping[str, float] | None = None, initial: Sequence[ExprLike] | None = None,

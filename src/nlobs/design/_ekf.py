@@ -10,12 +10,15 @@ import numpy as np
 
 from ..engine import compile_system
 from ..errors import PreconditionError
-from ..references import cite
 from ..model import System
-from ._common import require_system, symmetric_part
+from ..references import cite, work
 from ._base import Certificate, Check, ObserverDesign, Symbols, check_vector
+from ._tune import gaussian_filter
+from ._kind import Tuning
+from ._kind import kind
 from ._bounds import POLICY, bounds_check, check_start, clip_const, parse_bounds
 from ._checks import check_matrix
+from ._common import require_system, symmetric_part
 
 __all__ = ["design_ekf"]
 
@@ -23,6 +26,14 @@ REF_EKF = (f"Extended Kalman filter ({cite('jazwinski1970')}; {cite('simon2006',
            f"Joseph-form update ({cite('bucy1968')})")
 
 
+# -- automatic tuning for the advisor (the kinds' `tune`; see design/_kind.py) ------------------------------
+def tune_ekf(ctx: Any) -> Tuning:
+    """Q, R, P(0) from the run's scales, continuous-discrete (see :func:`~nlobs.design._tune.gaussian_filter`)."""
+    return gaussian_filter(ctx, "ekf")
+
+
+@kind('ekf', summary='extended Kalman filter (continuous-discrete or continuous), exact Jacobians by automatic differentiation',
+      references=(work("jazwinski1970", "continuous-discrete extended Kalman filter"), work("kalman1961")), tune=tune_ekf)
 def design_ekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None,
                mode: Literal["continuous", "continuous-discrete"] = "continuous-discrete",
                bounds: Mapping[str, Any] | None = None) -> ObserverDesign:

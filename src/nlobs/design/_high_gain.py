@@ -11,15 +11,18 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
+from ..analysis import decide_identity
 from ..engine import compile_system
 from ..errors import FormError, PreconditionError, ShapeError
 from ..model import TIME, System, symbol
 from ..model._system import ExprLike, exact, to_expr
-from ..analysis import decide_identity
+from ..references import cite, work
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import identity_check
 from ._common import chain_gain, leaves_of, measured_states, require_system, saturate, saturation_bounds, to_sx
-from ..references import cite
+from ._constructions import derivative_map, evaluate, find_chains, text
+from ._kind import Tuning, kind
+from ._tune import clean_message, region_inputs, region_states, vanishes
 
 __all__ = ["design_high_gain", "design_high_gain_derivatives", "triangular_chains", "Chain"]
 
@@ -192,6 +195,151 @@ def _chain_matrix(couplings: Sequence[float]) -> np.ndarray:
     return A
 
 
+# -- automatic tuning for the advisor (the kinds' `tune`; see design/_kind.py) ------------------------------
+def _chains(ctx: Any) -> tuple[Any, list[list[str]] | None, str]:
+    try:
+        return triangular_chains(ctx.system, caller="high_gain"), None, ""
+    except (FormError, PreconditionError) as first:
+        reason: list[str] = []
+        alt = find_chains(ctx.system, reason)
+        if alt is None:
+            return None, None, (f"not in triangular form: {reason[0]}" if reason else clean_message(first))
+        try:
+            return triangular_chains(ctx.system, alt, caller="high_gain"), alt, ""
+        except (FormError, PreconditionError) as e:
+            return None, None, clean_message(e)
+
+
+def _theta_star(chs: Any, gamma: float, n: int) -> float:
+    import scipy.linalg
+
+    from ._common import chain_gain
+
+    blocks = []
+    for c in chs:
+        m = len(c.states)
+        g = chain_gain([float(a) for a in c.couplings], np.full(m, -1.0 + 0j))
+        A = np.zeros((m, m))
+        for i, a in enumerate(c.couplings):
+            A[i, i + 1] = float(a)
+        blocks.append(A - np.outer(g, np.eye(m)[0]))
+    Ab = scipy.linalg.block_diag(*blocks)
+    P0 = scipy.linalg.solve_continuous_lyapunov(Ab.T, -np.eye(n))
+    return max(1.0, 2.0 * np.sqrt(n) * gamma * float(np.linalg.eigvalsh((P0 + P0.T) / 2).max()))
+
+
+def _saturation(ctx: Any) -> dict[str, float]:
+    """Khalil's remedy against peaking: the estimate fed to the model is clipped to twice the largest magnitude each
+    state reaches on the run."""
+    if not ctx.region:
+        return {}
+    return {s: float(f"{2.0 * max(abs(ctx.region[s][0]), abs(ctx.region[s][1])):.4g}") for s in ctx.system.states}
+
+
+def tune_high_gain(ctx: Any) -> Tuning:
+    chs, alt, why = _chains(ctx)
+    if chs is None:
+        return Tuning.fails(why)
+    opts: dict[str, Any] = {}
+    if alt is not None:
+        opts["chains"] = alt
+    sat = _saturation(ctx)
+    if sat:
+        opts["saturation"] = sat
+    order = "; ".join(" -> ".join(ctx.system.states[j] for j in c.states) for c in chs)
+    if sat:
+        order += " (estimate saturated at twice the run's magnitudes, against peaking)"
+    limit = ctx.step_limit()
+    varying = [(c, i, a) for c in chs for i, a in enumerate(c.couplings) if a.free_symbols]
+    if varying:
+        if ctx.nominal is None:
+            return Tuning.needs("K0 (the couplings vary: " + ", ".join(str(a) for _, _, a in varying) + ") and a run to check them")
+        pts = ctx.samples(400)
+        ysub = {ctx.system.x[j]: ctx.system.y[k] for k, j in enumerate(c.states[0] for c in chs)}
+        vals = evaluate([a.xreplace(ysub) for _, _, a in varying], ctx.system, pts)
+        for (c, i, a), col in zip(varying, vals.T):
+            lo, hi = float(col.min()), float(col.max())
+            if lo * hi <= 0 or min(abs(lo), abs(hi)) < 1e-3 * max(abs(lo), abs(hi)):
+                s0, s1 = ctx.system.states[c.states[i]], ctx.system.states[c.states[i + 1]]
+                return Tuning.fails(f"the coupling ∂{s0}'/∂{s1} = {a} takes values in [{lo:.3g}, {hi:.3g}] on the run: it "
+                              f"{vanishes(lo, hi)}, and the high-gain observer needs it "
+                              f"bounded away from 0 with a fixed sign ({cite('002')}, extension of the high-gain observer)")
+        from ._common import chain_gain
+
+        means = {id(a): float(np.mean(col)) for (_, _, a), col in zip(varying, vals.T)}
+        K0 = []
+        for c in chs:
+            cpl = [means[id(a)] if a.free_symbols else float(a) for a in c.couplings]
+            K0.extend(chain_gain(cpl, np.full(len(c.states), -1.0 + 0j)).tolist())
+        theta = float(min(max(ctx.omega_o, 1.0), limit))
+        opts.update({"theta": round(theta, 6), "K0": K0})
+        return Tuning.tuned(opts, f"chains {order}; couplings vary but keep their sign on the run: K0 from their mean values "
+                        f"(binomial poles), θ = {theta:.3g} from the time scale")
+    if not ctx.region:
+        theta = float(max(ctx.omega_o, 1.0))
+        opts["theta"] = round(theta, 6)
+        return Tuning.tuned(opts, f"chains {order}; θ = {theta:.3g} from the time scale (no region to bound the nonlinearity)")
+    from ._lipschitz import lipschitz_constant
+
+    A0 = sp.zeros(ctx.n, ctx.n)
+    for c in chs:
+        for i, a in enumerate(c.couplings):
+            A0[c.states[i], c.states[i + 1]] = a
+    f, _ = ctx.system.substituted()
+    phi = list(f - A0 * sp.Matrix(ctx.system.x))
+    region = {**region_states(ctx), **region_inputs(ctx)}
+    if ctx.system.is_time_varying:
+        region["t"] = (0.0, float(ctx.scenario.t_final))
+    try:
+        gamma, _ = lipschitz_constant(ctx.system, phi, region, caller="high_gain")
+    except (PreconditionError, ShapeError) as e:
+        gamma, why_g = None, clean_message(e)
+    if gamma is not None and np.isfinite(gamma):
+        ts = _theta_star(chs, gamma, ctx.n)
+        if 1.2 * ts <= limit:
+            theta = float(min(max(1.2 * ts, ctx.omega_o), limit))
+            opts.update({"theta": round(theta, 6), "lipschitz": round(float(gamma), 9)})
+            return Tuning.tuned(opts, f"chains {order}; γ ≈ {gamma:.3g} (Lipschitz constant of the triangular part on the region), "
+                            f"θ = {theta:.3g} > θ* = {ts:.3g}: convergence guaranteed while the state stays in the region")
+        theta = float(min(max(ctx.omega_o, 1.0), limit))
+        opts["theta"] = round(theta, 6)
+        return Tuning.tuned(opts, f"chains {order}; θ = {theta:.3g} from the time scale; the sufficient bound θ* = {ts:.3g} (γ ≈ "
+                        f"{gamma:.3g} on the region) is beyond what the step allows (θ ≤ {limit:.3g}), so convergence is not "
+                        "certified (the bound is conservative)")
+    theta = float(min(max(ctx.omega_o, 1.0), limit))
+    opts["theta"] = round(theta, 6)
+    return Tuning.tuned(opts, f"chains {order}; θ = {theta:.3g} from the time scale (no Lipschitz bound: {why_g})")
+
+
+def tune_high_gain_derivatives(ctx: Any) -> Tuning:
+    lie: dict[sp.Symbol, sp.Expr] = {}
+    try:
+        psi, why = derivative_map(ctx.system, lie=lie)
+    except (NotImplementedError, ValueError, TypeError) as e:  # SymPy giving up
+        psi, why = None, f"the output derivatives could not be solved for the state ({type(e).__name__})"
+    if psi is None:
+        return Tuning.needs(f"xhat = Ψ(D0_y, D1_y, ...): {why}", xhat="expressions of the output derivatives D{i}_{output}")
+    theta = float(min(max(ctx.omega_o, 1.0), ctx.step_limit()))
+    dens = sorted({d.as_coeff_Mul()[1] for e in psi.values() for d in [sp.fraction(sp.together(e))[1]] if d.free_symbols},
+                  key=str)
+    extra = ""
+    if dens:
+        extra = f"Ψ is singular where {', '.join(map(str, dens))} = 0"
+        if ctx.nominal is not None:
+            vals = evaluate([d.xreplace(lie) for d in dens], ctx.system, ctx.samples(400))
+            for d, col in zip(dens, vals.T):
+                lo, hi = float(np.min(col)), float(np.max(col))
+                small = float(np.min(np.abs(col))) < 1e-3 * float(np.max(np.abs(col)))
+                if lo * hi <= 0 or small:
+                    return Tuning.fails(f"Ψ (x from the output derivatives, solved by nlobs) divides by {d}, which "
+                                  f"{vanishes(lo, hi)} on the run (from {lo:.3g} to "
+                                  f"{hi:.3g}): the estimate blows up where it vanishes", xhat={k: text(v) for k, v in psi.items()})
+    return Tuning.tuned({"xhat": {k: text(v) for k, v in psi.items()}, "theta": round(theta, 6)},
+                    f"Ψ solved from the Lie derivatives of the output(s); θ = {theta:.3g} (binomial α)", extra=extra)
+
+
+@kind('high_gain', summary='high-gain observer for the triangular form (Gauthier-Hammouri-Kupka)',
+      references=(work("002", "Result [High Gain Observer]"),), tune=tune_high_gain)
 def design_high_gain(system: System, *, theta: float | None = None, r: float | None = None, K0: Any = None,
                      poles: Any = None, chains: Sequence[Sequence[str]] | None = None, lipschitz: float | None = None,
                      saturation: Mapping[str, float] | Sequence[float] | None = None,
@@ -383,6 +531,8 @@ def _lie_derivatives(system: System, k: int, count: int) -> list[sp.Expr]:
     return out
 
 
+@kind('high_gain_derivatives', summary='high-gain observer of the output derivatives (Khalil-Esfandiari), x̂ computed from them',
+      references=(work("004", "Table I (HGO with linear dynamics)"),), tune=tune_high_gain_derivatives)
 def design_high_gain_derivatives(system: System, *, xhat: Mapping[str, ExprLike] | Sequence[ExprLike],
                                  r: float | None = None, theta: float | None = None,
                                  orders: Mapping[str, int] | Sequence[int] | None = None, alpha: Any = None,

@@ -30,22 +30,31 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
+from ..analysis import decide_identity, exact_generic_rank
 from ..engine import to_casadi
 from ..errors import PreconditionError, ShapeError
 from ..model import TIME, System, symbol
 from ..model._forms import matrix_of
 from ..model._system import exact
-from ..analysis import decide_identity, exact_generic_rank
+from ..references import cite, work
 from ._base import Certificate, Check, ObserverDesign
+from ._tune import needs_only
+from ._kind import kind
 from ._checks import identity_check
 from ._regression import StateStack
-from ..references import cite
 
 __all__ = ["design_iandi"]
 
 REF = f"{cite('004')} Proposition 4: A4, A5, eqs. (16)-(19); remarks R7-R8"
 
 
+# -- automatic tuning for the advisor (the kinds' `tune`; see design/_kind.py) ------------------------------
+tune_iandi = needs_only(f"β(y, χ), φ(x) and a left inverse φᴸ(ξ, y) ({cite('004', 'Proposition 4')}); the manifold condition "
+                        "is the designer's part", beta="...", phi="...", left_inverse="...")
+
+
+@kind('iandi', summary='immersion-and-invariance (I&I) observer with the pseudo-inverse of ∂β/∂χ',
+      references=(work("004", "Proposition 4"),), tune=tune_iandi)
 def design_iandi(system: System, *, beta: Sequence[Any], phi: Sequence[Any], left_inverse: Sequence[Any],
                  n_chi: int | None = None, Q: Sequence[Any] | None = None, chi0: Any = None,
                  xhat0: Any = None) -> ObserverDesign:

@@ -10,8 +10,11 @@ import numpy as np
 from ..engine import compile_system
 from ..errors import PreconditionError
 from ..model import System
-from ..references import cite
+from ..references import cite, work
 from ._base import Certificate, Check, ObserverDesign, Symbols, check_vector
+from ._tune import robust_filter
+from ._kind import Tuning
+from ._kind import kind
 from ._common import require_system, symmetric_part
 from ._sqrt import covariance_inputs
 
@@ -21,6 +24,14 @@ REF = (f"Iterated extended Kalman filter: the measurement update as Gauss-Newton
        f"{cite('jazwinski1970')}; Joseph-form covariance ({cite('bucy1968')})")
 
 
+# -- automatic tuning for the advisor (the kinds' `tune`; see design/_kind.py) ------------------------------
+def tune_iekf(ctx: Any) -> Tuning:
+    """The EKF/UKF tuning (Q, R, P(0) from the run; see :func:`~nlobs.design._tune.robust_filter`)."""
+    return robust_filter(ctx, "iekf")
+
+
+@kind('iekf', summary='iterated extended Kalman filter (continuous-discrete): Gauss-Newton iterations of the update',
+      references=(work("bell1993"),), tune=tune_iekf)
 def design_iekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None, iterations: int = 5,
                 tol: float = 1e-10) -> ObserverDesign:
     r"""Iterated extended Kalman filter (continuous-discrete; Bell & Cathey (1993)).

@@ -12,15 +12,18 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from ..errors import FormError, PreconditionError
+from ..errors import FormError, PreconditionError, ShapeError
 from ..model import TIME, StateAffine, System, symbol
 from ..model._budget import expand
 from ..model._system import exact
+from ..references import cite, work
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import check_matrix
 from ._common import box_of, leaves_of, measured_states, require_system, sup_over_box, to_sx
+from ._constructions import find_chains
 from ._high_gain import _theta, triangular_chains
-from ..references import cite
+from ._kind import Tuning, kind
+from ._tune import CA_on_run, clean_message, region_inputs, square
 
 __all__ = ["design_kalman_like", "design_kalman_bucy", "design_high_gain_kalman", "StateAffineParts", "state_affine_parts"]
 
@@ -195,6 +198,67 @@ def _riccati_design(method: str, title: str, ref: str, parts: StateAffineParts, 
                                 xhat0=np.zeros(nx) if xhat0 is None else xhat0, certificate=cert, covariance=cov)
 
 
+# -- automatic tuning for the advisor (the kinds' `tune`; see design/_kind.py) ------------------------------
+def state_affine(ctx: Any) -> tuple[Any, str]:
+    try:
+        return state_affine_parts(ctx.system, "state_affine"), ""
+    except (FormError, TypeError) as e:
+        return None, clean_message(e)
+
+
+def constant_C(parts: Any) -> np.ndarray | None:
+    C = parts.C
+    return None if C.free_symbols else np.array(C, dtype=float)
+
+
+def tune_high_gain_kalman(ctx: Any) -> Tuning:
+    if ctx.p != 1:
+        return Tuning.fails(f"one output measuring the first state is required; the model has {ctx.p}")
+    try:
+        (chain,) = triangular_chains(ctx.system, caller="high_gain_kalman")
+    except (FormError, PreconditionError, ValueError) as e:
+        alt = find_chains(ctx.system)
+        hint = f" (the chain here is {' -> '.join(alt[0])}: declare the states in that order)" if alt and len(alt) == 1 else ""
+        return Tuning.fails(clean_message(e) + hint)
+    if not ctx.region:
+        return Tuning.needs("a region of the inputs and output for δ > 2 sup‖A0(u, y)‖: add [simulation] x0")
+    x1, y = ctx.system.x[0], ctx.system.y[0]
+    A0 = sp.zeros(ctx.n, ctx.n)
+    for i, a in enumerate(chain.couplings):
+        A0[i, i + 1] = a.xreplace({x1: y})
+    region = {k: list(v) for k, v in {**region_inputs(ctx), ctx.system.outputs[0]: ctx.region[ctx.system.outputs[0]]}.items()}
+    try:
+        sup, _ = _sup_norm(StateAffineParts(ctx.system, A0, sp.zeros(ctx.n, 1), sp.zeros(1, ctx.n)), region, "high_gain_kalman")
+    except (PreconditionError, ShapeError) as e:
+        return Tuning.fails(clean_message(e))
+    delta = round(2.2 * sup + 1e-3, 6)
+    lam = float(min(max(1.0, ctx.omega_o / max(delta, 1e-9)), ctx.step_limit() / max(delta, 1e-9), 50.0))
+    lam = max(1.0, lam)
+    opts = {"lam": round(lam, 6), "delta": delta, "region": region}
+    return Tuning.tuned(opts, f"δ = 2.2 sup‖A0‖ = {delta:.3g} over the visited (u, y), λ = {lam:.3g}")
+
+
+def tune_kalman_bucy(ctx: Any) -> Tuning:
+    parts, why = state_affine(ctx)
+    if parts is None:
+        return Tuning.fails(why)
+    W, M0, note = ctx.riccati_weights(ctx.R_rate, ctx.P0, ctx.Q, constant_C(parts), CA_on_run(ctx, parts.C * parts.A))
+    return Tuning.tuned({"Q": square(ctx.Q), "R": square(W), "P0": square(M0)},
+                    f"state-affine ẋ = A(u, y, t)x + b; Q, R as intensities ({ctx.noise_note})", extra=note)
+
+
+def tune_kalman_like(ctx: Any) -> Tuning:
+    parts, why = state_affine(ctx)
+    if parts is None:
+        return Tuning.fails(why)
+    delta = round(float(ctx.omega_p), 6)
+    W, M0, note = ctx.riccati_weights(ctx.R_rate, ctx.P0, ctx.Q, constant_C(parts), CA_on_run(ctx, parts.C * parts.A))
+    return Tuning.tuned({"W": square(W), "V": square(ctx.Q), "delta": delta, "M0": square(M0)},
+                    f"state-affine; W = R, V = Q, forgetting δ = ω_p = {delta:.3g}", extra=note)
+
+
+@kind('kalman_like', summary='Kalman-like observer for a state-affine system, with forgetting δ and/or process noise',
+      references=(work("002", "Kalman-like observer for state-affine systems"),), tune=tune_kalman_like)
 def design_kalman_like(model: System | StateAffine, *, W: Any = None, V: Any = None, delta: float = 0.0, M0: Any = None,
                        region: Mapping[str, Sequence[float]] | None = None, xhat0: Any = None) -> ObserverDesign:
     r"""Kalman-like observer for a state-affine system (Besançon (2010)), with forgetting δ and/or noise V.
@@ -256,6 +320,8 @@ def design_kalman_like(model: System | StateAffine, *, W: Any = None, V: Any = N
                            V=V, W=np.eye(p) if W is None else W, delta=delta, M0=M0, xhat0=xhat0, region=region, caller=caller)
 
 
+@kind('kalman_bucy', summary='Kalman-Bucy filter for a linear time-varying / state-affine model ẋ = A(u, y, t)x + b, y = C x',
+      references=(work("kalman1961"),), tune=tune_kalman_bucy)
 def design_kalman_bucy(model: System | StateAffine, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None) -> ObserverDesign:
     r"""Kalman-Bucy filter for a linear time-varying model :math:`\dot x = A(u, t)x + b(u, t)`, :math:`y = C(u, t)x`.
 
@@ -304,6 +370,8 @@ def design_kalman_bucy(model: System | StateAffine, *, Q: Any, R: Any, P0: Any =
                            xhat0=xhat0, region=None, caller=caller)
 
 
+@kind('high_gain_kalman', summary='LTV-based high-gain Kalman observer for ẋ = A₀(u, y)x + φ(x, u), y = x₁',
+      references=(work("002", "LTV-based high-gain Kalman observer"),), tune=tune_high_gain_kalman)
 def design_high_gain_kalman(system: System, *, lam: float, delta: float, W: Any = None, M0: Any = None,
                             region: Mapping[str, Sequence[float]] | None = None, xhat0: Any = None) -> ObserverDesign:
     r"""LTV-based high-gain Kalman observer (Besançon (2010)) for :math:`\dot x = A_0(u, y)x + \varphi(x, u)`, :math:`y = x_1`.

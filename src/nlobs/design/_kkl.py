@@ -21,20 +21,21 @@ Buisson-Fenet, Bahr, Di Meglio (2022), here without a neural network.
 from __future__ import annotations
 
 import math
-
 from collections.abc import Mapping, Sequence
 from typing import Any
 
 import casadi as ca
 import numpy as np
+import sympy as sp
 
 from ..analysis._modular import monomial_exponents
 from ..engine import compile_system, rk4_step
 from ..errors import PreconditionError, ShapeError
 from ..model import System
+from ..references import cite, work
 from ._base import Certificate, Check, ObserverDesign
+from ._kind import Tuning, kind
 from ._regression import StateStack
-from ..references import cite
 
 __all__ = ["design_kkl_learned"]
 
@@ -65,6 +66,49 @@ def _max_degree(n_vars: int, cap: int = 3) -> int:
     return max((d for d in range(1, cap + 1) if math.comb(n_vars + d, d) <= MAX_FEATURES), default=0)
 
 
+# -- automatic tuning for the advisor (the kinds' `tune`; see design/_kind.py) ------------------------------
+def tune_kkl_learned(ctx: Any) -> Tuning:
+    if not ctx.region:
+        return Tuning.needs("`region` (a box of initial states): add [simulation] x0")
+    sc = ctx.scenario
+    consts: dict[str, float] = {}
+    for k in ctx.system.inputs:
+        v = sc.inputs.get(k, 0.0) if sc is not None else 0.0
+        try:
+            val = float(v)
+        except (TypeError, ValueError):
+            expr = v if isinstance(v, sp.Basic) else None
+            if expr is not None and not expr.free_symbols:
+                val = float(expr)
+            else:
+                return Tuning.fails(f"learns φᴸ for constant inputs only; the run drives {k} = {v} (time-varying). Use kkl with a φ "
+                              "that holds for every input, or a constant input")
+        consts[k] = val
+    box = [list(ctx.region[s]) for s in ctx.system.states]
+    # Λ on the observer's time scale: the data start after the ξ transient (16/min|λ|) and cover ~10 plant time constants
+    lam = [float(f"{-ctx.omega_o * (1 + k / ctx.n):.6g}") for k in range(ctx.n + 1)]
+    t_final = 16.0 / ctx.omega_o + 10.0 / ctx.omega_p
+    # RK4 at 5 % of the fastest rate (ξ's, which is faster than the plant's: |λ| ≥ 2ω_o = 6ω_p): about 1,800 steps
+    # whatever the run's own dt (which the comparison needs, not the training data; a slow model on a fine dt would
+    # otherwise integrate tens of thousands of steps here)
+    dt = 0.05 / abs(lam[-1])
+    t_final = float(f"{max(t_final, 20 * dt):.6g}")
+    dt = t_final / max(1, round(t_final / dt))
+    n_vars = (ctx.n + 1) * len(ctx.system.outputs) + len(ctx.system.outputs)   # (ξ, y)
+    degree = _max_degree(n_vars)
+    if not degree:
+        return Tuning.fails(f"learning φᴸ needs more than {MAX_FEATURES:,} polynomial features even at degree 1 ((ξ, y) has {n_vars} "
+                      "entries for this many states and outputs); not tried")
+    opts: dict[str, Any] = {"region": box, "eigenvalues": lam, "n_trajectories": 40, "t_final": t_final, "dt": dt,
+                            "degree": degree}
+    if consts:
+        opts["inputs"] = consts
+    return Tuning.tuned(opts, f"φᴸ learned by least squares on 40 simulated runs from the visited box (polynomial features of "
+                    f"degree {degree}), Λ = −ω_o·diag(1, ..., 2); valid inside the box")
+
+
+@kind('kkl_learned', summary='KKL observer with a left inverse learned from simulated runs',
+      references=(work("andrieu2006", "KKL with a learned inverse"),), tune=tune_kkl_learned)
 def design_kkl_learned(system: System, *, region: Sequence[Sequence[float]], eigenvalues: Sequence[float] | None = None,
                        degree: int = 3, n_trajectories: int = 60, t_final: float = 30.0, dt: float = 0.01,
                        burn_in: float | None = None, held_out: float = 0.25, ridge: float = 1e-8,

@@ -10,10 +10,12 @@ import numpy as np
 from ..engine import to_casadi
 from ..errors import FormError, PreconditionError
 from ..model import LTI, TIME, OutputInjectionForm, System
-from ._common import require_system
+from ..references import cite, work
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import observer_gain
-from ..references import cite
+from ._common import require_system
+from ._kind import Tuning, kind
+from ._tune import clean_message, fmt, poles_for
 
 __all__ = ["design_luenberger", "design_output_injection"]
 
@@ -25,6 +27,27 @@ def _dm(M: np.ndarray) -> ca.DM:
     return ca.DM(np.asarray(M, dtype=float))
 
 
+# -- automatic tuning for the advisor (the kinds' `tune`; see design/_kind.py) ------------------------------
+def tune_luenberger(ctx: Any) -> Tuning:
+    try:
+        LTI.from_system(ctx.system)
+    except FormError as e:
+        return Tuning.fails(f"not linear time-invariant: {clean_message(e)}")
+    poles = poles_for(ctx.n, ctx.omega_o)
+    return Tuning.tuned({"poles": poles}, f"LTI; eig(A − LC) placed at {fmt(poles)} (ω_o = 3 ω_p)")
+
+
+def tune_output_injection(ctx: Any) -> Tuning:
+    holds, why = ctx.form("output injection")
+    if not holds:
+        return Tuning.fails(why)
+    poles = poles_for(ctx.n, ctx.omega_o)
+    return Tuning.tuned({"poles": poles}, f"ẋ = Ax + B(u, y), y = Cx; eig(A − KC) placed at {fmt(poles)}: the error is linear, "
+                    "convergence is global")
+
+
+@kind('luenberger', summary='Luenberger observer for an LTI model ẋ = Ax + Bu, y = Cx + Du: poles placed, or a Kalman gain from Q, R',
+      references=(work("002", "Result [Luenberger]"),), tune=tune_luenberger)
 def design_luenberger(system: System, *, poles: Any = None, L: Any = None, Q: Any = None, R: Any = None,
                       xhat0: Any = None) -> ObserverDesign:
     r"""Luenberger observer for an LTI model x' = Ax + Bu, y = Cx + Du.
@@ -91,6 +114,8 @@ def design_luenberger(system: System, *, poles: Any = None, L: Any = None, Q: An
                                 xhat0_sym=x0, z0=x0, xhat0=np.zeros(n) if xhat0 is None else xhat0, certificate=cert)
 
 
+@kind('output_injection', summary='error-linearisation (output-injection) observer for ẋ = Ax + B(u, y, t), y = Cx: a linear error, global convergence',
+      references=(work("002", "Result [Error linearization]"),), tune=tune_output_injection)
 def design_output_injection(system: System, *, poles: Any = None, K: Any = None, Q: Any = None, R: Any = None,
                             xhat0: Any = None) -> ObserverDesign:
     r"""Error-linearisation (output-injection) observer for x' = Ax + B(u, y, t), y = Cx.

@@ -14,12 +14,14 @@ from ..analysis import kalman_rank
 from ..engine import compile_system, to_casadi
 from ..errors import PreconditionError
 from ..model import TIME, System
+from ..references import cite, work
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import check_matrix
 from ._common import batch, box_of, require_system, sup_over_box
-from ..references import cite
+from ._kind import Tuning, kind
+from ._tune import jacobians_on_run, region_inputs, region_states, rounded
 
-__all__ = ["design_lipschitz", "lipschitz_constant", "thau_margin"]
+__all__ = ["design_lipschitz", "lipschitz_constant", "thau_margin", "thau_gain_search"]
 
 REF = (f"{cite('002')}, \"'Uniformly observable' systems - LTI + Lipschitz NL\": if K, P, Q > 0 with "
        "P(A - KC) + (A - KC)ᵀP = -Q and eigmin(Q)/(2 eigmax(P)) > γ, then x̂' = Ax̂ + B(u, x̂) - K(Cx̂ - y) is an observer (Thau)")
@@ -76,7 +78,7 @@ def _riccati_gain(A: np.ndarray, C: np.ndarray, alpha: float, rho: float) -> np.
     return K if np.all(np.isfinite(K)) else None
 
 
-def _search(A: np.ndarray, C: np.ndarray, gamma: float) -> tuple[float, float, np.ndarray, dict[str, float]]:
+def thau_gain_search(A: np.ndarray, C: np.ndarray, gamma: float) -> tuple[float, float, np.ndarray, dict[str, float]]:
     """Search the Riccati family K(α, ρ) on a logarithmic grid.
 
     The margin grows with the gain and saturates (the cheap-observer limit), so the largest
@@ -148,6 +150,50 @@ def lipschitz_constant(system: System, phi: Sequence[sp.Expr], region: Mapping[s
     return val, dict(zip(names, map(float, arg)))
 
 
+# -- automatic tuning for the advisor (the kinds' `tune`; see design/_kind.py) ------------------------------
+def tune_lipschitz(ctx: Any) -> Tuning:
+    if not ctx.region:
+        return Tuning.needs("a region (box of states and inputs) to bound the Lipschitz constant: add [simulation] x0")
+    region = {k: list(v) for k, v in {**region_states(ctx), **region_inputs(ctx)}.items()}
+    if ctx.system.is_time_varying:
+        region["t"] = [0.0, float(ctx.scenario.t_final)]
+    centre = {k: 0.5 * (a + b) for k, (a, b) in region.items()}
+    f, _ = ctx.system.substituted()
+    J = f.jacobian(sp.Matrix(ctx.system.x))
+    sub = {s: centre[s.name] for s in (*ctx.system.x, *ctx.system.u)}
+    sub[TIME] = centre.get("t", 0.0)
+    try:
+        A = np.array(J.xreplace({k: sp.Float(v) for k, v in sub.items()}).evalf(), dtype=float)
+    except (TypeError, ValueError):
+        return Tuning.fails("the Jacobian of f is not finite at the centre of the region")
+    quick = _thau_precheck(ctx, A, J)
+    if quick:
+        return Tuning.fails(quick, region=region, A=rounded(A))
+    return Tuning.tuned({"region": region, "A": rounded(A)}, "A = ∂f/∂x at the centre of the visited region, φ = f − Ax; γ bounded "
+                    "over the region (valid while x and x̂ stay in it)")
+
+
+def _thau_precheck(ctx: Any, A: np.ndarray, J: sp.Matrix) -> str:
+    """A quick refusal when the best Thau margin of the gain search is already below a *lower* bound of γ
+    (the sup of ‖∂f/∂x − A‖₂ over the run's points): the full design would refuse too, only slower."""
+    _, h = ctx.system.substituted()
+    C = h.jacobian(sp.Matrix(ctx.system.x))
+    if C.free_symbols:
+        return ""
+    best = thau_gain_search(A, np.array(C, dtype=float), 0.0)[1]
+    F = jacobians_on_run(ctx)
+    if F is None:
+        return ""
+    gam = float(np.max(np.linalg.norm(F - A, 2, axis=(1, 2))))
+    if best <= gam:
+        return (f"the Thau condition eigmin(Q)/(2 eigmax(P)) > γ cannot hold: the best margin of the gain search is {best:.4g}, "
+                f"but already along the run γ ≥ sup‖∂f/∂x − A‖₂ = {gam:.4g} ({cite('002', 'LTI + Lipschitz NL')}). "
+                "Shrink the region, change the A/φ split, or use a high-gain or Kalman-type observer")
+    return ""
+
+
+@kind('lipschitz', summary="Thau's observer for a Lipschitz nonlinearity, with a Riccati-based gain search",
+      references=(work("thau1973"), work("002", "LTI + Lipschitz NL")), tune=tune_lipschitz)
 def design_lipschitz(system: System, *, gamma: float | None = None, region: Mapping[str, Sequence[float]] | None = None,
                      A: Any = None, K: Any = None, xhat0: Any = None) -> ObserverDesign:
     r"""Thau's observer for a Lipschitz nonlinearity, with a Riccati-based gain search (Besançon (2010)).
@@ -259,7 +305,7 @@ def design_lipschitz(system: System, *, gamma: float | None = None, region: Mapp
                                     f"{complex(ev[np.argmax(ev.real)]):.4g}); choose another K or omit it to search")
         how = "given gain"
     else:
-        margin, best, Km, search = _search(Am, C, gam)
+        margin, best, Km, search = thau_gain_search(Am, C, gam)
         _, P = thau_margin(Am, C, Km)
         values.update({"search": search, "best_margin": best})
         how = "Riccati-based search"

@@ -32,11 +32,13 @@ import sympy as sp
 from ..engine import compile_c, compile_system, compiled_nlpsol, defer_error, find_compiler, rk4_step
 from ..errors import EngineError, PreconditionError, SolverError
 from ..model import System
-from ._common import require_system
-from ..references import cite
+from ..references import cite, work
 from ._base import Certificate, Check, ObserverDesign, check_vector
 from ._bounds import Box, bounds_check, check_start, clip, clip_const, parse_bounds
 from ._checks import check_matrix
+from ._common import require_system
+from ._kind import Tuning, kind
+from ._tune import domain_bounds, square
 
 __all__ = ["design_mhe"]
 
@@ -114,6 +116,28 @@ def _sqrt_psd(Q: np.ndarray) -> np.ndarray:
     return U[:, keep] * np.sqrt(w[keep])
 
 
+# -- automatic tuning for the advisor (the kinds' `tune`; see design/_kind.py) ------------------------------
+#: The largest number of measurement updates `--run` gives a moving-horizon estimator (one NLP each).
+MHE_SAMPLE_BUDGET = 200
+
+
+def tune_mhe(ctx: Any) -> Tuning:
+    sc = ctx.scenario
+    Ts = (sc.sample_period or sc.dt) if sc is not None else 0.01
+    horizon = int(np.clip(round(2.0 / (ctx.omega_p * Ts)), 10, 30))
+    runnable = sc is not None and sc.samples <= MHE_SAMPLE_BUDGET
+    note = "" if runnable or sc is None else (f"left out of --run: {sc.samples} measurement updates, each an NLP solve (budget "
+                                              f"{MHE_SAMPLE_BUDGET}); run it with `nlobs simulate` on a sampled model")
+    opts: dict[str, Any] = {"horizon": horizon, "R": square(ctx.R), "Q": square(ctx.Q), "P0": square(ctx.P0)}
+    bounds = domain_bounds(ctx)
+    if bounds:
+        opts["bounds"] = bounds
+    return Tuning.tuned(opts, f"window of {horizon} samples (≈ 2/ω_p); R = σ², Q and P(0) as for the EKF", runnable=runnable,
+                    extra=note)
+
+
+@kind('mhe', summary='moving-horizon estimator over the last samples (multiple shooting, compiled NLP)',
+      references=(work("002", "trajectory-based observers (moving horizon)"),), tune=tune_mhe)
 def design_mhe(system: System, *, horizon: int = 20, R: Any = None, Q: Any = None, P0: Any = None,
                bounds: Mapping[str, Any] | None = None, arrival: Literal["ekf", "fixed"] = "ekf",
                solver: Literal["sqp", "ipopt"] = "sqp", substeps: int = 2, max_iter: int = 50, tol: float = 1e-8,

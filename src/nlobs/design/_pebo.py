@@ -34,16 +34,20 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
+from ..analysis import decide_identity
 from ..engine import to_casadi
-from ..errors import PreconditionError, ShapeError
+from ..errors import FormError, PreconditionError, ShapeError
 from ..model import TIME, System, symbol
 from ..model._forms import matrix_of
 from ..model._system import exact
-from ..analysis import decide_identity
+from ..references import cite, work
 from ._base import Certificate, Check, ObserverDesign
 from ._checks import identity_check
+from ._constructions import kkl_linear, pebo_linear
+from ._tune import needs_only
+from ._kind import Tuning, kind
 from ._regression import ExcitationMonitor, Gradient, Regression, StateStack, estimator_from, lowpass, sx_matrix
-from ..references import cite
+from ._tune import clean_message, output_injection_form
 
 __all__ = ["design_kkl", "design_pebo", "design_kkl_pebo", "WindowedNLS"]
 
@@ -477,6 +481,50 @@ def _theta_estimator(system: System, maps: _Maps, stack: StateStack, xi: ca.SX, 
     return theta_hat, values, checks
 
 
+# -- automatic tuning for the advisor (the kinds' `tune`; see design/_kind.py) ------------------------------
+def tune_kkl(ctx: Any) -> Tuning:
+    why = output_injection_form(ctx)
+    need = ("φ(x), a stable Λ and B(y, u) with ∇φ·f = Λφ + B(h(x), u) (the PDE of " + f"{cite('004', 'eq. 4')}"
+            + "), and a left inverse φᴸ(ξ, y); or use kkl_learned, which learns φᴸ numerically")
+    if why:
+        return Tuning.needs(need + f" (nlobs constructs φ only for the output-injection form: {why})",
+                       phi="...", left_inverse="...", B="...", Lambda="...")
+    try:
+        opts, reason = kkl_linear(ctx.system, ctx.omega_o)
+    except (FormError, ValueError, ZeroDivisionError) as e:
+        opts, reason = None, clean_message(e)
+    if opts is None:
+        return Tuning.needs(need + f" ({reason})")
+    return Tuning.tuned(opts, "constructed: φ = Tx with TA − ΛT = B_kC (Sylvester, exact), Λ = −ω_o·diag(1, 1.25, ...)")
+
+
+def tune_pebo(ctx: Any) -> Tuning:
+    why = output_injection_form(ctx)
+    need = "φ(x) with ∇φ·f = B(h(x), u) (a function whose derivative is measured), B, and a left inverse φᴸ(ξ, y)"
+    if why:
+        return Tuning.needs(need + f" (nlobs constructs φ only for the output-injection form: {why})", phi="...", left_inverse="...", B="...")
+    try:
+        opts, reason, b = pebo_linear(ctx.system)
+    except (FormError, ValueError, ZeroDivisionError) as e:
+        opts, reason, b = None, clean_message(e), None
+    if opts is None:
+        return Tuning.needs(need + f" ({reason})")
+    level = float(np.sum(np.array(b, dtype=float) ** 2)) or 1.0
+    alpha = round(float(min(ctx.omega_o, ctx.step_limit())), 6)
+    opts.update({"alpha": alpha, "estimator": {"kind": "gradient", "gamma": round(ctx.omega_o / level, 9)}})
+    return Tuning.tuned(opts, f"constructed: φ = Tx with TA = KC (derivatives measured), [C; T] invertible; filters α = {alpha:.3g}, "
+                    "gradient estimator (the regressor is constant, so θ converges exponentially)")
+
+
+# -- automatic tuning for the advisor (the kinds' `tune`; see design/_kind.py) ------------------------------
+tune_kkl_pebo = needs_only("φ(x), Λ with zeros for the components that have no dynamics of their own (PEBO part) and negative "
+                           "entries for the others (KKL part), B(y, u) and a left inverse φᴸ(ξ, y) with ∇φ·f = Λφ + B "
+                           f"({cite('004', 'Proposition 3')}; its example (31) is the pattern)",
+                           phi="...", left_inverse="...", B="...", Lambda="...")
+
+
+@kind('kkl', summary='KKL observer from a solution (φ, Λ, B) of the PDE and a left inverse φᴸ',
+      references=(work("004", "Proposition 1"),), tune=tune_kkl)
 def design_kkl(system: System, *, phi: Sequence[Any], left_inverse: Sequence[Any], B: Sequence[Any], Lambda: Any,
                xhat0: Any = None) -> ObserverDesign:
     r"""KKL observer (Yi, Ortega & Zhang (2019), Proposition 1) from a solution (φ, Λ, B) of the PDE and a left inverse φ^L.
@@ -521,6 +569,8 @@ def design_kkl(system: System, *, phi: Sequence[Any], left_inverse: Sequence[Any
                      theta_from_Theta=None, xhat0=xhat0, caller="design_kkl", method="kkl", require="kkl")
 
 
+@kind('pebo', summary='parameter-estimation-based observer (PEBO)',
+      references=(work("004", "Proposition 2"),), tune=tune_pebo)
 def design_pebo(system: System, *, phi: Sequence[Any], left_inverse: Sequence[Any], B: Sequence[Any],
                 estimator: Any = None, alpha: float = 1.0, Theta: Sequence[Any] | None = None,
                 theta_from_Theta: Sequence[Any] | None = None, xhat0: Any = None) -> ObserverDesign:
@@ -570,6 +620,8 @@ def design_pebo(system: System, *, phi: Sequence[Any], left_inverse: Sequence[An
                      require="pebo")
 
 
+@kind('kkl_pebo', summary='KKL+PEBO observer: KKL for the components with λ < 0, PEBO for λ = 0',
+      references=(work("004", "Proposition 3"),), tune=tune_kkl_pebo)
 def design_kkl_pebo(system: System, *, phi: Sequence[Any], left_inverse: Sequence[Any], B: Sequence[Any], Lambda: Any,
                     estimator: Any = None, alpha: float = 1.0, Theta: Sequence[Any] | None = None,
                     theta_from_Theta: Sequence[Any] | None = None, xhat0: Any = None) -> ObserverDesign:

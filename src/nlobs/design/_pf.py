@@ -15,10 +15,12 @@ import numpy as np
 from ..engine import compile_system, rk4_step
 from ..errors import PreconditionError
 from ..model import System
-from ..references import cite
+from ..references import cite, work
 from ._base import Certificate, Check, check_vector
 from ._common import require_system
+from ._kind import Tuning, kind
 from ._sqrt import covariance_inputs, sqrt_psd
+from ._tune import square
 
 __all__ = ["ParticleDesign", "design_pf"]
 
@@ -94,6 +96,68 @@ class ParticleDesign:
         return f"pf observer for {self.system.name!r} ({self.scheme}, {self.particles} particles)\n" + str(self.certificate)
 
 
+# -- automatic tuning for the advisor (the kinds' `tune`; see design/_kind.py) ------------------------------
+def output_symmetries(system: Any, *, samples: int = 4, seed: int = 0) -> list[tuple[str, ...]]:
+    """Sign flips of states that leave every output unchanged at generic points: h(x) = h(σx).
+
+    Each state the outputs depend on is flipped alone, then all of them together; a flip counts when
+    h(σx) − h(x) expands to zero (SymPy), or, when that is not decided quickly, when it vanishes at
+    `samples` random points (the inputs and t random too) to 1e-9 relative.
+    """
+    import sympy as sp
+
+    _, h = system.substituted()
+    xs = list(system.x)
+    used = [i for i, x in enumerate(xs) if any(x in e.free_symbols for e in h)]
+    flips = [(i,) for i in used] + ([tuple(used)] if len(used) > 1 else [])
+    rng = np.random.default_rng(seed)
+    _, h_num = compile_system(system).bind()  # CasADi, at generic points (no evaluation of model strings)
+    n, nu = system.n_states, system.n_inputs
+    found = []
+    for flip in flips:
+        sign = np.ones(n)
+        sign[list(flip)] = -1
+        sub = {xs[i]: -xs[i] for i in flip}
+        if all(sp.expand(e.xreplace(sub) - e) == 0 for e in h):
+            found.append(tuple(system.states[i] for i in flip))
+            continue
+        ok = True
+        for _ in range(samples):
+            x = rng.uniform(0.3, 1.7, n) * rng.choice([-1.0, 1.0], n)
+            t, u = float(rng.uniform(0.3, 1.7)), rng.uniform(0.3, 1.7, nu)
+            a = np.asarray(h_num(t, x, u), dtype=float).ravel()
+            b = np.asarray(h_num(t, sign * x, u), dtype=float).ravel()
+            if not (np.all(np.isfinite(a)) and np.allclose(a, b, rtol=1e-9, atol=1e-12)):
+                ok = False
+                break
+        if ok:
+            found.append(tuple(system.states[i] for i in flip))
+    return found
+
+
+def tune_pf(ctx: Any) -> Tuning:
+    n = ctx.system.n_states
+    particles = int(min(20000, 1000 * max(2, n)))
+    opts: dict[str, Any] = {"Q": square(ctx.Q), "R": square(ctx.R), "P0": square(4 * np.asarray(ctx.P0)), "particles": particles, "seed": 0}
+    sym = output_symmetries(ctx.system)
+    if sym:
+        flips = "; ".join(("−" + ", −".join(f)) if len(f) > 1 else f"{f[0]} → −{f[0]}" for f in sym)
+        why = (f"the output is symmetric in the state: h(x) = h(σx) for the sign flip {flips} at generic points (decided "
+               "symbolically, or at random points), so the posterior of x̂ can have two modes that the measurements alone "
+               "cannot tell apart; a Gaussian filter (EKF, UKF and their square-root and iterated forms) commits to one mode and "
+               "can converge to the mirror state; the particle filter carries both until the dynamics separate them — the "
+               "choice here")
+        choice = f"output symmetric under {flips}: multimodal posterior, the particle filter (kind 'pf') is the choice"
+    else:
+        choice = ""
+        why = ("no sign symmetry of the output found: a Gaussian filter (EKF/UKF) is cheaper here; the particle filter fits "
+               "multimodal or non-Gaussian posteriors")
+    return Tuning.tuned(opts, f"{ctx.noise_note}; {particles} particles, systematic resampling when ESS < N/2, P(0) = 4·diag(σ₀²) "
+                        f"(a wide cloud), seed 0; {why}", choice=choice, choice_reason=why if choice else "", choice_rank=2)
+
+
+@kind('pf', summary='particle filter (continuous-discrete): bootstrap or auxiliary, systematic resampling, seeded',
+      references=(work("gordon1993"), work("pitt1999", "auxiliary")), tune=tune_pf)
 def design_pf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None, particles: int = 1000,
               scheme: Scheme = "bootstrap", threshold: float = 0.5, seed: int = 0,
               max_step: float | None = None) -> ParticleDesign:

@@ -6,8 +6,7 @@ A model file and the API meet here (the ``model`` layer cannot import designs):
   kind and options);
 - :func:`designs_from_file` designs all (or some) observers of a :class:`~nlobs.model.ModelFile`,
   after checking that its unknown parameters are identifiable;
-- :func:`requires_model` gives every public design function one clear TypeError when it is
-  called with something that is not a model.
+- the kinds themselves are declared next to their design functions (:mod:`nlobs.design._kind`).
 
 With unknown parameters (``[parameters] k = { value = 0.3, unknown = true }``) the observers are
 designed on the augmented system (k appended to the state, :meth:`nlobs.System.augmented`); the
@@ -17,8 +16,6 @@ plant's states only is completed with them.
 
 from __future__ import annotations
 
-import functools
-import inspect
 import types
 import typing
 from collections import OrderedDict
@@ -33,105 +30,14 @@ from ..errors import ModelError, PreconditionError
 from ..model import ObserverConfig, System
 from ..model._budget import symbolic_budget
 from ..references import cite
-from ._augmented import design_augmented
-from ._banks import design_banks
 from ._base import ObserverDesign
-from ._custom import design_custom
-from ._ekf import design_ekf
-from ._high_gain import design_high_gain, design_high_gain_derivatives
-from ._kalman import design_high_gain_kalman, design_kalman_bucy, design_kalman_like
-from ._linear import design_luenberger, design_output_injection
-from ._lipschitz import design_lipschitz
-from ._mhe import design_mhe
-from ._ukf import design_ukf
-from ._srukf import design_srukf
-from ._srekf import design_srekf
-from ._iekf import design_iekf
-from ._pf import design_pf
+from ._kind import KINDS, DesignsView, options_of, register_design, requires_model
 
-__all__ = ["DESIGNS", "register_design", "design_from_config", "designs_from_file", "check_identifiable", "requires_model"]
+__all__ = ["DESIGNS", "register_design", "design_from_config", "designs_from_file", "check_identifiable", "requires_model",
+           "options_of"]
 
-#: Design functions by the ``kind`` used in model files.
-DESIGNS: dict[str, Callable[..., ObserverDesign]] = {
-    "luenberger": design_luenberger,
-    "output_injection": design_output_injection,
-    "ekf": design_ekf,
-    "augmented": design_augmented,
-    "custom": design_custom,
-    "high_gain": design_high_gain,
-    "high_gain_derivatives": design_high_gain_derivatives,
-    "lipschitz": design_lipschitz,
-    "kalman_bucy": design_kalman_bucy,
-    "kalman_like": design_kalman_like,
-    "high_gain_kalman": design_high_gain_kalman,
-    "banks": design_banks,
-    "ukf": design_ukf,
-    "mhe": design_mhe,
-    "srukf": design_srukf,
-    "srekf": design_srekf,
-    "iekf": design_iekf,
-    "pf": design_pf,
-}
-
-
-def register_design(kind: str, fn: Callable[..., ObserverDesign]) -> None:
-    """Make a design function `fn` available to model files under the name `kind`."""
-    DESIGNS[kind] = requires_model(fn)
-
-
-def options_of(fn: Callable[..., Any]) -> tuple[str, ...]:
-    """The keyword-only tuning options a design function accepts."""
-    return tuple(n for n, p in inspect.signature(fn).parameters.items() if p.kind is inspect.Parameter.KEYWORD_ONLY)
-
-
-# -- one TypeError for every design function ---------------------------------------------------
-def _model_types(fn: Callable[..., Any]) -> tuple[type, ...]:
-    """The classes the first parameter of `fn` is annotated with (System, StateAffine, LinearRegression, ...)."""
-    first = next(iter(inspect.signature(fn).parameters))
-    try:
-        hint = typing.get_type_hints(fn).get(first, System)
-    except Exception:  # noqa: BLE001 - an unresolvable annotation: fall back to System
-        hint = System
-    members = typing.get_args(hint) if typing.get_origin(hint) in (typing.Union, types.UnionType) else (hint,)
-    return tuple(m for m in members if isinstance(m, type)) or (System,)
-
-
-_WRAPPED: dict[Callable[..., Any], Callable[..., Any]] = {}
-
-
-def requires_model(fn: Callable[..., ObserverDesign]) -> Callable[..., ObserverDesign]:
-    """Wrap a design function so that a first argument of the wrong type is one clear TypeError
-    (instead of an AttributeError deep inside), and its symbolic work runs within the budget of
-    :func:`nlobs.model.symbolic_budget`."""
-    if getattr(fn, "_nlobs_checked", False):
-        return fn
-    if fn in _WRAPPED:  # one wrapper per function, so nlobs.design_x is DESIGNS["x"]
-        return _WRAPPED[fn]
-    allowed = _model_types(fn)
-    first = next(iter(inspect.signature(fn).parameters))
-    missing = object()
-
-    @functools.wraps(fn)
-    def checked(model: Any = missing, /, *args: Any, **kwargs: Any) -> ObserverDesign:
-        if model is missing:
-            if first not in kwargs:
-                raise TypeError(f"{fn.__name__}: the model (`{first}`) is required")
-            model = kwargs.pop(first)
-        if not isinstance(model, allowed):
-            names = " or ".join(f"nlobs.{t.__name__}" for t in allowed)
-            hint = ""
-            if type(model).__name__ == "ModelFile":
-                hint = " (for a model file, pass `model.observer_system`, or use nlobs.design.designs_from_file(model))"
-            elif isinstance(model, str):
-                hint = " (to read a model file, use nlobs.load_model(path) and pass its `.observer_system`)"
-            raise TypeError(f"{fn.__name__}: the model must be an {names}, got {type(model).__name__} "
-                            f"{shorten(model, 40)}{hint}")
-        with symbolic_budget(fn.__name__):
-            return fn(model, *args, **kwargs)
-
-    checked._nlobs_checked = True  # type: ignore[attr-defined]
-    _WRAPPED[fn] = checked
-    return checked
+#: The design function of each kind (a read-only view of :data:`nlobs.design.KINDS`, kept for older code).
+DESIGNS = DesignsView()
 
 
 # -- options as a file writes them ----------------------------------------------------------
@@ -268,9 +174,9 @@ def design_from_config(system: System | ObserverConfig, kind: str | None = None,
     if kind is None or options is None:
         raise TypeError("design_from_config: give `kind` and `options` with a System (or pass an ObserverConfig)")
     prefix = f"{where}: " if where else ""
-    if kind not in DESIGNS:
-        raise ModelError(f"{prefix}unknown observer kind {shorten(kind, 40)}; available: {', '.join(sorted(DESIGNS))}")
-    fn = DESIGNS[kind]
+    if kind not in KINDS:
+        raise ModelError(f"{prefix}unknown observer kind {shorten(kind, 40)}; available: {', '.join(sorted(KINDS))}")
+    fn = KINDS[kind].design
     allowed = options_of(fn)
     unknown = [k for k in options if k not in allowed]
     if unknown:
@@ -319,28 +225,3 @@ def designs_from_file(model_file: Any, names: Sequence[str] | None = None) -> di
     check_identifiable(model_file.observer_system, where=model_file.path)
     chosen = list(names) if names else list(configured)
     return {n: design_from_config(configured[n], where=f"{model_file.path}: observers.{n}") for n in chosen}
-
-# Parameter-estimation based observers and estimators (000, 004)
-from ._cascade import design_kkl_pebo_cascade  # noqa: E402
-from ._gpebo import design_2gd, design_gpebo  # noqa: E402
-from ._iandi import design_iandi  # noqa: E402
-from ._kkl import design_kkl_learned  # noqa: E402
-from ._pebo import design_kkl, design_kkl_pebo, design_pebo  # noqa: E402
-from ._regression import design_drem, design_gd, design_gradient, design_least_squares  # noqa: E402
-
-DESIGNS.update({
-    "gradient": design_gradient,
-    "least_squares": design_least_squares,
-    "drem": design_drem,
-    "gd": design_gd,
-    "gpebo": design_gpebo,
-    "gpebo_2gd": design_2gd,
-    "kkl": design_kkl,
-    "kkl_learned": design_kkl_learned,
-    "pebo": design_pebo,
-    "kkl_pebo": design_kkl_pebo,
-    "kkl_pebo_cascade": design_kkl_pebo_cascade,
-    "iandi": design_iandi,
-})
-for _kind, _fn in DESIGNS.items():
-    DESIGNS[_kind] = requires_model(_fn)

@@ -37,7 +37,7 @@ least squares with forgetting: Ioannou & Sun (1996), §4.3.6.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -49,10 +49,12 @@ from ..engine import to_casadi
 from ..errors import FormError, PreconditionError, ShapeError
 from ..model import TIME, System, symbol
 from ..model._forms import matrix_of
+from ..references import cite, work
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import check_matrix, check_positive
 from ._common import leaves_of
-from ..references import cite
+from ._constructions import evaluate
+from ._kind import Tuning, kind
 
 __all__ = [
     "StateStack", "Regression", "sx_matrix", "lowpass", "derivative_filter", "adjugate",
@@ -862,6 +864,29 @@ def _design_estimator(system: System | LinearRegression, estimator: AbstractEsti
     return stack.build(method, xhat=est.theta, certificate=cert, xhat0=xhat0)
 
 
+# -- automatic tuning for the advisor (the kinds' `tune`; see design/_kind.py) ------------------------------
+def regression_tuning(kind: str) -> Callable[[Any], Tuning]:
+    def trial(ctx: Any) -> Tuning:
+        f, h = ctx.system.substituted()
+        moving = [f"{s}' = {e}" for s, e in zip(ctx.system.states, f) if e != 0]
+        if moving:
+            return Tuning.fails(f"estimates constant parameters θ of a linear regression y = ψ(u, t)ᵀθ (θ' = 0); here {moving[0]}. "
+                          "For a state-affine model, gpebo and gpebo_2gd build such a regression from the state")
+        if ctx.nominal is None:
+            return Tuning.needs("a run ([simulation] x0) to scale the gains")
+        H = sp.Matrix(h).jacobian(sp.Matrix(ctx.system.x))
+        psi = evaluate(list(H), ctx.system, ctx.samples(400))
+        level = float(np.mean(np.sum(psi ** 2, axis=1))) or 1.0
+        g = round(float(ctx.omega_o / level), 9)
+        opts = {"gradient": {"gamma": g}, "least_squares": {"P0": g}, "drem": {"gamma": g},
+                "gd": {"gamma_g": g, "gamma": round(10 * g, 9)}}[kind]
+        return Tuning.tuned(opts, f"regression model; gains from ω_o / mean ‖ψ‖² = {g:.3g}")
+
+    return trial
+
+
+@kind('gradient', summary='gradient estimator of θ in a linear regression Y = ψᵀθ + d',
+      references=(work("000", "eq. 16a (gradient)"),), tune=regression_tuning("gradient"))
 def design_gradient(system: System | LinearRegression, *, gamma: Any = 1.0, xhat0: Any = None) -> ObserverDesign:
     r"""Gradient estimator of θ in :math:`\mathcal Y = \psi^\top\theta + d` (see :class:`Gradient`).
 
@@ -886,6 +911,8 @@ def design_gradient(system: System | LinearRegression, *, gamma: Any = 1.0, xhat
     return _design_estimator(system, Gradient(gamma), "gradient", "design_gradient", xhat0)
 
 
+@kind('least_squares', summary='least-squares estimator of θ in a linear regression, with forgetting',
+      references=(work("000", "regression estimators (least squares)"),), tune=regression_tuning("least_squares"))
 def design_least_squares(system: System | LinearRegression, *, P0: Any = 1.0, forgetting: float = 0.0,
                          p_max: float | None = None, xhat0: Any = None) -> ObserverDesign:
     r"""Least-squares estimator with forgetting (see :class:`LeastSquares`).
@@ -909,6 +936,8 @@ def design_least_squares(system: System | LinearRegression, *, P0: Any = 1.0, fo
     return _design_estimator(system, LeastSquares(P0, forgetting, p_max), "least_squares", "design_least_squares", xhat0)
 
 
+@kind('drem', summary='DREM estimator: extension by stable LTI filters, mixing with the adjugate',
+      references=(work("aranovskiy2017"),), tune=regression_tuning("drem"))
 def design_drem(system: System | LinearRegression, *, gamma: Any = 1.0, lambdas: Sequence[float] | None = None,
                 kreisselmeier: float | None = None, xhat0: Any = None) -> ObserverDesign:
     r"""DREM estimator: extension by stable LTI filters, mixing with the adjugate (see :class:`DREM`).
@@ -932,6 +961,8 @@ def design_drem(system: System | LinearRegression, *, gamma: Any = 1.0, lambdas:
     return _design_estimator(system, DREM(gamma, lambdas, kreisselmeier), "drem", "design_drem", xhat0)
 
 
+@kind('gd', summary='G+D interlaced estimator: converges under interval excitation',
+      references=(work("000", "Lemma 2"),), tune=regression_tuning("gd"))
 def design_gd(system: System | LinearRegression, *, gamma_g: float = 1.0, gamma: float = 1.0,
               xhat0: Any = None) -> ObserverDesign:
     r"""G+D interlaced estimator (Wang, Ortega & Bobtsov (2021), Lemma 2, eqs. 16-17; see :class:`GD`): converges under
@@ -950,4 +981,3 @@ def design_gd(system: System | LinearRegression, *, gamma_g: float = 1.0, gamma:
     Wang, Ortega & Bobtsov (2021), eqs. (15)-(19), Lemma 2.
     """
     return _design_estimator(system, GD(gamma_g, gamma), "gd", "design_gd", xhat0)
-

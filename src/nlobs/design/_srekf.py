@@ -9,8 +9,11 @@ import numpy as np
 
 from ..engine import compile_system
 from ..model import System
-from ..references import cite
+from ..references import cite, work
 from ._base import Certificate, ObserverDesign, Symbols, check_vector
+from ._tune import robust_filter
+from ._kind import Tuning
+from ._kind import kind
 from ._common import require_system
 from ._sqrt import covariance_inputs, lower_solve, sqrt_psd, tria
 
@@ -20,6 +23,14 @@ REF = (f"Square-root covariance filter ({cite('kaminski1971')}) with the array (
        f"({cite('arasaratnam2009')}, Tria); extended Kalman filter ({cite('jazwinski1970')})")
 
 
+# -- automatic tuning for the advisor (the kinds' `tune`; see design/_kind.py) ------------------------------
+def tune_srekf(ctx: Any) -> Tuning:
+    """The EKF/UKF tuning (Q, R, P(0) from the run; see :func:`~nlobs.design._tune.robust_filter`)."""
+    return robust_filter(ctx, "srekf")
+
+
+@kind('srekf', summary='square-root extended Kalman filter (continuous-discrete): the EKF carrying a square root of P (QR Joseph update)',
+      references=(work("kaminski1971", "square-root covariance, QR Joseph update"),), tune=tune_srekf)
 def design_srekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None) -> ObserverDesign:
     r"""Square-root extended Kalman filter (continuous-discrete): the EKF of :func:`design_ekf` carrying a
     square root of P, rebuilt at each sample as a lower Cholesky factor S by QR triangularisation; P is never

@@ -10,8 +10,11 @@ import numpy as np
 from ..engine import compile_system
 from ..errors import PreconditionError
 from ..model import System
-from ..references import cite
+from ..references import cite, work
 from ._base import Certificate, Check, ObserverDesign, Symbols, check_vector
+from ._tune import robust_filter
+from ._kind import Tuning
+from ._kind import kind
 from ._common import require_system
 from ._sqrt import covariance_inputs, lower_solve, sqrt_psd, tria
 from ._ukf import unscented_weights
@@ -22,6 +25,14 @@ REF = (f"Square-root UKF ({cite('vandermerwe2001')}); sigma points through the m
        f"measurement update by one QR triangularisation without Cholesky downdates ({cite('arasaratnam2009')})")
 
 
+# -- automatic tuning for the advisor (the kinds' `tune`; see design/_kind.py) ------------------------------
+def tune_srukf(ctx: Any) -> Tuning:
+    """The EKF/UKF tuning (Q, R, P(0) from the run; see :func:`~nlobs.design._tune.robust_filter`)."""
+    return robust_filter(ctx, "srukf")
+
+
+@kind('srukf', summary='square-root unscented Kalman filter (continuous-discrete): P is never formed, its Cholesky factor is updated by QR',
+      references=(work("vandermerwe2001", "square root by QR"), work("arasaratnam2009")), tune=tune_srukf)
 def design_srukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None, alpha: float = 1.0,
                  beta: float = 0.0, kappa: float = 0.0) -> ObserverDesign:
     r"""Square-root unscented Kalman filter (continuous-discrete, van der Merwe & Wan (2001)): P is never formed;

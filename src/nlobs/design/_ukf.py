@@ -10,12 +10,15 @@ import numpy as np
 
 from ..engine import compile_system
 from ..errors import PreconditionError
-from ..references import cite
 from ..model import System
-from ._common import require_system, symmetric_part
+from ..references import cite, work
 from ._base import Certificate, Check, ObserverDesign, Symbols, check_vector
+from ._tune import gaussian_filter
+from ._kind import Tuning
+from ._kind import kind
 from ._bounds import POLICY, bounds_check, check_start, clip_const, parse_bounds
 from ._checks import check_matrix
+from ._common import require_system, symmetric_part
 
 __all__ = ["design_ukf", "unscented_weights"]
 
@@ -35,6 +38,14 @@ def unscented_weights(n: int, alpha: float, beta: float, kappa: float) -> tuple[
     return wm, wc, c
 
 
+# -- automatic tuning for the advisor (the kinds' `tune`; see design/_kind.py) ------------------------------
+def tune_ukf(ctx: Any) -> Tuning:
+    """As the EKF, with the sigma points kept within half the visited box (α, β = 2)."""
+    return gaussian_filter(ctx, "ukf")
+
+
+@kind('ukf', summary='unscented Kalman filter (continuous-discrete)',
+      references=(work("julier2004"),), tune=tune_ukf)
 def design_ukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None, alpha: float = 1.0,
                beta: float = 0.0, kappa: float = 0.0, bounds: Mapping[str, Any] | None = None) -> ObserverDesign:
     r"""Continuous-discrete unscented Kalman filter.

@@ -12,7 +12,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ..analysis import ltv_gramian, state_affine_ltv, uco_test
-from ..design import ObserverDesign, design_2gd, design_kalman_like, excitation_report
+from ..design import ObserverDesign, design_gpebo_2gd, design_kalman_like, excitation_report
 from ..errors import FiniteEscapeError
 from ..model import StateAffine
 from ..simulate import Noise, Sampling, simulate
@@ -43,7 +43,7 @@ def model() -> StateAffine:
 def run() -> ExampleResult:
     sa = model()
     system = sa.to_system()
-    gd = design_2gd(sa, gamma_g=GAMMA_G, gamma=GAMMA)
+    gd = design_gpebo_2gd(sa, gamma_g=GAMMA_G, gamma=GAMMA)
     kl = kalman_like(sa)
     designs = {"2G+D": gd, "Kalman-like": kl}
     u = {"u": "exp(-t)"}

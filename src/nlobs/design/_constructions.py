@@ -25,11 +25,11 @@ import sympy as sp
 from sympy.printing.str import StrPrinter
 
 from ..analysis import matrix_measure
-from ..design import observer_gain
 from ..engine import to_casadi
 from ..errors import FormError, PreconditionError
 from ..model import TIME, System, symbol
 from ..model._budget import SymbolicTimeLimit, symbolic_time_limit
+from ._checks import observer_gain
 
 __all__ = ["jacobians_at", "find_chains", "derivative_map", "exact_output_injection", "kkl_linear", "pebo_linear", "banks_gain", "banks_necessary",
            "cascade_partition", "rational"]
