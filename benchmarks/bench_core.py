@@ -23,7 +23,7 @@ P3b UKF, same data and model: nlobs design_ukf (alpha = 1, beta = 0, kappa = 0) 
 
 nlobs is timed through its public API: ``nlobs.simulate`` / ``nlobs.estimate`` (prepared once per design
 and cached, as every call after the first) and, for P3, also the prepared handle
-``Observer(design).compiled().run(t, y, u)`` on arrays (the dynamax-like call). First calls (build,
+``Observer(design).compiled().run(t, u=u, y=y)`` on arrays (the dynamax-like call). First calls (build,
 compile or JIT) are reported separately.
 
 Run:  .venv/bin/pip install -e '.[bench]'   then   .venv/bin/python benchmarks/bench_core.py [--rounds N]
@@ -319,7 +319,7 @@ def p3(rounds: int) -> list[dict]:
         for e in engines:
             fns[f"estimate/{e}"] = (lambda e=e: nlobs.estimate(d, rec, engine=e).observers[name].xhat)
         handle = nlobs.Observer(d).compiled()
-        fns["handle"] = lambda: handle.run(rec.t, rec.y, rec.u, engine=engines[0]).xhat
+        fns["handle"] = lambda: handle.run(rec.t, u=rec.u, y=rec.y, engine=engines[0]).xhat
         fns.update(peers[kind])
         first = {k: cm.first_call(fn) for k, fn in fns.items()}
         timed = cm.interleaved(fns, rounds)
@@ -331,7 +331,7 @@ def p3(rounds: int) -> list[dict]:
         main_key = f"estimate/{engines[-1]}"  # the default engine ('auto') when a compiler exists
         for peer in peers[kind]:
             target, thr = (">= 3x", 3) if "dynamax" in peer else ((">= 50x", 50) if kind == "EKF" else ("(report)", None))
-            note = (f"prepared handle Observer(design).compiled().run(t, y, u): {cm.fmt_time(timed['handle'][0])} min"
+            note = (f"prepared handle Observer(design).compiled().run(t, u=u, y=y): {cm.fmt_time(timed['handle'][0])} min"
                     + (f"; engine='c': {cm.fmt_time(timed['estimate/c'][0])} min" if "estimate/c" in timed and main_key != "estimate/c" else ""))
             rows.append(cm.row("P3" if kind == "EKF" else "P3b", f"{kind}, 20 s at 100 Hz, same RMS error",
                                nlobs=f"nlobs.estimate(engine='{engines[-1]}')", t_nlobs=timed[main_key][:2],

@@ -98,11 +98,11 @@ def bench_pf(rounds: int) -> dict:
     d = design_pf(system, Q=Q, R=R, P0=P0, xhat0=X0, particles=M, threshold=0.5, seed=1)
     first = first_call(lambda: particle_runner(d))
     runner = particle_runner(d)
-    res = interleaved({"nlobs": lambda: runner.run(t, y[:, None]).xhat,
+    res = interleaved({"nlobs": lambda: runner.run(t, y=y[:, None]).xhat,
                        "particles": lambda: particles_filter(y, M, 1)}, rounds)
     dev = {k: float(np.sqrt(np.mean((v[2] - xk) ** 2))) for k, v in res.items()}
     # Monte Carlo scale: the same filter with other seeds deviates from the KF by about the same
-    seeds = [float(np.sqrt(np.mean((runner.run(t, y[:, None], seed=s).xhat - xk) ** 2))) for s in range(2, 7)]
+    seeds = [float(np.sqrt(np.mean((runner.run(t, y=y[:, None], seed=s).xhat - xk) ** 2))) for s in range(2, 7)]
     r = row("P7", "particle filter, bootstrap, 1,000 particles × 2,000 samples, 2 states, systematic resampling at ESS < N/2",
             nlobs=f"nlobs pf (compiled particle loop; build {first:.2g} s once)", t_nlobs=res["nlobs"][:2],
             err_nlobs=f"RMS dev. from exact KF {dev['nlobs']:.3g} (other seeds {min(seeds):.3g}–{max(seeds):.3g})",

@@ -168,7 +168,7 @@ def test_the_derivative_map_recovers_the_state_from_the_lie_derivatives():
     for _ in range(5):
         pt = {x1: rng.normal(), x2: rng.normal(), u: rng.normal()}
         D = {names["D0_y"]: lie[0].xreplace(pt), names["D1_y"]: lie[1].xreplace(pt), u: pt[u]}
-        got = [float(parse_expression(c.options["xhat"][s], names).xreplace(D)) for s in ("x1", "x2")]
+        got = [float(parse_expression(c.options["psi"][s], names).xreplace(D)) for s in ("x1", "x2")]
         assert got == pytest.approx([float(pt[x1]), float(pt[x2])], abs=1e-12)
 
 
@@ -177,7 +177,7 @@ def test_banks_gain_meets_the_matrix_measure_condition_on_the_region():
     adv = advise(s, simulation=_sim([1.0, -1.0]), kinds=["banks"])
     c = adv.candidate("banks")
     assert c.applies
-    P = np.array(c.options["P"], dtype=float)
+    P = np.array(c.options["L"], dtype=float)
     box = c.options["region"]
     rng = np.random.default_rng(1)
 

@@ -33,13 +33,13 @@ CASES = {
     "custom": (OSC, dict(states=["a", "b"], params={"k1": 4.5, "k2": 5.0},
                          flow=["b + k1*(y - a)", "-a - 0.5*b + u + k2*(y - a)"]), [1.0, 0.0], [0.0, 0.0], 8.0, 1e-4),
     "high_gain": (PEND, dict(theta=4.0), [1.0, 0.0], [0.0, 0.0], 6.0, 1e-4),
-    "high_gain_derivatives": (OSC, dict(xhat=["D0_y", "D1_y"], r=0.1, nominal={"y": "-D0_y - 0.5*D1_y + u"}),
+    "high_gain_derivatives": (OSC, dict(psi=["D0_y", "D1_y"], r=0.1, nominal={"y": "-D0_y - 0.5*D1_y + u"}),
                               [1.0, 0.0], [0.0, 0.0], 8.0, 1e-4),
     "lipschitz": (WEAK, dict(region={"x1": [-3, 3], "x2": [-3, 3], "u": [-1, 1]}), [1.0, 0.0], [0.0, 0.0], 15.0, 1e-3),
     "kalman_bucy": (OSC, dict(Q=np.eye(2) * 0.1, R=[[0.01]]), [1.0, 0.0], [0.0, 0.0], 8.0, 1e-4),
-    "kalman_like": (SA, dict(delta=4.0, V=np.eye(2) * 0.1), [1.0, 0.0], [0.0, 0.0], 10.0, 1e-4),
+    "kalman_like": (SA, dict(delta=4.0, Q=np.eye(2) * 0.1), [1.0, 0.0], [0.0, 0.0], 10.0, 1e-4),
     "high_gain_kalman": (OSC, dict(lam=3.0, delta=3.0), [1.0, 0.0], [0.0, 0.0], 10.0, 1e-3),
-    "banks": (OSC, dict(P=[[-2.0], [-1.0]]), [1.0, 0.0], [0.0, 0.0], 15.0, 1e-3),
+    "banks": (OSC, dict(L=[[-2.0], [-1.0]]), [1.0, 0.0], [0.0, 0.0], 15.0, 1e-3),
     "ukf": (PEND, dict(Q=np.eye(2) * 1e-3, R=[[1e-4]]), [1.0, 0.0], [0.0, 0.0], 8.0, 1e-4),
     # sampled every dt = 1e-3 here (continuous measurements): a short window of many samples, IPOPT at each
     "mhe": (OSC, dict(horizon=5, R=[[1e-4]], P0=np.eye(2) * 1e-3), [1.0, 0.0], [0.0, 0.0], 2.0, 1e-3),
@@ -108,7 +108,7 @@ def test_declared_shapes_and_determinism(case):
     n, nu, ny = plant.n_states, plant.n_inputs, plant.n_outputs
     if isinstance(d1, ParticleDesign):  # no ODE (a particle cloud run over the samples): same seed, same run
         t = np.arange(50) * 0.01
-        r1, r2 = particle_runner(d1).run(t, np.sin(t), np.zeros((50, nu))), particle_runner(d2).run(t, np.sin(t), np.zeros((50, nu)))
+        r1, r2 = particle_runner(d1).run(t, u=np.zeros((50, nu)), y=np.sin(t)), particle_runner(d2).run(t, u=np.zeros((50, nu)), y=np.sin(t))
         assert r1.z.shape == (50, d1.n_z) and r1.xhat.shape == (50, n) and np.array_equal(r1.z, r2.z)
         assert str(d1.certificate) and d1.certificate.reference
         return

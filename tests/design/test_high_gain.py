@@ -95,7 +95,7 @@ def test_input_dependent_coupling_needs_K0():
     sys = nlobs.System(states=["x1", "x2"], f=["(2 - cos(u))*x2", "0"], inputs=["u"], outputs=["y"], h=["x1"])
     with pytest.raises(PreconditionError, match="not constant"):
         design_high_gain(sys, theta=5.0)
-    d = design_high_gain(sys, theta=5.0, K0=[2.0, 1.0])
+    d = design_high_gain(sys, theta=5.0, L0=[2.0, 1.0])
     assumed = [c for c in d.certificate.checks if c.status == "assumed"]
     assert assumed and not any(c.holds for c in assumed) and all(str(c).startswith("[assumed]") for c in assumed)
 
@@ -105,7 +105,7 @@ def test_bad_tuning_is_refused():
     with pytest.raises(PreconditionError, match="exactly one"):
         design_high_gain(sys, theta=2.0, r=0.5)
     with pytest.raises(PreconditionError, match="Hurwitz"):
-        design_high_gain(sys, theta=2.0, K0=[-1.0, 1.0])
+        design_high_gain(sys, theta=2.0, L0=[-1.0, 1.0])
     with pytest.raises(PreconditionError, match="left half-plane"):
         design_high_gain(sys, theta=2.0, poles=[1.0, -1.0])
 
@@ -128,7 +128,7 @@ def test_output_derivative_observer_error_scales_with_r():
     # derivative estimate is O(r) (transfer from ÿ to e2 is r·(s·r + α1)/(r²s² + α1 r s + α2)).
     runs = {}
     for r in (0.02, 0.01):
-        d = design_high_gain_derivatives(PENDULUM, r=r, xhat={"x1": "D0_y", "x2": "D1_y"})
+        d = design_high_gain_derivatives(PENDULUM, r=r, psi={"x1": "D0_y", "x2": "D1_y"})
         run = nlobs.simulate(PENDULUM, d, t_final=6.0, dt=1e-4, x0=[0.5, 0.0], inputs={"u": "sin(2*t)"}, engine="vm")
         runs[r] = run.metrics(tail=0.5).rms_error
     assert 1.7 < runs[0.02] / runs[0.01] < 2.3
@@ -143,18 +143,18 @@ def test_output_derivative_eigenvalues_from_004_table_I():
         inputs=["u"], outputs=["y1", "y2"], h=["v2", "i3"],
         params={"L1": 10e-3, "C2": 22e-6, "L3": 10e-3, "C4": 22.9e-6, "G": 0.0447, "Ein": 12.0})
     psi = {"x1": "(C2*D1_y1 - u*y2)/(1 - u)", "x2": "-L3*D1_y2 - u*y1", "v2": "y1", "i3": "y2"}
-    d = design_high_gain_derivatives(cuk, r=0.005, alpha=[2.0, 1.0, 2.0, 1.0], xhat=psi)
+    d = design_high_gain_derivatives(cuk, r=0.005, alpha=[2.0, 1.0, 2.0, 1.0], psi=psi)
     for e in d.certificate.values["eigenvalues"]:
         np.testing.assert_allclose(e, [-200.0, -200.0], rtol=1e-6)
     np.testing.assert_allclose(flow_jacobian_eigs(d, 1), [-200.0] * 4, rtol=1e-4)
     wrong = dict(psi, x2="L3*D1_y2 - u*y1")
-    with pytest.raises(PreconditionError, match=r"xhat\[x2\]"):
-        design_high_gain_derivatives(cuk, r=0.005, xhat=wrong)
+    with pytest.raises(PreconditionError, match=r"psi\[x2\]"):
+        design_high_gain_derivatives(cuk, r=0.005, psi=wrong)
 
 
 def test_output_derivative_saturation_and_orders():
-    d = design_high_gain_derivatives(PENDULUM, r=0.01, xhat={"x1": "y", "x2": "D1_y"}, saturation={"D1_y": 3.0})
+    d = design_high_gain_derivatives(PENDULUM, r=0.01, psi={"x1": "y", "x2": "D1_y"}, saturation={"D1_y": 3.0})
     run = nlobs.simulate(PENDULUM, d, t_final=1.0, dt=1e-4, x0=[1.0, 0.0], engine="vm")
     assert np.abs(run.observers[d.method].xhat[:, 1]).max() <= 3.0 + 1e-12
     with pytest.raises(PreconditionError, match="uses derivative 1"):
-        design_high_gain_derivatives(PENDULUM, r=0.01, xhat={"x1": "y", "x2": "D1_y"}, orders=[1])
+        design_high_gain_derivatives(PENDULUM, r=0.01, psi={"x1": "y", "x2": "D1_y"}, orders=[1])

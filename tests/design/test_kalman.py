@@ -30,11 +30,11 @@ def test_kalman_bucy_reaches_the_lqe_riccati_solution():
 
 
 def test_state_affine_is_read_from_a_system():
-    d = design_kalman_like(PEND_B, V=0.01 * np.eye(3))
+    d = design_kalman_like(PEND_B, Q=0.01 * np.eye(3))
     assert d.certificate.values["A(u, y, t)"] == "[[0, 1, 0], [0, -1/2, u], [0, 0, 0]]"
     bad = nlobs.System(states=["x1", "x2"], f=["x2**2", "0"], outputs=["y"], h=["x1"])
     with pytest.raises(FormError, match=r"x1' = x2\*\*2 is not affine"):
-        design_kalman_like(bad, V=np.eye(2))
+        design_kalman_like(bad, Q=np.eye(2))
 
 
 def test_forgetting_gives_exponential_decay_of_e_Minv_e():
@@ -62,7 +62,7 @@ def test_forgetting_and_noise_preconditions():
     with pytest.raises(PreconditionError, match="positive definite"):
         design_kalman_bucy(PEND_B, Q=np.diag([1.0, 1.0, 0.0]), R=[[1.0]])
     with pytest.raises(PreconditionError, match="positive definite"):
-        design_kalman_like(PEND_B, V=np.eye(3), W=[[0.0]])
+        design_kalman_like(PEND_B, Q=np.eye(3), R=[[0.0]])
 
 
 def test_covariance_stays_symmetric_positive_definite_over_a_million_steps():
@@ -70,7 +70,7 @@ def test_covariance_stays_symmetric_positive_definite_over_a_million_steps():
     # on the compiled engine; M must stay finite, exactly symmetric, and positive definite.
     sys = nlobs.System(states=["x1", "x2"], f=["x2", "-(1 + 0.5*sin(t))*x1 - 0.1*x2 + u"], inputs=["u"],
                        outputs=["y"], h=["x1"])
-    d = design_kalman_like(sys, delta=4.0, V=1e-4 * np.eye(2), W=[[1e-3]])
+    d = design_kalman_like(sys, delta=4.0, Q=1e-4 * np.eye(2), R=[[1e-3]])
     run = nlobs.simulate(sys, d, t_final=1000.0, dt=1e-3, x0=[1.0, 0.0], inputs={"u": "cos(0.3*t)"},
                          noise=nlobs.Noise.gaussian(0.01), seed=3, engine="c")
     M = covariances(run, "kalman_like", 2)
@@ -107,7 +107,7 @@ def test_high_gain_kalman_riccati_and_gain_follow_002():
 
     sys = nlobs.System(states=["x1", "x2"], f=["1.5*x2", "-x1 - 0.2*x2 + u"], inputs=["u"], outputs=["y"], h=["x1"])
     lam, delta, W = 3.0, 4.0, 0.5
-    d = design_high_gain_kalman(sys, lam=lam, delta=delta, W=[[W]], M0=np.diag([1.0, 2.0]))
+    d = design_high_gain_kalman(sys, lam=lam, delta=delta, R=[[W]], P0=np.diag([1.0, 2.0]))
     run = nlobs.simulate(sys, d, t_final=3.0, dt=1e-4, x0=[1.0, -1.0], inputs={"u": "sin(t)"}, xhat0=[0.0, 0.0], engine="vm")
     A0 = np.array([[0.0, 1.5], [0.0, 0.0]])
     Dphi = np.array([[0.0, 0.0], [-1.0, -0.2]])

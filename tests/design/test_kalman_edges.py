@@ -74,7 +74,7 @@ def test_kalman_like_on_a_state_affine_model_with_forgetting_and_singular_noise(
     plant = sa.to_system()
     V, W, M0, delta = np.diag([0.1, 0.0]), 0.3, np.array([[1.0, 0.2], [0.2, 0.5]]), 5.0
     x0, xh0 = np.array([0.8, -0.5]), np.array([0.0, 0.3])
-    d = design_kalman_like(sa, V=V, W=[[W]], delta=delta, M0=M0, region={"u": (-1.0, 1.0)}, xhat0=xh0)
+    d = design_kalman_like(sa, Q=V, R=[[W]], delta=delta, P0=M0, region={"u": (-1.0, 1.0)}, xhat0=xh0)
     # sup over u in [-1, 1] of ‖[[0, 1], [-2, -0.5u]]‖₂, by brute force on a grid that contains the ends
     grid = max(np.linalg.norm(np.array([[0.0, 1.0], [-2.0, -0.5 * u]]), 2) for u in np.linspace(-1.0, 1.0, 401))
     assert d.certificate.values["sup_norm_A"] == pytest.approx(grid, rel=1e-9)
@@ -126,7 +126,7 @@ def test_high_gain_kalman_three_states_with_output_dependent_couplings():
                        inputs=["u"], outputs=["y"], h=["x1"])
     lam, delta, W = 2.0, 6.5, 0.5
     M0, x0, xh0 = np.diag([1.0, 2.0, 0.5]), np.array([0.5, -0.3, 0.2]), np.array([0.1, 0.2, -0.1])
-    d = design_high_gain_kalman(sys, lam=lam, delta=delta, W=[[W]], M0=M0, xhat0=xh0,
+    d = design_high_gain_kalman(sys, lam=lam, delta=delta, R=[[W]], P0=M0, xhat0=xh0,
                                 region={"u": (-1.0, 1.0), "y": (-3.0, 3.0)})
     assert d.certificate.values["sup_norm_A"] == pytest.approx(3.0, rel=1e-9)
     assert d.certificate.values["lambda"] == lam
@@ -194,17 +194,17 @@ DOUBLE = nlobs.System.lti([[0.0, 1.0], [0.0, 0.0]], None, [[1.0, 0.0]])  # ‖A�
 
 def test_kalman_refusals_name_the_design_the_argument_and_the_condition():
     like = "^design_kalman_like: "
-    with pytest.raises(PreconditionError, match=like + "`V` must be symmetric"):
-        design_kalman_like(PEND_B, V=[[1.0, 0.5, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
-    with pytest.raises(PreconditionError, match=like + "`V` must be positive semidefinite"):
-        design_kalman_like(PEND_B, V=np.diag([1.0, -0.1, 1.0]))
-    with pytest.raises(PreconditionError, match=like + "`M0` must be positive definite"):
-        design_kalman_like(PEND_B, V=np.eye(3), M0=np.diag([1.0, 0.0, 1.0]))
-    with pytest.raises(PreconditionError, match=like + "`W` must be positive definite"):
-        design_kalman_like(PEND_B, V=np.eye(3), W=[[-1.0]])
+    with pytest.raises(PreconditionError, match=like + "`Q` must be symmetric"):
+        design_kalman_like(PEND_B, Q=[[1.0, 0.5, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    with pytest.raises(PreconditionError, match=like + "`Q` must be positive semidefinite"):
+        design_kalman_like(PEND_B, Q=np.diag([1.0, -0.1, 1.0]))
+    with pytest.raises(PreconditionError, match=like + "`P0` must be positive definite"):
+        design_kalman_like(PEND_B, Q=np.eye(3), P0=np.diag([1.0, 0.0, 1.0]))
+    with pytest.raises(PreconditionError, match=like + "`R` must be positive definite"):
+        design_kalman_like(PEND_B, Q=np.eye(3), R=[[-1.0]])
     for bad in (-1.0, np.inf, np.nan):
         with pytest.raises(PreconditionError, match=like + "the forgetting factor `delta` must be a non-negative"):
-            design_kalman_like(PEND_B, V=np.eye(3), delta=bad)
+            design_kalman_like(PEND_B, Q=np.eye(3), delta=bad)
     # δ = 2‖A‖ exactly is not above: 002 needs δ > 2‖A(t)‖
     with pytest.raises(PreconditionError, match=like + r"the forgetting factor δ = 2 is not above 2 sup‖A‖ = 2"):
         design_kalman_like(DOUBLE, delta=2.0)
@@ -214,13 +214,13 @@ def test_kalman_refusals_name_the_design_the_argument_and_the_condition():
     with pytest.raises(ShapeError, match=like + "`region` has no bounds for u"):
         design_kalman_like(PEND_B, delta=5.0, region={"t": (0.0, 1.0)})
     with pytest.raises(FormError, match=like + ".* is not state-affine"):
-        design_kalman_like(nlobs.System(states=["x1", "x2"], f=["x2**2", "0"], outputs=["y"], h=["x1"]), V=np.eye(2))
+        design_kalman_like(nlobs.System(states=["x1", "x2"], f=["x2**2", "0"], outputs=["y"], h=["x1"]), Q=np.eye(2))
     # y = C(u, t)x: an affine (not linear) output is refused
     with pytest.raises(FormError, match=like + r"output y = x1 \+ 1 is not linear in the state"):
-        design_kalman_like(nlobs.System(states=["x1", "x2"], f=["x2", "0"], outputs=["y"], h=["x1 + 1"]), V=np.eye(2))
+        design_kalman_like(nlobs.System(states=["x1", "x2"], f=["x2", "0"], outputs=["y"], h=["x1 + 1"]), Q=np.eye(2))
     # with V > 0 any δ >= 0 is allowed; M is not the covariance once δ > 0 (δ = 1 included)
-    assert design_kalman_like(PEND_B, V=np.eye(3), delta=1.0).covariance is None
-    assert design_kalman_like(PEND_B, V=np.eye(3)).covariance is not None
+    assert design_kalman_like(PEND_B, Q=np.eye(3), delta=1.0).covariance is None
+    assert design_kalman_like(PEND_B, Q=np.eye(3)).covariance is not None
 
     bucy = "^design_kalman_bucy: "
     with pytest.raises(PreconditionError, match=bucy + "`Q` must be symmetric"):

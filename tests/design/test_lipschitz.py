@@ -14,7 +14,7 @@ A_LIN = [[0.0, 1.0], [-1.0, -1.0]]  # φ = (0, 0.3 sin x2), γ = 0.3
 
 
 def test_certificate_satisfies_the_thau_inequality_independently():
-    d = design_lipschitz(DAMPED, gamma=0.3, A=A_LIN)
+    d = design_lipschitz(DAMPED, lipschitz=0.3, A=A_LIN)
     v = d.certificate.values
     A, C, K, P = np.array(A_LIN), v["C"], v["K"], v["P"]
     Q = -(P @ (A - K @ C) + (A - K @ C).T @ P)
@@ -39,7 +39,7 @@ def test_q_identity_is_the_best_q_for_a_given_gain():
 
 
 def test_measured_rate_is_at_least_the_guaranteed_one():
-    d = design_lipschitz(DAMPED, gamma=0.3, A=A_LIN)
+    d = design_lipschitz(DAMPED, lipschitz=0.3, A=A_LIN)
     run = nlobs.simulate(DAMPED, d, t_final=8.0, dt=1e-3, x0=[1.0, 2.0], xhat0=[-1.0, -1.0], engine="vm")
     e, t = run.error_norm(), run.t
     g = d.certificate.values["guaranteed_rate"]
@@ -51,7 +51,7 @@ def test_measured_rate_is_at_least_the_guaranteed_one():
 
 def test_gamma_too_large_is_refused_with_the_achieved_margin():
     with pytest.raises(PreconditionError, match=r"best margin found .* is [0-9.]+ <= γ = 5"):
-        design_lipschitz(DAMPED, gamma=5.0, A=A_LIN)
+        design_lipschitz(DAMPED, lipschitz=5.0, A=A_LIN)
 
 
 def test_gamma_estimated_over_a_region():
@@ -64,13 +64,13 @@ def test_gamma_estimated_over_a_region():
 
 
 def test_preconditions():
-    with pytest.raises(PreconditionError, match="gamma"):
+    with pytest.raises(PreconditionError, match="`lipschitz`"):
         design_lipschitz(DAMPED, A=A_LIN)
     unobs = nlobs.System(states=["x1", "x2"], f=["-x1", "-x2 + 0.1*sin(x2)"], outputs=["y"], h=["x1"])
     with pytest.raises(PreconditionError, match="not observable"):
-        design_lipschitz(unobs, gamma=0.1)
+        design_lipschitz(unobs, lipschitz=0.1)
     nonlin_out = nlobs.System(states=["x1", "x2"], f=["x2", "-x1"], outputs=["y"], h=["x1**2"])
     with pytest.raises(PreconditionError, match="y = Cx"):
-        design_lipschitz(nonlin_out, gamma=0.1)
+        design_lipschitz(nonlin_out, lipschitz=0.1)
     with pytest.raises(PreconditionError, match="Hurwitz"):
-        design_lipschitz(DAMPED, gamma=0.1, A=A_LIN, K=[[-5.0], [0.0]])
+        design_lipschitz(DAMPED, lipschitz=0.1, A=A_LIN, L=[[-5.0], [0.0]])

@@ -124,7 +124,7 @@ def test_simulated_recorded_and_online_runs_agree():
     again = nlobs.estimate(d, rec, max_step=1e-2)
     np.testing.assert_allclose(again.observers["mhe"].xhat, run.observers["mhe"].xhat[::5], atol=1e-7)
     online = nlobs.Observer(d).start()
-    xs = np.array([online.update(t, y) for t, y in zip(rec.t, rec.y)])
+    xs = np.array([online.update(t, y=y) for t, y in zip(rec.t, rec.y)])
     np.testing.assert_allclose(xs, again.observers["mhe"].xhat, atol=1e-9)
 
 
@@ -148,7 +148,7 @@ def test_solver_failure_names_the_window_and_the_status():
     online = nlobs.Observer(d).start()  # the same failure, raised by the online estimator with its own type
     with pytest.raises(SolverError, match=f"window t in \\[0, {err.value.window[1]:g}\\]"):
         for t, y in zip(rec.t, rec.y):
-            online.update(t, y)
+            online.update(t, y=y)
 
 
 def test_bounds_keep_every_window_state_inside():

@@ -69,7 +69,7 @@ def _run(scheme="bootstrap", particles=4000, seed=1, **kw):
 def test_pf_matches_the_exact_kalman_filter_within_monte_carlo_error(data, scheme):
     y, (xk, Pk, llk) = data
     runner = _run(scheme, particles=2000)
-    runs = [runner.run(T, y, seed=s) for s in range(1, 17)]
+    runs = [runner.run(T, y=y, seed=s) for s in range(1, 17)]
     xs = np.array([r.xhat for r in runs])                        # (seeds, N, n)
     # the Monte Carlo error, measured: the spread of independent runs (resampling makes it larger than
     # the posterior variance / ESS); the mean of 16 runs must sit on the KF within it (bias O(1/N) is far smaller).
@@ -90,21 +90,21 @@ def test_pf_matches_the_exact_kalman_filter_within_monte_carlo_error(data, schem
 def test_same_seed_same_estimates_and_another_seed_differs(data):
     y = data[0]
     r = _run(particles=500)
-    a, b, c = r.run(T, y), r.run(T, y), r.run(T, y, seed=2)
+    a, b, c = r.run(T, y=y), r.run(T, y=y), r.run(T, y=y, seed=2)
     np.testing.assert_array_equal(a.xhat, b.xhat)
     np.testing.assert_array_equal(a.ess, b.ess)
-    np.testing.assert_array_equal(_run(particles=500).run(T, y).xhat, a.xhat)  # a new design with the same seed too
+    np.testing.assert_array_equal(_run(particles=500).run(T, y=y).xhat, a.xhat)  # a new design with the same seed too
     assert np.abs(a.xhat - c.xhat).max() > 1e-4
 
 
 def test_ess_is_reported_and_drives_resampling(data):
     y = data[0]
-    out = _run(particles=1000, threshold=0.5).run(T, y)
+    out = _run(particles=1000, threshold=0.5).run(T, y=y)
     assert np.all((out.ess >= 1) & (out.ess <= 1000 + 1e-9))
     np.testing.assert_array_equal(out.resampled, out.ess < 500)
     assert 0 < out.resampled.sum() < len(T)
-    assert not _run(particles=1000, threshold=0.0).run(T, y).resampled.any()
-    assert _run(particles=1000, threshold=1.0).run(T, y).resampled.all()
+    assert not _run(particles=1000, threshold=0.0).run(T, y=y).resampled.any()
+    assert _run(particles=1000, threshold=1.0).run(T, y=y).resampled.all()
 
 
 def test_the_generator_draws_standard_normals():
@@ -115,13 +115,13 @@ def test_the_generator_draws_standard_normals():
 
 def test_degeneracy_shows_in_the_ess_and_a_collapse_is_reported():
     # a measurement far from every particle: the weights stay finite (log domain), one particle carries them
-    out = _run(particles=50).run(T, np.full((len(T), 1), 1e6))
+    out = _run(particles=50).run(T, y=np.full((len(T), 1), 1e6))
     assert np.all(np.isfinite(out.xhat)) and out.ess.max() < 1.01
     # an output not finite at any particle (log of a negative state): the run stops naming the sample
     LOG = nlobs.System(states=["x1", "x2"], f=["x2", "-x1"], outputs=["y"], h=["log(x1)"])
     d = design_pf(LOG, Q=0.01 * np.eye(2), R=[[0.01]], P0=1e-4 * np.eye(2), xhat0=[-5.0, 0.0], particles=20)
     with pytest.raises(FiniteEscapeError, match="every particle's likelihood vanished"):
-        ParticleRunner(d).run(T, np.zeros((len(T), 1)))
+        ParticleRunner(d).run(T, y=np.zeros((len(T), 1)))
 
 
 def test_options_are_checked():
@@ -152,6 +152,6 @@ def test_substeps_between_samples_move_the_particles_like_the_discretised_model(
         xk.append(x)
     xk = np.array(xk)
     runner = _run(particles=1000, max_step=H / 4)
-    xs = np.array([runner.run(T, y, seed=s).xhat for s in range(1, 17)])
+    xs = np.array([runner.run(T, y=y, seed=s).xhat for s in range(1, 17)])
     z2 = (xs.mean(axis=0) - xk) ** 2 / (xs.std(axis=0, ddof=1) ** 2 / len(xs))
     assert z2.mean() < 2.5, z2.mean()

@@ -165,11 +165,11 @@ def test_covariance_hook():
     s = nlobs.System(states=["x1", "x2"], f=["x2", "-x1 + u*x2"], inputs=["u"], outputs=["y"], h=["x1"])
     P0 = np.array([[2.0, 0.3], [0.3, 1.0]])
     for d in (nlobs.design_ekf(s, Q=np.eye(2), R=[[1.0]], P0=P0), nlobs.design_ukf(s, Q=np.eye(2), R=[[1.0]], P0=P0),
-              nlobs.design_kalman_bucy(s, Q=np.eye(2), R=[[1.0]], P0=P0), nlobs.design_kalman_like(s, V=np.eye(2), M0=P0)):
+              nlobs.design_kalman_bucy(s, Q=np.eye(2), R=[[1.0]], P0=P0), nlobs.design_kalman_like(s, Q=np.eye(2), P0=P0)):
         z0 = nlobs.Observer(d).initial_state([0.1, 0.2])
         assert np.allclose(np.array(d.covariance(z0)), P0), d.method
     # forgetting δ > 0 inflates M: it is not a covariance, and no ±2σ is reported from it
-    assert nlobs.design_kalman_like(s, V=np.eye(2), delta=1.0).covariance is None
+    assert nlobs.design_kalman_like(s, Q=np.eye(2), delta=1.0).covariance is None
     assert nlobs.design_luenberger is not None and nlobs.design_output_injection(
         nlobs.System(states=["x1", "x2"], f=["x2", "-x1"], outputs=["y"], h=["x1"]), poles=[-1, -2]).covariance is None
 

@@ -273,7 +273,7 @@ def test_kalman_like_on_a_high_power_stops_within_the_budget(monkeypatch):
                h=["x1"], params={"mu": 1.0})
     t0 = time.perf_counter()
     with pytest.raises(SymbolicBudgetError, match="design_kalman_like"):
-        nlobs.design_kalman_like(s, V=np.eye(2))
+        nlobs.design_kalman_like(s, Q=np.eye(2))
     assert time.perf_counter() - t0 < 15
 
 

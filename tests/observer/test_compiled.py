@@ -39,7 +39,7 @@ def test_one_step_per_sample_when_the_flow_is_slow_and_a_handle_is_built_once(vd
     assert builds == [] and np.array_equal(again.observers["ekf"].xhat, res.observers["ekf"].xhat)
     handle = Observer(d).compiled()
     assert handle is compiled_observer(d) and builds == []
-    traj = handle.run(vdp_rec.t, vdp_rec.y, vdp_rec.u)
+    traj = handle.run(vdp_rec.t, y=vdp_rec.y, u=vdp_rec.u)
     assert np.array_equal(traj.xhat, res.observers["ekf"].xhat) and np.array_equal(traj.z, res.observers["ekf"].z)
 
 

@@ -122,7 +122,7 @@ def test_time_varying_model_and_irregular_samples(tmp_path):
 def _online_reference(design, t, u, y, max_step):
     online = Observer(design).start()
     online.max_step = max_step
-    return np.array([online.update(tk, yk, uk) for tk, uk, yk in zip(t, u, y)])
+    return np.array([online.update(tk, y=yk, u=uk) for tk, uk, yk in zip(t, u, y)])
 
 
 @needs_cc
@@ -195,7 +195,7 @@ def test_step_through_ctypes_in_place_first_sample_and_errors(tmp_path):
         rc = lib.lib_ekf_step(ptr(z), t, t - t_prev if k else 0.0, None if k == 0 else ptr(u_prev),
                               None if k == 0 else ptr(y_held), ptr(ua), ptr(ya), ptr(z), ptr(xhat), ptr(y_held))
         assert rc == 0
-        ref = online.update(t, [y], [u])
+        ref = online.update(t, y=[y], u=[u])
         assert np.abs(xhat - ref).max() <= 1e-12 and np.abs(z - online.z).max() <= 1e-12
         t_prev, u_prev = t, ua
     z_before = z.copy()

@@ -19,9 +19,9 @@ def test_step_matches_an_independent_rk4():
         return obs.rhs(0.0, zz, [u], [y])
 
     k1 = f(z); k2 = f(z + dt / 2 * k1); k3 = f(z + dt / 2 * k2); k4 = f(z + dt * k3)  # noqa: E702
-    assert np.allclose(obs.step(z, 0.0, dt, [u], [y]), z + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4), atol=1e-15)
+    assert np.allclose(obs.step(0.0, z, dt, [u], [y]), z + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4), atol=1e-15)
     # substeps converge to the same flow
-    assert np.allclose(obs.step(z, 0.0, dt, [u], [y], substeps=50), obs.step(z, 0.0, dt, [u], [y], substeps=100), atol=1e-12)
+    assert np.allclose(obs.step(0.0, z, dt, [u], [y], substeps=50), obs.step(0.0, z, dt, [u], [y], substeps=100), atol=1e-12)
 
 
 def test_online_observer_equals_the_batch_estimate():
@@ -31,22 +31,22 @@ def test_online_observer_equals_the_batch_estimate():
         batch = estimate(design, rec, max_step=2e-3).observers[design.method].xhat
         online = Observer(design).start()
         online.max_step = 2e-3
-        xs = np.array([online.update(t, y, u) for t, y, u in zip(rec.t, rec.y, rec.u)])
+        xs = np.array([online.update(t, y=y, u=u) for t, y, u in zip(rec.t, rec.y, rec.u)])
         assert np.max(np.abs(xs - batch)) < 1e-12
 
 
 def test_online_observer_checks_time_and_handles_missing_outputs():
     d = design_ekf(PEND, Q=np.eye(2) * 1e-3, R=[[1e-4]])
     online = Observer(d).start(xhat0=[0.1, 0.0])
-    online.update(0.0, [0.2], [0.0])
+    online.update(0.0, y=[0.2], u=[0.0])
     before = online.z.copy()
-    online.update(0.01, [np.nan], [0.0])  # missing: prediction only
-    pred = Observer(d).step(before, 0.0, 0.01, [0.0], [0.2])
+    online.update(0.01, y=[np.nan], u=[0.0])  # missing: prediction only
+    pred = Observer(d).step(0.0, before, 0.01, [0.0], [0.2])
     assert np.allclose(online.z, pred)
     with pytest.raises(DataError, match="time must increase .* got t = 0.005 after t = 0.01"):
-        online.update(0.005, [0.2], [0.0])
+        online.update(0.005, y=[0.2], u=[0.0])
     with pytest.raises(DataError, match="must be finite"):
-        online.update(0.02, [np.inf], [0.0])
+        online.update(0.02, y=[np.inf], u=[0.0])
 
 
 def test_online_observer_refuses_the_same_time_twice():
@@ -54,16 +54,16 @@ def test_online_observer_refuses_the_same_time_twice():
     measurement twice (the EKF's P shrank at every repetition)."""
     d = design_ekf(PEND, Q=np.eye(2) * 1e-3, R=[[1e-4]])
     online = Observer(d).start()
-    online.update(0.0, [0.2], [0.0])
-    online.update(0.01, [0.2], [0.0])
+    online.update(0.0, y=[0.2], u=[0.0])
+    online.update(0.01, y=[0.2], u=[0.0])
     z = online.z.copy()
     with pytest.raises(DataError, match="the same time again: a second update would count the measurement twice"):
-        online.update(0.01, [0.2], [0.0])
+        online.update(0.01, y=[0.2], u=[0.0])
     assert np.array_equal(online.z, z) and online.t == 0.01  # nothing changed
     with pytest.raises(DataError, match="`t` must be a number"):
-        online.update("soon", [0.2], [0.0])  # type: ignore[arg-type]
+        online.update("soon", y=[0.2], u=[0.0])  # type: ignore[arg-type]
     with pytest.raises(DataError, match="the input u = .* must be finite"):
-        online.update(0.02, [0.2], [np.nan])
+        online.update(0.02, y=[0.2], u=[np.nan])
 
 
 def test_online_observer_options_and_non_finite_states():
@@ -76,12 +76,12 @@ def test_online_observer_options_and_non_finite_states():
 
         OnlineObserver(d)  # type: ignore[arg-type]
     online = Observer(d).start(max_step=1e-3)
-    online.update(0.0, [0.2], [0.0])
+    online.update(0.0, y=[0.2], u=[0.0])
     z = online.z.copy()
     from nlobs import FiniteEscapeError
 
     with pytest.raises(FiniteEscapeError, match="became .* at t = 0.01 .*the state before this sample is kept"):
-        online.update(0.01, [1e308], [0.0])
+        online.update(0.01, y=[1e308], u=[0.0])
     assert np.array_equal(online.z, z) and online.t == 0.0
 
 

@@ -12,7 +12,7 @@ V = np.diag([1e-4, 1e-3, 1e-3])
 
 def test_exciting_input_identifies_b():
     s = ex.pendulum_unknown_b()
-    d = design_kalman_like(s, V=V, W=[[1e-3]])
+    d = design_kalman_like(s, Q=V, R=[[1e-3]])
     run = simulate(s, d, t_final=30.0, dt=1e-3, x0=[1.0, 0.0, 1.0], inputs={"u": "sin(t) + 0.5*sin(2.3*t)"})
     assert abs(run.observers["kalman_like"].xhat[-1, 2] - 1.0) < 1e-5
     assert run.error_norm()[-1] < 1e-4 * run.error_norm()[0]
@@ -20,7 +20,7 @@ def test_exciting_input_identifies_b():
 
 def test_zero_input_leaves_b_unobserved():
     s = ex.pendulum_unknown_b()
-    d = design_kalman_like(s, V=V, W=[[1e-3]])
+    d = design_kalman_like(s, Q=V, R=[[1e-3]])
     run = simulate(s, d, t_final=30.0, dt=1e-3, x0=[1.0, 0.0, 1.0], xhat0=[0.0, 0.0, 0.3], inputs={"u": 0})
     e = run.error()
     assert e[-1, 2] == e[0, 2] == -0.7

@@ -28,7 +28,7 @@ def test_kalman_like_with_forgetting_recovers_gamma_and_omega2():
 
 def test_noise_keeps_the_parameter_estimates_close():
     s = ex.van_der_pol_unknown()
-    d = design_kalman_like(s, V=1e-2 * np.eye(4), W=[[1e-3]])
+    d = design_kalman_like(s, Q=1e-2 * np.eye(4), R=[[1e-3]])
     run = simulate(s, d, t_final=40.0, dt=1e-3, x0=[2.0, 1.0, 1.5, 2.0], xhat0=[0, 0, 0.5, 1.0],
                    noise=Noise.gaussian(0.01), seed=1)
     g, w2 = run.observers["kalman_like"].xhat[-1, 2:]

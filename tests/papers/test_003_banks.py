@@ -11,7 +11,7 @@ from nlobs.examples import banks as ex
 def test_example_3_1_rate(perturbed):
     # 003 ex. 3.1: P = (-2, 1)ᵀ, λ([[-1, -2], [2, -1]]) = -1; perturbations of slope <= δ = 0.5 < 1 (Lemma 2.4).
     s = ex.example_31(perturbed)
-    d = design_banks(s, P=[[-2.0], [1.0]], region={"x2": (-5.0, 1e6)},
+    d = design_banks(s, L=[[-2.0], [1.0]], region={"x2": (-5.0, 1e6)},
                      perturbation=["0.5*sin(x1)", "0.5*sin(x2)"] if perturbed else None,
                      perturbation_bound=0.5 if perturbed else None)
     assert d.certificate.values["epsilon"] == pytest.approx(1.0, abs=1e-12)
@@ -25,7 +25,7 @@ def test_example_3_1_rate(perturbed):
 def test_example_3_2_rate(perturbed):
     # 003 ex. 3.2: gains (-1, 4), λ(Df + P·DB) <= -1, f1, f2 Lipschitz K = 0.5 < 1 (Theorem 2.6): rate ε - K.
     s = ex.example_32(perturbed)
-    d = design_banks(s, P=[[-1.0], [4.0]], region={"x1": (-3.0, 3.0), "x2": (-3.0, 3.0)},
+    d = design_banks(s, L=[[-1.0], [4.0]], region={"x1": (-3.0, 3.0), "x2": (-3.0, 3.0)},
                      perturbation=["0.5*sin(x1)", "0.5*tanh(x2)"] if perturbed else None)
     rate = 0.5 if perturbed else 1.0
     assert d.certificate.values["guaranteed_rate"] == pytest.approx(rate, abs=1e-9)

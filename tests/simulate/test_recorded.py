@@ -73,7 +73,7 @@ def test_skipped_sample_predicts_without_correction(recorded):
 
     obs = Observer(d)
     z9 = res.observers["ekf"].z[9]
-    predicted = obs.step(z9, rec.t[9], rec.t[10] - rec.t[9], rec.u[9], y[9])
+    predicted = obs.step(rec.t[9], z9, rec.t[10] - rec.t[9], rec.u[9], y[9])
     assert np.allclose(res.observers["ekf"].z[10], predicted, atol=1e-12)
 
 
@@ -134,7 +134,7 @@ def test_multi_rate_outputs_from_a_csv(tmp_path):
     from nlobs import Observer
 
     online = Observer(d).start()
-    xs = np.array([online.update(t, y, u) for t, y, u in zip(multi.t, multi.y, multi.u)])
+    xs = np.array([online.update(t, u=u, y=y) for t, y, u in zip(multi.t, multi.y, multi.u)])
     assert np.max(np.abs(xs - res.observers["ekf"].xhat)) < 1e-12
     assert res.metrics().rms_error < 0.02
 

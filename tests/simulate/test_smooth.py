@@ -118,7 +118,7 @@ def test_ekf_transition_jacobian_is_that_of_the_rk4_map():
     y = np.cos(t)[:, None]
     m = np.ones_like(y)
     u = np.zeros((30, 0))
-    traj = compiled_observer(d).run(t, y, u, max_step=0.025 * (1 + 1e-12), engine="vm")
+    traj = compiled_observer(d).run(t, u=u, y=y, max_step=0.025 * (1 + 1e-12), engine="vm")
     assert set(traj.substeps) == {4}
     res = _Replay(d, "zoh").run(traj.z[0], traj.y_used[0], interval_table(t, u, y, m), traj.substeps, "vm")
     x = ca.SX.sym("x", 2)

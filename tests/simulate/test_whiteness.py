@@ -70,7 +70,7 @@ def test_innovations_are_the_prior_prediction_errors(recording):
     obs, (_, h) = Observer(d), compile_system(PEND).bind()
     z = res.observers["ekf"].z
     for k in (1, 50, 400, len(rec.t) - 1):
-        zp = obs.step(z[k - 1], rec.t[k - 1], rec.t[k] - rec.t[k - 1], rec.u[k - 1], rec.y[k - 1])
+        zp = obs.step(rec.t[k - 1], z[k - 1], rec.t[k] - rec.t[k - 1], rec.u[k - 1], rec.y[k - 1])
         xp = obs.estimate(rec.t[k], zp, rec.u[k], rec.y[k - 1])
         assert inn[k, 0] == pytest.approx(rec.y[k, 0] - float(h(rec.t[k], xp, rec.u[k])), abs=1e-12)
     assert inn[0, 0] == pytest.approx(rec.y[0, 0] - 0.0)  # against the initial estimate x̂0 = 0

@@ -102,6 +102,22 @@ def _uco(ctx: Context) -> tuple[dict[str, Any] | None, str]:
     return info, text
 
 
+def _try_with_progress(ctx: Any, kind: str, position: str, say: Any) -> Candidate:
+    """:func:`try_kind`, saying which kind is tried; one that takes long is named again on its own line (for logs)."""
+    slow = None
+    if say:
+        say(f"advise {ctx.model.name}: [{position.replace(' of ', '/')}] {kind} ...")
+        slow = threading.Timer(SLOW_KIND, say, (f"advise {ctx.model.name}: still trying {kind} ({position}, "
+                                                f"more than {SLOW_KIND:g} s) ...",))
+        slow.daemon = True
+        slow.start()
+    try:
+        return try_kind(ctx, kind)
+    finally:
+        if slow is not None:
+            slow.cancel()
+
+
 def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[str] | None = None, simulation: Any = None,
            recording: Recording | None = None, true_parameters: Mapping[str, float] | None = None,
            kinds: Sequence[str] | None = None, run: bool = False, xhat0: Sequence[float] | None = None,
@@ -207,19 +223,7 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
     if say:
         say(f"advise {system.name}: trying {len(chosen)} observer kinds ({time.perf_counter() - t_ctx:.1f} s so far) ...")
     for i, kind in enumerate(chosen):
-        slow = None
-        if say:
-            say(f"advise {system.name}: [{i + 1}/{len(chosen)}] {kind} ...")
-            # a kind that takes long is named on its own line in logs too (a terminal shows every kind in place)
-            slow = threading.Timer(SLOW_KIND, say, (f"advise {system.name}: still trying {kind} ({i + 1} of {len(chosen)}, "
-                                                    f"more than {SLOW_KIND:g} s) ...",))
-            slow.daemon = True
-            slow.start()
-        try:
-            candidates.append(try_kind(ctx, kind))
-        finally:
-            if slow is not None:
-                slow.cancel()
+        candidates.append(_try_with_progress(ctx, kind, f"{i + 1} of {len(chosen)}", say))
     if not run and not ctx.blockers and not ctx.run_blockers:
         if say:
             say(f"advise {system.name}: screening the applicable designs on the start of the simulation run ...")

@@ -26,7 +26,7 @@ from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import check_matrix
 from ._common import batch, box_of, require_system, sup_over_box
 from ._constructions import banks_gain, banks_necessary
-from ._kind import Tuning, kind
+from ._kind import Tuning, kind, renamed
 from ._tune import region_inputs, region_states, rounded
 
 __all__ = ["design_banks", "banks_conditions", "BanksConditions"]
@@ -148,21 +148,22 @@ def tune_banks(ctx: Any) -> Tuning:
     if best >= 0:
         return Tuning.fails(f"no gain P found with λ(∂f/∂x + P ∂h/∂x) < 0 on the visited region: the best max matrix measure is "
                       f"{best:.3g} ≥ 0 ({cite('003', 'Theorem 2.6')} needs it negative everywhere on Ω, a much stronger "
-                      "condition than a stable linearisation)", P=rounded(P))
+                      "condition than a stable linearisation)", L=rounded(P))
     speed = float(np.linalg.norm(P, 2)) * ctx.output_gain
     if speed > ctx.step_limit():
         return Tuning.fails(f"a gain with λ(∂f/∂x + P ∂h/∂x) < 0 on the region needs ‖P‖·‖∂h/∂x‖ ≈ {speed:.3g} s⁻¹, beyond what the "
-                      f"step allows ({ctx.step_limit():.3g} s⁻¹); reduce dt / the sample period, or shrink the region", P=rounded(P))
+                      f"step allows ({ctx.step_limit():.3g} s⁻¹); reduce dt / the sample period, or shrink the region", L=rounded(P))
     region = {k: list(v) for k, v in {**box, **region_inputs(ctx)}.items()}
     if ctx.system.is_time_varying:
         region["t"] = [0.0, float(ctx.scenario.t_final)]
-    return Tuning.tuned({"P": rounded(P), "region": region},
+    return Tuning.tuned({"L": rounded(P), "region": region},
                     f"P searched over the visited region (max matrix measure {best:.3g} on the sampled points)")
 
 
 @kind('banks', summary="Banks' exponential observer, his conditions checked over a region",
       references=(work("003", "Theorem 2.6"),), tune=tune_banks)
-def design_banks(system: System, *, P: Any, region: Mapping[str, Sequence[float]] | None = None,
+@renamed(P="L")
+def design_banks(system: System, *, L: Any, region: Mapping[str, Sequence[float]] | None = None,
                  perturbation: Sequence[ExprLike] | None = None, perturbation_bound: float | None = None,
                  xhat0: Any = None) -> ObserverDesign:
     r"""Banks' exponential observer (Banks (1980)) with his conditions checked over a region.
@@ -187,8 +188,8 @@ def design_banks(system: System, *, P: Any, region: Mapping[str, Sequence[float]
     Parameters
     ----------
     system : System
-    P : array_like of shape (n, p)
-        The gain (Banks (1980), example 3.1: P = (-2, 1)ᵀ; example 3.2: (-1, 4)ᵀ).
+    L : array_like of shape (n, p)
+        The gain, P in Banks (1980) (example 3.1: P = (-2, 1)ᵀ; example 3.2: (-1, 4)ᵀ).
     region : mapping of name to (lo, hi), optional
         The convex box Ω for the state variables (and inputs, t) the conditions depend on;
         not needed when λ(Df1 + P DB) and Df2 are constant.
@@ -216,10 +217,11 @@ def design_banks(system: System, *, P: Any, region: Mapping[str, Sequence[float]
     ----------
     Banks (1980), Lemmas 2.3, 2.4, Theorem 2.6, examples 3.1 and 3.2.
     """
+    P = L  # Banks (1980)'s name for the gain
     require_system(system, "design_banks")
     caller = "design_banks"
     n, p = system.n_states, system.n_outputs
-    Pm = check_matrix(P, n, p, "P", caller)
+    Pm = check_matrix(P, n, p, "L", caller)
     allowed = {k: symbol(k) for k in (*system.states, *system.inputs, *system.params)}
     allowed["t"] = TIME
     params = {symbol(k): exact(v) for k, v in system.params.items()}

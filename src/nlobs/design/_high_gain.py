@@ -21,7 +21,7 @@ from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import identity_check
 from ._common import chain_gain, leaves_of, measured_states, require_system, saturate, saturation_bounds, to_sx
 from ._constructions import derivative_map, evaluate, find_chains, text
-from ._kind import Tuning, kind
+from ._kind import Tuning, kind, renamed
 from ._tune import clean_message, region_inputs, region_states, vanishes
 
 __all__ = ["design_high_gain", "design_high_gain_derivatives", "triangular_chains", "Chain"]
@@ -253,7 +253,7 @@ def tune_high_gain(ctx: Any) -> Tuning:
     varying = [(c, i, a) for c in chs for i, a in enumerate(c.couplings) if a.free_symbols]
     if varying:
         if ctx.nominal is None:
-            return Tuning.needs("K0 (the couplings vary: " + ", ".join(str(a) for _, _, a in varying) + ") and a run to check them")
+            return Tuning.needs("L0 (the couplings vary: " + ", ".join(str(a) for _, _, a in varying) + ") and a run to check them")
         pts = ctx.samples(400)
         ysub = {ctx.system.x[j]: ctx.system.y[k] for k, j in enumerate(c.states[0] for c in chs)}
         vals = evaluate([a.xreplace(ysub) for _, _, a in varying], ctx.system, pts)
@@ -272,7 +272,7 @@ def tune_high_gain(ctx: Any) -> Tuning:
             cpl = [means[id(a)] if a.free_symbols else float(a) for a in c.couplings]
             K0.extend(chain_gain(cpl, np.full(len(c.states), -1.0 + 0j)).tolist())
         theta = float(min(max(ctx.omega_o, 1.0), limit))
-        opts.update({"theta": round(theta, 6), "K0": K0})
+        opts.update({"theta": round(theta, 6), "L0": K0})
         return Tuning.tuned(opts, f"chains {order}; couplings vary but keep their sign on the run: K0 from their mean values "
                         f"(binomial poles), θ = {theta:.3g} from the time scale")
     if not ctx.region:
@@ -318,7 +318,7 @@ def tune_high_gain_derivatives(ctx: Any) -> Tuning:
     except (NotImplementedError, ValueError, TypeError) as e:  # SymPy giving up
         psi, why = None, f"the output derivatives could not be solved for the state ({type(e).__name__})"
     if psi is None:
-        return Tuning.needs(f"xhat = Ψ(D0_y, D1_y, ...): {why}", xhat="expressions of the output derivatives D{i}_{output}")
+        return Tuning.needs(f"psi: x = Ψ(D0_y, D1_y, ...): {why}", psi="expressions of the output derivatives D{i}_{output}")
     theta = float(min(max(ctx.omega_o, 1.0), ctx.step_limit()))
     dens = sorted({d.as_coeff_Mul()[1] for e in psi.values() for d in [sp.fraction(sp.together(e))[1]] if d.free_symbols},
                   key=str)
@@ -333,14 +333,15 @@ def tune_high_gain_derivatives(ctx: Any) -> Tuning:
                 if lo * hi <= 0 or small:
                     return Tuning.fails(f"Ψ (x from the output derivatives, solved by nlobs) divides by {d}, which "
                                   f"{vanishes(lo, hi)} on the run (from {lo:.3g} to "
-                                  f"{hi:.3g}): the estimate blows up where it vanishes", xhat={k: text(v) for k, v in psi.items()})
-    return Tuning.tuned({"xhat": {k: text(v) for k, v in psi.items()}, "theta": round(theta, 6)},
+                                  f"{hi:.3g}): the estimate blows up where it vanishes", psi={k: text(v) for k, v in psi.items()})
+    return Tuning.tuned({"psi": {k: text(v) for k, v in psi.items()}, "theta": round(theta, 6)},
                     f"Ψ solved from the Lie derivatives of the output(s); θ = {theta:.3g} (binomial α)", extra=extra)
 
 
 @kind('high_gain', summary='high-gain observer for the triangular form (Gauthier-Hammouri-Kupka)',
       references=(work("002", "Result [High Gain Observer]"),), tune=tune_high_gain)
-def design_high_gain(system: System, *, theta: float | None = None, r: float | None = None, K0: Any = None,
+@renamed(K0="L0")
+def design_high_gain(system: System, *, theta: float | None = None, r: float | None = None, L0: Any = None,
                      poles: Any = None, chains: Sequence[Sequence[str]] | None = None, lipschitz: float | None = None,
                      saturation: Mapping[str, float] | Sequence[float] | None = None,
                      xhat0: Any = None) -> ObserverDesign:
@@ -377,11 +378,11 @@ def design_high_gain(system: System, *, theta: float | None = None, r: float | N
         The high gain θ (> 0); give θ or `r`.
     r : float, optional
         1/θ, as in Yi, Ortega & Zhang (2019), Table I.
-    K0 : array_like, optional
+    L0 : array_like, optional
         Gains, one per state of each chain (flat in chain order, or nested per chain).
     poles : array_like, optional
         Eigenvalues of :math:`A_c - K_0C_0` per chain (default: all at -1, i.e. binomial gains:
-        (2, 1) for chains of length 2, as in Yi, Ortega & Zhang (2019), Table I). Not with `K0`.
+        (2, 1) for chains of length 2, as in Yi, Ortega & Zhang (2019), Table I). Not with `L0`.
     chains : sequence of sequences of state names, optional
         The chains, one per output, each starting with its measured state.
     lipschitz : float, optional
@@ -424,6 +425,7 @@ def design_high_gain(system: System, *, theta: float | None = None, r: float | N
     >>> d.certificate.values["K0"], round(d.certificate.values["nominal_rate"], 9)
     ([array([2., 1.])], 10.0)
     """
+    K0 = L0  # the normalised gain (K0 in Besançon (2010))
     require_system(system, "design_high_gain")
     caller = "design_high_gain"
     th = _theta(theta, r, caller)
@@ -431,72 +433,28 @@ def design_high_gain(system: System, *, theta: float | None = None, r: float | N
         chs = triangular_chains(system, chains, caller=caller)
     except FormError as e:
         raise FormError(f"{caller}: {e}. Use design_ekf or design_lipschitz for models not in triangular form.") from e
-    sizes = [len(c.states) for c in chs]
     n = system.n_states
     checks = [Check("outputs measure the first state of each chain", True,
                     "; ".join(f"{system.outputs[c.output]}: " + " -> ".join(system.states[j] for j in c.states) for c in chs)),
               Check("triangular structure: f_i depends on levels <= i and linearly on the next state", True)]
     if K0 is not None and poles is not None:
-        raise PreconditionError(f"{caller}: give `K0` or `poles`, not both")
+        raise PreconditionError(f"{caller}: give `L0` or `poles`, not both")
     nonconst = [(c, i, a) for c in chs for i, a in enumerate(c.couplings) if a.free_symbols]
     if nonconst and K0 is None:
         c, i, a = nonconst[0]
         raise PreconditionError(
             f"{caller}: the coupling ∂{system.states[c.states[i]]}'/∂{system.states[c.states[i + 1]]} = {a} is not constant, so "
-            f"no K0 can be computed from poles; give `K0` explicitly (the extension of {cite('002')} needs the coupling bounded away "
+            f"no K0 can be computed from poles; give `L0` explicitly (the extension of {cite('002')} needs the coupling bounded away "
             "from 0 with a fixed sign), or use design_high_gain_kalman for couplings a(u, y)")
-    if K0 is not None:
-        gains = _per_chain(K0, sizes, "K0", caller)
-    else:
-        want = [np.full(m, -1.0 + 0j) for m in sizes] if poles is None else \
-            _per_chain(poles, sizes, "poles", caller, complex_ok=True)
-        for k, p in enumerate(want):
-            if np.any(p.real >= 0):
-                raise PreconditionError(f"{caller}: the requested pole {complex(p[p.real >= 0][0]):.4g} (chain {k}) is not in the "
-                                        "open left half-plane; choose poles with negative real part")
-            cp = p[np.abs(p.imag) > 0]
-            if not np.allclose(np.sort_complex(cp), np.sort_complex(cp.conj())):
-                raise PreconditionError(f"{caller}: complex poles must come in conjugate pairs; chain {k} got {p}")
-        gains = [chain_gain([float(a) for a in c.couplings], p) for c, p in zip(chs, want)]
-    eigs, blocks = [], []
-    for c, g in zip(chs, gains):
-        if c.constant:
-            Ac = _chain_matrix([float(a) for a in c.couplings])
-            M = Ac - np.outer(g, np.eye(len(g))[0])
-            ev = np.linalg.eigvals(M)
-            if np.max(ev.real) >= 0:
-                raise PreconditionError(f"{caller}: K0 = {g} does not make A_c - K0 C0 Hurwitz for the chain of "
-                                        f"{system.outputs[c.output]}: eigenvalue {complex(ev[np.argmax(ev.real)]):.4g}; choose other gains")
-            eigs.append(ev[np.lexsort((ev.imag, ev.real))])
-            blocks.append(M)
-        else:
-            checks.append(Check.assumed(f"coupling(s) of the chain of {system.outputs[c.output]} bounded away from 0 with a "
-                                        f"fixed sign ({cite('002')} extension)",
-                                        "depends on the trajectory: " + ", ".join(str(a) for a in c.couplings if a.free_symbols)))
+    gains = _chain_gains(chs, K0, poles, caller)
+    eigs, blocks = _error_blocks(system, chs, gains, checks, caller)
     values: dict[str, Any] = {"theta": th, "K0": gains}
     if len(blocks) == len(chs):
         checks.append(Check("A_c - K0 C0 Hurwitz (every chain)", True, f"max Re eig = {max(e.real.max() for e in eigs):.4g}"))
         rho0 = float(min(-e.real.max() for e in eigs))
         values.update({"eigenvalues": eigs, "nominal_rate": th * rho0})
         if lipschitz is not None:
-            gam = float(lipschitz)
-            if not (np.isfinite(gam) and gam >= 0):
-                raise PreconditionError(f"{caller}: `lipschitz` must be a non-negative number, got {lipschitz}")
-            import scipy.linalg  # deferred: keeps `import nlobs` fast
-
-            Abar = scipy.linalg.block_diag(*blocks)
-            P0 = scipy.linalg.solve_continuous_lyapunov(Abar.T, -np.eye(n))
-            lmax = float(np.linalg.eigvalsh((P0 + P0.T) / 2).max())
-            theta_min = max(1.0, 2.0 * np.sqrt(n) * gam * lmax)
-            if th <= theta_min:
-                raise PreconditionError(f"{caller}: theta = {th:.4g} is not above the sufficient bound theta* = max(1, 2√n γ "
-                                        f"λmax(P0)) = {theta_min:.4g} (γ = {gam:g}, λmax(P0) = {lmax:.4g}); increase theta")
-            rate = (th - 2.0 * np.sqrt(n) * gam * lmax) / (2.0 * lmax)
-            checks.append(Check("theta > theta* (Lyapunov bound in scaled coordinates)", True, f"{th:.4g} > {theta_min:.4g}",
-                                "floating point (Lyapunov equation), with the γ given"))
-            checks.append(Check.assumed(f"the nonlinearity is globally Lipschitz with the γ = {gam:g} given",
-                                        "stated by the user (`lipschitz`); not verified"))
-            values.update({"P0": P0, "theta_min": theta_min, "lipschitz": gam, "guaranteed_rate": float(rate)})
+            values.update(_lipschitz_bound(blocks, th, lipschitz, checks, caller))
     elif lipschitz is not None:
         raise PreconditionError(f"{caller}: the Lipschitz bound needs constant couplings; with a coupling depending on (u, y) "
                                 "no θ* is computed. Drop `lipschitz` or use design_high_gain_kalman")
@@ -520,6 +478,108 @@ def design_high_gain(system: System, *, theta: float | None = None, r: float | N
                                 xhat0_sym=x0, z0=x0, xhat0=np.zeros(n) if xhat0 is None else xhat0, certificate=cert)
 
 
+def _error_blocks(system: System, chs: Sequence[Chain], gains: Sequence[np.ndarray], checks: list[Check],
+                  caller: str) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """A_c − K0 C0 of each chain with constant couplings (refused unless Hurwitz) and its sorted eigenvalues; a chain
+    whose couplings vary adds an assumed check instead."""
+    eigs, blocks = [], []
+    for c, g in zip(chs, gains):
+        if c.constant:
+            Ac = _chain_matrix([float(a) for a in c.couplings])
+            M = Ac - np.outer(g, np.eye(len(g))[0])
+            ev = np.linalg.eigvals(M)
+            if np.max(ev.real) >= 0:
+                raise PreconditionError(f"{caller}: L0 = {g} does not make A_c - K0 C0 Hurwitz for the chain of "
+                                        f"{system.outputs[c.output]}: eigenvalue {complex(ev[np.argmax(ev.real)]):.4g}; choose other gains")
+            eigs.append(ev[np.lexsort((ev.imag, ev.real))])
+            blocks.append(M)
+        else:
+            checks.append(Check.assumed(f"coupling(s) of the chain of {system.outputs[c.output]} bounded away from 0 with a "
+                                        f"fixed sign ({cite('002')} extension)",
+                                        "depends on the trajectory: " + ", ".join(str(a) for a in c.couplings if a.free_symbols)))
+    return eigs, blocks
+
+
+def _chain_gains(chs: Sequence[Chain], L0: Any, poles: Any, caller: str) -> list[np.ndarray]:
+    """The normalised gain of each chain: `L0` as given, or from the requested poles (default all at -1: binomial)."""
+    sizes = [len(c.states) for c in chs]
+    if L0 is not None:
+        return _per_chain(L0, sizes, "L0", caller)
+    want = [np.full(m, -1.0 + 0j) for m in sizes] if poles is None else \
+        _per_chain(poles, sizes, "poles", caller, complex_ok=True)
+    for k, p in enumerate(want):
+        if np.any(p.real >= 0):
+            raise PreconditionError(f"{caller}: the requested pole {complex(p[p.real >= 0][0]):.4g} (chain {k}) is not in the "
+                                    "open left half-plane; choose poles with negative real part")
+        cp = p[np.abs(p.imag) > 0]
+        if not np.allclose(np.sort_complex(cp), np.sort_complex(cp.conj())):
+            raise PreconditionError(f"{caller}: complex poles must come in conjugate pairs; chain {k} got {p}")
+    return [chain_gain([float(a) for a in c.couplings], p) for c, p in zip(chs, want)]
+
+
+def _lipschitz_bound(blocks: Sequence[np.ndarray], th: float, lipschitz: Any, checks: list[Check], caller: str) -> dict[str, Any]:
+    """θ > θ* = max(1, 2√n γ λmax(P0)) with P0 the Lyapunov matrix of the scaled error (Besançon (2010), high-gain
+    observer); appends the checks and returns the certificate values (P0, θ*, γ, guaranteed rate)."""
+    import scipy.linalg  # deferred: keeps `import nlobs` fast
+
+    gam = float(lipschitz)
+    if not (np.isfinite(gam) and gam >= 0):
+        raise PreconditionError(f"{caller}: `lipschitz` must be a non-negative number, got {lipschitz}")
+    Abar = scipy.linalg.block_diag(*blocks)
+    n = Abar.shape[0]
+    P0 = scipy.linalg.solve_continuous_lyapunov(Abar.T, -np.eye(n))
+    lmax = float(np.linalg.eigvalsh((P0 + P0.T) / 2).max())
+    theta_min = max(1.0, 2.0 * np.sqrt(n) * gam * lmax)
+    if th <= theta_min:
+        raise PreconditionError(f"{caller}: theta = {th:.4g} is not above the sufficient bound theta* = max(1, 2√n γ "
+                                f"λmax(P0)) = {theta_min:.4g} (γ = {gam:g}, λmax(P0) = {lmax:.4g}); increase theta")
+    rate = (th - 2.0 * np.sqrt(n) * gam * lmax) / (2.0 * lmax)
+    checks.append(Check("theta > theta* (Lyapunov bound in scaled coordinates)", True, f"{th:.4g} > {theta_min:.4g}",
+                        "floating point (Lyapunov equation), with the γ given"))
+    checks.append(Check.assumed(f"the nonlinearity is globally Lipschitz with the γ = {gam:g} given",
+                                "stated by the user (`lipschitz`); not verified"))
+    return {"P0": P0, "theta_min": theta_min, "lipschitz": gam, "guaranteed_rate": float(rate)}
+
+
+def _derivative_symbols(system: System) -> tuple[dict[str, sp.Symbol], dict[str, sp.Basic], dict[sp.Symbol, sp.Basic]]:
+    """The symbols D{i}_{output} of the output derivatives, every name Ψ may use, and the parameters' values."""
+    dsyms = {f"D{i}_{yk}": symbol(f"D{i}_{yk}") for yk in system.outputs for i in range(32)}
+    allowed: dict[str, sp.Basic] = {k: symbol(k) for k in (*system.inputs, *system.outputs, *system.params)}
+    allowed["t"] = TIME
+    allowed.update(dsyms)
+    return dsyms, allowed, {symbol(k): exact(v) for k, v in system.params.items()}
+
+
+def _psi_entries(system: System, psi: Any, caller: str) -> list[Any]:
+    """Ψ's expressions in state order, from a mapping state -> expression or a sequence of n expressions."""
+    if isinstance(psi, Mapping):
+        unknown = [k for k in psi if k not in system.states]
+        missing = [k for k in system.states if k not in psi]
+        if unknown or missing:
+            raise ShapeError(f"{caller}: `psi` must give one expression per state ({', '.join(system.states)}); "
+                             + (f"unknown {unknown[0]!r}" if unknown else f"missing {', '.join(missing)}"))
+        return [psi[s_] for s_ in system.states]
+    entries = list(psi)
+    if len(entries) != system.n_states:
+        raise ShapeError(f"{caller}: `psi` must have {system.n_states} expressions (one per state), got {len(entries)}")
+    return entries
+
+
+def _psi_recovers_state(system: System, psi: Sequence[sp.Expr], psi_in: Sequence[Any], subs: Mapping[sp.Basic, sp.Expr],
+                        caller: str) -> list[Any]:
+    """Decide Ψ(L_f^i h) = x exactly, state by state (Schwartz-Zippel identity test); refuse naming the residual."""
+    verdicts = []
+    for j, e in enumerate(psi):
+        v = decide_identity(e.xreplace(subs), system.x[j], seed=j)
+        if v.fails:
+            res = sp.simplify(e.xreplace(subs) - system.x[j])
+            raise PreconditionError(f"{caller}: psi[{system.states[j]}] = {psi_in[j]} does not recover {system.states[j]} from the "
+                                    f"output derivatives: with D{{i}}_y = L_f^i h it leaves {res}{v.where()} (inputs held "
+                                    "constant). Check Ψ against the model.")
+        verdicts.append(v)
+    return verdicts
+
+
 def _lie_derivatives(system: System, k: int, count: int) -> list[sp.Expr]:
     """y_k, ẏ_k, ..., along f with the inputs held constant (explicit t included)."""
     f, h = system.substituted()
@@ -533,7 +593,8 @@ def _lie_derivatives(system: System, k: int, count: int) -> list[sp.Expr]:
 
 @kind('high_gain_derivatives', summary='high-gain observer of the output derivatives (Khalil-Esfandiari), x̂ computed from them',
       references=(work("004", "Table I (HGO with linear dynamics)"),), tune=tune_high_gain_derivatives)
-def design_high_gain_derivatives(system: System, *, xhat: Mapping[str, ExprLike] | Sequence[ExprLike],
+@renamed(xhat="psi")
+def design_high_gain_derivatives(system: System, *, psi: Mapping[str, ExprLike] | Sequence[ExprLike],
                                  r: float | None = None, theta: float | None = None,
                                  orders: Mapping[str, int] | Sequence[int] | None = None, alpha: Any = None,
                                  nominal: Mapping[str, ExprLike] | None = None,
@@ -561,7 +622,7 @@ def design_high_gain_derivatives(system: System, *, xhat: Mapping[str, ExprLike]
     Parameters
     ----------
     system : System
-    xhat : mapping of state name to expression, or a sequence in state order
+    psi : mapping of state name to expression, or a sequence in state order
         Ψ, in the inputs, outputs, parameters, ``t`` and the symbols ``D{i}_{output}`` for the
         i-th derivative estimate of an output (``D0_y1`` estimates y1, ``D1_y1`` its derivative).
     r : float, optional
@@ -578,7 +639,7 @@ def design_high_gain_derivatives(system: System, *, xhat: Mapping[str, ExprLike]
     Other Parameters
     ----------------
     nominal : mapping of output name to expression, optional
-        φ0_k, a model of :math:`y_k^{(\rho_k)}` in the same symbols as `xhat` (default 0).
+        φ0_k, a model of :math:`y_k^{(\rho_k)}` in the same symbols as `psi` (default 0).
     saturation : mapping of ``D{i}_{output}`` name to bound, optional
         Clip the derivative estimates where they enter Ψ and φ0 (Khalil's saturation).
     xhat0 : array_like of shape (n,), optional
@@ -602,27 +663,14 @@ def design_high_gain_derivatives(system: System, *, xhat: Mapping[str, ExprLike]
     α1 = α3 = 2, α2 = α4 = 1. (The table prints r1 inside the formula of this observer but lists
     r2 as its parameter; the text assigns r2 = 0.005 to it.)
     """
+    xhat = psi  # Ψ: the state as a function of the output derivatives
     require_system(system, "design_high_gain_derivatives")
     caller = "design_high_gain_derivatives"
     th = _theta(theta, r, caller)
     n, p = system.n_states, system.n_outputs
-    dsyms = {f"D{i}_{yk}": symbol(f"D{i}_{yk}") for yk in system.outputs for i in range(32)}
-    allowed = {k: symbol(k) for k in (*system.inputs, *system.outputs, *system.params)}
-    allowed["t"] = TIME
-    allowed.update(dsyms)
-    if isinstance(xhat, Mapping):
-        unknown = [k for k in xhat if k not in system.states]
-        missing = [k for k in system.states if k not in xhat]
-        if unknown or missing:
-            raise ShapeError(f"{caller}: `xhat` must give one expression per state ({', '.join(system.states)}); "
-                             + (f"unknown {unknown[0]!r}" if unknown else f"missing {', '.join(missing)}"))
-        psi_in = [xhat[s_] for s_ in system.states]
-    else:
-        psi_in = list(xhat)
-        if len(psi_in) != n:
-            raise ShapeError(f"{caller}: `xhat` must have {n} expressions (one per state), got {len(psi_in)}")
-    params = {symbol(k): exact(v) for k, v in system.params.items()}
-    psi = [to_expr(e, allowed, where=f"xhat[{system.states[j]}]").xreplace(params) for j, e in enumerate(psi_in)]
+    dsyms, allowed, params = _derivative_symbols(system)
+    psi_in = _psi_entries(system, xhat, caller)
+    psi = [to_expr(e, allowed, where=f"psi[{system.states[j]}]").xreplace(params) for j, e in enumerate(psi_in)]
     nominal = dict(nominal or {})
     bad = [k for k in nominal if k not in system.outputs]
     if bad:
@@ -655,15 +703,7 @@ def design_high_gain_derivatives(system: System, *, xhat: Mapping[str, ExprLike]
     _, h = system.substituted()
     subs = {dsyms[f"D{i}_{yk}"]: lie[k][i] for k, yk in enumerate(system.outputs) for i in range(rho[k])}
     subs.update({symbol(yk): h[k] for k, yk in enumerate(system.outputs)})
-    verdicts = []
-    for j, e in enumerate(psi):
-        v = decide_identity(e.xreplace(subs), system.x[j], seed=j)
-        if v.fails:
-            res = sp.simplify(e.xreplace(subs) - system.x[j])
-            raise PreconditionError(f"{caller}: xhat[{system.states[j]}] = {psi_in[j]} does not recover {system.states[j]} from the "
-                                    f"output derivatives: with D{{i}}_y = L_f^i h it leaves {res}{v.where()} (inputs held "
-                                    "constant). Check Ψ against the model.")
-        verdicts.append(v)
+    verdicts = _psi_recovers_state(system, psi, psi_in, subs, caller)
     checks = [identity_check("Ψ(y, ẏ, ...) recovers x from the Lie derivatives of h (inputs held constant)", verdicts,
                              [f"state {s_}" for s_ in system.states]),
               Check("α gives Hurwitz injection polynomials", True,

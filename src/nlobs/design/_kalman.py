@@ -22,7 +22,7 @@ from ._checks import check_matrix
 from ._common import box_of, leaves_of, measured_states, require_system, sup_over_box, to_sx
 from ._constructions import find_chains
 from ._high_gain import _theta, triangular_chains
-from ._kind import Tuning, kind
+from ._kind import Tuning, kind, renamed
 from ._tune import CA_on_run, clean_message, region_inputs, square
 
 __all__ = ["design_kalman_like", "design_kalman_bucy", "design_high_gain_kalman", "StateAffineParts", "state_affine_parts"]
@@ -130,9 +130,10 @@ def _riccati_design(method: str, title: str, ref: str, parts: StateAffineParts, 
     """
     system = parts.system
     n, p = parts.A.shape[0], system.n_outputs
-    Wm = check_matrix(W, p, p, "W", caller, definite="positive")
-    Vm = np.zeros((n, n)) if V is None else check_matrix(V, n, n, "V", caller, definite="semidefinite")
-    M0m = np.eye(n) if M0 is None else check_matrix(M0, n, n, "M0", caller, definite="positive")
+    # the papers' W, V, M0 (Besançon (2010)) are the options R, Q, P0
+    Wm = check_matrix(W, p, p, "R", caller, definite="positive")
+    Vm = np.zeros((n, n)) if V is None else check_matrix(V, n, n, "Q", caller, definite="semidefinite")
+    M0m = np.eye(n) if M0 is None else check_matrix(M0, n, n, "P0", caller, definite="positive")
     d = float(delta)
     if not (np.isfinite(d) and d >= 0):
         raise PreconditionError(f"{caller}: the forgetting factor `delta` must be a non-negative number, got {delta}")
@@ -155,7 +156,7 @@ def _riccati_design(method: str, title: str, ref: str, parts: StateAffineParts, 
         values["sup_norm_A"] = normA
     else:
         raise PreconditionError(f"{caller}: neither forgetting nor noise: give δ > 2‖A‖ (`delta`) or V positive definite "
-                                f"(`V`); with δ = 0 and V singular the gain may vanish ({cite('002')}, Kalman observer)")
+                                f"(`Q`); with δ = 0 and Q singular the gain may vanish ({cite('002')}, Kalman observer)")
     # stiffness of the Riccati ODE at t = 0: the correction term MCᵀW⁻¹CM acts at rate ~ λmax(M0)‖C‖²/λmin(W);
     # explicit RK4 needs dt·rate below ~2.8 (reported so a blow-up can be traced to the step size)
     values["riccati_rate0"] = float(np.linalg.eigvalsh(M0m).max() / np.linalg.eigvalsh(Wm).min()) * (lam or 1.0)
@@ -253,15 +254,19 @@ def tune_kalman_like(ctx: Any) -> Tuning:
         return Tuning.fails(why)
     delta = round(float(ctx.omega_p), 6)
     W, M0, note = ctx.riccati_weights(ctx.R_rate, ctx.P0, ctx.Q, constant_C(parts), CA_on_run(ctx, parts.C * parts.A))
-    return Tuning.tuned({"W": square(W), "V": square(ctx.Q), "delta": delta, "M0": square(M0)},
-                    f"state-affine; W = R, V = Q, forgetting δ = ω_p = {delta:.3g}", extra=note)
+    return Tuning.tuned({"R": square(W), "Q": square(ctx.Q), "delta": delta, "P0": square(M0)},
+                    f"state-affine; R and Q from the run (the paper's W and V), forgetting δ = ω_p = {delta:.3g}", extra=note)
 
 
 @kind('kalman_like', summary='Kalman-like observer for a state-affine system, with forgetting δ and/or process noise',
       references=(work("002", "Kalman-like observer for state-affine systems"),), tune=tune_kalman_like)
-def design_kalman_like(model: System | StateAffine, *, W: Any = None, V: Any = None, delta: float = 0.0, M0: Any = None,
+@renamed(model="system", W="R", V="Q", M0="P0")
+def design_kalman_like(system: System | StateAffine, *, R: Any = None, Q: Any = None, delta: float = 0.0, P0: Any = None,
                        region: Mapping[str, Sequence[float]] | None = None, xhat0: Any = None) -> ObserverDesign:
-    r"""Kalman-like observer for a state-affine system (Besançon (2010)), with forgetting δ and/or noise V.
+    r"""Kalman-like observer for a state-affine system (Besançon (2010)), with forgetting δ and/or process noise Q.
+
+    The options are named as for every covariance-based kind: R, Q and P0 are Besançon (2010)'s W, V and M0
+    (the equations below keep the paper's letters).
 
     For :math:`\dot x = A(u, y, t)x + b(u, y, t)`, :math:`y = C(u, t)x`:
 
@@ -283,16 +288,16 @@ def design_kalman_like(model: System | StateAffine, *, W: Any = None, V: Any = N
 
     Parameters
     ----------
-    model : StateAffine or System
+    system : StateAffine or System
         A System is read as state-affine after replacing the measured states by the outputs.
-    W : array_like of shape (p, p)
-        Output weight (measurement noise intensity), positive definite (default identity).
-    V : array_like of shape (n, n), optional
-        State noise intensity, positive semidefinite.
+    R : array_like of shape (p, p)
+        Output weight W (measurement noise intensity), positive definite (default identity).
+    Q : array_like of shape (n, n), optional
+        State noise intensity V, positive semidefinite.
     delta : float
         Forgetting factor δ ≥ 0.
-    M0 : array_like of shape (n, n), optional
-        Initial M, positive definite (identity).
+    P0 : array_like of shape (n, n), optional
+        Initial M, M0, positive definite (identity).
     region : mapping of name to (lo, hi), optional
         Bounds on the inputs, outputs and t that A depends on, to check δ > 2 sup‖A‖ when V is
         not positive definite.
@@ -306,7 +311,7 @@ def design_kalman_like(model: System | StateAffine, *, W: Any = None, V: Any = N
     FormError
         If the model is not state-affine (naming the equation).
     PreconditionError
-        If δ ≤ 2 sup‖A‖ with V not positive definite, or the weights are not (semi)definite.
+        If δ ≤ 2 sup‖A‖ with Q not positive definite, or the weights are not (semi)definite.
 
     References
     ----------
@@ -314,15 +319,16 @@ def design_kalman_like(model: System | StateAffine, *, W: Any = None, V: Any = N
     unknown b and the Van der Pol oscillator with unknown γ, ω² (examples of the slides).
     """
     caller = "design_kalman_like"
-    parts = state_affine_parts(model, caller)
+    parts = state_affine_parts(system, caller)
     p = parts.system.n_outputs
     return _riccati_design("kalman_like", "Kalman-like observer for a state-affine system", REF_LIKE, parts,
-                           V=V, W=np.eye(p) if W is None else W, delta=delta, M0=M0, xhat0=xhat0, region=region, caller=caller)
+                           V=Q, W=np.eye(p) if R is None else R, delta=delta, M0=P0, xhat0=xhat0, region=region, caller=caller)
 
 
 @kind('kalman_bucy', summary='Kalman-Bucy filter for a linear time-varying / state-affine model ẋ = A(u, y, t)x + b, y = C x',
       references=(work("kalman1961"),), tune=tune_kalman_bucy)
-def design_kalman_bucy(model: System | StateAffine, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None) -> ObserverDesign:
+@renamed(model="system")
+def design_kalman_bucy(system: System | StateAffine, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None) -> ObserverDesign:
     r"""Kalman-Bucy filter for a linear time-varying model :math:`\dot x = A(u, t)x + b(u, t)`, :math:`y = C(u, t)x`.
 
     .. math::
@@ -336,7 +342,7 @@ def design_kalman_bucy(model: System | StateAffine, *, Q: Any, R: Any, P0: Any =
 
     Parameters
     ----------
-    model : StateAffine or System
+    system : StateAffine or System
     Q : array_like of shape (n, n)
         Process noise intensity, positive definite (Besançon (2010): V > 0 when δ = 0).
     R : array_like of shape (p, p)
@@ -357,13 +363,12 @@ def design_kalman_bucy(model: System | StateAffine, *, Q: Any, R: Any, P0: Any =
     Besançon (2010), Result [Kalman]; Kalman & Bucy (1961).
     """
     caller = "design_kalman_bucy"
-    parts = state_affine_parts(model, caller)
+    parts = state_affine_parts(system, caller)
     n = parts.system.n_states
     Qm = check_matrix(Q, n, n, "Q", caller, definite="semidefinite")
     if np.linalg.eigvalsh(Qm).min() <= 0:
         raise PreconditionError(f"{caller}: `Q` must be positive definite (smallest eigenvalue {np.linalg.eigvalsh(Qm).min():.3g}); "
                                 "with a singular Q use design_kalman_like with forgetting δ > 2‖A‖")
-    # R and P0 are checked under their own names here (_riccati_design would call them W and M0)
     Rm = check_matrix(R, parts.system.n_outputs, parts.system.n_outputs, "R", caller, definite="positive")
     P0m = None if P0 is None else check_matrix(P0, n, n, "P0", caller, definite="positive")
     return _riccati_design("kalman_bucy", "Kalman-Bucy filter (LTV)", REF_KALMAN, parts, V=Qm, W=Rm, delta=0.0, M0=P0m,
@@ -372,7 +377,8 @@ def design_kalman_bucy(model: System | StateAffine, *, Q: Any, R: Any, P0: Any =
 
 @kind('high_gain_kalman', summary='LTV-based high-gain Kalman observer for ẋ = A₀(u, y)x + φ(x, u), y = x₁',
       references=(work("002", "LTV-based high-gain Kalman observer"),), tune=tune_high_gain_kalman)
-def design_high_gain_kalman(system: System, *, lam: float, delta: float, W: Any = None, M0: Any = None,
+@renamed(W="R", M0="P0")
+def design_high_gain_kalman(system: System, *, lam: float, delta: float, R: Any = None, P0: Any = None,
                             region: Mapping[str, Sequence[float]] | None = None, xhat0: Any = None) -> ObserverDesign:
     r"""LTV-based high-gain Kalman observer (Besançon (2010)) for :math:`\dot x = A_0(u, y)x + \varphi(x, u)`, :math:`y = x_1`.
 
@@ -386,7 +392,8 @@ def design_high_gain_kalman(system: System, *, lam: float, delta: float, W: Any 
 
         \dot M = \lambda[MA^\top + AM - MC^\top W^{-1}CM + \delta M], \qquad K_0 = MC^\top W^{-1},
 
-    with :math:`\delta > 2\|A_0(u, y)\|` and λ large enough; u must be locally regular.
+    with :math:`\delta > 2\|A_0(u, y)\|` and λ large enough; u must be locally regular. The options R and P0 are
+    the paper's W and M(0).
 
     Parameters
     ----------
@@ -396,8 +403,10 @@ def design_high_gain_kalman(system: System, *, lam: float, delta: float, W: Any 
         λ ≥ 1.
     delta : float
         δ > 2 sup‖A0(u, y)‖ over `region` (checked).
-    W : array_like of shape (1, 1), optional
-    M0 : array_like of shape (n, n), optional
+    R : array_like of shape (1, 1), optional
+        The output weight W (identity).
+    P0 : array_like of shape (n, n), optional
+        M(0) (identity).
     region : mapping of name to (lo, hi), optional
         Bounds on the inputs and the output that A0 depends on (needed when A0 is not constant).
 
@@ -441,6 +450,6 @@ def design_high_gain_kalman(system: System, *, lam: float, delta: float, W: Any 
     parts = StateAffineParts(system, A0, sp.zeros(n, 1), C)
     extra = [Check("structure: x_i' = a_i(u, y) x_(i+1) + φ_i(x_1..x_i, u), y = x_1", True)]
     return _riccati_design("high_gain_kalman", f"LTV-based high-gain Kalman observer (λ = {lam_v:g})", REF_HGK, parts,
-                           V=None, W=np.eye(1) if W is None else W, delta=delta, M0=M0, xhat0=xhat0, region=region,
+                           V=None, W=np.eye(1) if R is None else R, delta=delta, M0=P0, xhat0=xhat0, region=region,
                            caller=caller, lam=lam_v, phi=phi, extra_checks=extra,
                            extra_values={"lambda": lam_v, "phi": [str(e) for e in phi]})

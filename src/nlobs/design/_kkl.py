@@ -66,6 +66,34 @@ def _max_degree(n_vars: int, cap: int = 3) -> int:
     return max((d for d in range(1, cap + 1) if math.comb(n_vars + d, d) <= MAX_FEATURES), default=0)
 
 
+def _training_runs(f: ca.Function, h: ca.Function, uv: ca.DM, Lam: np.ndarray, Bm: np.ndarray, box: np.ndarray, *,
+                   dt: float, steps: int, burn: float, count: int, seed: int) -> np.ndarray:
+    """(x, ξ) along `count` runs from random points of `box` (RK4, step `dt`), every 0.05 s after `burn`:
+    shape (frames, n + n_ξ, count); a run that escapes (|s| ≥ 1e8 or not finite) is NaN from then on."""
+    n, n_xi = box.shape[0], Lam.shape[0]
+    s = ca.SX.sym("s", n + n_xi)
+
+    def rhs(t: Any, S: Any, _k: int) -> Any:
+        x, xi = S[:n], S[n:]
+        return ca.vertcat(f(t, x, uv), ca.DM(Lam) @ xi + ca.DM(Bm) @ h(t, x, uv))
+
+    step = ca.Function("kkl_train_step", [s], [rk4_step(rhs, 0.0, s, dt)])   # autonomous: t enters only through f, h
+    rng = np.random.default_rng(seed)
+    x0 = box[:, 0] + (box[:, 1] - box[:, 0]) * rng.random((count, n))
+    S = np.vstack([x0.T, np.zeros((n_xi, count))])
+    stride = max(1, int(round(0.05 / dt)))
+    first = int(np.ceil(burn / dt))
+    batch = step.map(count)
+    frames = []
+    with np.errstate(all="ignore"):
+        for k in range(1, steps + 1):
+            S = np.asarray(batch(S))
+            S[:, ~np.all(np.isfinite(S) & (np.abs(S) < 1e8), axis=0)] = np.nan
+            if k >= first and (k - first) % stride == 0:
+                frames.append(S.copy())
+    return np.stack(frames)
+
+
 # -- automatic tuning for the advisor (the kinds' `tune`; see design/_kind.py) ------------------------------
 def tune_kkl_learned(ctx: Any) -> Tuning:
     if not ctx.region:
@@ -209,28 +237,8 @@ def design_kkl_learned(system: System, *, region: Sequence[Sequence[float]], eig
     Bm = np.kron(np.eye(p), np.ones((n + 1, 1)))
     f, h = compile_system(system).bind()
     uv = ca.DM([u_vals[k] for k in system.inputs])
-    s = ca.SX.sym("s", n + n_xi)
-
-    def rhs(t: Any, S: Any, _k: int) -> Any:
-        x, xi = S[:n], S[n:]
-        return ca.vertcat(f(t, x, uv), ca.DM(Lam) @ xi + ca.DM(Bm) @ h(t, x, uv))
-
-    step = ca.Function("kkl_train_step", [s], [rk4_step(rhs, 0.0, s, dt)])   # autonomous: t enters only through f, h
-    rng = np.random.default_rng(seed)
     N = int(n_trajectories)
-    x0 = box[:, 0] + (box[:, 1] - box[:, 0]) * rng.random((N, n))
-    S = np.vstack([x0.T, np.zeros((n_xi, N))])
-    stride = max(1, int(round(0.05 / dt)))
-    first = int(np.ceil(burn / dt))
-    batch = step.map(N)
-    frames = []
-    with np.errstate(all="ignore"):
-        for k in range(1, steps + 1):
-            S = np.asarray(batch(S))
-            S[:, ~np.all(np.isfinite(S) & (np.abs(S) < 1e8), axis=0)] = np.nan
-            if k >= first and (k - first) % stride == 0:
-                frames.append(S.copy())
-    data = np.stack(frames)                                     # (frames, n + n_xi, N)
+    data = _training_runs(f, h, uv, Lam, Bm, box, dt=dt, steps=steps, burn=burn, count=N, seed=seed)   # (frames, n + n_xi, N)
     alive = np.all(np.isfinite(data), axis=(0, 1))
     dropped = int(N - alive.sum())
     idx = np.flatnonzero(alive)

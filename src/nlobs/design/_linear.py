@@ -14,7 +14,7 @@ from ..references import cite, work
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import observer_gain
 from ._common import require_system
-from ._kind import Tuning, kind
+from ._kind import Tuning, kind, renamed
 from ._tune import clean_message, fmt, poles_for
 
 __all__ = ["design_luenberger", "design_output_injection"]
@@ -116,7 +116,8 @@ def design_luenberger(system: System, *, poles: Any = None, L: Any = None, Q: An
 
 @kind('output_injection', summary='error-linearisation (output-injection) observer for ẋ = Ax + B(u, y, t), y = Cx: a linear error, global convergence',
       references=(work("002", "Result [Error linearization]"),), tune=tune_output_injection)
-def design_output_injection(system: System, *, poles: Any = None, K: Any = None, Q: Any = None, R: Any = None,
+@renamed(K="L")
+def design_output_injection(system: System, *, poles: Any = None, L: Any = None, Q: Any = None, R: Any = None,
                             xhat0: Any = None) -> ObserverDesign:
     r"""Error-linearisation (output-injection) observer for x' = Ax + B(u, y, t), y = Cx.
 
@@ -133,8 +134,8 @@ def design_output_injection(system: System, *, poles: Any = None, K: Any = None,
     system : System
     poles : sequence of complex, optional
         Eigenvalues of A - KC (needs (A, C) observable).
-    K : array_like of shape (n, p), optional
-        The gain, given directly.
+    L : array_like of shape (n, p), optional
+        The gain (K in the equations above), given directly.
     Q, R : array_like, optional
         Weights for an LQE-type gain.
     xhat0 : array_like of shape (n,), optional
@@ -156,7 +157,7 @@ def design_output_injection(system: System, *, poles: Any = None, K: Any = None,
         form = OutputInjectionForm.from_system(system)
     except FormError as e:
         raise PreconditionError(f"{caller}: {e}.") from e
-    gain, checks, values = observer_gain(form.A, form.C, poles=poles, L=K, Q=Q, R=R, caller=caller)
+    gain, checks, values = observer_gain(form.A, form.C, poles=poles, L=L, Q=Q, R=R, caller=caller)
     values = {"K": values.pop("L"), **values, "A": form.A, "C": form.C,
               "B(u, y, t)": "[" + ", ".join(str(b) for b in form.B) + "]"}
     n = system.n_states

@@ -18,7 +18,7 @@ from ..references import cite, work
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import check_matrix
 from ._common import batch, box_of, require_system, sup_over_box
-from ._kind import Tuning, kind
+from ._kind import Tuning, kind, renamed
 from ._tune import jacobians_on_run, region_inputs, region_states, rounded
 
 __all__ = ["design_lipschitz", "lipschitz_constant", "thau_margin", "thau_gain_search"]
@@ -194,8 +194,9 @@ def _thau_precheck(ctx: Any, A: np.ndarray, J: sp.Matrix) -> str:
 
 @kind('lipschitz', summary="Thau's observer for a Lipschitz nonlinearity, with a Riccati-based gain search",
       references=(work("thau1973"), work("002", "LTI + Lipschitz NL")), tune=tune_lipschitz)
-def design_lipschitz(system: System, *, gamma: float | None = None, region: Mapping[str, Sequence[float]] | None = None,
-                     A: Any = None, K: Any = None, xhat0: Any = None) -> ObserverDesign:
+@renamed(gamma="lipschitz", K="L")
+def design_lipschitz(system: System, *, lipschitz: float | None = None, region: Mapping[str, Sequence[float]] | None = None,
+                     A: Any = None, L: Any = None, xhat0: Any = None) -> ObserverDesign:
     r"""Thau's observer for a Lipschitz nonlinearity, with a Riccati-based gain search (Besançon (2010)).
 
     For :math:`\dot x = Ax + \varphi(x, u)`, :math:`y = Cx`, with
@@ -221,16 +222,16 @@ def design_lipschitz(system: System, *, gamma: float | None = None, region: Mapp
     ----------
     system : System
         y = Cx must be linear with constant coefficients.
-    gamma : float, optional
-        Lipschitz constant of φ in x (uniform in u). If omitted it is estimated over `region`
+    lipschitz : float, optional
+        The Lipschitz constant γ of φ in x (uniform in u). If omitted it is estimated over `region`
         by :func:`lipschitz_constant`.
     region : mapping of name to (lo, hi), optional
         Box of states and inputs for the estimate of γ (the guarantee then holds while the
         state and the estimate stay in it).
     A : array_like of shape (n, n), optional
         The linear part; default the Jacobian of f at x = 0, u = 0 (t = 0). φ = f - Ax.
-    K : array_like of shape (n, p), optional
-        Use this gain instead of searching (it is checked).
+    L : array_like of shape (n, p), optional
+        Use this gain (the paper's K) instead of searching (it is checked).
 
     Other Parameters
     ----------------
@@ -252,6 +253,7 @@ def design_lipschitz(system: System, *, gamma: float | None = None, region: Mapp
     ----------
     Besançon (2010), "LTI + Lipschitz NL", "First idea" (Thau (1973)).
     """
+    gamma, K = lipschitz, L  # Besançon (2010)'s γ and K
     require_system(system, "design_lipschitz")
     caller = "design_lipschitz"
     n, p = system.n_states, system.n_outputs
@@ -281,7 +283,7 @@ def design_lipschitz(system: System, *, gamma: float | None = None, region: Mapp
     values: dict[str, Any] = {"A": Am, "C": C, "phi": [str(e) for e in phi]}
     if gamma is None:
         if region is None:
-            raise PreconditionError(f"{caller}: give the Lipschitz constant `gamma` of φ = f - Ax, or a `region` (box of "
+            raise PreconditionError(f"{caller}: give the Lipschitz constant `lipschitz` of φ = f - Ax, or a `region` (box of "
                                     "states and inputs) to estimate it over")
         gam, where = lipschitz_constant(system, phi, region, caller=caller)
         checks.append(Check("γ estimated over the region (sup of ‖∂φ/∂x‖₂; valid while x and x̂ stay in it)", True,
@@ -293,15 +295,15 @@ def design_lipschitz(system: System, *, gamma: float | None = None, region: Mapp
     else:
         gam = float(gamma)
         if not (np.isfinite(gam) and gam >= 0):
-            raise PreconditionError(f"{caller}: `gamma` must be a non-negative number, got {gamma}")
+            raise PreconditionError(f"{caller}: `lipschitz` must be a non-negative number, got {gamma}")
         checks.append(Check.assumed(f"φ = f - Ax is Lipschitz with the γ = {gam:g} given", "stated by the user; not verified"))
         gamma_kind = "with the γ given"
     if K is not None:
-        Km = check_matrix(K, n, p, "K", caller)
+        Km = check_matrix(K, n, p, "L", caller)
         margin, P = thau_margin(Am, C, Km)
         if margin == 0.0:
             ev = np.linalg.eigvals(Am - Km @ C)
-            raise PreconditionError(f"{caller}: the given K does not make A - KC Hurwitz (eigenvalue "
+            raise PreconditionError(f"{caller}: the given L does not make A - LC Hurwitz (eigenvalue "
                                     f"{complex(ev[np.argmax(ev.real)]):.4g}); choose another K or omit it to search")
         how = "given gain"
     else:

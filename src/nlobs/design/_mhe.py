@@ -34,7 +34,7 @@ from ..errors import EngineError, PreconditionError, SolverError
 from ..model import System
 from ..references import cite, work
 from ._base import Certificate, Check, ObserverDesign, check_vector
-from ._bounds import Box, bounds_check, check_start, clip, clip_const, parse_bounds
+from ._bounds import bounds_check, check_start, clip, clip_const, parse_bounds
 from ._checks import check_matrix
 from ._common import require_system
 from ._kind import Tuning, kind
@@ -107,6 +107,34 @@ class _Layout:
     def part(self, z: Any, key: str) -> Any:
         sl = self.off[key]
         return z[sl.start:sl.stop] if sl.stop > sl.start else type(z)(0, 1)
+
+
+def _check_options(horizon: Any, substeps: Any, max_iter: Any, tol: Any, arrival: Any, solver: Any, caller: str) -> int:
+    """The window length N after checking the solver options (one message per option, naming it)."""
+    N = int(horizon) if isinstance(horizon, (int, np.integer)) else -1
+    if N < 1:
+        raise PreconditionError(f"{caller}: `horizon` must be a positive whole number of sample intervals, got {horizon!r}")
+    if not isinstance(substeps, (int, np.integer)) or substeps < 1 or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
+        raise PreconditionError(f"{caller}: `substeps` and `max_iter` must be positive integers, got {substeps!r} and {max_iter!r}")
+    if not (isinstance(tol, (int, float)) and 0 < tol < 1):
+        raise PreconditionError(f"{caller}: `tol` must be a number in (0, 1), got {tol!r}")
+    if arrival not in ("ekf", "fixed"):
+        raise PreconditionError(f"{caller}: `arrival` must be 'ekf' or 'fixed', got {arrival!r}")
+    if solver not in ("sqp", "ipopt"):
+        raise PreconditionError(f"{caller}: `solver` must be 'sqp' or 'ipopt', got {solver!r}")
+    return N
+
+
+def _z_names(system: System, N: int, r: int) -> list[str]:
+    """Names of the estimator's internal state: x̂, the window's t, u, y, mask, shooting states, noises, multipliers,
+    the arrival cost's x̄ and P, and two counters (in the order of :class:`_Layout`)."""
+    n, nu, p = system.n_states, system.n_inputs, system.n_outputs
+    return ([f"xhat_{v}" for v in system.states] + [f"t_{i}" for i in range(N + 1)]
+            + [f"u{j}_{i}" for i in range(N + 1) for j in range(nu)] + [f"y{j}_{i}" for i in range(N + 1) for j in range(p)]
+            + [f"m{j}_{i}" for i in range(N + 1) for j in range(p)] + [f"X_{v}_{i}" for i in range(N + 1) for v in system.states]
+            + [f"v{j}_{i}" for i in range(N) for j in range(r)] + [f"lam_{v}_{i}" for i in range(N) for v in system.states]
+            + [f"xbar_{v}" for v in system.states] + [f"P_{i}_{j}" for j in range(n) for i in range(n)]
+            + ["window_count", "solver_fallbacks"])
 
 
 def _sqrt_psd(Q: np.ndarray) -> np.ndarray:
@@ -221,17 +249,7 @@ def design_mhe(system: System, *, horizon: int = 20, R: Any = None, Q: Any = Non
     require_system(system, "design_mhe")
     caller = "design_mhe"
     n, p, nu = system.n_states, system.n_outputs, system.n_inputs
-    N = int(horizon) if isinstance(horizon, (int, np.integer)) else -1
-    if N < 1:
-        raise PreconditionError(f"{caller}: `horizon` must be a positive whole number of sample intervals, got {horizon!r}")
-    if not isinstance(substeps, (int, np.integer)) or substeps < 1 or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
-        raise PreconditionError(f"{caller}: `substeps` and `max_iter` must be positive integers, got {substeps!r} and {max_iter!r}")
-    if not (isinstance(tol, (int, float)) and 0 < tol < 1):
-        raise PreconditionError(f"{caller}: `tol` must be a number in (0, 1), got {tol!r}")
-    if arrival not in ("ekf", "fixed"):
-        raise PreconditionError(f"{caller}: `arrival` must be 'ekf' or 'fixed', got {arrival!r}")
-    if solver not in ("sqp", "ipopt"):
-        raise PreconditionError(f"{caller}: `solver` must be 'sqp' or 'ipopt', got {solver!r}")
+    N = _check_options(horizon, substeps, max_iter, tol, arrival, solver, caller)
     if p == 0:
         raise PreconditionError(f"{caller}: the model {system.name!r} has no outputs; MHE fits the outputs")
     Rm = np.eye(p) if R is None else check_matrix(R, p, p, "R", caller, definite="positive")
@@ -283,12 +301,7 @@ def design_mhe(system: System, *, horizon: int = 20, R: Any = None, Q: Any = Non
                            else "no C compiler: CasADi virtual machine")}
     cert = Certificate(f"Moving-horizon estimator (window of {N} intervals, multiple shooting, "
                        f"{'SQP with IPOPT fallback' if solver == 'sqp' else 'IPOPT'})", REF, tuple(checks), values)
-    z_names = ([f"xhat_{v}" for v in system.states] + [f"t_{i}" for i in range(N + 1)]
-               + [f"u{j}_{i}" for i in range(N + 1) for j in range(nu)] + [f"y{j}_{i}" for i in range(N + 1) for j in range(p)]
-               + [f"m{j}_{i}" for i in range(N + 1) for j in range(p)] + [f"X_{v}_{i}" for i in range(N + 1) for v in system.states]
-               + [f"v{j}_{i}" for i in range(N) for j in range(r)] + [f"lam_{v}_{i}" for i in range(N) for v in system.states]
-               + [f"xbar_{v}" for v in system.states] + [f"P_{i}_{j}" for j in range(n) for i in range(n)]
-               + ["window_count", "solver_fallbacks"])
+    z_names = _z_names(system, N, r)
     ins, names = [t, z, u, y], ["t", "z", "u", "y"]
     return ObserverDesign(
         "mhe", system, tuple(z_names),
@@ -304,6 +317,33 @@ def _solvers(system: System, N: int, r: int, substeps: int, max_iter: int, tol: 
     if hit is None:
         hit = _CACHE[key] = _build(system, N, r, substeps, max_iter, tol, lay)
     return hit
+
+
+def _arrival_core(tag: str, hx: ca.SX, xs: ca.SX, ys: ca.SX, ms: ca.SX, us: ca.SX, ts: ca.SX, ps: ca.SX, los: ca.SX,
+                  his: ca.SX, r: int) -> ca.Function:
+    """The arrival cost's EKF step (SX): measurement update of (x̄, P) at the leaving node, linearised at the MHE
+    solution xl there (Joseph form; masked outputs left out), then the prediction x̄⁺ = F(xl) + A(x̄ − xl),
+    P⁺ = APAᵀ + dt·LqLqᵀ with the interval map F and its Jacobian A given as inputs."""
+    n, p = xs.shape[0], ys.shape[0]
+    xbar, xl, Rs = ca.SX.sym("xbar", n), ca.SX.sym("xl", n), ca.SX.sym("R", p, p)
+    P = ca.SX.sym("P", n, n)
+    Al, Fl, dts, Lqs = ca.SX.sym("A", n, n), ca.SX.sym("Fl", n), ca.SX.sym("dt"), ca.SX.sym("Lq", n, r)
+    Psym = (P + P.T) / 2
+    H = ca.jacobian(hx, xs)
+    hl, Hl = ca.substitute([hx, H], [xs], [xl])
+    Md = ca.diag(ms)
+    Hm = Md @ Hl
+    Rmask = Md @ Rs @ Md + ca.diag(1 - ms)
+    S = Hm @ Psym @ Hm.T + Rmask
+    K = ca.solve((S + S.T) / 2, Hm @ Psym).T
+    e = ms * (ys - hl - Hl @ (xbar - xl))
+    xf = xbar + K @ e
+    IKH = ca.DM.eye(n) - K @ Hm
+    Pf = IKH @ Psym @ IKH.T + K @ Rmask @ K.T
+    xn = clip(Fl + Al @ (xf - xl), los, his)
+    Pn = Al @ Pf @ Al.T + dts * (Lqs @ Lqs.T)
+    return ca.Function(f"{tag}_arrival_core", [xbar, P, xl, Fl, Al, ys, ms, us, ts, dts, Lqs, Rs, ps, los, his],
+                       [xn, (Pn + Pn.T) / 2])
 
 
 def _build(system: System, N: int, r: int, substeps: int, max_iter: int, tol: float, lay: _Layout) -> _Solvers:
@@ -333,25 +373,7 @@ def _build(system: System, N: int, r: int, substeps: int, max_iter: int, tol: fl
     residual = ca.Function(f"{tag}_residual", [xs, ts, us, ys, ms, Ris, ps, los, his], [Ris @ (ms * (ys - hx))])
     # arrival: EKF measurement update of (xbar, P) at the leaving node, then prediction to the next node,
     # both linearised at the MHE solution xl of the leaving node (Joseph form; masked outputs left out)
-    xbar, xl, Rs = ca.SX.sym("xbar", n), ca.SX.sym("xl", n), ca.SX.sym("R", p, p)
-    P = ca.SX.sym("P", n, n)
-    Al, Fl, dts, Lqs = ca.SX.sym("A", n, n), ca.SX.sym("Fl", n), ca.SX.sym("dt"), ca.SX.sym("Lq", n, r)
-    Psym = (P + P.T) / 2
-    H = ca.jacobian(hx, xs)
-    hl, Hl = ca.substitute([hx, H], [xs], [xl])
-    Md = ca.diag(ms)
-    Hm = Md @ Hl
-    Rmask = Md @ Rs @ Md + ca.diag(1 - ms)
-    S = Hm @ Psym @ Hm.T + Rmask
-    K = ca.solve((S + S.T) / 2, Hm @ Psym).T
-    e = ms * (ys - hl - Hl @ (xbar - xl))
-    xf = xbar + K @ e
-    IKH = ca.DM.eye(n) - K @ Hm
-    Pf = IKH @ Psym @ IKH.T + K @ Rmask @ K.T
-    xn = clip(Fl + Al @ (xf - xl), los, his)
-    Pn = Al @ Pf @ Al.T + dts * (Lqs @ Lqs.T)
-    ekf_core = ca.Function(f"{tag}_arrival_core", [xbar, P, xl, Fl, Al, ys, ms, us, ts, dts, Lqs, Rs, ps, los, his],
-                           [xn, (Pn + Pn.T) / 2])
+    ekf_core = _arrival_core(tag, hx, xs, ys, ms, us, ts, ps, los, his, r)
     # the interval map and its Jacobian at the leaving node (MX)
     xbar_m, P_m, xl_m, y_m, m_m, R_m = (ca.MX.sym(nm, *sh) for nm, sh in
                                         (("xbar", (n, 1)), ("P", (n, n)), ("xl", (n, 1)), ("y", (p, 1)), ("m", (p, 1)), ("R", (p, p))))

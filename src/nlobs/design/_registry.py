@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import types
 import typing
+import warnings
 from collections import OrderedDict
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
@@ -178,6 +179,13 @@ def design_from_config(system: System | ObserverConfig, kind: str | None = None,
         raise ModelError(f"{prefix}unknown observer kind {shorten(kind, 40)}; available: {', '.join(sorted(KINDS))}")
     fn = KINDS[kind].design
     allowed = options_of(fn)
+    old_names = {k: v for k, v in KINDS[kind].renamed.items() if k in options and v in allowed}
+    for old, new in old_names.items():   # an option renamed in this release: accepted with a warning naming the new one
+        if new in options:
+            raise ModelError(f"{prefix}give `{new}` only (`{old}` is its old name)")
+        warnings.warn(f"{prefix}option `{old}` of kind {kind!r} is renamed `{new}`; the old name is accepted until the next "
+                      "release", DeprecationWarning, stacklevel=2)
+    options = {old_names.get(k, k): v for k, v in options.items()}
     unknown = [k for k in options if k not in allowed]
     if unknown:
         raise ModelError(f"{prefix}unknown option `{shorten(unknown[0], 40)[1:-1]}` for kind {kind!r}; "

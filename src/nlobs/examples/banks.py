@@ -61,7 +61,7 @@ def run() -> ExampleResult:
     for label, model, P, region, pert, x0, xhat0, T in cases:
         for perturbed in (False, True):
             sysm = model(perturbed)
-            d = design_banks(sysm, P=P, region=region, perturbation=pert if perturbed else None,
+            d = design_banks(sysm, L=P, region=region, perturbation=pert if perturbed else None,
                              perturbation_bound=0.5 if perturbed else None)
             v = d.certificate.values
             evidence.append(f"Example {label}{' perturbed' if perturbed else ''}:\n{d.certificate}")

@@ -31,7 +31,7 @@ KL_DELTA, KL_V = 1.0, 0.01          # Kalman-like tuning (002 gives none): forge
 
 def kalman_like(sa: StateAffine, *, delta: float = KL_DELTA, V: float = KL_V) -> ObserverDesign:
     """The Kalman-like observer of Besançon (2010), (nlobs.design.design_kalman_like) with V = `V`·I, forgetting δ."""
-    return design_kalman_like(sa, delta=delta, V=V * np.eye(sa.n_states))
+    return design_kalman_like(sa, delta=delta, Q=V * np.eye(sa.n_states))
 
 
 def model() -> StateAffine:

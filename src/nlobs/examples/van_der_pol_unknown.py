@@ -40,7 +40,7 @@ def run() -> ExampleResult:
     system = mf.system
     cfg = mf.observers["kalman_like"]
     forgetting = design_from_config(system, cfg.kind, cfg.options)
-    noise_type = design_kalman_like(system, V=1e-2 * np.eye(4), W=[[1e-3]])
+    noise_type = design_kalman_like(system, Q=1e-2 * np.eye(4), R=[[1e-3]])
     obs = {"Kalman-like (δ = 6)": forgetting, "Kalman-like (V > 0)": noise_type}
     x0 = list(mf.simulation.x0)
     xhat0 = list(cfg.options["xhat0"])

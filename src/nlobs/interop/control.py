@@ -357,7 +357,7 @@ def to_control(observer: Any, *, plant: Any = None, dt: float | None = None, max
 
     def dupdfcn(t: float, z: Any, v: Any, params: Any) -> np.ndarray:
         zp, u, y = posterior(t, z, v)
-        return obs.step(zp, t, T, u, y, substeps=n_sub)
+        return obs.step(t, zp, T, u, y, substeps=n_sub)
 
     def doutfcn(t: float, z: Any, v: Any, params: Any) -> np.ndarray:
         zp, u, y = posterior(t, z, v)

@@ -23,6 +23,7 @@ from ..engine import compile_system, raise_deferred, rk4_step
 from ..engine._batch import evaluate_one
 from ..errors import DataError, FiniteEscapeError, ShapeError
 from ._compiled import CompiledObserver, compiled_observer
+from ._signals import signals_by_keyword, time_first
 
 __all__ = ["AbstractObserver", "Observer", "OnlineObserver"]
 
@@ -55,7 +56,7 @@ class AbstractObserver(ABC):
         """z⁺ at a sample instant (identity for continuous observers)."""
 
     @abstractmethod
-    def step(self, z: Any, t: float, dt: float, u: Any, y: Any, *, substeps: int = 1) -> np.ndarray:
+    def step(self, t: float, z: Any, dt: float, u: Any, y: Any, *, substeps: int = 1) -> np.ndarray:
         """Integrate the flow from t to t + dt with u and y held (RK4, `substeps` steps)."""
 
     @property
@@ -133,7 +134,9 @@ class Observer(AbstractObserver):
             fn = self._step_fns[substeps] = ca.Function(f"{d.method}_step", [z, t, dt, u, y], [zk])
         return fn
 
-    def step(self, z: Any, t: float, dt: float, u: Any = None, y: Any = None, *, substeps: int = 1) -> np.ndarray:
+    def step(self, t: float, z: Any, dt: float, u: Any = None, y: Any = None, *, substeps: int = 1) -> np.ndarray:
+        """z at t + dt from z at t, with u and y held (RK4, `substeps` steps)."""
+        t, z = time_first("Observer.step", t, z)
         if substeps < 1:
             raise ValueError(f"`substeps` must be at least 1, got {substeps}")
         s = self.system
@@ -151,7 +154,7 @@ class Observer(AbstractObserver):
         --------
         >>> fast = Observer(design_ekf(model, Q=Q, R=R)).compiled()        # doctest: +SKIP
         >>> for rec in recordings:                                        # doctest: +SKIP
-        ...     traj = fast.run(rec.t, rec.y, rec.u)                      # doctest: +SKIP
+        ...     traj = fast.run(rec.t, u=rec.u, y=rec.y)                      # doctest: +SKIP
         """
         return compiled_observer(self._design, hold)
 
@@ -198,8 +201,9 @@ class OnlineObserver:
         t = 0.0 if self.t is None else self.t
         return self.observer.estimate(t, self.z, self._u, self._y)
 
-    def update(self, t: float, y: Any, u: Any = None) -> np.ndarray:
-        """Feed the measurement `y` taken at time `t` (and the input applied from `t` on)."""
+    def update(self, t: float, *args: Any, u: Any = None, y: Any = None) -> np.ndarray:
+        """Feed the measurement `y` taken at time `t` (and the input `u` applied from `t` on): ``update(t, u=..., y=...)``."""
+        u, y = signals_by_keyword("OnlineObserver.update", args, u, y)
         obs, sys_ = self.observer, self.observer.system
         y = _vec(y, sys_.n_outputs, "y")
         u = _vec(u, sys_.n_inputs, "u")
@@ -218,7 +222,7 @@ class OnlineObserver:
                                 f"t = {self.t:g}" + (" (the same time again: a second update would count the measurement twice)"
                                                      if dt == 0 else "") + "; give each sample once, in time order")
             n = 1 if not self.max_step else max(1, int(np.ceil(dt / self.max_step - 1e-9)))
-            z_pred = obs.step(self.z, self.t, dt, self._u, self._y, substeps=n)
+            z_pred = obs.step(self.t, self.z, dt, self._u, self._y, substeps=n)
         else:
             z_pred = self.z
         mask = np.isfinite(y)

@@ -26,6 +26,7 @@ from ..engine._integrate import rk4_step_rate
 from ..engine._intervals import MAX_SUBSTEPS, IntervalRunner
 from .._progress import as_progress
 from ..errors import DataError, FiniteEscapeError, ShapeError
+from ._signals import signals_by_keyword
 
 __all__ = ["CompiledObserver", "ObserverTrajectory", "compiled_observer"]
 
@@ -169,14 +170,14 @@ class CompiledObserver:
         return r
 
     # -- running --------------------------------------------------------------------------------
-    def run(self, t: Any, y: Any, u: Any = None, *, mask: Any = None, z0: Any = None, xhat0: Any = None,
+    def run(self, t: Any, *args: Any, u: Any = None, y: Any = None, mask: Any = None, z0: Any = None, xhat0: Any = None,
             max_step: float | None = None, engine: Backend = "auto", name: str | None = None,
             progress: bool | Callable[[float], None] | None = None) -> ObserverTrajectory:
-        """Run the observer on samples: times `t` (N,), outputs `y` (N, p), inputs `u` (N, m).
+        """Run the observer on samples: times `t` (N,), inputs `u` (N, m), outputs `y` (N, p): ``run(t, u=..., y=...)``.
 
         Parameters
         ----------
-        t, y, u : array_like
+        t, u, y : array_like
             Strictly increasing sample times and the signals at them (no NaN: give `mask`).
         mask : array_like of shape (N, p), optional
             1 where an output was measured, 0 where missing (its value in `y` is then ignored).
@@ -200,6 +201,7 @@ class CompiledObserver:
         DataError
             When an interval (a gap in the recording) would need more than 10⁸ RK4 steps.
         """
+        u, y = signals_by_keyword("CompiledObserver.run", args, u, y)
         label = f"observer {name or self.design.method!r}"
         t = np.ascontiguousarray(t, dtype=float).reshape(-1)
         N = t.size

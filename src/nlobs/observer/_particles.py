@@ -16,6 +16,7 @@ import numpy as np
 
 from ..design._pf import ParticleDesign, square_roots
 from ._base import AbstractObserver
+from ._signals import signals_by_keyword
 from ..engine._codegen import _build, _generate, _renamed, built_path, signature_of
 from ..errors import DataError, FiniteEscapeError, ShapeError
 
@@ -383,9 +384,10 @@ class ParticleRunner:
         self._lib.nlobs_normals(int(seed), int(n), out.ctypes.data_as(ctypes.POINTER(ctypes.c_double)))
         return out
 
-    def run(self, t: Any, y: Any, u: Any = None, *, mask: Any = None, xhat0: Any = None, seed: int | None = None,
-            particles: int | None = None, name: str | None = None) -> ParticleRun:
-        """Run the filter on samples: times `t` (N,), outputs `y` (N, p), inputs `u` (N, m), held between samples.
+    def run(self, t: Any, *args: Any, u: Any = None, y: Any = None, mask: Any = None, xhat0: Any = None,
+            seed: int | None = None, particles: int | None = None, name: str | None = None) -> ParticleRun:
+        """Run the filter on samples: times `t` (N,), inputs `u` (N, m) and outputs `y` (N, p), held between samples:
+        ``run(t, u=..., y=...)``.
 
         `mask` (N, p) marks measured outputs (1) and missing ones (0); `xhat0`, `seed` and `particles`
         override the design's.
@@ -396,6 +398,7 @@ class ParticleRunner:
             When every particle's likelihood vanishes at a sample (the particles missed the measurement:
             more particles, a larger Q or R, or a better x̂0).
         """
+        u, y = signals_by_keyword("ParticleRunner.run", args, u, y)
         d = self.design
         label = f"observer {name or d.method!r}"
         t = np.ascontiguousarray(t, dtype=float).reshape(-1)
@@ -487,7 +490,7 @@ class ParticleObserver(AbstractObserver):
 
     def _refuse(self, what: str) -> Any:
         raise TypeError(f"{what}: a particle filter ({self.name!r}) runs on a whole recording, not step by step; use "
-                        "nlobs.simulate, nlobs.estimate, or nlobs.observer.particle_runner(design).run(t, y, u)")
+                        "nlobs.simulate, nlobs.estimate, or nlobs.observer.particle_runner(design).run(t, u=u, y=y)")
 
     def rhs(self, t: float, z: Any, u: Any = None, y: Any = None) -> np.ndarray:
         return self._refuse("rhs")
@@ -498,7 +501,7 @@ class ParticleObserver(AbstractObserver):
     def update(self, t: float, z: Any, u: Any = None, y: Any = None, mask: Any = None) -> np.ndarray:
         return self._refuse("update")
 
-    def step(self, z: Any, t: float, dt: float, u: Any, y: Any, *, substeps: int = 1) -> np.ndarray:
+    def step(self, t: float, z: Any, dt: float, u: Any, y: Any, *, substeps: int = 1) -> np.ndarray:
         return self._refuse("step")
 
     def start(self, xhat0: Any = None, *, max_step: float | None = None) -> Any:
@@ -514,7 +517,7 @@ class ParticleObserver(AbstractObserver):
     def trace_on(self, t: np.ndarray, y: np.ndarray, u: np.ndarray, *, mask: Any = None, xhat0: Any = None,
                  name: str | None = None) -> tuple[ParticleRun, np.ndarray]:
         """Run on samples and return the run and the output predicted before each sample, h(x̂⁻)."""
-        run = particle_runner(self._design).run(t, y, u, mask=mask, xhat0=xhat0, name=name or self.name)
+        run = particle_runner(self._design).run(t, u=u, y=y, mask=mask, xhat0=xhat0, name=name or self.name)
         N = run.t.size
         uu = np.zeros((N, self.system.n_inputs)) if u is None else np.asarray(u, dtype=float).reshape(N, -1)
         yp = np.asarray(self._design.meas.map(N)(run.xhat_prior.T, run.t[None, :], uu.T), dtype=float).T

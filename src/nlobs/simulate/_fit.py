@@ -238,20 +238,7 @@ def fit_parameters(
         raise ModelError(f"fit_parameters: `x0` must be {n} finite numbers ({', '.join(system.states)}), got {x0.tolist()}")
     names = tuple(params) + tuple(f"{s}(t0)" for s in fit_x0)
     theta0 = np.array([system.params[p] for p in params] + [x0[system.states.index(s)] for s in fit_x0], dtype=float)
-    for k, v in (initial or {}).items():
-        if k not in names:
-            raise ModelError(f"fit_parameters: `initial` names {k!r}, which is not an unknown ({', '.join(names)})")
-        theta0[names.index(k)] = float(v)
-    lo, hi = np.full(len(names), -np.inf), np.full(len(names), np.inf)
-    for k, (a, b) in (bounds or {}).items():
-        if k not in names:
-            raise ModelError(f"fit_parameters: `bounds` names {k!r}, which is not an unknown ({', '.join(names)})")
-        lo[names.index(k)] = -np.inf if a is None else float(a)
-        hi[names.index(k)] = np.inf if b is None else float(b)
-    if np.any(lo >= hi) or np.any(theta0 < lo) or np.any(theta0 > hi):
-        k = int(np.flatnonzero((lo >= hi) | (theta0 < lo) | (theta0 > hi))[0])
-        raise ModelError(f"fit_parameters: the initial guess {names[k]} = {theta0[k]:g} is not inside its bounds "
-                         f"[{lo[k]:g}, {hi[k]:g}]")
+    theta0, lo, hi = _start_and_bounds(names, theta0, initial, bounds)
 
     t, u, y = recording.t, recording.u, recording.y
     dts = np.diff(t)
@@ -290,11 +277,7 @@ def fit_parameters(
         Jj = Ju[meas[:, j], j, :]
         if sigma2[j] > 0:
             F += Jj.T @ Jj / sigma2[j]
-    scale = np.maximum(np.abs(theta), 1e-12)
-    Jw = np.asarray(sol.jac) * scale
-    _, svals, vt = np.linalg.svd(Jw, full_matrices=False)
-    tolerance = max(Jw.shape) * np.finfo(float).eps * 1e3 * (svals[0] if svals.size else 0.0)
-    weak = [_direction(names, v) for s_, v in zip(svals, vt) if s_ <= tolerance]
+    svals, weak = _weak_directions(names, np.asarray(sol.jac), theta)
     try:
         cov = np.linalg.inv(F) if not weak else np.full((q, q), np.nan)
     except np.linalg.LinAlgError:
@@ -308,6 +291,35 @@ def fit_parameters(
     return FitResult(names, theta, std, cov, theta0, fitted, x0_fit, t, y, y_fit, tuple(system.outputs), rmse,
                      bool(sol.success), str(sol.message), int(sol.nfev), svals, tuple(weak), change, n_sub,
                      info={"source": recording.source, "hold": hold, "max_step": max_step, "weights": weights.tolist()})
+
+
+def _start_and_bounds(names: Sequence[str], theta0: np.ndarray, initial: Mapping[str, float] | None,
+                      bounds: Mapping[str, Sequence[float | None]] | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The initial guess (the model's values, overridden by `initial`) and the bounds of the unknowns, checked."""
+    theta0 = theta0.copy()
+    for k, v in (initial or {}).items():
+        if k not in names:
+            raise ModelError(f"fit_parameters: `initial` names {k!r}, which is not an unknown ({', '.join(names)})")
+        theta0[names.index(k)] = float(v)
+    lo, hi = np.full(len(names), -np.inf), np.full(len(names), np.inf)
+    for k, (a, b) in (bounds or {}).items():
+        if k not in names:
+            raise ModelError(f"fit_parameters: `bounds` names {k!r}, which is not an unknown ({', '.join(names)})")
+        lo[names.index(k)] = -np.inf if a is None else float(a)
+        hi[names.index(k)] = np.inf if b is None else float(b)
+    if np.any(lo >= hi) or np.any(theta0 < lo) or np.any(theta0 > hi):
+        k = int(np.flatnonzero((lo >= hi) | (theta0 < lo) | (theta0 > hi))[0])
+        raise ModelError(f"fit_parameters: the initial guess {names[k]} = {theta0[k]:g} is not inside its bounds "
+                         f"[{lo[k]:g}, {hi[k]:g}]")
+    return theta0, lo, hi
+
+
+def _weak_directions(names: Sequence[str], jac: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, list[str]]:
+    """Singular values of the scaled Jacobian of the residuals and the directions along which it is (numerically) zero."""
+    Jw = jac * np.maximum(np.abs(theta), 1e-12)
+    _, svals, vt = np.linalg.svd(Jw, full_matrices=False)
+    tolerance = max(Jw.shape) * np.finfo(float).eps * 1e3 * (svals[0] if svals.size else 0.0)
+    return svals, [_direction(names, v) for s_, v in zip(svals, vt) if s_ <= tolerance]
 
 
 def _pairs(names: Sequence[str], values: np.ndarray) -> str:

@@ -238,7 +238,7 @@ class _Problem:
         # sub-steps: the filter's own rule, run at the initial guess (the most it takes in one interval)
         from ..observer._compiled import compiled_observer
 
-        traj = compiled_observer(d).run(t, y, u, mask=mask, max_step=max_step, engine=engine, name=caller)
+        traj = compiled_observer(d).run(t, u=u, y=y, mask=mask, max_step=max_step, engine=engine, name=caller)
         self.n_sub = max(1, int(traj.substeps.max()))
         if self.n_sub > MAX_SUBSTEPS:
             k = int(np.argmax(traj.substeps))

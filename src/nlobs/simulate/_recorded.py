@@ -324,7 +324,7 @@ def estimate(
                                  "resampled": int(pr.resampled.sum())}
             continue
         try:
-            traj = compiled_observer(o.design, hold).run(t, y0, u, mask=mask, z0=z0, max_step=max_step, engine=engine,
+            traj = compiled_observer(o.design, hold).run(t, u=u, y=y0, mask=mask, z0=z0, max_step=max_step, engine=engine,
                                                          name=name, progress=part)
         except FiniteEscapeError as e:
             if getattr(e, "interval", None) is None:
