@@ -43,8 +43,8 @@ from published_models import MODELS, linear_compartment  # noqa: E402
 ALL = MODELS + [linear_compartment(k, n) for k in ("cycle", "catenary", "mammillary") for n in (3, 4)]
 
 from nlobs.analysis import analyze  # noqa: E402
-from nlobs.analysis._global import _prepare, _var_power  # noqa: E402
-from nlobs.analysis._groebner import GroebnerEngine, available_engines  # noqa: E402
+from nlobs.analysis.structural._global import _prepare, _var_power  # noqa: E402
+from nlobs.algebra._groebner import GroebnerEngine, available_engines  # noqa: E402
 
 
 class _Timeout(Exception):
@@ -122,7 +122,7 @@ def run_one(m, engine: str, part: str = "all") -> dict:
     time limit, so a slow identifiable-function search does not hide the global check's timing).
     """
     from nlobs.analysis import find_identifiable_functions, global_identifiability, multi_experiment
-    from nlobs.analysis._groebner import get_engine
+    from nlobs.algebra._groebner import get_engine
 
     system = m.system()
     row: dict = {"model": m.name, "source": m.source, "case": m.case, "checks": []}
@@ -186,7 +186,7 @@ def _same_field_engine(a, b, names, eng) -> bool:
     import numpy as np
     import sympy as sp
 
-    from nlobs.analysis._identifiable import _fibre_system, _relation
+    from nlobs.analysis.structural._identifiable import _fibre_system, _relation
 
     syms = {n: sp.Symbol(n, real=True) for n in names}
     A = [sp.sympify(e, locals=syms) for e in a]

@@ -123,46 +123,46 @@ EQUIVALENT: dict[str, str] = {
     "nlobs.design._gpebo.x_design_gpebo__mutmut_104": "Regression.names is only checked for its length (θ names are not shown)",
     # analysis/_conditions.py, box_sup (the sampled suprema of 003 Lemma 2.4, Theorem 2.6): conversions of arrays that
     # are already float, the optimiser scipy picks anyway, iteration caps that are never reached
-    "nlobs.analysis._conditions.x_box_sup__mutmut_22": "3^d instead of 2^d corners: the extra indices repeat corners (bits above d unused)",
-    "nlobs.analysis._conditions.x_box_sup__mutmut_43": "the function values are already float arrays",
-    "nlobs.analysis._conditions.x_box_sup__mutmut_45": "the function values are already float arrays",
-    "nlobs.analysis._conditions.x_box_sup__mutmut_85": "maxiter 101 instead of 100: L-BFGS-B converges well before",
-    "nlobs.analysis._conditions.x_box_sup__mutmut_94": "res.x is already a float array",
-    "nlobs.analysis._conditions.x_box_sup__mutmut_96": "res.x is already a float array",
-    "nlobs.analysis._conditions.x_box_sup__mutmut_68": "scipy chooses L-BFGS-B itself for a bounded problem without constraints",
-    "nlobs.analysis._conditions.x_box_sup__mutmut_73": "scipy chooses L-BFGS-B itself for a bounded problem without constraints",
-    "nlobs.analysis._conditions.x_box_sup__mutmut_69": "maxiter default (15000) instead of 100: L-BFGS-B converges well before",
-    "nlobs.analysis._conditions.x_box_sup__mutmut_74": "maxiter default (15000) instead of 100: L-BFGS-B converges well before",
+    "nlobs.analysis.forms._conditions.x_box_sup__mutmut_22": "3^d instead of 2^d corners: the extra indices repeat corners (bits above d unused)",
+    "nlobs.analysis.forms._conditions.x_box_sup__mutmut_43": "the function values are already float arrays",
+    "nlobs.analysis.forms._conditions.x_box_sup__mutmut_45": "the function values are already float arrays",
+    "nlobs.analysis.forms._conditions.x_box_sup__mutmut_85": "maxiter 101 instead of 100: L-BFGS-B converges well before",
+    "nlobs.analysis.forms._conditions.x_box_sup__mutmut_94": "res.x is already a float array",
+    "nlobs.analysis.forms._conditions.x_box_sup__mutmut_96": "res.x is already a float array",
+    "nlobs.analysis.forms._conditions.x_box_sup__mutmut_68": "scipy chooses L-BFGS-B itself for a bounded problem without constraints",
+    "nlobs.analysis.forms._conditions.x_box_sup__mutmut_73": "scipy chooses L-BFGS-B itself for a bounded problem without constraints",
+    "nlobs.analysis.forms._conditions.x_box_sup__mutmut_69": "maxiter default (15000) instead of 100: L-BFGS-B converges well before",
+    "nlobs.analysis.forms._conditions.x_box_sup__mutmut_74": "maxiter default (15000) instead of 100: L-BFGS-B converges well before",
     # analysis/_identity.py: the exact identity test (every PDE (4) / left-inverse check of 004)
-    "nlobs.analysis._identity.x__grid_point__mutmut_9": "the fallback grid starts at 0.100001 instead of 0.1: one of its 800,001 "
+    "nlobs.algebra._identity.x__grid_point__mutmut_9": "the fallback grid starts at 0.100001 instead of 0.1: one of its 800,001 "
                                                         "points, which no verdict depends on",
-    "nlobs.analysis._identity.x__grid_point__mutmut_10": "the fallback grid ends at 0.900001 instead of 0.9 (see mutmut_9)",
-    "nlobs.analysis._identity.x__numeric__mutmut_17": "sympy.N with its default 15 digits instead of 30: evalf targets the relative "
+    "nlobs.algebra._identity.x__grid_point__mutmut_10": "the fallback grid ends at 0.900001 instead of 0.9 (see mutmut_9)",
+    "nlobs.algebra._identity.x__numeric__mutmut_17": "sympy.N with its default 15 digits instead of 30: evalf targets the relative "
                                                       "accuracy of the result (it raises the working precision through "
                                                       "cancellation), so both decide |e| > 1e-20 × scale alike",
-    "nlobs.analysis._identity.x__numeric__mutmut_19": "sympy.N with its default 15 digits (see mutmut_17)",
-    "nlobs.analysis._identity.x__numeric__mutmut_26": "the scale (largest |term|) to 15 instead of 30 digits: a scale, not a decision",
-    "nlobs.analysis._identity.x__numeric__mutmut_28": "the scale to 15 instead of 30 digits (see mutmut_26)",
-    "nlobs.analysis._identity.x__numeric__mutmut_45": "`>=` vs `>` at a relative size of exactly 1e-20",
-    "nlobs.analysis._identity.x__rational_test__mutmut_11": "a constant has no symbols: the point is never read ({} or None)",
-    "nlobs.analysis._identity.x__short__mutmut_3": "the 256-bit gate only guards str() against huge integers: any value of 200 "
+    "nlobs.algebra._identity.x__numeric__mutmut_19": "sympy.N with its default 15 digits (see mutmut_17)",
+    "nlobs.algebra._identity.x__numeric__mutmut_26": "the scale (largest |term|) to 15 instead of 30 digits: a scale, not a decision",
+    "nlobs.algebra._identity.x__numeric__mutmut_28": "the scale to 15 instead of 30 digits (see mutmut_26)",
+    "nlobs.algebra._identity.x__numeric__mutmut_45": "`>=` vs `>` at a relative size of exactly 1e-20",
+    "nlobs.algebra._identity.x__rational_test__mutmut_11": "a constant has no symbols: the point is never read ({} or None)",
+    "nlobs.algebra._identity.x__short__mutmut_3": "the 256-bit gate only guards str() against huge integers: any value of 200 "
                                                    "or more bits has more than 60 characters and takes the 6-digit form either way",
-    "nlobs.analysis._identity.x__short__mutmut_4": "the 256-bit gate (see mutmut_3)",
-    "nlobs.analysis._identity.x__short__mutmut_10": "mpmath.nstr(strip_zeros=None) == strip_zeros=False (falsy)",
-    "nlobs.analysis._identity.x_decide_identity__mutmut_2": "the default seed 1 instead of 0: any seed draws equally good points",
-    "nlobs.analysis._identity.x_exact_generic_rank__mutmut_1": "the default seed 1 instead of 0 (see decide_identity mutmut_2)",
-    "nlobs.analysis._identity.x_exact_generic_rank__mutmut_4": "unseeded points: the rank verdict does not depend on the points "
+    "nlobs.algebra._identity.x__short__mutmut_4": "the 256-bit gate (see mutmut_3)",
+    "nlobs.algebra._identity.x__short__mutmut_10": "mpmath.nstr(strip_zeros=None) == strip_zeros=False (falsy)",
+    "nlobs.algebra._identity.x_decide_identity__mutmut_2": "the default seed 1 instead of 0: any seed draws equally good points",
+    "nlobs.algebra._identity.x_exact_generic_rank__mutmut_1": "the default seed 1 instead of 0 (see decide_identity mutmut_2)",
+    "nlobs.algebra._identity.x_exact_generic_rank__mutmut_4": "unseeded points: the rank verdict does not depend on the points "
                                                               "(except with the stated probability) and is not reported with them",
-    "nlobs.analysis._identity.x_decide_identity__mutmut_63": "count_ops(None) = 0: simplify is tried on any size, a cost the 5 s "
+    "nlobs.algebra._identity.x_decide_identity__mutmut_63": "count_ops(None) = 0: simplify is tried on any size, a cost the 5 s "
                                                              "time limit bounds; the verdicts are the same",
-    "nlobs.analysis._identity.x_decide_identity__mutmut_64": "`<` vs `<=` at exactly 3000 operations: a cost cut-off",
-    "nlobs.analysis._identity.x_decide_identity__mutmut_65": "3001 vs 3000 operations: a cost cut-off",
-    "nlobs.analysis._identity.xǁ_Rationaliserǁ__call____mutmut_16": "b^(p/q) -> b^m / R^r for every root R: the same as renaming "
+    "nlobs.algebra._identity.x_decide_identity__mutmut_64": "`<` vs `<=` at exactly 3000 operations: a cost cut-off",
+    "nlobs.algebra._identity.x_decide_identity__mutmut_65": "3001 vs 3000 operations: a cost cut-off",
+    "nlobs.algebra._identity.xǁ_Rationaliserǁ__call____mutmut_16": "b^(p/q) -> b^m / R^r for every root R: the same as renaming "
                                                                      "the independent variable R to 1/R everywhere, which "
                                                                      "preserves 'identically zero'",
-    "nlobs.analysis._identity.xǁ_Rationaliserǁ__call____mutmut_64": "exp(c g) -> E_g^-c for every g: renaming E_g to 1/E_g "
+    "nlobs.algebra._identity.xǁ_Rationaliserǁ__call____mutmut_64": "exp(c g) -> E_g^-c for every g: renaming E_g to 1/E_g "
                                                                      "everywhere (see _Rationaliser mutmut_16)",
-    "nlobs.analysis._identity.xǁ_Rationaliserǁ__call____mutmut_68": "exp(term) -> 1/E_term for every non-integer multiple: a "
+    "nlobs.algebra._identity.xǁ_Rationaliserǁ__call____mutmut_68": "exp(term) -> 1/E_term for every non-integer multiple: a "
                                                                      "renaming (see _Rationaliser mutmut_16)",
 }
 

@@ -1,7 +1,7 @@
 """nlobs: nonlinear observability analysis and state-observer design.
 
 The data flow, one way: ``model`` (System, forms, model files) -> ``engine`` (CasADi
-compilation, integrators, C) -> ``analysis`` -> ``design`` (one function per method,
+compilation, integrators, C) -> ``algebra`` -> ``analysis`` -> ``design`` (one function per method,
 returning an ObserverDesign with its evidence) -> ``observer`` (the runnable contract) ->
 ``simulate`` (plant + observers, noise, sampling, recorded data) -> ``report`` -> ``cli``.
 """

@@ -14,7 +14,7 @@ import sympy as sp
 from nlobs import FormError, ShapeError, System
 from nlobs.analysis import (augmented_observability, check_mimicking, injectivity, kalman_rank, left_inverse_bounds,
                             propose_augmentation)
-from nlobs.analysis._augment import _as_augmentation
+from nlobs.analysis.forms._augment import _as_augmentation
 from nlobs.model import symbol
 
 RICH_VEL = {"u1": "0.5*sin(t)", "u2": "0.5*cos(0.7*t)", "u3": "0.3*sin(1.3*t)"}

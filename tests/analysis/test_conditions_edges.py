@@ -12,7 +12,7 @@ import pytest
 import sympy as sp
 
 from nlobs import ModelError, ShapeError
-from nlobs.analysis import _conditions as C
+from nlobs.analysis.forms import _conditions as C
 from nlobs.analysis import banks_condition, lipschitz_bound, matrix_measure, max_slope
 
 KOU_F1 = ["x1", "x1 - 2*x2 + exp(-x2)"]  # 003 example 3.1 (Kou et al.): y = x1 + x2

@@ -134,7 +134,7 @@ class TestBoxSup:
     """The sampled supremum over a box (analysis.box_sup) that every Banks/Lipschitz estimate uses."""
 
     def test_sup_at_a_corner_of_a_box_away_from_the_origin(self):
-        from nlobs.analysis._conditions import box_sup
+        from nlobs.analysis.forms._conditions import box_sup
         box = np.array([[1.0, 2.0], [3.0, 5.0]])
         v, x = box_sup(lambda P: P[:, 0] + P[:, 1], box)
         assert v == 7.0 and np.array_equal(x, [2.0, 5.0])          # the corner (hi, hi), exactly, and inside the box

@@ -15,9 +15,9 @@ from sympy.polys.matrices import DomainMatrix
 
 from nlobs import System
 from nlobs.analysis import analyze
-from nlobs.analysis._lie import _leaf_coefficients, _setup, _input_classes
-from nlobs.analysis._modular import RowEchelon, random_prime
-from nlobs.analysis._series import AffineJets, ModField, SeriesRun, affine_structure
+from nlobs.analysis.structural._lie import _leaf_coefficients, _setup, _input_classes
+from nlobs.algebra._modular import RowEchelon, random_prime
+from nlobs.algebra._series import AffineJets, ModField, SeriesRun, affine_structure
 from nlobs.model import symbol
 
 P = 134217689  # a prime below 2**27
@@ -89,7 +89,7 @@ def test_series_gradients_equal_lie_derivative_jets_exactly():
 
 def test_a_broken_product_rule_is_caught():
     """The same comparison fails when the series' product drops a term (so the test above can fail)."""
-    import nlobs.analysis._series as series
+    import nlobs.algebra._series as series
 
     s = System(states=["x1", "x2"], f=["x2", "-k*x1*x2"], outputs=["y"], h=["x1"], params={"k": 2.0})
     orig = series.SeriesRun._conv

@@ -18,8 +18,8 @@ import sympy as sp
 from nlobs import System, load_model
 from nlobs.analysis import (analyze, available_engines, find_identifiable_functions, global_identifiability,
                             multi_experiment)
-from nlobs.analysis import _analyze as A
-from nlobs.analysis import _global as G
+from nlobs.analysis.structural import _analyze as A
+from nlobs.analysis.structural import _global as G
 from nlobs.cli import main
 
 from published_models import BY_NAME, linear_compartment
@@ -203,7 +203,7 @@ def test_missing_engine(monkeypatch):
 
 def test_engines_agree():
     # one small system, every installed engine: the same normal forms
-    from nlobs.analysis._groebner import GroebnerEngine
+    from nlobs.algebra._groebner import GroebnerEngine
 
     p = 32003
     names = ["x", "y", "z"]

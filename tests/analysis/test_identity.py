@@ -12,7 +12,7 @@ import sympy as sp
 
 from nlobs import PreconditionError, System, WindowedNLS, design_pebo
 from nlobs.analysis import decide_identity, exact_generic_rank
-from nlobs.analysis._identity import TARGET_ERROR
+from nlobs.algebra._identity import TARGET_ERROR
 from nlobs.model import symbol
 
 x1, x2, x3 = (symbol(f"x{i}") for i in (1, 2, 3))

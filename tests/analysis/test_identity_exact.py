@@ -25,7 +25,7 @@ import pytest
 import sympy as sp
 
 from nlobs.analysis import decide_identity, exact_generic_rank
-from nlobs.analysis import _identity as ident
+from nlobs.algebra import _identity as ident
 from nlobs.errors import SymbolicBudgetError
 from nlobs.model._budget import symbolic_budget
 

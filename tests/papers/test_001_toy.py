@@ -66,13 +66,13 @@ def test_global_claims_without_an_engine_are_not_checked_never_failed(monkeypatc
     what to install, are not counted as failures, and the demo's summary and report say so."""
     import io
 
-    import nlobs.analysis._global as G
+    import nlobs.analysis.structural._global as G
     from nlobs.examples import ExampleResult
     from nlobs.examples._base import Claim
     from nlobs.report import example_section
     from nlobs.report._demo import _print_summary
 
-    import nlobs.analysis._analyze as A
+    import nlobs.analysis.structural._analyze as A
 
     monkeypatch.setattr(G, "get_engine", lambda *a, **k: None)
     monkeypatch.setattr(A, "get_engine", lambda *a, **k: None)   # analyze() picks the engine (analysis/_analyze.py)

@@ -110,7 +110,7 @@ def _simulated_regimes(mf: Any, required: bool) -> tuple[list[Any], str]:
 
 def run(args: argparse.Namespace) -> int:
     from ..analysis import analyze
-    from ..analysis._regimes import piecewise_nodes
+    from ..analysis.structural._regimes import piecewise_nodes
     from ..model import load_model
 
     mf = load_model(args.model)

@@ -14,7 +14,7 @@ import numpy as np
 
 from .._text import shorten
 from ..analysis import kalman_rank, pbh_test
-from ..analysis._identity import Identity
+from ..algebra._identity import Identity
 from ..errors import PreconditionError, ShapeError
 from ._base import Check
 

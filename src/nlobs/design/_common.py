@@ -15,7 +15,7 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from ..analysis._conditions import box_sup
+from ..analysis.forms._conditions import box_sup
 from ..engine import to_casadi
 from ..errors import ModelError, PreconditionError, ShapeError
 from ..model import TIME, System

@@ -28,7 +28,7 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from ..analysis._modular import monomial_exponents
+from ..algebra._modular import monomial_exponents
 from ..engine import compile_system, rk4_step
 from ..errors import PreconditionError, ShapeError
 from ..model import System

@@ -46,7 +46,7 @@ class Claim:
 def claim_from_global(text: str, result: Any, holds: bool) -> Claim:
     """A claim decided by a global check (:func:`nlobs.analysis.global_identifiability`): not checked
     when the check could not run for want of an engine (its reason as the detail), else `holds`."""
-    from ..analysis._global import NO_ENGINE
+    from ..analysis.structural._global import NO_ENGINE
 
     if result.refused == NO_ENGINE:
         return Claim(text, None, result.refused)

@@ -30,14 +30,14 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from ..errors import FormError, ModelError, ShapeError
-from ..model import TIME, System, symbol
-from ..model._forms import matrix_of
-from ..model._system import ExprLike, exact
-from ._gramian import GramianResult, ltv_gramian
-from ._identity import decide_identity, exact_generic_rank
-from ._reports import clean_direction, fmt_vec
-from ..references import cite
+from ...errors import FormError, ModelError, ShapeError
+from ...model import TIME, System, symbol
+from ...model._forms import matrix_of
+from ...model._system import ExprLike, exact
+from ..trajectory._gramian import GramianResult, ltv_gramian
+from ...algebra._identity import decide_identity, exact_generic_rank
+from .._reports import clean_direction, fmt_vec
+from ...references import cite
 
 __all__ = ["Augmentation", "MimickingCheck", "check_mimicking", "propose_augmentation", "InjectivityCheck",
            "injectivity", "LeftInverseBounds", "left_inverse_bounds", "AugmentedObservability", "augmented_observability"]
@@ -540,8 +540,8 @@ def augmented_observability(system: System, aug: Augmentation, x0: Any, *, t_fin
     ShapeError
         If x0 does not have n finite entries.
     """
-    from ..model._translate import NUMPY, translate
-    from ._gramian import _simulator
+    from ...model._translate import NUMPY, translate
+    from ..trajectory._gramian import _simulator
 
     caller = "augmented_observability"
     x0 = np.asarray(x0, dtype=float).ravel()

@@ -7,9 +7,9 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ShapeError
-from ._reports import clean_direction as _clean
-from ._reports import fmt_directions
+from ...errors import ShapeError
+from .._reports import clean_direction as _clean
+from .._reports import fmt_directions
 
 __all__ = ["observability_matrix", "LinearObservability", "kalman_rank", "pbh_test", "PBHResult",
            "KalmanDecomposition", "kalman_decomposition", "check_pair"]

@@ -23,10 +23,10 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from ..errors import DataError, ModelError, ShapeError
-from ..model import StateAffine, System
-from ._reports import fmt_directions, fmt_vec
-from ..references import cite
+from ...errors import DataError, ModelError, ShapeError
+from ...model import StateAffine, System
+from .._reports import fmt_directions, fmt_vec
+from ...references import cite
 
 __all__ = ["GramianResult", "ltv_gramian", "UCOResult", "uco_test", "state_affine_ltv", "EmpiricalGramian",
            "empirical_gramian", "Indistinguishability", "indistinguishable", "check_timepts"]
@@ -381,8 +381,8 @@ def state_affine_ltv(model: StateAffine, timepts: Any, *, u: Any = None, y: Any 
     ShapeError
         If a trajectory has another number of samples than the grid, or the wrong number of columns.
     """
-    from ..model import TIME, symbol
-    from ..model._translate import NUMPY, translate
+    from ...model import TIME, symbol
+    from ...model._translate import NUMPY, translate
 
     caller = "state_affine_ltv"
     t = check_timepts(timepts, caller)
@@ -416,8 +416,8 @@ def _simulator(system: System, t_final: float, dt: float, inputs: Any, params: M
     (and the input samples (N+1, m) when `with_inputs`)."""
     import casadi as ca
 
-    from ..engine import compile_system, rk4_step
-    from ..model import input_signals
+    from ...engine import compile_system, rk4_step
+    from ...model import input_signals
 
     if not (np.isfinite(t_final) and t_final > 0 and np.isfinite(dt) and 0 < dt <= t_final):
         raise DataError(f"{caller}: need 0 < dt <= t_final (finite), got dt = {dt}, t_final = {t_final}")

@@ -37,16 +37,16 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from ..errors import ModelError
-from ..model import System, symbol
-from ._modular import COEFF_BOUND, monomial_exponents
-from ._modular import kernel_mod_p as _kernel
-from ._modular import monomial_value as _mono_value
-from ._modular import ratrec as _ratrec
+from ...errors import ModelError
+from ...model import System, symbol
+from ...algebra._modular import COEFF_BOUND, monomial_exponents
+from ...algebra._modular import kernel_mod_p as _kernel
+from ...algebra._modular import monomial_value as _mono_value
+from ...algebra._modular import ratrec as _ratrec
 from ._global import NO_ENGINE, NotRational, _decide, _distinct_roots, _minimal_polynomial, _prepare, _System
 from ._reparam import reparametrize
-from ._groebner import GroebnerEngine, Poly, get_engine
-from ._modular import RowEchelon, inv
+from ...algebra._groebner import GroebnerEngine, Poly, get_engine
+from ...algebra._modular import RowEchelon, inv
 
 __all__ = ["IdentifiableFunctions", "find_identifiable_functions"]
 

@@ -21,12 +21,12 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from ..errors import DataError, ModelError, ShapeError
-from ..model import parse_expression, symbol
-from ..model._expr import ExpressionError
-from ..model._system import to_expr
-from ._reports import fmt_point, fmt_vec
-from ..references import cite
+from ...errors import DataError, ModelError, ShapeError
+from ...model import parse_expression, symbol
+from ...model._expr import ExpressionError
+from ...model._system import to_expr
+from .._reports import fmt_point, fmt_vec
+from ...references import cite
 
 __all__ = ["check_box", "matrix_measure", "box_sup", "SlopeResult", "max_slope", "BanksCheck", "banks_condition", "LipschitzEstimate",
            "lipschitz_bound"]
@@ -155,7 +155,7 @@ def _jacobian_fn(exprs: list[sp.Expr], variables: Sequence[str], wrt: int | None
     """A vectorised Jacobian with respect to the first `wrt` variables: points (k, d) -> (k, len(exprs), wrt)."""
     import casadi as ca
 
-    from ..engine import to_casadi
+    from ...engine import to_casadi
 
     x = ca.SX.sym("x", len(variables))
     e = to_casadi(exprs, {symbol(v): x[i] for i, v in enumerate(variables)})

@@ -11,13 +11,13 @@ import dataclasses
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from ..model import System
-from ..model._system import ExprLike
+from ...model import System
+from ...model._system import ExprLike
 from ._global import global_identifiability, multi_experiment
-from ._groebner import get_engine
+from ...algebra._groebner import get_engine
 from ._identifiable import find_identifiable_functions
 from ._lie import local_analysis
-from ._reports import ObservabilityReport
+from .._reports import ObservabilityReport
 
 __all__ = ["analyze", "extend_report"]
 

@@ -38,12 +38,12 @@ import sympy as sp
 from sympy.polys.domains import QQ
 from sympy.polys.rings import ring
 
-from ..errors import EngineError, ModelError
-from ..model import TIME, System, symbol
-from ..model._system import ExprLike, exact
-from ..references import cite
-from ._groebner import GroebnerEngine, Poly, get_engine
-from ._modular import PRIME_BITS, RowEchelon, inv, random_prime
+from ...errors import EngineError, ModelError
+from ...model import TIME, System, symbol
+from ...model._system import ExprLike, exact
+from ...references import cite
+from ...algebra._groebner import GroebnerEngine, Poly, get_engine
+from ...algebra._modular import PRIME_BITS, RowEchelon, inv, random_prime
 
 __all__ = ["GlobalResult", "LocallyOnly", "global_identifiability", "NotRational"]
 
@@ -803,7 +803,7 @@ def global_identifiability(system: System, *, unknown_params: Any = (), inputs: 
         The local analysis of the same question, if already computed (it supplies the locally
         identifiable unknowns and the derivative orders).
     engine : {"auto", "msolve", "singular", "sympy"} or GroebnerEngine, default "auto"
-        The Gröbner engine (:mod:`nlobs.analysis._groebner`). With none installed the result is
+        The Gröbner engine (:mod:`nlobs.algebra._groebner`). With none installed the result is
         ``refused`` with the install command.
     seed : int, default 0
         Seed of the random point and prime.

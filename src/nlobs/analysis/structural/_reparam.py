@@ -25,8 +25,8 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from ..model import System, symbol
-from ._modular import inv
+from ...model import System, symbol
+from ...algebra._modular import inv
 
 __all__ = ["Reparametrization", "reparametrize"]
 
@@ -121,10 +121,10 @@ def _express(target: sp.Expr, gens: Sequence[sp.Expr], new: Sequence[sp.Symbol],
              rng: np.random.Generator) -> sp.Expr | None:
     """`target` (in the old symbols) as a rational function of `gens` (named `new`), verified exactly; or None."""
     from ._global import _eval_poly
-    from ._modular import kernel_mod_p as _kernel
-    from ._modular import monomial_value as _mono_value
-    from ._modular import monomial_exponents
-    from ._modular import ratrec as _ratrec
+    from ...algebra._modular import kernel_mod_p as _kernel
+    from ...algebra._modular import monomial_value as _mono_value
+    from ...algebra._modular import monomial_exponents
+    from ...algebra._modular import ratrec as _ratrec
 
     direct = _by_substitution(target, gens, new, old)
     if direct is not None and sp.cancel(sp.together(direct.xreplace(dict(zip(new, gens))) - target)) == 0:
@@ -238,8 +238,8 @@ def reparametrize(system: System, functions: Sequence[str], *, unknown_params: S
     -------
     Reparametrization
     """
-    from ..model import TIME
-    from ..model._system import exact
+    from ...model import TIME
+    from ...model._system import exact
 
     if any(e.has(TIME) for e in (*system.f, *system.h)):
         return Reparametrization(False, missing=("the model depends on t explicitly (only autonomous models are "

@@ -18,11 +18,11 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import DataError, ShapeError
-from ..model import StateAffine
+from ...errors import DataError, ShapeError
+from ...model import StateAffine
 from ._gramian import UCOResult, _integrate, _matrix_path, check_timepts, state_affine_ltv, uco_test
-from ._reports import fmt_directions
-from ..references import cite
+from .._reports import fmt_directions
+from ...references import cite
 
 __all__ = ["ExcitationResult", "interval_excitation", "persistent_excitation", "IdentifiabilityResult",
            "identifiability_rank", "regular_persistence", "LocalRegularity", "local_regularity"]

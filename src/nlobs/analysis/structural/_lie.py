@@ -20,17 +20,17 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from ..errors import ModelError
-from ._identity import decide_identity
-from ..model import TIME, System, symbol
-from ..model._budget import symbolic_budget
-from ..model._translate import NUMPY, translate
-from ..model._expr import ExpressionError, parse_expression
-from ..model._system import ExprLike, exact, to_expr
-from ._modular import RowEchelon, random_prime
-from ._reports import FunctionCheck, ObservabilityReport, Symmetry
-from ._series import AffineJets, FloatField, ModField, Node, Program, Resample, SeriesRun, affine_structure, build_program
-from ..references import cite
+from ...errors import ModelError
+from ...algebra._identity import decide_identity
+from ...model import TIME, System, symbol
+from ...model._budget import symbolic_budget
+from ...model._translate import NUMPY, translate
+from ...model._expr import ExpressionError, parse_expression
+from ...model._system import ExprLike, exact, to_expr
+from ...algebra._modular import RowEchelon, random_prime
+from .._reports import FunctionCheck, ObservabilityReport, Symmetry
+from ...algebra._series import AffineJets, FloatField, ModField, Node, Program, Resample, SeriesRun, affine_structure, build_program
+from ...references import cite
 
 __all__ = ["local_analysis", "observable_function", "InputClass"]
 
@@ -354,7 +354,7 @@ def _sign_symmetries(system: System, st: _Setup, params_unknown: tuple[str, ...]
     cost grows like m · Σ|vars of f_i|² rather than m² · (size of f). Each symmetry gives pairs of
     indistinguishable states (Viegas, Batista, Oliveira & Silvestre (2015), §IV-C: x2 -> -x2 when c = 0).
     """
-    from ..model._translate import NUMPY, translate
+    from ...model._translate import NUMPY, translate
 
     known = {symbol(k): exact(v) for k, v in system.params.items() if k not in params_unknown}
     f = [e.xreplace(known) for e in system.f]

@@ -16,11 +16,11 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from ..errors import ModelError, ShapeError
-from ..model import TIME, System, symbol
-from ..model._system import exact
-from ..model._translate import NUMPY, translate
-from ._series import pretty
+from ...errors import ModelError, ShapeError
+from ...model import TIME, System, symbol
+from ...model._system import exact
+from ...model._translate import NUMPY, translate
+from ...algebra._series import pretty
 
 __all__ = ["Regime", "piecewise_nodes", "visited_regimes"]
 
