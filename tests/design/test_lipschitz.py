@@ -6,7 +6,7 @@ import scipy.linalg
 
 import nlobs
 from nlobs.design import design_lipschitz
-from nlobs.design._lipschitz import lipschitz_constant, thau_margin
+from nlobs.design._lipschitz import region_lipschitz, thau_margin
 from nlobs.errors import PreconditionError
 
 DAMPED = nlobs.System(states=["x1", "x2"], f=["x2", "-x1 - x2 + 0.3*sin(x2)"], outputs=["y"], h=["x1"])
@@ -56,7 +56,7 @@ def test_gamma_too_large_is_refused_with_the_achieved_margin():
 
 def test_gamma_estimated_over_a_region():
     # φ = (0, 0.3 sin x2): sup |∂φ/∂x| = 0.3 at x2 = 0 (the centre of the box is on the grid)
-    gam, where = lipschitz_constant(DAMPED, [0, nlobs.model.parse_expression("3*sin(x2)/10", {"x2": DAMPED.x[1]})],
+    gam, where = region_lipschitz(DAMPED, [0, nlobs.model.parse_expression("3*sin(x2)/10", {"x2": DAMPED.x[1]})],
                                     {"x1": (-2, 2), "x2": (-1, 1)})
     assert gam == pytest.approx(0.3, rel=1e-9)
     d = design_lipschitz(DAMPED, A=A_LIN, region={"x1": (-2, 2), "x2": (-1, 1)})

@@ -279,7 +279,7 @@ def tune_high_gain(ctx: Any) -> Tuning:
         theta = float(max(ctx.omega_o, 1.0))
         opts["theta"] = round(theta, 6)
         return Tuning.tuned(opts, f"chains {order}; θ = {theta:.3g} from the time scale (no region to bound the nonlinearity)")
-    from ._lipschitz import lipschitz_constant
+    from ._lipschitz import region_lipschitz
 
     A0 = sp.zeros(ctx.n, ctx.n)
     for c in chs:
@@ -291,7 +291,7 @@ def tune_high_gain(ctx: Any) -> Tuning:
     if ctx.system.is_time_varying:
         region["t"] = (0.0, float(ctx.scenario.t_final))
     try:
-        gamma, _ = lipschitz_constant(ctx.system, phi, region, caller="high_gain")
+        gamma, _ = region_lipschitz(ctx.system, phi, region, caller="high_gain")
     except (PreconditionError, ShapeError) as e:
         gamma, why_g = None, clean_message(e)
     if gamma is not None and np.isfinite(gamma):

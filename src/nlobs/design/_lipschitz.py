@@ -21,7 +21,7 @@ from ._common import batch, box_of, require_system, sup_over_box
 from ._kind import Tuning, kind, renamed
 from ._tune import jacobians_on_run, region_inputs, region_states, rounded
 
-__all__ = ["design_lipschitz", "lipschitz_constant", "thau_margin", "thau_gain_search"]
+__all__ = ["design_lipschitz", "region_lipschitz", "thau_margin", "thau_gain_search"]
 
 REF = (f"{cite('002')}, \"'Uniformly observable' systems - LTI + Lipschitz NL\": if K, P, Q > 0 with "
        "P(A - KC) + (A - KC)ᵀP = -Q and eigmin(Q)/(2 eigmax(P)) > γ, then x̂' = Ax̂ + B(u, x̂) - K(Cx̂ - y) is an observer (Thau)")
@@ -106,9 +106,13 @@ def thau_gain_search(A: np.ndarray, C: np.ndarray, gamma: float) -> tuple[float,
     return m, best, K, {"alpha": a, "rho": r}
 
 
-def lipschitz_constant(system: System, phi: Sequence[sp.Expr], region: Mapping[str, Sequence[float]], *,
-                       caller: str = "lipschitz_constant") -> tuple[float, dict[str, float]]:
-    r"""Estimate :math:`\gamma = \sup \|\partial\varphi/\partial x\|_2` over a box of states (and inputs, t).
+def region_lipschitz(system: System, phi: Sequence[sp.Expr], region: Mapping[str, Sequence[float]], *,
+                    caller: str = "region_lipschitz") -> tuple[float, dict[str, float]]:
+    r"""Estimate :math:`\gamma = \sup \|\partial\varphi/\partial x\|_2` of a given φ over a region of states, inputs and t.
+
+    The designs' own estimate (deterministic grid, a region mapping with t): the public
+    :func:`nlobs.analysis.lipschitz_constant` answers the user's question for φ = f − Ax over a state box (random
+    samples, a LipschitzEstimate).
 
     The sup of the Jacobian's spectral norm over a convex box is the Lipschitz constant of φ in
     x there. It is computed on a grid refined by local maximisation (see
@@ -224,7 +228,7 @@ def design_lipschitz(system: System, *, lipschitz: float | None = None, region: 
         y = Cx must be linear with constant coefficients.
     lipschitz : float, optional
         The Lipschitz constant γ of φ in x (uniform in u). If omitted it is estimated over `region`
-        by :func:`lipschitz_constant`.
+        by :func:`region_lipschitz`.
     region : mapping of name to (lo, hi), optional
         Box of states and inputs for the estimate of γ (the guarantee then holds while the
         state and the estimate stay in it).
@@ -285,7 +289,7 @@ def design_lipschitz(system: System, *, lipschitz: float | None = None, region: 
         if region is None:
             raise PreconditionError(f"{caller}: give the Lipschitz constant `lipschitz` of φ = f - Ax, or a `region` (box of "
                                     "states and inputs) to estimate it over")
-        gam, where = lipschitz_constant(system, phi, region, caller=caller)
+        gam, where = region_lipschitz(system, phi, region, caller=caller)
         checks.append(Check("γ estimated over the region (sup of ‖∂φ/∂x‖₂; valid while x and x̂ stay in it)", True,
                             f"γ ≈ {gam:.4g} at {where}", "sampled over the region: a lower bound of the supremum, not a proof"))
         checks.append(Check.assumed("x and x̂ stay in the region where γ was estimated",
