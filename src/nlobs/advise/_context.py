@@ -223,7 +223,7 @@ def _scenario(mf: ModelFile | None, simulation: Any, system: System) -> Scenario
     if cfg is None or getattr(cfg, "x0", None) is None:
         return None
     t_final = float(cfg.t_final or 10.0)
-    dt = float(cfg.dt or 1e-3)
+    dt = float(system.sample_time) if system.is_discrete else float(cfg.dt or 1e-3)   # a map steps by its sample_time
     outs = system.outputs
     std = None
     noise = None
@@ -250,6 +250,13 @@ def _time_scales(system: System, s: Mapping[str, np.ndarray], t_final: float, sc
     J = J[np.all(np.isfinite(J), axis=(1, 2))]
     if not J.size:
         return 3.0 / t_final, "the Jacobian is not finite along the run"
+    if system.is_discrete:   # a map: the rate of its fastest mode, |ln|λ||/T_s, λ the eigenvalues of ∂f/∂x
+        Ts = system.sample_time
+        lam = np.abs(np.linalg.eigvals(J)).ravel()
+        rates = np.abs(np.log(np.clip(lam, 1e-3, None))) / Ts
+        omega = float(max(np.max(rates, initial=0.0), 3.0 / t_final))
+        return omega, (f"ω_p = {omega:.3g} s⁻¹ (fastest |ln|eig ∂f/∂x||/T_s of the map {where}, floor 3/t_final = "
+                       f"{3.0 / t_final:.3g})")
     rho = float(np.max(np.abs(np.linalg.eigvals(J)), initial=0.0))
     Js = J * scale[None, None, :] / scale[None, :, None]         # D⁻¹JD, D = diag(scale): in the states' own units
     norm = float(np.max(np.linalg.norm(Js, 2, axis=(1, 2)), initial=0.0))
@@ -451,12 +458,15 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
     period = (sc.sample_period or sc.dt) if sc is not None else 1e-2
     R = np.diag(sig ** 2)
     R_rate = R * period
+    per_step = system.is_discrete   # a map's Q is the covariance of the noise of one step, not an intensity
+    allowance = (0.01 * scale) ** 2 * (1.0 if per_step else omega_p)
     if sc is not None and sc.process_std is not None and np.any(sc.process_std > 0):
-        q = np.where(sc.process_std > 0, sc.process_std ** 2, (0.01 * scale) ** 2 * omega_p)
+        q = np.where(sc.process_std > 0, sc.process_std ** 2, allowance)
         noise_note += "; Q = σ_w² from the declared process noise"
     else:
-        q = (0.01 * scale) ** 2 * omega_p
-        noise_note += "; Q = (0.01·range)²·ω_p per state (no process noise declared)"
+        q = allowance
+        noise_note += ("; Q = (0.01·range)² per step and state (no process noise declared)" if per_step else
+                       "; Q = (0.01·range)²·ω_p per state (no process noise declared)")
     Q = np.diag(q)
     if xhat0 is not None:
         xh0 = np.asarray(xhat0, dtype=float).reshape(-1)

@@ -122,8 +122,7 @@ def try_kind(ctx: Context, kind: str) -> Candidate:
     k = KINDS[kind]
     time_base = getattr(ctx.system, "time", "continuous")
     if not k.runs_on(time_base):
-        cand = Candidate(kind, "fails", f"{k.time_base}-time only: the model is {time_base}-time ({k.summary})", {},
-                         k.citation)
+        cand = Candidate(kind, "fails", f"{k.time_base}-time only (the model is {time_base}-time)", {}, k.citation)
     elif ctx.blockers and kind != "custom":
         cand = Candidate(kind, "fails", "; ".join(ctx.blockers), {}, k.citation)
     elif k.tune is not None:

@@ -19,7 +19,8 @@ def add_parser(sub: Any) -> None:
     s.add_argument("--observer", action="append", metavar="NAME", help="observer configured in the file (repeatable; default: all)")
     s.add_argument("--t-final", type=positive_float, metavar="T",
                    help="horizon in seconds (default: the last time of --input, else the file's [simulation] t_final)")
-    s.add_argument("--dt", type=positive_float, help="integration step in seconds (default: the file's, else 1e-3)")
+    s.add_argument("--dt", type=positive_float, help="integration step in seconds (default: the file's, else 1e-3; a "
+                                                     "discrete-time model steps by its sample_time)")
     s.add_argument("--x0", metavar="VALUES", help="initial plant state, '1,0' or 'x1=1,x2=0' (default: the file's x0)")
     s.add_argument("--xhat0", metavar="VALUES", help="initial estimate of every observer, as --x0 (default: each observer's)")
     s.add_argument("--param", action="append", metavar="NAME=VALUE",
@@ -67,7 +68,13 @@ def run(args: argparse.Namespace) -> int:
         t_final = float(recorded.t[-1]) if recorded is not None else cfg.t_final
     if t_final is None:
         raise ValueError(f"{mf.path}: no horizon: give --t-final or set [simulation] t_final")
-    dt = args.dt if args.dt is not None else (cfg.dt if cfg.dt is not None else 1e-3)
+    if system.is_discrete:   # a map steps by its sample_time
+        if args.dt is not None:
+            raise ValueError(f"{mf.path}: --dt does not apply to a discrete-time model (it steps by sample_time = "
+                             f"{system.sample_time:g} s)")
+        dt = None
+    else:
+        dt = args.dt if args.dt is not None else (cfg.dt if cfg.dt is not None else 1e-3)
     if args.x0 is not None:
         x0 = parse_vector(args.x0, system.states, "--x0", cfg.x0)
     elif cfg.x0 is None:
@@ -84,7 +91,7 @@ def run(args: argparse.Namespace) -> int:
                     xhat0=xhat0, seed=args.seed, engine=args.engine, progress=not args.json)
     validation = _validation(run_, recorded) if recorded is not None else None
     if args.output:
-        every = Sampling(cfg.sample_period).every(dt) if cfg.sample_period else 1
+        every = Sampling(cfg.sample_period).every(dt) if cfg.sample_period and dt else 1
         run_.to_csv(args.output, every=every)
     if args.plot:
         run_.plot(args.plot)

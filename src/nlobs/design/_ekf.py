@@ -14,6 +14,7 @@ from ..model import System
 from ..references import cite, work
 from ._base import Certificate, Check, ObserverDesign, Symbols, check_vector
 from ._tune import gaussian_filter
+from ._discrete import discrete_ekf
 from ._kind import Tuning
 from ._kind import kind
 from ._bounds import POLICY, bounds_check, check_start, clip_const, parse_bounds
@@ -33,7 +34,8 @@ def tune_ekf(ctx: Any) -> Tuning:
 
 
 @kind('ekf', summary='extended Kalman filter (continuous-discrete or continuous), exact Jacobians by automatic differentiation',
-      references=(work("jazwinski1970", "continuous-discrete extended Kalman filter"), work("kalman1961")), tune=tune_ekf)
+      references=(work("jazwinski1970", "continuous-discrete extended Kalman filter"), work("kalman1961"),
+                  work("simon2006", "§13.2, discrete time")), time_base="both", tune=tune_ekf)
 def design_ekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None,
                mode: Literal["continuous", "continuous-discrete"] = "continuous-discrete",
                bounds: Mapping[str, Any] | None = None) -> ObserverDesign:
@@ -90,6 +92,10 @@ def design_ekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
     """
     require_system(system, "design_ekf")
     caller = "design_ekf"
+    if system.is_discrete:   # a map x[k+1] = f(x[k], u[k]): the discrete-time EKF (filterpy's semantics)
+        if bounds is not None:
+            raise PreconditionError(f"{caller}: `bounds` are not available for a discrete-time model yet")
+        return discrete_ekf(system, Q=Q, R=R, P0=P0, xhat0=xhat0, caller=caller)
     if mode not in ("continuous", "continuous-discrete"):
         raise PreconditionError(f"{caller}: `mode` must be 'continuous' or 'continuous-discrete', got {mode!r}")
     n, p = system.n_states, system.n_outputs

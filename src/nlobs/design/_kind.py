@@ -191,7 +191,7 @@ def kind(name: str, *, summary: str, references: tuple[tuple[str, str], ...] = (
         raise ValueError(f"observer kind {name!r} is declared twice ({KINDS[name].design.__module__} and another module)")
 
     def register(fn: Callable[..., Any]) -> Callable[..., Any]:
-        wrapped = requires_model(fn)
+        wrapped = requires_model(fn, time_base=time_base)
         KINDS[name] = Kind(name, wrapped, summary, tuple(references), time_base, precheck, tune)
         return wrapped
 
@@ -268,10 +268,14 @@ def _model_types(fn: Callable[..., Any]) -> tuple[type, ...]:
     return tuple(m for m in members if isinstance(m, type)) or (System,)
 
 
-def requires_model(fn: Callable[..., Any]) -> Callable[..., Any]:
+def requires_model(fn: Callable[..., Any], *, time_base: str = "both") -> Callable[..., Any]:
     """Wrap a design function so that a first argument of the wrong type is one clear TypeError
-    (instead of an AttributeError deep inside), and its symbolic work runs within the budget of
-    :func:`nlobs.model.symbolic_budget`. A function already wrapped is returned as it is."""
+    (instead of an AttributeError deep inside), a model of another time base than `time_base` is refused (a
+    discrete-time map is never designed on as if it were an ODE), and its symbolic work runs within the budget of
+    :func:`nlobs.model.symbolic_budget`. A function already wrapped is returned as it is.
+
+    `fn` is the design function (its first parameter the model); `time_base` is "continuous", "discrete" or "both".
+    """
     if getattr(fn, "_nlobs_checked", False):
         return fn
     allowed = _model_types(fn)
@@ -298,6 +302,14 @@ def requires_model(fn: Callable[..., Any]) -> Callable[..., Any]:
                 hint = " (to read a model file, use nlobs.load_model(path) and pass its `.observer_system`)"
             raise TypeError(f"{fn.__name__}: the model must be an {names}, got {type(model).__name__} "
                             f"{shorten(model, 40)}{hint}")
+        base = getattr(model, "time", "continuous")
+        if time_base != "both" and base != time_base:
+            from ..errors import PreconditionError
+
+            other = [k.name for k in KINDS.values() if k.runs_on(base)]
+            raise PreconditionError(f"{fn.__name__}: {time_base}-time only, and {getattr(model, 'name', 'the model')!r} is a "
+                                    f"{base}-time model ({'x[k+1] = f(x[k], ...)' if base == 'discrete' else 'ẋ = f(x, ...)'}); "
+                                    f"kinds for {base}-time models: {', '.join(other) or 'none yet'}")
         with symbolic_budget(fn.__name__):
             return fn(model, *args, **kwargs)
 

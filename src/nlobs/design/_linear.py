@@ -14,6 +14,7 @@ from ..references import cite, work
 from ._base import Certificate, Check, ObserverDesign, Symbols
 from ._checks import observer_gain
 from ._common import require_system
+from ._discrete import discrete_luenberger
 from ._kind import Tuning, kind, renamed
 from ._tune import clean_message, fmt, poles_for
 
@@ -34,6 +35,11 @@ def tune_luenberger(ctx: Any) -> Tuning:
     except FormError as e:
         return Tuning.fails(f"not linear time-invariant: {clean_message(e)}")
     poles = poles_for(ctx.n, ctx.omega_o)
+    if ctx.system.is_discrete:   # the same rates as poles of the map: z = exp(s T_s), inside the unit circle
+        Ts = ctx.system.sample_time
+        poles = [round(float(np.exp(max(p_ * Ts, -5.0))), 6) for p_ in poles]
+        return Tuning.tuned({"poles": poles}, f"linear map; eig(A − LC) placed at {fmt(poles)} = exp(−ω T_s) for the rates "
+                            f"ω_o·(1, 1.25, ...) (ω_o = 3 ω_p), inside the unit circle")
     return Tuning.tuned({"poles": poles}, f"LTI; eig(A − LC) placed at {fmt(poles)} (ω_o = 3 ω_p)")
 
 
@@ -47,7 +53,7 @@ def tune_output_injection(ctx: Any) -> Tuning:
 
 
 @kind('luenberger', summary='Luenberger observer for an LTI model ẋ = Ax + Bu, y = Cx + Du: poles placed, or a Kalman gain from Q, R',
-      references=(work("002", "Result [Luenberger]"),), tune=tune_luenberger)
+      references=(work("002", "Result [Luenberger]"),), time_base="both", tune=tune_luenberger)
 def design_luenberger(system: System, *, poles: Any = None, L: Any = None, Q: Any = None, R: Any = None,
                       xhat0: Any = None) -> ObserverDesign:
     r"""Luenberger observer for an LTI model x' = Ax + Bu, y = Cx + Du.
@@ -96,6 +102,10 @@ def design_luenberger(system: System, *, poles: Any = None, L: Any = None, Q: An
     """
     require_system(system, "design_luenberger")
     caller = "design_luenberger"
+    if system.is_discrete:   # a linear map: poles inside the unit circle
+        if Q is not None or R is not None:
+            raise PreconditionError(f"{caller}: for a discrete-time model give `poles` or `L` (the LQE gain is not available)")
+        return discrete_luenberger(system, poles=poles, L=L, xhat0=xhat0, caller=caller)
     try:
         lti = LTI.from_system(system)
     except FormError as e:

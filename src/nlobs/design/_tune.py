@@ -97,7 +97,7 @@ def gaussian_filter(ctx: Any, kind: str) -> Tuning:
     opts: dict[str, Any] = {"Q": square(ctx.Q), "R": square(ctx.R), "P0": square(ctx.P0)}
     if kind == "ekf":
         opts["mode"] = "continuous-discrete"
-    bounds = domain_bounds(ctx)
+    bounds = domain_bounds(ctx) if not ctx.system.is_discrete else {}
     if bounds:
         opts["bounds"] = bounds
     spread = ""

@@ -14,6 +14,7 @@ from ..model import System
 from ..references import cite, work
 from ._base import Certificate, Check, ObserverDesign, Symbols, check_vector
 from ._tune import gaussian_filter
+from ._discrete import discrete_ukf
 from ._kind import Tuning
 from ._kind import kind
 from ._bounds import POLICY, bounds_check, check_start, clip_const, parse_bounds
@@ -45,7 +46,8 @@ def tune_ukf(ctx: Any) -> Tuning:
 
 
 @kind('ukf', summary='unscented Kalman filter (continuous-discrete)',
-      references=(work("julier2004"),), tune=tune_ukf)
+      references=(work("julier2004"), work("wan2000", "discrete time")), time_base="both",
+      tune=tune_ukf)
 def design_ukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None, alpha: float = 1.0,
                beta: float = 0.0, kappa: float = 0.0, bounds: Mapping[str, Any] | None = None) -> ObserverDesign:
     r"""Continuous-discrete unscented Kalman filter.
@@ -99,6 +101,10 @@ def design_ukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
     """
     require_system(system, "design_ukf")
     caller = "design_ukf"
+    if system.is_discrete:   # a map: the discrete-time UKF (filterpy's MerweScaledSigmaPoints)
+        if bounds is not None:
+            raise PreconditionError(f"{caller}: `bounds` are not available for a discrete-time model yet")
+        return discrete_ukf(system, Q=Q, R=R, P0=P0, xhat0=xhat0, alpha=alpha, beta=beta, kappa=kappa, caller=caller)
     n, p = system.n_states, system.n_outputs
     Qm = check_matrix(Q, n, n, "Q", caller, definite="semidefinite")
     Rm = check_matrix(R, p, p, "R", caller, definite="positive")

@@ -93,7 +93,13 @@ class System:
         A name used in reports.
     estimated_params : sequence of str, optional
         States that are unknown constant parameters appended to the state (their derivative
-        is 0); set by :meth:`augmented`, so that results can report them as parameters.
+        is 0; in a discrete-time model their map is p[k+1] = p[k]); set by :meth:`augmented`, so
+        that results can report them as parameters.
+    time : {"continuous", "discrete"}, default "continuous"
+        The time base. ``"discrete"``: `f` gives the next state, x[k+1] = f(x[k], u[k], t[k], p),
+        with t[k] = k·`sample_time`, and y[k] = h(x[k], u[k], t[k], p).
+    sample_time : float, optional
+        Seconds per step of a discrete-time model (default 1); not allowed for a continuous one.
 
     Raises
     ------
@@ -109,7 +115,8 @@ class System:
     (2, 2.0)
     """
 
-    __slots__ = ("_name", "_states", "_inputs", "_outputs", "_params", "_f", "_h", "_key", "_estimated")
+    __slots__ = ("_name", "_states", "_inputs", "_outputs", "_params", "_f", "_h", "_key", "_estimated", "_time",
+                 "_sample_time")
 
     def __init__(
         self,
@@ -122,7 +129,10 @@ class System:
         params: Mapping[str, float] | None = None,
         name: str = "system",
         estimated_params: Sequence[str] = (),
+        time: str = "continuous",
+        sample_time: float | None = None,
     ):
+        time_, ts = _time_base(time, sample_time)
         states_ = _check_names("states", states)
         inputs_ = _check_names("inputs", inputs)
         outputs_ = _check_names("outputs", outputs)
@@ -162,13 +172,17 @@ class System:
         for n in estimated:
             if n not in states_:
                 raise ModelError(f"estimated parameter `{n}` is not a state of this system; states: {', '.join(states_)}")
-            if self._f[states_.index(n)] != 0:
-                raise ModelError(f"estimated parameter `{n}` must be constant (its derivative 0), "
-                                 f"got {n}' = {self._f[states_.index(n)]}")
+            constant = symbol(n) if time_ == "discrete" else 0      # p[k+1] = p[k], or p' = 0
+            if self._f[states_.index(n)] != constant:
+                raise ModelError(f"estimated parameter `{n}` must be constant ({n}[k+1] = {n} in a discrete-time model, "
+                                 f"{n}' = 0 in a continuous one), got {self._f[states_.index(n)]}")
         object.__setattr__(self, "_estimated", estimated)
-        key = hashlib.sha256(
-            repr((states_, inputs_, outputs_, params_, [sp.srepr(e) for e in (*self._f, *self._h)])).encode()
-        ).hexdigest()
+        object.__setattr__(self, "_time", time_)
+        object.__setattr__(self, "_sample_time", ts)
+        structure = (states_, inputs_, outputs_, params_, [sp.srepr(e) for e in (*self._f, *self._h)])
+        if time_ == "discrete":   # a continuous model keeps its key (compiled caches stay valid)
+            structure = (*structure, time_, ts)
+        key = hashlib.sha256(repr(structure).encode()).hexdigest()
         object.__setattr__(self, "_key", key)
 
     def __setattr__(self, name: str, value: Any) -> None:
@@ -176,7 +190,7 @@ class System:
 
     def __reduce__(self) -> tuple[Any, ...]:  # pickling (Monte Carlo on other processes)
         return (_rebuild, (self._states, self._f, self._outputs, self._h, self._inputs, dict(self._params), self._name,
-                           self._estimated))
+                           self._estimated, self._time, self._sample_time))
 
     # -- names and sizes ---------------------------------------------------------------
     name = property(lambda self: self._name, doc="The system's name.")
@@ -189,6 +203,22 @@ class System:
     key = property(lambda self: self._key, doc="A hash of the structure (names and expressions, not parameter values).")
     estimated_params = property(lambda self: self._estimated,
                                 doc="States that are unknown constant parameters (see :meth:`augmented`).")
+    time = property(lambda self: self._time, doc='The time base: "continuous" (ẋ = f) or "discrete" (x[k+1] = f).')
+    sample_time = property(lambda self: self._sample_time,
+                           doc="Seconds per step of a discrete-time model; None for a continuous one.")
+
+    @property
+    def is_discrete(self) -> bool:
+        """Whether f is a map x[k+1] = f(x[k], ...) (``time="discrete"``)."""
+        return self._time == "discrete"
+
+    def _copy(self, **changes: Any) -> System:
+        """A new System with some constructor arguments changed (the time base kept)."""
+        args = dict(states=self._states, f=self._f, outputs=self._outputs, h=self._h, inputs=self._inputs,
+                    params=self._params, name=self._name, estimated_params=self._estimated, time=self._time,
+                    sample_time=self._sample_time)
+        args.update(changes)
+        return System(**args)
 
     @property
     def n_states(self) -> int:
@@ -258,16 +288,13 @@ class System:
                 f"with_params: {', '.join(f'`{k}`' for k in unknown)} is not a parameter of "
                 f"{self._name!r}; its parameters are: {', '.join(self._params) or '(none)'}"
             )
-        return System(
-            states=self._states, f=self._f, outputs=self._outputs, h=self._h,
-            inputs=self._inputs, params={**self._params, **values}, name=self._name, estimated_params=self._estimated,
-        )
+        return self._copy(params={**self._params, **values})
 
     def augmented(self, params: Sequence[str]) -> System:
         """The system with the parameters `params` appended to the state as unknown constants.
 
-        Each named parameter becomes a state of the same name with derivative 0 (so an
-        observer of the augmented system estimates it jointly with the states); the other
+        Each named parameter becomes a state of the same name with derivative 0 (map p[k+1] = p[k] in
+        a discrete-time model; so an observer of the augmented system estimates it jointly with the states); the other
         parameters keep their values. The new states are listed in :attr:`estimated_params`.
 
         Raises
@@ -292,18 +319,14 @@ class System:
                              f"its parameters are: {', '.join(self._params) or '(none)'}")
         if not names:
             return self
-        return System(
-            states=(*self._states, *names), f=(*self._f, *([0] * len(names))), outputs=self._outputs, h=self._h,
-            inputs=self._inputs, params={k: v for k, v in self._params.items() if k not in names}, name=self._name,
-            estimated_params=(*self._estimated, *names),
-        )
+        constant = [symbol(k) for k in names] if self.is_discrete else [0] * len(names)
+        return self._copy(states=(*self._states, *names), f=(*self._f, *constant),
+                          params={k: v for k, v in self._params.items() if k not in names},
+                          estimated_params=(*self._estimated, *names))
 
     def with_name(self, name: str) -> System:
         """Return a copy with another name."""
-        return System(
-            states=self._states, f=self._f, outputs=self._outputs, h=self._h,
-            inputs=self._inputs, params=self._params, name=name, estimated_params=self._estimated,
-        )
+        return self._copy(name=name)
 
     def substituted(self) -> tuple[sp.Matrix, sp.Matrix]:
         """f and h with the parameter values substituted (as exact rationals where possible)."""
@@ -319,7 +342,8 @@ class System:
         return hash((self._key, tuple(self._params.items()), self._name, self._estimated))
 
     def __repr__(self) -> str:
-        return f"System({self._name!r}, states={list(self._states)}, inputs={list(self._inputs)}, outputs={list(self._outputs)}, params={dict(self._params)})"
+        base = f"System({self._name!r}, states={list(self._states)}, inputs={list(self._inputs)}, outputs={list(self._outputs)}, params={dict(self._params)}"
+        return base + (f", time='discrete', sample_time={self._sample_time!r})" if self.is_discrete else ")")
 
     def __str__(self) -> str:
         def plural(n: int, word: str) -> str:
@@ -333,7 +357,11 @@ class System:
         if self._params:
             head.append(f"{plural(self.n_params, 'parameter')} ({', '.join(f'{k}={v:g}' for k, v in self._params.items())})")
         lines = [", ".join(head)]
-        lines += [f"  {n}' = {e}" for n, e in zip(self._states, self._f)]
+        if self.is_discrete:
+            lines[0] += f", discrete time (sample_time = {self._sample_time:g} s)"
+            lines += [f"  {n}[k+1] = {e}" for n, e in zip(self._states, self._f)]
+        else:
+            lines += [f"  {n}' = {e}" for n, e in zip(self._states, self._f)]
         lines += [f"  {n} = {e}" for n, e in zip(self._outputs, self._h)]
         return "\n".join(lines)
 
@@ -357,8 +385,33 @@ class System:
 
 
 def _rebuild(states: Any, f: Any, outputs: Any, h: Any, inputs: Any, params: Any, name: str,
-             estimated: Any = ()) -> System:
-    return System(states=states, f=f, outputs=outputs, h=h, inputs=inputs, params=params, name=name, estimated_params=estimated)
+             estimated: Any = (), time: str = "continuous", sample_time: float | None = None) -> System:
+    return System(states=states, f=f, outputs=outputs, h=h, inputs=inputs, params=params, name=name, estimated_params=estimated,
+                  time=time, sample_time=sample_time)
+
+
+TIME_BASES = ("continuous", "discrete")
+
+
+def _time_base(time: Any, sample_time: Any) -> tuple[str, float | None]:
+    """The checked time base and sample time (1 s by default for a discrete-time model)."""
+    if time not in TIME_BASES:
+        raise ModelError(f"`time` must be \"continuous\" or \"discrete\", got {shorten(time, 40)}")
+    if time == "continuous":
+        if sample_time is not None:
+            raise ModelError(f"`sample_time` = {shorten(sample_time, 40)} is given for a continuous-time model; a model whose "
+                             "dynamics are the next state x[k+1] = f(x[k], ...) needs time = \"discrete\" as well (for "
+                             "sampled measurements of a continuous model use [simulation] sample_period)")
+        return "continuous", None
+    if sample_time is None:
+        return "discrete", 1.0
+    try:
+        ts = float(sample_time)
+    except (TypeError, ValueError):
+        raise ModelError(f"`sample_time` must be a number of seconds per step, got {shorten(sample_time, 40)}") from None
+    if not (np.isfinite(ts) and ts > 0):
+        raise ModelError(f"`sample_time` must be positive and finite (seconds per step), got {ts:g}")
+    return "discrete", ts
 
 
 def _equations(

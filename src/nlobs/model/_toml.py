@@ -67,8 +67,8 @@ from ._system import _NAME, RESERVED, TIME, System, symbol
 
 __all__ = ["ModelFile", "SimulationConfig", "ObserverConfig", "load_model", "loads_model", "library"]
 
-_TOP = ("name", "description", "states", "inputs", "outputs", "parameters", "definitions", "dynamics", "output", "units",
-        "simulation", "observers")
+_TOP = ("name", "description", "time", "sample_time", "states", "inputs", "outputs", "parameters", "definitions", "dynamics",
+        "output", "units", "simulation", "observers")
 _SIM = ("t_final", "dt", "x0", "inputs", "noise", "noise_bound", "process_noise", "sample_period", "true_parameters", "seed")
 _PARAM_KEYS = ("value", "unknown")
 #: Observer names become JSON keys, CSV column prefixes and C file names: a conservative alphabet.
@@ -287,11 +287,12 @@ class _Loader:
         inputs = self.names(doc, "inputs", False)
         outputs = self.names(doc, "outputs", True)
         params, unknown_params = self.parameters(doc)
-        try:  # validate the names (duplicates, reserved words) before parsing expressions
+        base = {k: doc[k] for k in ("time", "sample_time") if k in doc}
+        try:  # validate the names (duplicates, reserved words) and the time base before parsing expressions
             System(states=states, f=[0] * len(states), outputs=outputs, h=[0] * len(outputs), inputs=inputs, params=params,
-                   name=name)
+                   name=name, **base)
         except ModelError as e:
-            raise self.err(str(e)) from None
+            raise self.err(str(e), next((k for k in ("time", "sample_time") if k in base and f"`{k}`" in str(e)), "")) from None
         symbols: dict[str, sp.Expr] = {n: symbol(n) for n in (*states, *inputs, *params)}
         symbols["t"] = TIME
         definitions = self.definitions(doc, symbols, taken={*states, *inputs, *outputs, *params})
@@ -299,7 +300,7 @@ class _Loader:
         f = self.equations(doc, "dynamics", states, "state", symbols)
         h = self.equations(doc, "output", outputs, "output", symbols)
         try:
-            system = System(states=states, f=f, outputs=outputs, h=h, inputs=inputs, params=params, name=name)
+            system = System(states=states, f=f, outputs=outputs, h=h, inputs=inputs, params=params, name=name, **base)
         except ModelError as e:
             raise self.err(str(e)) from None
         units = self.units(doc, system)
@@ -387,6 +388,17 @@ class _Loader:
         for k in ("t_final", "dt", "sample_period"):
             if k in sim:
                 out[k] = self.number(sim[k], f"simulation.{k}", positive=True)
+        if system.is_discrete:
+            for k in ("dt", "sample_period"):
+                if k in out:
+                    raise self.err(f"a discrete-time model steps by its `sample_time` ({system.sample_time:g} s) and is measured "
+                                   f"at every step; remove `{k}`", f"simulation.{k}", sim[k])
+            if "t_final" in out:
+                steps = out["t_final"] / system.sample_time
+                if abs(steps - round(steps)) > 1e-9 * max(1.0, steps):
+                    raise self.err(f"must be a whole number of steps of sample_time = {system.sample_time:g} s (here "
+                                   f"{steps:.6g} steps); e.g. t_final = {round(steps) * system.sample_time:g}",
+                                   "simulation.t_final", sim["t_final"])
         if "x0" in sim:
             x0 = sim["x0"]
             if not isinstance(x0, list) or len(x0) != system.n_states:

@@ -53,7 +53,10 @@ def file_arguments(mf: ModelFile, observers: Any = None, **given: Any) -> dict[s
         if cfg.t_final is None:
             raise ModelError(f"{mf.path}: no horizon: give t_final (--t-final) or set [simulation] t_final")
         out["t_final"] = cfg.t_final
-    out.setdefault("dt", cfg.dt if cfg.dt is not None else 1e-3)
+    if mf.system.is_discrete:
+        out.setdefault("dt", None)          # a map steps by its sample_time
+    else:
+        out.setdefault("dt", cfg.dt if cfg.dt is not None else 1e-3)
     if "x0" not in out:
         if cfg.x0 is None:
             raise ModelError(f"{mf.path}: no initial state: give x0 or set [simulation] x0 = [...] "

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -157,3 +157,12 @@ class Adaptive:
                 raise ValueError(f"Adaptive: `{name}` must be a positive number, got {v!r}")
         if self.method not in ("bdf", "adams"):
             raise ValueError(f"Adaptive: `method` must be 'bdf' or 'adams', got {self.method!r}")
+
+
+def xhat0_for(xhat0: Any, name: str, n: int) -> Any:
+    """The initial estimate of the observer `name`: from a mapping by observer name, or one vector for all."""
+    if xhat0 is None:
+        return None
+    if isinstance(xhat0, Mapping):
+        return xhat0.get(name)
+    return xhat0

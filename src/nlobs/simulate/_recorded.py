@@ -11,12 +11,13 @@ from typing import Any, Literal
 import numpy as np
 
 from ..design import check_positive
-from ..engine import Backend, evaluate_many
+from ..engine import Backend
 from ..errors import DataError, FiniteEscapeError, ModelError, ShapeError
 from ..model import ModelFile, System
 from ..observer import AbstractObserver, ParticleObserver, compiled_observer
 from ._results import ObserverTrace, Run
-from ._run import _xhat0_for, named_observers
+from ._options import xhat0_for as _xhat0_for
+from ._run import named_observers
 
 __all__ = ["Recording", "estimate"]
 
@@ -309,6 +310,8 @@ def estimate(
     mask = recording.check_finite(on_missing)
     y0 = np.where(mask > 0, recording.y, 0.0)
     t, u = recording.t, recording.u
+    if any(o.system.is_discrete for o in obs.values()):
+        return _estimate_map(obs, recording, t, u, y0, mask, xhat0, smooth)
     traces, integration = {}, {}
     for i, (name, o) in enumerate(obs.items()):
         part = progress if progress is None or isinstance(progress, bool) else (
@@ -381,3 +384,25 @@ def _non_finite(name: str, o: AbstractObserver, rec: Recording, err: FiniteEscap
                                      "or pass a smaller max_step (command line: --max-step)"))
     out.interval = k
     return out
+
+
+def _estimate_map(obs: Mapping[str, Any], recording: Recording, t: np.ndarray, u: np.ndarray, y0: np.ndarray,
+                  mask: np.ndarray, xhat0: Any, smooth: bool) -> Run:
+    """Observers of a discrete-time model on a recording on its grid (one row per step; NaN: not measured)."""
+    from ._discrete import check_map_grid, run_map_observer
+
+    if smooth or not all(o.system.is_discrete for o in obs.values()):
+        raise ModelError("estimate: a discrete-time model's observers run alone (no smoothing yet, no continuous-time "
+                         "observers beside them)")
+    traces = {}
+    for name, o in obs.items():
+        check_map_grid(o.system, t, f"recording ({recording.source})")
+        z0 = o.initial_state(_xhat0_for(xhat0, name, o.system.n_states))
+        Z, X = run_map_observer(o.design, t, u, y0, mask, z0, name=name)
+        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, Z, X, o.estimate(t[0], z0, u[0], y0[0]),
+                                     covariance=o.design.covariance)
+    system = next(iter(obs.values())).system
+    return Run(system.name, t, system.states, recording.input_names, recording.output_names, u,
+               np.where(mask > 0, recording.y, np.nan), traces, x=recording.x,
+               info={"source": recording.source, "time": "discrete", "sample_time": system.sample_time},
+               estimated_params=system.estimated_params)

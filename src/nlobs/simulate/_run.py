@@ -32,6 +32,7 @@ from ..model import ModelFile, ObserverConfig, System, input_signals
 from ..observer import AbstractObserver, Observer, ParticleObserver, as_observer
 from ._file import file_arguments, observers_of
 from ._options import Adaptive, Noise, ProcessNoise, Sampling
+from ._options import xhat0_for as _xhat0_for
 from ._results import ObserverTrace, Run
 
 __all__ = ["simulate", "Simulation", "prepare", "Prepared", "named_observers", "check_compatible", "stage_inputs",
@@ -62,6 +63,9 @@ def named_observers(observers: Any) -> dict[str, AbstractObserver]:
 def check_compatible(plant: System, name: str, obs: AbstractObserver) -> None:
     """An observer must consume the plant's inputs and outputs and estimate its states."""
     s = obs.system
+    if s.time != plant.time:
+        raise ModelError(f"observer {name!r} was designed for a {s.time}-time model, but the plant {plant.name!r} is "
+                         f"{plant.time}-time; design it on the plant's model")
     for what, mine, theirs in (("inputs", s.inputs, plant.inputs), ("outputs", s.outputs, plant.outputs),
                                ("states", s.states, plant.states)):
         if tuple(mine) != tuple(theirs):
@@ -178,6 +182,19 @@ def simulate(
                                          xhat0=xhat0, engine=engine, progress=progress, escape_bound=escape_bound,
                                          integrator=integrator))
         return replace(run, info={**run.info, "units": dict(plant.units)})  # the file's [units] label the plots
+    if isinstance(plant, System) and plant.is_discrete:   # a map: iterated, never integrated
+        if integrator is not None:
+            raise ModelError(f"simulate: {plant.name!r} is a discrete-time model; `integrator` does not apply")
+        from ._discrete import simulate_map
+
+        plant_ = plant.with_params(**params) if params else plant
+        obs = named_observers(observers)
+        plant_, tail = augmented_plant(plant_, obs)
+        for name, o in obs.items():
+            check_compatible(plant_, name, o)
+        return simulate_map(plant_, obs, t_final=t_final, dt=dt, x0=x0, inputs=inputs, noise=noise,
+                            process_noise=process_noise, sampling=sampling, seed=seed, xhat0=xhat0,
+                            escape_bound=escape_bound, x0_tail=tail)
     sim = Simulation(plant, observers, t_final=t_final, dt=dt, inputs=inputs, params=params, noise=noise,
                      process_noise=process_noise, sampling=sampling, integrator=integrator, engine=engine, _caller="simulate")
     return sim.run(x0, xhat0=xhat0, seed=seed, progress=progress, escape_bound=escape_bound)
@@ -356,6 +373,9 @@ def prepare(plant: System, observers: Any, *, t_final: float, dt: float, inputs:
     """
     if not isinstance(plant, System):
         raise TypeError(f"{caller}: `plant` must be an nlobs.System, got {type(plant).__name__}")
+    if plant.is_discrete:
+        raise ModelError(f"{caller}: {plant.name!r} is a discrete-time model; this runner integrates ODEs (nlobs.simulate "
+                         "iterates maps)")
     for label, v in (("t_final", t_final), ("dt", dt)):  # Python and NumPy numbers (np.float32 too), not bool
         if not (isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_)) and np.isfinite(v) and v > 0):
             raise ShapeError(f"{caller}: `{label}` must be a positive number, got {v!r}")
@@ -431,14 +451,6 @@ def _with_particles(run: Run, prep: Prepared, A: np.ndarray, xhat0: Any) -> Run:
         info.setdefault("particles", {})[name] = {"particles": o.design.particles, "samples": int(flags.sum()),
                                                   "min_ess": float(pr.ess.min()), "resampled": int(pr.resampled.sum())}
     return replace(run, observers=traces, info=info)
-
-
-def _xhat0_for(xhat0: Any, name: str, n: int) -> Any:
-    if xhat0 is None:
-        return None
-    if isinstance(xhat0, Mapping):
-        return xhat0.get(name)
-    return xhat0
 
 
 @dataclass(frozen=True)

@@ -11,6 +11,7 @@ import dataclasses
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from ...errors import ModelError
 from ...model import System
 from ...model._system import ExprLike
 from ._global import global_identifiability, multi_experiment
@@ -123,6 +124,10 @@ def analyze(system: System, *, unknown_params: Any = (), inputs: Any = "generic"
     >>> analyze(s).observable, analyze(s, inputs={"u": 0}).observable
     (True, False)
     """
+    if getattr(system, "is_discrete", False):
+        return _map_report(system, unknown_params=unknown_params, inputs=inputs, unknown_inputs=unknown_inputs,
+                           functions=functions, seed=seed, global_check=global_check,
+                           identifiable_functions=identifiable_functions, experiments=experiments)
     report = local_analysis(system, unknown_params=unknown_params, inputs=inputs, unknown_inputs=unknown_inputs,
                             functions=functions, at=at, symmetries=symmetries, seed=seed, regime=regime)
     if global_check or identifiable_functions or experiments is not None:  # the global parts
@@ -130,6 +135,26 @@ def analyze(system: System, *, unknown_params: Any = (), inputs: Any = "generic"
                                unknown_inputs=dict(unknown_inputs or {}), functions=functions, seed=seed,
                                global_check=global_check, identifiable_functions=identifiable_functions,
                                experiments=experiments, engine=engine)
+    return report
+
+
+def _map_report(system: System, *, unknown_params: Any, inputs: Any, unknown_inputs: Any, functions: Any, seed: int,
+                global_check: bool, identifiable_functions: bool, experiments: int | None) -> ObservabilityReport:
+    """A discrete-time model: the local rank of the map; the global parts are refused with the reason, the local
+    verdict kept."""
+    from ._maps import map_analysis
+
+    if unknown_inputs:
+        raise ModelError(f"analyze: unknown inputs are not available for the discrete-time model {system.name!r} yet")
+    if functions:
+        raise ModelError(f"analyze: `functions` are not available for the discrete-time model {system.name!r} yet")
+    report = map_analysis(system, unknown_params=unknown_params, inputs=inputs, seed=seed)
+    refused = [what for what, asked in (("the global check", global_check), ("identifiable functions", identifiable_functions),
+                                        ("multi-experiment identifiability", experiments is not None)) if asked]
+    if refused:
+        note = (f"{', '.join(refused)}: not done for a discrete-time model (the differential-algebra route of SIAN "
+                "needs an ODE); the local verdict above stands")
+        report = dataclasses.replace(report, notes=(*report.notes, note))
     return report
 
 

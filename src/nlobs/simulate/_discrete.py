@@ -1,0 +1,150 @@
+r"""Discrete-time models: the plant iterates its map, the observers update at every step.
+
+x[k+1] = f(x[k], u[k], t[k]) + w[k] (w[k] the process noise of the step), y[k] = h(x[k], u[k], t[k]) + v[k],
+t[k] = k·sample_time. The whole run is one CasADi ``mapaccum`` per plant and per observer (a loop in compiled code,
+not in Python): the plant's map, then each observer's update z[k] = U(t[k], z[k−1], u[k], y[k], m[k]) over the
+measurements, from the observer's prior state at k = 0.
+"""
+
+from __future__ import annotations
+
+import numbers
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from ..design import ObserverDesign
+from ..engine import compile_system
+from ..errors import DataError, FiniteEscapeError, ModelError, ShapeError
+from ..model import System, input_signals
+from ..observer import AbstractObserver, ParticleObserver
+from ._options import Noise, ProcessNoise, Sampling
+from ._options import xhat0_for as _xhat0_for
+from ._results import ObserverTrace, Run
+
+__all__ = ["simulate_map", "run_map_observer", "check_map_grid", "MAX_MAP_STEPS"]
+
+#: The most steps a discrete-time simulation stores.
+MAX_MAP_STEPS = 10_000_000
+
+
+def _steps(plant: System, t_final: Any, dt: Any, caller: str) -> int:
+    Ts = plant.sample_time
+    if not (isinstance(t_final, numbers.Real) and not isinstance(t_final, bool) and np.isfinite(t_final) and t_final > 0):
+        raise ShapeError(f"{caller}: `t_final` must be a positive number of seconds, got {t_final!r}")
+    if dt is not None and abs(float(dt) - Ts) > 1e-12 * Ts:
+        raise ShapeError(f"{caller}: {plant.name!r} is a discrete-time model stepping by its sample_time = {Ts:g} s; "
+                         f"`dt` = {dt!r} does not apply (leave it out)")
+    N = int(round(float(t_final) / Ts))
+    if N < 1 or abs(N * Ts - float(t_final)) > 1e-9 * max(1.0, float(t_final)):
+        raise ShapeError(f"{caller}: t_final = {t_final:g} must be a whole number of steps of sample_time = {Ts:g} s "
+                         f"(e.g. {max(1, N) * Ts:g})")
+    if N > MAX_MAP_STEPS:
+        raise ShapeError(f"{caller}: {N:.3g} steps, more than {MAX_MAP_STEPS:.0e} (every step is stored)")
+    return N
+
+
+def _signals(plant: System, inputs: Any, t: np.ndarray) -> np.ndarray:
+    U = np.zeros((t.size, plant.n_inputs))
+    for j, sig in enumerate(input_signals(plant, inputs, plant.params)):
+        v = np.asarray(sig(t), dtype=float)
+        bad = np.flatnonzero(~np.isfinite(v))
+        if bad.size:
+            raise ShapeError(f"input `{plant.inputs[j]}` is {v[bad[0]]} at t = {t[bad[0]]:g}; inputs must be finite")
+        U[:, j] = v
+    return U
+
+
+def _first_escape(values: np.ndarray, bound: float) -> int | None:
+    """The first row with an entry that is not finite or beyond `bound`, or None."""
+    bad = ~np.all(np.isfinite(values) & (np.abs(values) <= bound), axis=1)
+    return int(np.argmax(bad)) if bad.any() else None
+
+
+def run_map_observer(design: ObserverDesign, t: np.ndarray, u: np.ndarray, y: np.ndarray, mask: np.ndarray, z0: np.ndarray,
+                     *, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """An observer of a discrete-time model over samples: its state after each update (N, n_z) and its estimates
+    (N, n). Raises FiniteEscapeError at the first update whose state is not finite."""
+    N = t.size
+    s_z = ca.SX.sym("z", design.n_z)
+    s_t, s_u = ca.SX.sym("t"), ca.SX.sym("u", u.shape[1])
+    s_y, s_m = ca.SX.sym("y", y.shape[1]), ca.SX.sym("m", y.shape[1])
+    step = ca.Function("map_update", [s_z, s_t, s_u, s_y, s_m], [design.update(s_t, s_z, s_u, s_y, s_m)])
+    Z = np.asarray(step.mapaccum(N)(z0, t[None, :], u.T, y.T, mask.T), dtype=float).T
+    k = _first_escape(Z, np.inf)
+    if k is not None:
+        last = z0 if k == 0 else Z[k - 1]
+        raise FiniteEscapeError(f"observer {name!r}", float(t[k]), np.asarray(last, dtype=float), design.z_names, np.inf,
+                                message=f"observer {name!r}: its state became non-finite at the update of t = {t[k]:.6g} "
+                                        f"(step {k}); the state before it is kept in the error")
+    X = np.asarray(design.output.map(N)(t[None, :], Z.T, u.T, y.T), dtype=float).T
+    return Z, X
+
+
+def check_map_grid(system: System, t: np.ndarray, where: str) -> None:
+    """Samples of a discrete-time model are on its grid: equally spaced by its sample_time."""
+    if t.size > 1:
+        d = np.diff(t)
+        off = np.flatnonzero(np.abs(d - system.sample_time) > 1e-6 * system.sample_time)
+        if off.size:
+            k = int(off[0])
+            raise DataError(f"{where}: {system.name!r} is a discrete-time model with sample_time = {system.sample_time:g} s; "
+                            f"the samples must be one step apart, but t = {t[k]:.6g} is followed by {t[k + 1]:.6g} "
+                            f"(row {k + 1}). Give one row per step (NaN marks an output not measured)")
+
+
+def simulate_map(plant: System, obs: Mapping[str, AbstractObserver], *, t_final: Any, dt: Any = None,
+                 x0: Sequence[float] | None, inputs: Any = None, noise: Noise | None = None,
+                 process_noise: ProcessNoise | None = None, sampling: Sampling | None = None, seed: int | None = None,
+                 xhat0: Any = None, escape_bound: float = 1e12, x0_tail: Sequence[float] = (),
+                 caller: str = "simulate") -> Run:
+    """A discrete-time plant and its observers (see the module's docstring); called by :func:`nlobs.simulate`.
+
+    `process_noise` is the standard deviation of w[k] per step (not an intensity), `noise` that of v[k].
+    """
+    if sampling is not None:
+        raise ShapeError(f"{caller}: {plant.name!r} is a discrete-time model, measured at every step; `sampling` does "
+                         "not apply")
+    for name, o in obs.items():
+        if isinstance(o, ParticleObserver) or not o.system.is_discrete:
+            raise ModelError(f"{caller}: observer {name!r} is a continuous-time design; {plant.name!r} is a discrete-time "
+                             "model (design it on the discrete model: kinds ekf, ukf, luenberger)")
+    N = _steps(plant, t_final, dt, caller)
+    Ts = plant.sample_time
+    t = np.arange(N + 1) * Ts
+    if x0 is None:
+        raise ModelError(f"{caller}: give x0 ({plant.n_states} numbers: {', '.join(plant.states)})")
+    x = np.asarray([*np.asarray(x0, dtype=float).reshape(-1), *x0_tail], dtype=float)
+    if x.size != plant.n_states or not np.all(np.isfinite(x)):
+        raise ShapeError(f"{caller}: `x0` must be {plant.n_states - len(x0_tail)} finite numbers "
+                         f"({', '.join(plant.states[:plant.n_states - len(x0_tail)])})")
+    U = _signals(plant, inputs, t)
+    rng = np.random.default_rng(seed)
+    V = noise.draw(rng, N + 1, plant.outputs, Ts) if noise is not None else np.zeros((N + 1, plant.n_outputs))
+    W = process_noise.draw(rng, N, plant.states, 1.0) if process_noise is not None else np.zeros((N, plant.n_states))
+    f, h = compile_system(plant).bind()
+    sx, st, su, sw = ca.SX.sym("x", plant.n_states), ca.SX.sym("t"), ca.SX.sym("u", plant.n_inputs), ca.SX.sym("w", plant.n_states)
+    F = ca.Function("plant_map", [sx, st, su, sw], [f(st, sx, su) + sw])
+    X = np.vstack([x, np.asarray(F.mapaccum(N)(x, t[None, :-1], U[:-1].T, W.T), dtype=float).T])
+    info = {"dt": Ts, "sampling": Ts, "time": "discrete", "sample_time": Ts, "engine": "vm", "seed": seed}
+    k = _first_escape(X, escape_bound)
+    if k is not None:
+        err = FiniteEscapeError("plant", float(t[k - 1]), X[k - 1], plant.states, escape_bound,
+                                message=f"the plant {plant.name!r} left the bound {escape_bound:g} at step {k} (t = {t[k]:g}): "
+                                        f"x[{k}] = {X[k].tolist()} from x[{k - 1}] = {X[k - 1].tolist()}")
+        err.partial = Run(plant.name, t[:k], plant.states, plant.inputs, plant.outputs, U[:k], np.zeros((k, plant.n_outputs)),
+                          {}, x=X[:k], info=info, estimated_params=plant.estimated_params)
+        raise err
+    Y_true = np.asarray(h.map(N + 1)(t[None, :], X.T, U.T), dtype=float).T.reshape(N + 1, plant.n_outputs)
+    Y = Y_true + V
+    mask = np.ones_like(Y)
+    traces = {}
+    for name, o in obs.items():
+        z0 = o.initial_state(_xhat0_for(xhat0, name, o.system.n_states))
+        Z, Xh = run_map_observer(o.design, t, U, Y, mask, z0, name=name)
+        prior = o.estimate(t[0], z0, U[0], Y[0])
+        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, Z, Xh, prior, covariance=o.design.covariance)
+    return Run(plant.name, t, plant.states, plant.inputs, plant.outputs, U, Y, traces, x=X, y_true=Y_true,
+               info={**info, "units": dict(getattr(plant, "units", None) or {})}, estimated_params=plant.estimated_params)

@@ -1,0 +1,181 @@
+"""Observers of discrete-time models against independent NumPy implementations (filterpy's conventions):
+predict with u[k-1] from the filtered estimate, then correct with y[k]; the estimate at t[k] is x[k|k]."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import nlobs
+from nlobs.errors import DataError, PreconditionError
+
+# a damped pendulum discretised by hand (its own map, not an integrator): x1[k+1] = x1 + T x2,
+# x2[k+1] = x2 + T(-sin x1 - 0.3 x2 + u); y = [x1, x1 x2]
+T = 0.05
+PEND = nlobs.System(states=["x1", "x2"], f=[f"x1 + {T}*x2", f"x2 + {T}*(-sin(x1) - 0.3*x2 + u)"], inputs=["u"],
+                    outputs=["y1", "y2"], h=["x1", "x1*x2"], time="discrete", sample_time=T, name="dpend")
+
+
+def f(x, u):
+    return np.array([x[0] + T * x[1], x[1] + T * (-np.sin(x[0]) - 0.3 * x[1] + u)])
+
+
+def F(x, u):
+    return np.array([[1.0, T], [-T * np.cos(x[0]), 1 - 0.3 * T]])
+
+
+def h(x):
+    return np.array([x[0], x[0] * x[1]])
+
+
+def H(x):
+    return np.array([[1.0, 0.0], [x[1], x[0]]])
+
+
+def _data(N=200, seed=3):
+    rng = np.random.default_rng(seed)
+    u = 0.5 * np.sin(0.1 * np.arange(N))
+    x = np.zeros((N, 2))
+    x[0] = [1.0, 0.0]
+    for k in range(N - 1):
+        x[k + 1] = f(x[k], u[k]) + 0.01 * rng.standard_normal(2)
+    y = np.array([h(v) for v in x]) + 0.05 * rng.standard_normal((N, 2))
+    return np.arange(N) * T, u, x, y
+
+
+Q, R, P0, X0 = np.diag([1e-4, 1e-4]), np.diag([0.0025, 0.0025]), np.diag([0.5, 0.5]), np.array([0.5, 0.3])
+
+
+def numpy_ekf(u, y):
+    x, P, out = X0.copy(), P0.copy(), []
+    for k in range(len(y)):
+        if k:
+            Fk = F(x, u[k - 1])
+            x, P = f(x, u[k - 1]), Fk @ P @ Fk.T + Q
+        Hk = H(x)
+        S = Hk @ P @ Hk.T + R
+        K = P @ Hk.T @ np.linalg.inv(S)
+        x = x + K @ (y[k] - h(x))
+        IKH = np.eye(2) - K @ Hk
+        P = IKH @ P @ IKH.T + K @ R @ K.T
+        out.append(x)
+    return np.array(out)
+
+
+def numpy_ukf(u, y, alpha=0.5, beta=2.0, kappa=0.0):
+    n = 2
+    lam = alpha ** 2 * (n + kappa) - n
+    Wm = np.full(2 * n + 1, 0.5 / (n + lam))
+    Wc = Wm.copy()
+    Wm[0], Wc[0] = lam / (n + lam), lam / (n + lam) + 1 - alpha ** 2 + beta
+
+    def points(x, P):
+        U = np.linalg.cholesky((n + lam) * P)
+        return np.array([x] + [x + U[:, i] for i in range(n)] + [x - U[:, i] for i in range(n)])
+
+    x, P, out = X0.copy(), P0.copy(), []
+    for k in range(len(y)):
+        sig = points(x, P)
+        if k:
+            sig = np.array([f(s, u[k - 1]) for s in sig])
+            x = Wm @ sig
+            P = sum(w * np.outer(s - x, s - x) for w, s in zip(Wc, sig)) + Q
+        ys = np.array([h(s) for s in sig])
+        yh = Wm @ ys
+        S = sum(w * np.outer(v - yh, v - yh) for w, v in zip(Wc, ys)) + R
+        Pxy = sum(w * np.outer(s - x, v - yh) for w, s, v in zip(Wc, sig, ys))
+        K = Pxy @ np.linalg.inv(S)
+        x = x + K @ (y[k] - yh)
+        P = P - K @ S @ K.T
+        out.append(x)
+    return np.array(out)
+
+
+def _recording(t, u, y):
+    return nlobs.Recording.from_arrays(PEND, t, y=y, u=u[:, None])
+
+
+def test_discrete_ekf_matches_an_independent_ekf():
+    t, u, x, y = _data()
+    d = nlobs.design_ekf(PEND, Q=Q, R=R, P0=P0, xhat0=X0)
+    run = nlobs.estimate(d, _recording(t, u, y))
+    np.testing.assert_allclose(run.observers["ekf"].xhat, numpy_ekf(u, y), rtol=0, atol=1e-10)
+    assert np.sqrt(np.mean((run.observers["ekf"].xhat[50:] - x[50:]) ** 2)) < 0.05
+
+
+def test_discrete_ukf_matches_an_independent_ukf():
+    t, u, x, y = _data()
+    d = nlobs.design_ukf(PEND, Q=Q, R=R, P0=P0, xhat0=X0, alpha=0.5, beta=2.0)
+    run = nlobs.estimate(d, _recording(t, u, y))
+    np.testing.assert_allclose(run.observers["ukf"].xhat, numpy_ukf(u, y), rtol=0, atol=1e-10)
+
+
+def test_a_missing_output_is_left_out_of_the_update():
+    t, u, x, y = _data(40)
+    y_missing = y.copy()
+    y_missing[10:20, 1] = np.nan
+    d = nlobs.design_ekf(PEND, Q=Q, R=R, P0=P0, xhat0=X0)
+    run = nlobs.estimate(d, _recording(t, u, y_missing), on_missing="skip")
+    # reference: the same EKF with only y1 at those rows
+    xr, P, out = X0.copy(), P0.copy(), []
+    for k in range(len(y)):
+        if k:
+            Fk = F(xr, u[k - 1])
+            xr, P = f(xr, u[k - 1]), Fk @ P @ Fk.T + Q
+        rows = [0] if 10 <= k < 20 else [0, 1]
+        Hk, Rk = H(xr)[rows], R[np.ix_(rows, rows)]
+        K = P @ Hk.T @ np.linalg.inv(Hk @ P @ Hk.T + Rk)
+        xr = xr + K @ (y[k, rows] - h(xr)[rows])
+        IKH = np.eye(2) - K @ Hk
+        P = IKH @ P @ IKH.T + K @ Rk @ K.T
+        out.append(xr)
+    np.testing.assert_allclose(run.observers["ekf"].xhat, np.array(out), atol=1e-10)
+
+
+def test_a_recording_off_the_model_grid_is_refused():
+    t, u, x, y = _data(20)
+    t2 = t.copy()
+    t2[5:] += 0.01
+    with pytest.raises(DataError, match=r"one step apart.*row 5"):
+        nlobs.estimate(nlobs.design_ekf(PEND, Q=Q, R=R), _recording(t2, u, y))
+
+
+LIN = nlobs.System(states=["x1", "x2"], f=["0.9*x1 + 0.2*x2", "-0.1*x1 + 0.95*x2 + u"], inputs=["u"], outputs=["y"],
+                   h=["x1"], time="discrete", sample_time=0.1)
+
+
+def test_discrete_luenberger_error_contracts_by_a_minus_lc_exactly():
+    d = nlobs.design_luenberger(LIN, poles=[0.5, 0.4], xhat0=[0.0, 0.0])
+    A, C = np.array([[0.9, 0.2], [-0.1, 0.95]]), np.array([[1.0, 0.0]])
+    L = d.certificate.values["L"]
+    np.testing.assert_allclose(np.sort(np.linalg.eigvals(A - L @ C).real), [0.4, 0.5], atol=1e-12)
+    run = nlobs.simulate(LIN, {"obs": d}, t_final=2.0, x0=[1.0, -1.0], inputs={"u": "sin(t)"})
+    e = run.x - run.observers["obs"].xhat
+    for k in range(1, 20):   # e[k] = (A − LC) e[k−1] (the estimate at k uses y[k−1])
+        np.testing.assert_allclose(e[k], (A - L @ C) @ e[k - 1], atol=1e-12)
+    with pytest.raises(PreconditionError, match=r"pole 1\.2.* not inside the unit circle"):
+        nlobs.design_luenberger(LIN, poles=[1.2, 0.3])
+
+
+def test_discrete_lti_analysis_is_the_kalman_rank():
+    r = nlobs.analyze(LIN)
+    assert r.observable and r.rank == 2 and "GF(" in r.method
+    blind = nlobs.System(states=["x1", "x2"], f=["0.9*x1", "0.5*x2 + x1"], outputs=["y"], h=["x1"], time="discrete")
+    rb = nlobs.analyze(blind)
+    A, C = np.array([[0.9, 0.0], [1.0, 0.5]]), np.array([[1.0, 0.0]])
+    assert rb.rank == np.linalg.matrix_rank(np.vstack([C, C @ A])) == 1
+    assert rb.observable_states == ("x1",) and np.allclose(np.abs(rb.unobservable_directions), [[0.0, 1.0]])
+
+
+def test_map_identifiability_and_a_symmetry():
+    ricker = nlobs.System(states=["N"], f=["N*exp(r*(1 - N/K))"], outputs=["y"], h=["N"], params={"r": 1.2, "K": 10.0},
+                          time="discrete")
+    assert nlobs.analyze(ricker, unknown_params=["r", "K"]).identifiable_params == ("r", "K")
+    # y = x1², x1[k+1] = 0.5 x1: the sign of x1 never shows, but locally observable (rank 1 = 1)
+    sq = nlobs.System(states=["x1"], f=["0.5*x1"], outputs=["y"], h=["x1**2"], time="discrete")
+    assert nlobs.analyze(sq).observable
+    # two parameters entering only as a product are not identifiable one by one
+    prod = nlobs.System(states=["x"], f=["a*b*x + u"], inputs=["u"], outputs=["y"], h=["x"], params={"a": 0.5, "b": 0.8},
+                        time="discrete")
+    rp = nlobs.analyze(prod, unknown_params=["a", "b"])
+    assert rp.rank == 2 and rp.identifiable_params == () and rp.observable_states == ("x",)
