@@ -209,7 +209,8 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
     if run and ctx.recording is None and ctx.scenario is None:
         raise ModelError(f"advise: nothing to run on: {system.name!r} has no [simulation] x0 and no recording was given; "
                          "add [simulation] x0 = [...] (with t_final, inputs, noise) or pass a recording (--data)")
-    forms = tuple(str(c) for c in ctx.forms.checks)
+    # the observer forms are forms of ODEs (ẋ = Ax + B(u, y), ...): not shown for a map, whose kinds are ekf, ukf, luenberger
+    forms = () if system.is_discrete else tuple(str(c) for c in ctx.forms.checks)
     extra: dict[str, Any] = {}
     if ctx.detectability:
         extra["detectability"] = ctx.detectability
