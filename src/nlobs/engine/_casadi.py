@@ -22,6 +22,7 @@ CASADI: Mapping[Any, Any] = {
     sp.exp: ca.exp, sp.log: ca.log, sp.Abs: ca.fabs, sp.sign: ca.sign,
     **piecewise_table(ca.fmin, ca.fmax, ca.sign, lambda x: x == 0),  # min, max, sat: exact, no smoothing
     "sqrt": ca.sqrt,
+    "table": lambda cls, *a: cls.casadi(*a),   # a lookup table: CasADi's interpolant, exact derivatives by AD
 }
 
 

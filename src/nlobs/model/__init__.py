@@ -12,6 +12,8 @@ from ._signals import Sampled as Sampled
 from ._signals import as_signal as as_signal
 from ._signals import input_signals as input_signals
 from ._system import TIME as TIME
+from ._tables import MAX_TABLE_POINTS as MAX_TABLE_POINTS
+from ._tables import Table as Table
 from ._system import System as System
 from ._system import symbol as symbol
 from ._toml import ModelFile as ModelFile

@@ -207,6 +207,8 @@ class _Walker:
 
     def name(self, name: str) -> sp.Expr:
         if name in self.symbols:
+            if isinstance(self.symbols[name], type):
+                raise ExpressionError(f"`{name}` is a table; call it, as in `{name}(x)`")
             return self.symbols[name]
         if name in CONSTANTS:
             return CONSTANTS[name]
@@ -219,6 +221,12 @@ class _Walker:
         if not isinstance(node.func, ast.Name):
             raise ExpressionError("only the functions " + ", ".join(FUNCTIONS) + " may be called")
         fname = node.func.id
+        table = self.symbols.get(fname)
+        if isinstance(table, type) and issubclass(table, sp.Function):   # a lookup table of the model
+            nargs = next(iter(table.nargs))
+            if node.keywords or any(isinstance(a, ast.Starred) for a in node.args) or len(node.args) != nargs:
+                raise ExpressionError(f"the table `{fname}` takes {nargs} positional argument(s), got {len(node.args)}")
+            return self.checked(table(*[self.expr(a, depth + 1) for a in node.args]))
         if fname not in FUNCTIONS:
             raise ExpressionError(
                 f"`{fname[:40]}` is not an allowed function; allowed: {', '.join(FUNCTIONS)}"

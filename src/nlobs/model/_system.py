@@ -16,6 +16,7 @@ from .._text import LabelError, check_label, shorten, shorten_list
 from ..errors import ModelError
 from ._budget import check_tree, short_str
 from ._expr import CONSTANTS, FUNCTIONS, ExpressionError, parse_expression
+from ._tables import TableCall
 
 __all__ = ["System", "TIME", "symbol", "exact", "ExprLike"]
 
@@ -100,6 +101,8 @@ class System:
         with t[k] = k·`sample_time`, and y[k] = h(x[k], u[k], t[k], p).
     sample_time : float, optional
         Seconds per step of a discrete-time model (default 1); not allowed for a continuous one.
+    tables : mapping of str to Table, optional
+        Lookup tables the expressions may call by name (``"ocv(SOC)"``); see :class:`nlobs.model.Table`.
 
     Raises
     ------
@@ -131,6 +134,7 @@ class System:
         estimated_params: Sequence[str] = (),
         time: str = "continuous",
         sample_time: float | None = None,
+        tables: Mapping[str, Any] | None = None,
     ):
         time_, ts = _time_base(time, sample_time)
         states_ = _check_names("states", states)
@@ -158,6 +162,10 @@ class System:
 
         allowed = {n: symbol(n) for n in (*states_, *inputs_, *params_)}
         allowed["t"] = TIME
+        for tname, table in (tables or {}).items():
+            if tname in allowed or tname in FUNCTIONS:
+                raise ModelError(f"the table name `{tname}` is already a state, input, parameter or function name")
+            allowed[tname] = table.function()
         try:
             object.__setattr__(self, "_name", check_label(name, "model name"))
         except LabelError as e:
@@ -471,6 +479,8 @@ def to_expr(value: ExprLike, allowed: Mapping[str, sp.Symbol], *, where: str) ->
         subs[s] = allowed[s.name]
     expr = expr.xreplace(subs)
     for fn in expr.atoms(sp.Function):
+        if isinstance(fn, TableCall):
+            continue
         if isinstance(fn, sp.core.function.AppliedUndef) or not isinstance(fn, SUPPORTED_FUNCTIONS):
             raise ModelError(f"{where}: the function `{fn.func}` is not supported; supported: {', '.join(FUNCTIONS)}")
     if expr.has(sp.zoo, sp.oo, sp.nan, sp.I):

@@ -64,11 +64,12 @@ from ._budget import check_tree
 from ._expr import CONSTANTS, FUNCTIONS, ExpressionError, parse_expression
 from ._library import LibraryEntry, bundled_folder, bundled_names, bundled_path
 from ._system import _NAME, RESERVED, TIME, System, symbol
+from ._tables import Table, parse_table
 
 __all__ = ["ModelFile", "SimulationConfig", "ObserverConfig", "load_model", "loads_model", "library"]
 
-_TOP = ("name", "description", "time", "sample_time", "states", "inputs", "outputs", "parameters", "definitions", "dynamics",
-        "output", "units", "simulation", "observers")
+_TOP = ("name", "description", "time", "sample_time", "states", "inputs", "outputs", "parameters", "tables", "definitions",
+        "dynamics", "output", "units", "simulation", "observers")
 _SIM = ("t_final", "dt", "x0", "inputs", "noise", "noise_bound", "process_noise", "sample_period", "true_parameters", "seed")
 _PARAM_KEYS = ("value", "unknown")
 #: Observer names become JSON keys, CSV column prefixes and C file names: a conservative alphabet.
@@ -295,7 +296,9 @@ class _Loader:
             raise self.err(str(e), next((k for k in ("time", "sample_time") if k in base and f"`{k}`" in str(e)), "")) from None
         symbols: dict[str, sp.Expr] = {n: symbol(n) for n in (*states, *inputs, *params)}
         symbols["t"] = TIME
-        definitions = self.definitions(doc, symbols, taken={*states, *inputs, *outputs, *params})
+        tables = self.tables(doc, taken={*states, *inputs, *outputs, *params})
+        symbols.update({k: tb.function() for k, tb in tables.items()})
+        definitions = self.definitions(doc, symbols, taken={*states, *inputs, *outputs, *params, *tables})
         symbols.update(definitions)
         f = self.equations(doc, "dynamics", states, "state", symbols)
         h = self.equations(doc, "output", outputs, "output", symbols)
@@ -368,6 +371,23 @@ class _Loader:
         if missing:
             raise self.err(f"no expression for the {what}(s) {shorten_list(missing)}; give one per {what}", key)
         return [self.expr(table[n], f"{key}.{n}", symbols) for n in names]
+
+    def tables(self, doc: Mapping[str, Any], taken: set[str]) -> dict[str, Table]:
+        """[tables.NAME]: measured characteristics, called as NAME(x) or NAME(x, z) in any expression."""
+        out = {}
+        for name, spec in self.table(doc, "tables").items():
+            key = f"tables.{name}"
+            if not _NAME.fullmatch(name) or name in RESERVED or name in FUNCTIONS or name in CONSTANTS:
+                raise self.err("a table's name is an identifier that is not a function or reserved name", key, name)
+            if name in taken:
+                raise self.err(f"`{name}` is already a state, input, output or parameter", key, name)
+            if not isinstance(spec, dict):
+                raise self.err("must be a table with x and y (and z for a 2-D table)", key, spec)
+            try:
+                out[name] = parse_table(name, spec)
+            except ModelError as e:
+                raise self.err(str(e).removeprefix(f"table `{name}`: "), key) from None
+        return out
 
     def units(self, doc: Mapping[str, Any], system: System) -> dict[str, str]:
         allowed = (*system.states, *system.inputs, *system.outputs, *system.params, "t")

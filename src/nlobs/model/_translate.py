@@ -14,6 +14,7 @@ import numpy as np
 import sympy as sp
 
 from ..errors import ModelError
+from ._tables import TableCall
 
 __all__ = ["translate", "NUMPY", "piecewise_table"]
 
@@ -38,6 +39,7 @@ NUMPY: Mapping[Any, Callable[..., Any]] = {
     sp.exp: np.exp, sp.log: np.log, sp.Abs: np.abs, sp.sign: np.sign,
     **piecewise_table(np.minimum, np.maximum, np.sign, lambda x: np.asarray(x) == 0),
     "sqrt": np.sqrt,
+    "table": lambda cls, *a: cls.numeric(*a),
 }
 
 
@@ -82,6 +84,8 @@ def translate(expr: sp.Expr, leaves: Mapping[sp.Symbol, Any], table: Mapping[Any
                 out = walk(base) ** int(ex)
             else:
                 out = walk(base) ** walk(ex)
+        elif isinstance(e, TableCall) and "table" in table:   # a lookup table (or a derivative of one)
+            out = table["table"](e.func, *[walk(a) for a in e.args])
         elif e.func in table:
             args = [walk(a) for a in e.args]
             if e.func is sp.Heaviside and len(args) == 2:

@@ -266,7 +266,8 @@ class Run:
         band = ("the tolerance given" if tol is not None else
                 "max(2 % of the initial error, 2 × steady-state error), at most 20 % of the initial error")
         return SummaryTable(title, cols, rows, (f"band: {band}; conv. time: from then on the error stays within it "
-                                                f"({MISSING}: not within the run)", *self._parameter_lines()))
+                                                f"({MISSING}: not within the run)", *self._parameter_lines(),
+                                                *(f"note: {n}" for n in self.info.get("notes", ()))))
 
     def __repr__(self) -> str:
         return short_repr(self, {"model": self.model, "t": (float(self.t[0]), float(self.t[-1])), "samples": int(self.t.size),
@@ -340,6 +341,8 @@ class Run:
         if self.x is not None:
             given = "convergence time: the first time after which ‖x̂ − x‖ stays within `tol`"
             out["convergence_rule"] = given if tol is not None else CONVERGENCE_RULE
+        if self.info.get("notes"):
+            out["notes"] = list(self.info["notes"])
         return out
 
     def to_csv(self, path: Any, *, every: int = 1) -> None:

@@ -34,6 +34,7 @@ from ._file import file_arguments, observers_of
 from ._options import Adaptive, Noise, ProcessNoise, Sampling
 from ._options import xhat0_for as _xhat0_for
 from ._results import ObserverTrace, Run
+from ._tables import table_range_notes
 
 __all__ = ["simulate", "Simulation", "prepare", "Prepared", "named_observers", "check_compatible", "stage_inputs",
            "augmented_plant"]
@@ -197,7 +198,9 @@ def simulate(
                             escape_bound=escape_bound, x0_tail=tail)
     sim = Simulation(plant, observers, t_final=t_final, dt=dt, inputs=inputs, params=params, noise=noise,
                      process_noise=process_noise, sampling=sampling, integrator=integrator, engine=engine, _caller="simulate")
-    return sim.run(x0, xhat0=xhat0, seed=seed, progress=progress, escape_bound=escape_bound)
+    run = sim.run(x0, xhat0=xhat0, seed=seed, progress=progress, escape_bound=escape_bound)
+    notes = table_range_notes(sim.plant, run.t, run.x, run.u)
+    return replace(run, info={**run.info, "notes": (*run.info.get("notes", ()), *notes)}) if notes else run
 
 
 class Simulation:

@@ -13,6 +13,7 @@ from typing import Any
 
 from ...errors import ModelError
 from ...model import System
+from ...model._tables import generic_surrogates, table_calls
 from ...model._system import ExprLike
 from ._global import global_identifiability, multi_experiment
 from ...algebra._groebner import get_engine
@@ -124,6 +125,11 @@ def analyze(system: System, *, unknown_params: Any = (), inputs: Any = "generic"
     >>> analyze(s).observable, analyze(s, inputs={"u": 0}).observable
     (True, False)
     """
+    system, table_notes = _without_tables(system, seed)
+    if table_notes:
+        return _table_report(system, table_notes, unknown_params=unknown_params, inputs=inputs, unknown_inputs=unknown_inputs,
+                             functions=functions, at=at, symmetries=symmetries, seed=seed, regime=regime,
+                             global_parts=global_check or identifiable_functions or experiments is not None)
     if getattr(system, "is_discrete", False):
         return _map_report(system, unknown_params=unknown_params, inputs=inputs, unknown_inputs=unknown_inputs,
                            functions=functions, seed=seed, global_check=global_check,
@@ -136,6 +142,27 @@ def analyze(system: System, *, unknown_params: Any = (), inputs: Any = "generic"
                                global_check=global_check, identifiable_functions=identifiable_functions,
                                experiments=experiments, engine=engine)
     return report
+
+
+def _without_tables(system: System, seed: int) -> tuple[System, list[str]]:
+    """The system with its lookup tables replaced by generic smooth functions (and the note saying so), or itself."""
+    if not isinstance(system, System):   # local_analysis names what it got
+        return system, []
+    exprs = [*system.f, *system.h]
+    if not table_calls(exprs):
+        return system, []
+    out, notes = generic_surrogates(exprs, seed)
+    return system._copy(f=out[:system.n_states], h=out[system.n_states:]), notes
+
+
+def _table_report(system: System, notes: list[str], *, global_parts: bool, **local: Any) -> ObservabilityReport:
+    """The local verdict of a model with lookup tables (each a generic smooth function); the global parts refused."""
+    report = analyze(system, **local)
+    extra = list(notes)
+    if global_parts:
+        extra.append("the global check, identifiable functions and multi-experiment identifiability are not done for a "
+                     "model with lookup tables (a table is not a rational function); the local verdict above stands")
+    return dataclasses.replace(report, notes=(*report.notes, *extra))
 
 
 def _map_report(system: System, *, unknown_params: Any, inputs: Any, unknown_inputs: Any, functions: Any, seed: int,
