@@ -43,7 +43,8 @@ from published_models import MODELS, linear_compartment  # noqa: E402
 ALL = MODELS + [linear_compartment(k, n) for k in ("cycle", "catenary", "mammillary") for n in (3, 4)]
 
 from nlobs.analysis import analyze  # noqa: E402
-from nlobs.analysis.structural._global import _prepare, _var_power  # noqa: E402
+from nlobs.algebra._modular import var_power as _var_power  # noqa: E402
+from nlobs.analysis.structural._global import _prepare  # noqa: E402
 from nlobs.algebra._groebner import GroebnerEngine, available_engines  # noqa: E402
 
 

@@ -13,9 +13,9 @@ Modules and why (the equations they implement):
 - design/_kalman.py: the Kalman-like observer for state-affine systems and its high-gain
   variant (002), the Riccati ODE Ṁ = λ[...];
 - design/_gpebo.py: the GPEBO / 2G+D observer of 000 (eqs. 8-13, order (3 + 2n)n);
-- design/_banks.py and analysis/_conditions.py: Banks' matrix measure, dissipativity and
+- design/_banks.py and analysis/forms/_conditions.py: Banks' matrix measure, dissipativity and
   Theorem 2.6 (003);
-- analysis/_identity.py: the exact identity test every PDE / left-inverse check relies on.
+- algebra/_identity.py: the exact identity test every PDE / left-inverse check relies on.
 
 String literals are not mutated (see _LAUNCH), nor raise statements, Check(...) lines and
 certificate values (do_not_mutate_patterns): messages and certificate text are not equations.
@@ -52,9 +52,9 @@ MODULES: dict[str, list[str]] = {
     "design/_kalman.py": ["tests/design/test_kalman.py", "tests/design/test_kalman_edges.py", "tests/design/test_high_gain.py"],
     "design/_gpebo.py": ["tests/design/test_gpebo.py", "tests/papers/test_000_2gd_not_uco.py::test_2gd_error_follows_the_paper_law_to_round_off"],
     "design/_banks.py": ["tests/design/test_banks.py"],
-    "analysis/_conditions.py": ["tests/analysis/test_forms_banks.py", "tests/analysis/test_conditions_edges.py",
+    "analysis/forms/_conditions.py": ["tests/analysis/test_forms_banks.py", "tests/analysis/test_conditions_edges.py",
                                 "tests/design/test_banks.py"],
-    "analysis/_identity.py": ["tests/analysis/test_identity.py", "tests/analysis/test_identity_exact.py",
+    "algebra/_identity.py": ["tests/analysis/test_identity.py", "tests/analysis/test_identity_exact.py",
                               "tests/design/test_pebo.py", "tests/design/test_iandi.py"],
 }
 
@@ -64,8 +64,8 @@ EQUATIONS: dict[str, tuple[str, str]] = {
     "design/_kalman.py": ("002", "Kalman-like and high-gain observers"),
     "design/_gpebo.py": ("000", "Lemma 1, eqs. (5), (8)-(13)"),
     "design/_banks.py": ("003", "Lemma 2.3, Theorem 2.6"),
-    "analysis/_conditions.py": ("003", "λ(A), μ_N, Theorem 2.6"),
-    "analysis/_identity.py": ("004", "PDE (4) and left-inverse identities"),
+    "analysis/forms/_conditions.py": ("003", "λ(A), μ_N, Theorem 2.6"),
+    "algebra/_identity.py": ("004", "PDE (4) and left-inverse identities"),
 }
 
 #: Survivors that are equivalent mutants (no input of the documented domain tells them from the original),
@@ -121,7 +121,7 @@ EQUIVALENT: dict[str, str] = {
     "nlobs.design._gpebo.x_design_gpebo__mutmut_17": "GD's documented default gain γ is 1.0: GD(1.0, ) == GD(1.0, 1.0)",
     "nlobs.design._gpebo.x_design_gpebo__mutmut_103": "Regression.names is only checked for its length (θ names are not shown)",
     "nlobs.design._gpebo.x_design_gpebo__mutmut_104": "Regression.names is only checked for its length (θ names are not shown)",
-    # analysis/_conditions.py, box_sup (the sampled suprema of 003 Lemma 2.4, Theorem 2.6): conversions of arrays that
+    # analysis/forms/_conditions.py, box_sup (the sampled suprema of 003 Lemma 2.4, Theorem 2.6): conversions of arrays that
     # are already float, the optimiser scipy picks anyway, iteration caps that are never reached
     "nlobs.analysis.forms._conditions.x_box_sup__mutmut_22": "3^d instead of 2^d corners: the extra indices repeat corners (bits above d unused)",
     "nlobs.analysis.forms._conditions.x_box_sup__mutmut_43": "the function values are already float arrays",
@@ -133,7 +133,7 @@ EQUIVALENT: dict[str, str] = {
     "nlobs.analysis.forms._conditions.x_box_sup__mutmut_73": "scipy chooses L-BFGS-B itself for a bounded problem without constraints",
     "nlobs.analysis.forms._conditions.x_box_sup__mutmut_69": "maxiter default (15000) instead of 100: L-BFGS-B converges well before",
     "nlobs.analysis.forms._conditions.x_box_sup__mutmut_74": "maxiter default (15000) instead of 100: L-BFGS-B converges well before",
-    # analysis/_identity.py: the exact identity test (every PDE (4) / left-inverse check of 004)
+    # algebra/_identity.py: the exact identity test (every PDE (4) / left-inverse check of 004)
     "nlobs.algebra._identity.x__grid_point__mutmut_9": "the fallback grid starts at 0.100001 instead of 0.1: one of its 800,001 "
                                                         "points, which no verdict depends on",
     "nlobs.algebra._identity.x__grid_point__mutmut_10": "the fallback grid ends at 0.900001 instead of 0.9 (see mutmut_9)",

@@ -1,6 +1,6 @@
 """Banks' conditions at their edges (003_a2c72ccb4281ea3f.txt): exact inputs, boundary cases, the norm
 of the Lipschitz constant, and evidence that reports the sampling actually done. Written against the
-mutants the mutation run (benchmarks/mutation.py) found alive in analysis/_conditions.py.
+mutants the mutation run (benchmarks/mutation.py) found alive in analysis/forms/_conditions.py.
 
 Reference values are computed by hand in the comments, not by the code under test.
 """

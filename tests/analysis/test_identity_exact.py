@@ -1,4 +1,4 @@
-"""The exact identity test (analysis/_identity.py) path by path, against independent references.
+"""The exact identity test (algebra/_identity.py) path by path, against independent references.
 
 Every PDE (4) / left-inverse check of 004, the mimicking identities of 001 and Ψ of a high-gain
 observer rest on `decide_identity`, so each step of it is checked here on its own:

@@ -7,7 +7,8 @@ a later one); imports under ``if TYPE_CHECKING:`` do not (annotations only). Two
    :class:`~nlobs.System` class offers its structured forms (``model/_system.py`` -> ``model/_forms.py``, which
    subclasses ``System``); written once here, in :data:`ALLOWED_CYCLES`.
 2. A lower layer never imports a higher one (:data:`LAYERS`, lowest first; packages in one layer do not import
-   each other either way round beyond what is listed).
+   each other either way round beyond what is listed). Inside a package split into rooms (:data:`ROOMS`: the
+   sub-packages of ``analysis``) the same rule holds between its rooms; the package's ``__init__`` re-exports them all.
 """
 
 from __future__ import annotations
@@ -35,6 +36,16 @@ LAYERS: tuple[frozenset[str], ...] = (
     frozenset({"cli"}),
     frozenset({"__init__"}),            # the package's public face re-exports every layer
 )
+
+#: Packages split into rooms (their sub-packages and shared private modules), lowest first, by the same rule as
+#: :data:`LAYERS`: a room never imports a higher one, and rooms of one level do not import each other.
+ROOMS: dict[str, tuple[frozenset[str], ...]] = {
+    "analysis": (
+        frozenset({"_reports"}),                      # the result types and number formatting the rooms share
+        frozenset({"structural", "trajectory"}),      # from the equations / along one trajectory
+        frozenset({"forms"}),                         # structure for designs (augmentation checks a trajectory Gramian)
+    ),
+}
 
 #: Module cycles that are allowed, each as the sorted tuple of its modules.
 ALLOWED_CYCLES = {("nlobs.model._forms", "nlobs.model._system")}
@@ -140,12 +151,36 @@ def _layer(module: str) -> int:
     raise AssertionError(f"{module}: its package `{top}` has no layer in tests/meta/test_layers.py LAYERS; add it")
 
 
+def _room(module: str) -> int | None:
+    """The room of a module inside a package of :data:`ROOMS` (the package's own ``__init__`` above them all), or
+    None outside such a package."""
+    parts = module.split(".")
+    if len(parts) < 2 or parts[1] not in ROOMS:
+        return None
+    rooms = ROOMS[parts[1]]
+    if len(parts) == 2:
+        return len(rooms)
+    for i, room in enumerate(rooms):
+        if parts[2] in room:
+            return i
+    raise AssertionError(f"{module}: `{parts[2]}` has no room in tests/meta/test_layers.py ROOMS[{parts[1]!r}]; add it")
+
+
+def _crosses_rooms(m: str, t: str) -> bool:
+    """`m` imports `t` in the same roomed package, from a room below `t`'s or from a neighbour of its level."""
+    if m.split(".")[:2] != t.split(".")[:2] or (rm := _room(m)) is None or rm == len(ROOMS[m.split(".")[1]]):
+        return False
+    rt = _room(t)
+    assert rt is not None
+    return rt > rm or (rt == rm and m.split(".")[2] != t.split(".")[2] and len(ROOMS[m.split(".")[1]][rm]) > 1)
+
+
 def upward_imports(edges: dict[str, set[str]]) -> list[str]:
     bad = []
     for m, ts in edges.items():
         for t in ts:
             if _layer(t) > _layer(m) or (_layer(t) == _layer(m) and m.split(".")[:2] != t.split(".")[:2]
-                                         and len(LAYERS[_layer(m)]) > 1 and _layer(m) > 0):
+                                         and len(LAYERS[_layer(m)]) > 1 and _layer(m) > 0) or _crosses_rooms(m, t):
                 bad.append(f"{m} imports {t}")
     return sorted(bad)
 
@@ -166,6 +201,21 @@ def test_the_checks_see_a_cycle_and_an_upward_import():
              "nlobs.design._x": set()}
     assert module_cycles(edges, packages=frozenset()) == [("nlobs.model._a", "nlobs.model._b")]
     assert upward_imports(edges) == ["nlobs.model._b imports nlobs.design._x"]
+    # algebra sits below analysis; inside analysis a room never imports a higher one, nor its neighbour
+    edges = {"nlobs.algebra._m": {"nlobs.analysis.structural._g"},
+             "nlobs.analysis.structural._g": {"nlobs.analysis.forms._r", "nlobs.analysis.trajectory._t",
+                                              "nlobs.analysis._reports", "nlobs.algebra._m", "nlobs.analysis.structural._h"},
+             "nlobs.analysis.structural._h": set(),
+             "nlobs.analysis.forms._r": {"nlobs.analysis.trajectory._t", "nlobs.analysis._reports", "nlobs.analysis"},
+             "nlobs.analysis.trajectory._t": {"nlobs.analysis._reports"},
+             "nlobs.analysis._reports": {"nlobs.analysis.trajectory"},
+             "nlobs.analysis.trajectory": {"nlobs.analysis.trajectory._t"},
+             "nlobs.analysis": {"nlobs.analysis.forms._r", "nlobs.algebra._m"}}
+    assert upward_imports(edges) == ["nlobs.algebra._m imports nlobs.analysis.structural._g",
+                                     "nlobs.analysis._reports imports nlobs.analysis.trajectory",
+                                     "nlobs.analysis.forms._r imports nlobs.analysis",
+                                     "nlobs.analysis.structural._g imports nlobs.analysis.forms._r",
+                                     "nlobs.analysis.structural._g imports nlobs.analysis.trajectory._t"]
 
 
 def test_function_level_imports_count():
@@ -176,5 +226,5 @@ def test_function_level_imports_count():
     found = [n for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)]
     assert found and found[0].module == "_particles"
     edges = import_graph()
-    assert "nlobs.analysis.structural._lie" in edges["nlobs.analysis.structural._analyze"]          # a module-level edge
+    assert "nlobs.analysis.structural._lie" in edges["nlobs.analysis.structural._analyze"]  # a module-level edge
     assert "nlobs.model._forms" in edges["nlobs.model._system"]              # a function-level one (the exception)

@@ -75,7 +75,7 @@ def test_global_claims_without_an_engine_are_not_checked_never_failed(monkeypatc
     import nlobs.analysis.structural._analyze as A
 
     monkeypatch.setattr(G, "get_engine", lambda *a, **k: None)
-    monkeypatch.setattr(A, "get_engine", lambda *a, **k: None)   # analyze() picks the engine (analysis/_analyze.py)
+    monkeypatch.setattr(A, "get_engine", lambda *a, **k: None)   # analyze() picks the engine (analysis/structural/_analyze.py)
     claims = ex.global_claims()
     assert [c.holds for c in claims] == [None, None]
     assert all(str(c).startswith("[not checked]") and "msolve" in c.detail for c in claims)

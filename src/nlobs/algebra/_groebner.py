@@ -1,6 +1,6 @@
 """Gröbner bases over a prime field GF(p): one small interface over three engines.
 
-The global identifiability check (``_global.py``) needs one operation: given polynomials
+The global identifiability check (``analysis/structural/_global.py``) needs one operation: given polynomials
 :math:`F` and :math:`G` over GF(p), the normal forms of :math:`G` with respect to a Gröbner basis
 of the ideal :math:`\\langle F \\rangle` in the degree-reverse-lexicographic order. Everything else
 (global verdicts, numbers of solutions, identifiable functions) is linear algebra on those normal

@@ -1,6 +1,6 @@
-"""Arithmetic in the prime field GF(p) on NumPy int64 arrays: primes, inverses, roots, row reduction.
+"""Arithmetic in the prime field GF(p) on NumPy int64 arrays: primes, inverses, roots, row reduction, polynomials mod p.
 
-The generic-rank test (``_lie.py``) evaluates truncated power series at a random point of
+The generic-rank test (``analysis/structural/_lie.py``) evaluates truncated power series at a random point of
 GF(p)^M. Every value is kept in ``[0, p)``; a product of two values is below p² < 2⁵⁴ and a dot
 product of at most :data:`MAX_TERMS` such products stays below 2⁶³, so int64 never overflows.
 """
@@ -8,11 +8,18 @@ product of at most :data:`MAX_TERMS` such products stays below 2⁶³, so int64 
 from __future__ import annotations
 
 import itertools
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import sympy as sp
 
-__all__ = ["PRIME_BITS", "MAX_TERMS", "random_prime", "inv", "modsqrt", "root", "RowEchelon", "COEFF_BOUND", "monomial_exponents", "ratrec", "kernel_mod_p", "monomial_value"]
+if TYPE_CHECKING:
+    from ._groebner import Poly
+
+__all__ = ["PRIME_BITS", "MAX_TERMS", "random_prime", "inv", "modsqrt", "root", "RowEchelon", "COEFF_BOUND", "monomial_exponents", "ratrec", "kernel_mod_p", "monomial_value",
+           "sparse_mod_p", "sparse_value", "sparse_gradient", "poly_mul", "poly_value", "var_power", "minimal_polynomial",
+           "distinct_roots"]
 
 #: Primes are drawn from [2**(PRIME_BITS-1), 2**PRIME_BITS).
 PRIME_BITS = 27
@@ -237,3 +244,102 @@ def monomial_value(e: Sequence[int], vals: Sequence[int], p: int) -> int:
         if k:
             t = t * pow(v, k, p) % p
     return t
+
+
+# polynomials mod p: sparse [(coefficient, ((var, exp), ...)), ...] and dense {exponent tuple: coefficient}
+def sparse_mod_p(P: Any, p: int) -> list[tuple[int, tuple[tuple[int, int], ...]]]:
+    """A polynomial over QQ as [(coefficient mod p, ((var, exp), ...)), ...]."""
+    out = []
+    for mono, c in P.items():
+        num, den = int(c.numerator), int(c.denominator)
+        if den % p == 0:
+            raise ZeroDivisionError("a coefficient's denominator is divisible by the prime")
+        cc = num % p * inv(den, p) % p
+        out.append((cc, tuple((i, e) for i, e in enumerate(mono) if e)))
+    return out
+
+
+def sparse_value(sp_poly: list, vals: Sequence[int], p: int) -> int:
+    """The value mod p of a polynomial in the form of :func:`sparse_mod_p` at the point `vals`."""
+    acc = 0
+    for c, mono in sp_poly:
+        t = c
+        for i, e in mono:
+            t = t * pow(vals[i], e, p) % p
+        acc += t
+    return acc % p
+
+
+def sparse_gradient(sp_poly: list, vals: Sequence[int], p: int, cols: Mapping[int, int], ncols: int) -> np.ndarray:
+    """Its gradient mod p at `vals` with respect to the variables in `cols` (variable -> column of `ncols`)."""
+    g = np.zeros(ncols, dtype=np.int64)
+    acc: dict[int, int] = {}
+    for c, mono in sp_poly:
+        pw = [pow(vals[i], e, p) for i, e in mono]
+        for a, (i, e) in enumerate(mono):
+            if i not in cols:
+                continue
+            t = c * e % p * pow(vals[i], e - 1, p) % p
+            for b, v in enumerate(pw):
+                if b != a:
+                    t = t * v % p
+            acc[i] = (acc.get(i, 0) + t) % p
+    for i, v in acc.items():
+        g[cols[i]] = v
+    return g
+
+
+def poly_mul(a: Poly, b: Poly, p: int) -> Poly:
+    """The product mod p of two polynomials {exponent tuple: coefficient}."""
+    out: Poly = {}
+    for ma, ca in a.items():
+        for mb, cb in b.items():
+            m = tuple(x + y for x, y in zip(ma, mb))
+            out[m] = (out.get(m, 0) + ca * cb) % p
+    return {k: c for k, c in out.items() if c}
+
+
+def poly_value(P: Poly, vec: Sequence[int], p: int) -> int:
+    """The value mod p of a polynomial {exponent tuple: coefficient} at the point `vec`."""
+    acc = 0
+    for m, c in P.items():
+        t = c
+        for v, e in zip(vec, m):
+            if e:
+                t = t * pow(v, e, p) % p
+        acc += t
+    return acc % p
+
+
+def var_power(names: Sequence[str], v: str, k: int) -> Poly:
+    """The monomial v**k in the variables `names`."""
+    m = [0] * len(names)
+    m[names.index(v)] = k
+    return {tuple(m): 1}
+
+
+def minimal_polynomial(nfs: Sequence[Poly], p: int) -> list[int] | None:
+    """The first linear relation sum c_k NF(v^k) = 0 (k = 0..), as coefficients c_0..c_d, or None."""
+    monos: dict[tuple[int, ...], int] = {}
+    for g in nfs:
+        for m in g:
+            monos.setdefault(m, len(monos))
+    width = len(monos) + len(nfs)
+    ech = RowEchelon(width, p)
+    for k, g in enumerate(nfs):
+        row = np.zeros(width, dtype=np.int64)
+        for m, c in g.items():
+            row[monos[m]] = c % p
+        row[len(monos) + k] = 1
+        red = ech.reduce(row)
+        if not np.any(red[: len(monos)]):
+            return [int(c) for c in red[len(monos): len(monos) + k + 1]]
+        ech.add(row)
+    return None
+
+
+def distinct_roots(coeffs: Sequence[int], p: int) -> int:
+    """How many distinct roots c_0 + c_1 T + ... has over the algebraic closure of GF(p)."""
+    T = sp.Symbol("T")
+    P = sp.Poly([c % p for c in reversed(coeffs)], T, modulus=p)
+    return int(P.degree() - P.gcd(P.diff(T)).degree())

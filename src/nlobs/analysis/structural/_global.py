@@ -44,6 +44,14 @@ from ...model._system import ExprLike, exact
 from ...references import cite
 from ...algebra._groebner import GroebnerEngine, Poly, get_engine
 from ...algebra._modular import PRIME_BITS, RowEchelon, inv, random_prime
+from ...algebra._modular import distinct_roots as _distinct_roots
+from ...algebra._modular import minimal_polynomial as _minimal_polynomial
+from ...algebra._modular import poly_mul as _mul
+from ...algebra._modular import poly_value as _eval_poly
+from ...algebra._modular import sparse_gradient as _gradient
+from ...algebra._modular import sparse_mod_p as _sparse
+from ...algebra._modular import sparse_value as _value
+from ...algebra._modular import var_power as _var_power
 
 __all__ = ["GlobalResult", "LocallyOnly", "global_identifiability", "NotRational"]
 
@@ -231,7 +239,7 @@ def _ratify(e: sp.Expr) -> sp.Expr:
 
 def _to_rational(system: System, params_unknown: Sequence[str], classes: Mapping[str, Any],
                  unknown_inputs: Mapping[str, int]) -> _Rational:
-    from ._lie import InputClass
+    from ._inputs import InputClass
 
     known = {symbol(k): exact(v) for k, v in system.params.items() if k not in params_unknown}
     sub: dict[sp.Symbol, sp.Symbol] = {}
@@ -382,46 +390,6 @@ class _Jets:
         while len(self.Y[j]) <= k:
             self.Y[j].append(self.D(self.Y[j][-1]))
         return self.Y[j][k]
-
-
-def _sparse(P: Any, p: int) -> list[tuple[int, tuple[tuple[int, int], ...]]]:
-    """A polynomial over QQ as [(coefficient mod p, ((var, exp), ...)), ...]."""
-    out = []
-    for mono, c in P.items():
-        num, den = int(c.numerator), int(c.denominator)
-        if den % p == 0:
-            raise ZeroDivisionError("a coefficient's denominator is divisible by the prime")
-        cc = num % p * inv(den, p) % p
-        out.append((cc, tuple((i, e) for i, e in enumerate(mono) if e)))
-    return out
-
-
-def _value(sp_poly: list, vals: Sequence[int], p: int) -> int:
-    acc = 0
-    for c, mono in sp_poly:
-        t = c
-        for i, e in mono:
-            t = t * pow(vals[i], e, p) % p
-        acc += t
-    return acc % p
-
-
-def _gradient(sp_poly: list, vals: Sequence[int], p: int, cols: Mapping[int, int], ncols: int) -> np.ndarray:
-    g = np.zeros(ncols, dtype=np.int64)
-    acc: dict[int, int] = {}
-    for c, mono in sp_poly:
-        pw = [pow(vals[i], e, p) for i, e in mono]
-        for a, (i, e) in enumerate(mono):
-            if i not in cols:
-                continue
-            t = c * e % p * pow(vals[i], e - 1, p) % p
-            for b, v in enumerate(pw):
-                if b != a:
-                    t = t * v % p
-            acc[i] = (acc.get(i, 0) + t) % p
-    for i, v in acc.items():
-        g[cols[i]] = v
-    return g
 
 
 # ----------------------------------------------------------------------------------------------
@@ -718,58 +686,6 @@ def _sort_key(name: str) -> tuple:
     return (1, 0, name)
 
 
-def _mul(a: Poly, b: Poly, p: int) -> Poly:
-    out: Poly = {}
-    for ma, ca in a.items():
-        for mb, cb in b.items():
-            m = tuple(x + y for x, y in zip(ma, mb))
-            out[m] = (out.get(m, 0) + ca * cb) % p
-    return {k: c for k, c in out.items() if c}
-
-
-def _eval_poly(P: Poly, vec: Sequence[int], p: int) -> int:
-    acc = 0
-    for m, c in P.items():
-        t = c
-        for v, e in zip(vec, m):
-            if e:
-                t = t * pow(v, e, p) % p
-        acc += t
-    return acc % p
-
-
-def _var_power(names: Sequence[str], v: str, k: int) -> Poly:
-    m = [0] * len(names)
-    m[names.index(v)] = k
-    return {tuple(m): 1}
-
-
-def _minimal_polynomial(nfs: Sequence[Poly], p: int) -> list[int] | None:
-    """The first linear relation sum c_k NF(v^k) = 0 (k = 0..), as coefficients c_0..c_d, or None."""
-    monos: dict[tuple[int, ...], int] = {}
-    for g in nfs:
-        for m in g:
-            monos.setdefault(m, len(monos))
-    width = len(monos) + len(nfs)
-    ech = RowEchelon(width, p)
-    for k, g in enumerate(nfs):
-        row = np.zeros(width, dtype=np.int64)
-        for m, c in g.items():
-            row[monos[m]] = c % p
-        row[len(monos) + k] = 1
-        red = ech.reduce(row)
-        if not np.any(red[: len(monos)]):
-            return [int(c) for c in red[len(monos): len(monos) + k + 1]]
-        ech.add(row)
-    return None
-
-
-def _distinct_roots(coeffs: Sequence[int], p: int) -> int:
-    T = sp.Symbol("T")
-    P = sp.Poly([c % p for c in reversed(coeffs)], T, modulus=p)
-    return int(P.degree() - P.gcd(P.diff(T)).degree())
-
-
 def global_identifiability(system: System, *, unknown_params: Any = (), inputs: Any = "generic",
                            unknown_inputs: Mapping[str, int] | None = None, functions: Sequence[ExprLike] = (),
                            local: Any = None, engine: str | GroebnerEngine = "auto", seed: int = 0,
@@ -900,7 +816,8 @@ class _Prepared:
 def _prepare(system: System, *, unknown_params: Any = (), inputs: Any = "generic",
              unknown_inputs: Mapping[str, int] | None = None, functions: Sequence[ExprLike] = (), local: Any = None,
              seed: int = 0, weighted: bool = True) -> _Prepared:
-    from ._lie import _input_classes, _parse_functions, _unknown_params, observable_function
+    from ._inputs import _input_classes, _parse_functions, _unknown_params
+    from ._lie import observable_function
     from ._lie import local_analysis as analyze
 
     if not isinstance(system, System):
@@ -1159,7 +1076,7 @@ def multi_experiment(system: System, experiments: int = 1, *, unknown_params: An
     >>> multi_experiment(s, 2, global_check=False).needed   # Example 7.7 of Ovchinnikov et al.: two are needed
     2
     """
-    from ._lie import _unknown_params
+    from ._inputs import _unknown_params
     from ._lie import local_analysis as analyze
 
     t0 = time.perf_counter()

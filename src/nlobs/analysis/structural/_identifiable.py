@@ -43,10 +43,12 @@ from ...algebra._modular import COEFF_BOUND, monomial_exponents
 from ...algebra._modular import kernel_mod_p as _kernel
 from ...algebra._modular import monomial_value as _mono_value
 from ...algebra._modular import ratrec as _ratrec
-from ._global import NO_ENGINE, NotRational, _decide, _distinct_roots, _minimal_polynomial, _prepare, _System
+from ._global import NO_ENGINE, NotRational, _decide, _prepare, _System
 from ._reparam import reparametrize
 from ...algebra._groebner import GroebnerEngine, Poly, get_engine
 from ...algebra._modular import RowEchelon, inv
+from ...algebra._modular import distinct_roots as _distinct_roots
+from ...algebra._modular import minimal_polynomial as _minimal_polynomial
 
 __all__ = ["IdentifiableFunctions", "find_identifiable_functions"]
 
@@ -147,7 +149,7 @@ class _Search:
         sian = prep.sian
         J = sian.J
         pt = sian.point()
-        from ._global import _gradient
+        from ...algebra._modular import sparse_gradient as _gradient
 
         unknown_cols = [J.index[v] for v in sian.rm.params] + [J.index[f"{x}_{k}"] for x in sian.rm.states
                                                                   for k in range(J.K + 2)]
@@ -325,7 +327,7 @@ def _fibre_system(funcs: Sequence[sp.Expr], X: list[str], p: int, rng: np.random
             acc += c * _mono_value(m[:-1], [xhat[u] for u in X], p)
         return acc % p
 
-    from ._global import _mul
+    from ...algebra._modular import poly_mul as _mul
 
     for f in funcs:
         num, den = sp.fraction(sp.cancel(sp.together(f)))

@@ -34,7 +34,7 @@ from ...engine import to_casadi
 from ...model import TIME, System, parse_expression
 from ...references import cite
 from .._reports import ObservabilityReport
-from ._lie import _unknown_params
+from ._inputs import _unknown_params
 
 __all__ = ["map_analysis"]
 

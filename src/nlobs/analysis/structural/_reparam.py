@@ -120,7 +120,7 @@ def _names(funcs: Sequence[sp.Expr], system: System) -> list[str]:
 def _express(target: sp.Expr, gens: Sequence[sp.Expr], new: Sequence[sp.Symbol], old: Sequence[sp.Symbol],
              rng: np.random.Generator) -> sp.Expr | None:
     """`target` (in the old symbols) as a rational function of `gens` (named `new`), verified exactly; or None."""
-    from ._global import _eval_poly
+    from ...algebra._modular import poly_value as _eval_poly
     from ...algebra._modular import kernel_mod_p as _kernel
     from ...algebra._modular import monomial_value as _mono_value
     from ...algebra._modular import monomial_exponents
@@ -245,7 +245,7 @@ def reparametrize(system: System, functions: Sequence[str], *, unknown_params: S
         return Reparametrization(False, missing=("the model depends on t explicitly (only autonomous models are "
                                                  "rewritten)",))
     known = {symbol(k): exact(v) for k, v in system.params.items() if k not in unknown_params}
-    from ._lie import _parse_functions
+    from ._inputs import _parse_functions
 
     gens = [e for _, e in _parse_functions(system, functions)]
     names = _names(gens, system)
