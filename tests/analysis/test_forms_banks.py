@@ -90,14 +90,14 @@ class TestBanksReports:
 
     @pytest.mark.parametrize("call, where", [
         (lambda: max_slope(["x1 +"], ["x1"], [[0, 1]]), r"^max_slope: `exprs`\[0\]"),
-        (lambda: max_slope(["x1"], ["x1"], [[0, 1], [0, 1]]), r"^max_slope: `box`"),
+        (lambda: max_slope(["x1"], ["x1"], [[0, 1], [0, 1]]), r"^max_slope: `region`"),
         (lambda: max_slope(["x1", "1"], ["x1"], [[0, 1]]), r"^max_slope: N must map R\^1 to itself: 2 components"),
         (lambda: banks_condition(["x1 +"], ["x1"], [[-1]], ["x1"], [[0, 1]]), r"^banks_condition: `f1`\[0\]"),
         (lambda: banks_condition(["-x1"], ["q"], [[-1]], ["x1"], [[0, 1]]), r"^banks_condition: `B`\[0\]"),
         (lambda: banks_condition(["-x1"], ["x1"], [[-1]], ["x1"], [[0, 1], [0, 1]]), r"^banks_condition: `region`"),
         (lambda: banks_condition(["-x1", "0"], ["x1"], [[-1]], ["x1"], [[0, 1]]), r"^banks_condition: `f1` must have 1"),
         (lambda: banks_condition(["-x1"], ["x1"], [[np.inf]], ["x1"], [[0, 1]]), r"^banks_condition: `P` has non-finite"),
-        (lambda: lipschitz_bound(["x1"], ["x1"], [[0, 1], [0, 1]]), r"^lipschitz_bound: `box`"),
+        (lambda: lipschitz_bound(["x1"], ["x1"], [[0, 1], [0, 1]]), r"^lipschitz_bound: `region`"),
         (lambda: matrix_measure([[np.nan]]), r"^matrix_measure: `A` has non-finite"),
     ])
     def test_errors_name_the_function_and_the_argument(self, call, where):
@@ -191,3 +191,27 @@ class TestSamplingOptions:
     def test_tolerance_is_inclusive(self):
         assert max_slope(["0*x"], ["x"], [[-1, 1]], tol=0.0).dissipative           # μ = 0 <= tol = 0
         assert not max_slope(["1e-6*x"], ["x"], [[-1, 1]], tol=0.0).dissipative
+
+
+class TestRegionVocabulary:
+    """One name for a box of variables: ``region``, a mapping by name or [low, high] pairs in order."""
+
+    def test_a_mapping_is_the_same_box_as_the_pairs_in_order(self):
+        by_pairs = lipschitz_bound(["sin(3*x)*y"], ["x", "y"], [[-1, 1], [0, 2]])
+        by_name = lipschitz_bound(["sin(3*x)*y"], ["x", "y"], {"y": (0, 2), "x": (-1, 1)})  # any order of keys
+        assert by_name.gamma == by_pairs.gamma
+        pend = load_model(MODELS / "pendulum.toml").system
+        est = lipschitz_constant(pend, {"x1": (-3, 3), "x2": (-5, 5)})
+        assert est.gamma == pytest.approx(9.81 * (1 - np.cos(3.0)), rel=1e-9)  # as test_lipschitz_constant_of_the_pendulum
+
+    def test_the_old_name_box_warns_and_still_works(self):
+        with pytest.warns(DeprecationWarning, match="`box` is renamed `region`"):
+            assert max_slope(["-x"], ["x"], box=[[-1, 1]]).dissipative
+        with pytest.raises(TypeError, match="give `region` only"):
+            max_slope(["-x"], ["x"], region=[[-1, 1]], box=[[-1, 1]])
+
+    def test_a_mapping_must_name_each_variable_once(self):
+        with pytest.raises(ShapeError, match=r"`region` names 'z', which is not one of x, y"):
+            lipschitz_bound(["x*y"], ["x", "y"], {"x": (0, 1), "y": (0, 1), "z": (0, 1)})
+        with pytest.raises(ShapeError, match=r"`region` has no bounds for y"):
+            lipschitz_bound(["x*y"], ["x", "y"], {"x": (0, 1)})

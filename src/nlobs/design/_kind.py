@@ -27,11 +27,12 @@ import functools
 import inspect
 import types
 import typing
-import warnings
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any, Literal, Protocol
 
+from .._deprecate import renamed
+from .._deprecate import warn_renamed as _warn_renamed
 from .._text import shorten
 from ..model import System
 from ..model._budget import symbolic_budget
@@ -227,33 +228,6 @@ class DesignsView(Mapping[str, Callable[..., Any]]):
 
     def __repr__(self) -> str:
         return f"DESIGNS({', '.join(KINDS)})"
-
-
-def _warn_renamed(fn_name: str, old: str, new: str, where: str = "") -> None:
-    warnings.warn(f"{where}{fn_name}: `{old}` is renamed `{new}`; the old name is accepted until the next release",
-                  DeprecationWarning, stacklevel=4)
-
-
-def renamed(**old_to_new: str) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
-    """Keep old keyword names of a design function working for one release: ``@renamed(K="L")`` accepts ``K=``
-    with a DeprecationWarning naming ``L`` (giving both is a TypeError). The first argument's old name (e.g.
-    ``model`` for ``system``) is handled by :func:`requires_model`. Place it below ``@kind``."""
-
-    def wrap(fn: Callable[..., Any]) -> Callable[..., Any]:
-        @functools.wraps(fn)
-        def inner(*args: Any, **kwargs: Any) -> Any:
-            for old, new in old_to_new.items():
-                if old in kwargs:
-                    if new in kwargs:
-                        raise TypeError(f"{fn.__name__}: give `{new}` only (`{old}` is its old name)")
-                    _warn_renamed(fn.__name__, old, new)
-                    kwargs[new] = kwargs.pop(old)
-            return fn(*args, **kwargs)
-
-        inner._nlobs_renamed = {**getattr(fn, "_nlobs_renamed", {}), **old_to_new}  # type: ignore[attr-defined]
-        return inner
-
-    return wrap
 
 
 # -- one TypeError for every design function ---------------------------------------------------

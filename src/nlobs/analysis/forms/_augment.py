@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
+from ..._deprecate import renamed
 from ...errors import FormError, ModelError, ShapeError
 from ...model import TIME, System, symbol
 from ...model._forms import matrix_of
@@ -440,12 +441,13 @@ class LeftInverseBounds:
         return s + "; no positive lower bound (Lemma 2 does not apply: T' maps a larger space onto x)"
 
 
-def left_inverse_bounds(left_inverse: Sequence[ExprLike], n_w: int, *, box: Any = None) -> LeftInverseBounds:
+@renamed(box="region")
+def left_inverse_bounds(left_inverse: Sequence[ExprLike], n_w: int, *, region: Any = None) -> LeftInverseBounds:
     r"""Lipschitz bounds of a left inverse T': R^p -> R^n (Viegas, Batista, Oliveira & Silvestre (2015), Lemmas 1-2).
 
     Linear T'(w) = L w: the exact bounds σ_max(L) and, when p = n, σ_min(L) (for p > n the lower
     bound is 0: Lemma 2 cannot hold, as Viegas, Batista, Oliveira & Silvestre (2015) notes for [I 0]). Nonlinear T': the upper bound is
-    estimated as sup ‖DT'‖₂ over `box` (required).
+    estimated as sup ‖DT'‖₂ over `region` (required).
 
     Parameters
     ----------
@@ -453,8 +455,8 @@ def left_inverse_bounds(left_inverse: Sequence[ExprLike], n_w: int, *, box: Any 
         T'(w), one expression per original state.
     n_w : int
         p, the dimension of w.
-    box : array_like of shape (p, 2), optional
-        Region of w for a nonlinear T'.
+    region : mapping of ``w1..wp`` to (low, high), or array_like of shape (p, 2), optional
+        Region of w for a nonlinear T' (old name ``box``).
 
     Returns
     -------
@@ -474,9 +476,9 @@ def left_inverse_bounds(left_inverse: Sequence[ExprLike], n_w: int, *, box: Any 
         s = np.linalg.svd(L, compute_uv=False)
         lower = float(s.min()) if L.shape[0] == L.shape[1] else 0.0
         return LeftInverseBounds(float(s.max()), lower, True)
-    if box is None:
-        raise ShapeError("left_inverse_bounds: a nonlinear left inverse needs `box` ([low, high] per w) to bound its slope")
-    up = lipschitz_bound(list(inv), [w.name for w in ws], box).gamma
+    if region is None:
+        raise ShapeError("left_inverse_bounds: a nonlinear left inverse needs `region` ([low, high] per w) to bound its slope")
+    up = lipschitz_bound(list(inv), [w.name for w in ws], region).gamma
     return LeftInverseBounds(up, 0.0, False)
 
 

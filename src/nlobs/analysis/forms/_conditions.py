@@ -14,13 +14,14 @@ a sup, so a reported margin should be read with that in mind (refine with more `
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import sympy as sp
 
+from ..._deprecate import renamed
 from ...errors import DataError, ModelError, ShapeError
 from ...model import parse_expression, symbol
 from ...model._expr import ExpressionError
@@ -38,22 +39,28 @@ SAMPLED = ("sampled over the box ({n} random points, corners, centre, then L-BFG
            "a lower bound of the supremum, not a proof")
 
 
-def check_box(box: Any, n: int, name: str, caller: str) -> np.ndarray:
-    """A box as an array (n, 2) of finite [low, high] bounds with low <= high.
+def check_box(box: Any, n: int, name: str, caller: str, names: Sequence[str] | None = None) -> np.ndarray:
+    """A region (a box) as an array (n, 2) of finite [low, high] bounds with low <= high.
 
     Parameters
     ----------
-    box : array_like of shape (n, 2)
+    box : mapping of str to (low, high), or array_like of shape (n, 2)
+        A mapping names each coordinate (the vocabulary's ``region``: ``{"x1": (-1, 1), ...}``; every
+        name of `names` once, no other); an array gives the pairs in the order of `names`.
     n : int
         Number of coordinates.
     name, caller : str
         The argument's name and the calling function, for the error message.
+    names : sequence of str, optional
+        The coordinates' names, in order (needed for a mapping).
 
     Raises
     ------
     ShapeError, DataError
         Wrong shape; NaN or infinite bounds; low > high.
     """
+    if isinstance(box, Mapping):
+        box = _mapping_box(box, names, name, caller)
     try:
         b = np.array(box, dtype=float)
     except (TypeError, ValueError) as e:
@@ -69,6 +76,20 @@ def check_box(box: Any, n: int, name: str, caller: str) -> np.ndarray:
         i = int(np.flatnonzero(b[:, 0] > b[:, 1])[0])
         raise DataError(f"{caller}: `{name}` row {i} has low > high: {b[i].tolist()}")
     return b
+
+
+def _mapping_box(box: Mapping[str, Any], names: Sequence[str] | None, name: str, caller: str) -> list[Any]:
+    """The [low, high] pairs of a region given as ``{name: (low, high)}``, in the order of `names`."""
+    if names is None:
+        raise ShapeError(f"{caller}: `{name}` must be a list of [low, high] pairs here (no names to key a mapping by)")
+    unknown = [k for k in box if k not in names]
+    if unknown:
+        raise ShapeError(f"{caller}: `{name}` names {unknown[0]!r}, which is not one of {', '.join(names)}")
+    missing = [k for k in names if k not in box]
+    if missing:
+        raise ShapeError(f"{caller}: `{name}` has no bounds for {', '.join(missing)}; give (low, high) for each of "
+                         f"{', '.join(names)}")
+    return [box[k] for k in names]
 
 
 def matrix_measure(A: Any) -> Any:
@@ -197,7 +218,8 @@ class SlopeResult:
         return "witness point" if not self.dissipative else SAMPLED.format(n=self.samples, r=3)
 
 
-def max_slope(exprs: Any, variables: Sequence[str], box: Any, *, samples: int = 2000, seed: int = 0,
+@renamed(box="region")
+def max_slope(exprs: Any, variables: Sequence[str], region: Any, *, samples: int = 2000, seed: int = 0,
               tol: float = 1e-9) -> SlopeResult:
     r"""Maximum slope :math:`\mu_N = \sup \langle Nx - Nz, x - z\rangle/\|x - z\|^2` of N over a box.
 
@@ -209,7 +231,9 @@ def max_slope(exprs: Any, variables: Sequence[str], box: Any, *, samples: int = 
     exprs : sequence of str or SymPy expressions
         The components of N (as many as `variables`).
     variables : sequence of str
-    box : array_like of shape (d, 2)
+    region : mapping of str to (low, high), or array_like of shape (d, 2)
+        The box, by variable name (``{"x1": (-1, 1), ...}``) or as [low, high] pairs in the order of `variables`
+        (its old name ``box`` is accepted until the next release).
     samples, seed : int
         Random points of the box and their seed; see :func:`box_sup`.
     tol : float
@@ -233,7 +257,7 @@ def max_slope(exprs: Any, variables: Sequence[str], box: Any, *, samples: int = 
     ex = _exprs(exprs, variables, "exprs", caller)
     if len(ex) != len(variables):
         raise ShapeError(f"{caller}: N must map R^{len(variables)} to itself: {len(ex)} components for {len(variables)} variables")
-    b = check_box(box, len(variables), "box", caller)
+    b = check_box(region, len(variables), "region", caller, variables)
     jac = _jacobian_fn(ex, variables)
     mu, x = box_sup(lambda P: _sym_max(jac(P)), b, samples=samples, seed=seed)
     return SlopeResult(mu, x, variables, mu <= tol, tol, samples)
@@ -286,8 +310,8 @@ def banks_condition(f1: Any, B: Any, P: Any, variables: Sequence[str], region: A
         The injection gain: x̂' = f(x̂) + P(B(x̂) − y).
     variables : sequence of str
         The state names (n).
-    region : array_like of shape (n, 2)
-        The box Ω (convex, as the theorem requires).
+    region : mapping of str to (low, high), or array_like of shape (n, 2)
+        The box Ω (convex, as the theorem requires), by variable name or in the order of `variables`.
     epsilon : float, optional
         The ε to check; default: the condition holds when the max is < 0 (any ε up to the margin).
     samples, seed : int
@@ -322,7 +346,7 @@ def banks_condition(f1: Any, B: Any, P: Any, variables: Sequence[str], region: A
         raise ShapeError(f"{caller}: incompatible dimensions of `P`: expected ({n}, {len(b)}), found {Pm.shape}")
     if not np.all(np.isfinite(Pm)):
         raise ShapeError(f"{caller}: `P` has non-finite entries")
-    box = check_box(region, n, "region", caller)
+    box = check_box(region, n, "region", caller, variables)
     jf = _jacobian_fn(f, variables)
     jb = _jacobian_fn(b, variables)
     lam, x = box_sup(lambda X: _sym_max(jf(X) + Pm @ jb(X)), box, samples=samples, seed=seed)
@@ -353,7 +377,8 @@ class LipschitzEstimate:
         return SAMPLED.format(n=self.samples, r=3)
 
 
-def lipschitz_bound(exprs: Any, variables: Sequence[str], box: Any, *, wrt: int | None = None, samples: int = 2000,
+@renamed(box="region")
+def lipschitz_bound(exprs: Any, variables: Sequence[str], region: Any, *, wrt: int | None = None, samples: int = 2000,
                     seed: int = 0) -> LipschitzEstimate:
     r"""Estimate the Lipschitz constant :math:`\sup_x\|DN(x)\|_2` of N over a (convex) box, with the worst point.
 
@@ -365,7 +390,9 @@ def lipschitz_bound(exprs: Any, variables: Sequence[str], box: Any, *, wrt: int 
     exprs : sequence of str or SymPy expressions
         The components of N.
     variables : sequence of str
-    box : array_like of shape (d, 2)
+    region : mapping of str to (low, high), or array_like of shape (d, 2)
+        The box, by variable name (``{"x1": (-1, 1), ...}``) or as [low, high] pairs in the order of `variables`
+        (its old name ``box`` is accepted until the next release).
     wrt : int, optional
         Differentiate with respect to the first `wrt` variables only.
     samples, seed : int
@@ -378,7 +405,7 @@ def lipschitz_bound(exprs: Any, variables: Sequence[str], box: Any, *, wrt: int 
     caller = "lipschitz_bound"
     variables = tuple(variables)
     ex = _exprs(exprs, variables, "exprs", caller)
-    b = check_box(box, len(variables), "box", caller)
+    b = check_box(region, len(variables), "region", caller, variables)
     jac = _jacobian_fn(ex, variables, wrt)
     gamma, x = box_sup(lambda P: np.linalg.norm(jac(P), ord=2, axis=(1, 2)), b, samples=samples, seed=seed)
     return LipschitzEstimate(gamma, x, variables, samples)

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
+from ..._deprecate import renamed
 from ...errors import FormError, ModelError, ShapeError
 from ...model import OutputInjectionForm, System
 from ._conditions import LipschitzEstimate, check_box, lipschitz_bound
@@ -119,24 +120,26 @@ def state_affine_form(system: System) -> FormCheck:
     return FormCheck(form, True, "A(u, y, t) = ∂f/∂x·K·Kᵀ depends on x only through y", {"A": A, "b": b, "C": Cm})
 
 
-def lipschitz_constant(system: System, box: Any, *, A: Any = None, input_box: Any = None, samples: int = 2000,
+@renamed(box="region", input_box="input_region")
+def lipschitz_constant(system: System, region: Any, *, A: Any = None, input_region: Any = None, samples: int = 2000,
                        seed: int = 0) -> LipschitzEstimate:
     r"""Estimate the Lipschitz constant of :math:`\varphi(x, u) = f(x, u) - Ax` over a box.
 
     On a convex set, :math:`\|\varphi(x) - \varphi(z)\| \le \gamma\|x - z\|` with
     :math:`\gamma = \sup\|\partial\varphi/\partial x\|_2`; γ is estimated by the largest spectral norm
-    of the Jacobian over random samples of the box (and of `input_box`), refined by a local
+    of the Jacobian over random samples of the box (and of `input_region`), refined by a local
     maximisation from the best samples. Sampling can only under-estimate the sup.
 
     Parameters
     ----------
     system : System
-    box : array_like of shape (n, 2)
-        [low, high] per state.
+    region : mapping of str to (low, high), or array_like of shape (n, 2)
+        The box of the states, by name (``{"x1": (-1, 1), ...}``; input names in it count as `input_region`)
+        or as [low, high] per state in their order. Old name: ``box``.
     A : (n, n) array_like, optional
         The linear part; default the Jacobian of f at the box centre with u = 0 (or the input box centre).
-    input_box : array_like of shape (m, 2), optional
-        Range of the inputs (default: u = 0).
+    input_region : mapping or array_like of shape (m, 2), optional
+        Range of the inputs (default: u = 0). Old name: ``input_box``.
     samples, seed : int
         Random points of the box and their seed.
 
@@ -155,8 +158,10 @@ def lipschitz_constant(system: System, box: Any, *, A: Any = None, input_box: An
     """
     caller = "lipschitz_constant"
     n, m = system.n_states, system.n_inputs
-    B = check_box(box, n, "box", caller)
-    U = check_box(input_box, m, "input_box", caller) if input_box is not None else np.zeros((m, 2))
+    region, input_region = _split_region(system, region, input_region)
+    B = check_box(region, n, "region", caller, system.states)
+    U = (check_box(input_region, m, "input_region", caller, system.inputs) if input_region is not None
+         else np.zeros((m, 2)))
     f, _ = system.substituted()
     x, u = sp.Matrix(system.x), sp.Matrix(system.u)
     names = (*system.states, *system.inputs)
@@ -170,6 +175,16 @@ def lipschitz_constant(system: System, box: Any, *, A: Any = None, input_box: An
     phi = list(f - sp.Matrix(A_) * x)
     est = lipschitz_bound(phi, names, np.vstack([B, U]), wrt=n, samples=samples, seed=seed)
     return LipschitzEstimate(est.gamma, est.worst_point, est.variables, samples, "φ = f - Ax", A_)
+
+
+def _split_region(system: System, region: Any, input_region: Any) -> tuple[Any, Any]:
+    """A region mapping that also bounds inputs: its states' part, and its inputs' part merged into `input_region`."""
+    if not isinstance(region, Mapping) or not any(k in system.inputs for k in region):
+        return region, input_region
+    ins = {k: v for k, v in region.items() if k in system.inputs}
+    if input_region is not None and not isinstance(input_region, Mapping):
+        raise ShapeError("lipschitz_constant: the inputs are bounded twice: in `region` by name and in `input_region`")
+    return {k: v for k, v in region.items() if k not in system.inputs}, {**ins, **(input_region or {})}
 
 
 def triangular_form(system: System) -> FormCheck:
@@ -234,8 +249,9 @@ class FormsReport:
         return "\n".join(lines)
 
 
-def recognise_forms(system: System, *, unknown_params: Sequence[str] | str = (), box: Any = None,
-                    input_box: Any = None) -> FormsReport:
+@renamed(box="region", input_box="input_region")
+def recognise_forms(system: System, *, unknown_params: Sequence[str] | str = (), region: Any = None,
+                    input_region: Any = None) -> FormsReport:
     """Check the observer forms of Besançon (2010) on a model (optionally with parameters added as constant states).
 
     Parameters
@@ -244,8 +260,9 @@ def recognise_forms(system: System, *, unknown_params: Sequence[str] | str = (),
     unknown_params : sequence of str or "all"
         Parameters to estimate, added as states with p' = 0 before the check (Besançon (2010)'s robot arm with
         unknown b is state-affine only in (x1, x2, b)).
-    box, input_box : array_like of shape (n, 2) / (m, 2), optional
-        When given, the Lipschitz constant of φ = f - Ax is estimated over the box.
+    region, input_region : mapping of str to (low, high), or array_like of shape (n, 2) / (m, 2), optional
+        When given, the Lipschitz constant of φ = f - Ax is estimated over the box (see :func:`lipschitz_constant`;
+        old names ``box``, ``input_box``).
 
     Returns
     -------
@@ -265,11 +282,11 @@ def recognise_forms(system: System, *, unknown_params: Sequence[str] | str = (),
     Cm, why = _output_matrix(s, f, h)
     if Cm is None:
         checks.append(FormCheck(f"Lipschitz ({cite('002')})", False, why))
-    elif box is not None:
-        lip = lipschitz_constant(s, box, input_box=input_box)
+    elif region is not None:
+        lip = lipschitz_constant(s, region, input_region=input_region)
         checks.append(FormCheck(f"Lipschitz ({cite('002')})", True, f"y = Cx; φ = f - Ax has γ ≈ {lip.gamma:.4g} on the box "
                                 "(global Lipschitz is not checked: only the box)", {"gamma": lip.gamma}))
     else:
-        checks.append(FormCheck(f"Lipschitz ({cite('002')})", True, "y = Cx; give `box` to estimate the Lipschitz constant of φ = f - Ax"))
+        checks.append(FormCheck(f"Lipschitz ({cite('002')})", True, "y = Cx; give `region` to estimate the Lipschitz constant of φ = f - Ax"))
     return FormsReport(system.name, tuple(checks), lip)
 
