@@ -102,13 +102,18 @@ class FiniteEscapeError(NlobsError, RuntimeError):
         The state at that time.
     where : str
         Which system blew up (``"plant"``, ``"the plant's output"`` or the observer's name).
+    culprits : tuple of (str, float)
+        The entries that left the bound or became non-finite in the next step (at most two), when known.
 
     `message` replaces the default text when the caller knows more (the sample, the data).
     """
 
     def __init__(self, where: str, t: float, x: np.ndarray, names: Sequence[str], bound: float, *,
-                 message: str | None = None, hint: str = ""):
-        shown = ", ".join(f"{n}={v:.6g}" for n, v in zip(names, np.asarray(x, dtype=float)))
+                 message: str | None = None, hint: str = "", culprits: Sequence[tuple[str, float]] = ()):
+        shown = _shown(names, np.asarray(x, dtype=float), [c for c, _ in culprits])
+        if culprits and not message:
+            went = ", ".join(f"{c} = {v:.3g}" for c, v in culprits)
+            shown = f"{shown}; in the next step {went}"
         if message:
             text = message
         elif hint:  # where exactly, when the "next step" is not one step (e.g. between two recorded samples)
@@ -116,12 +121,33 @@ class FiniteEscapeError(NlobsError, RuntimeError):
                     "Check the model, the initial estimate and the tuning, or pass a smaller `max_step`.")
         else:
             text = (f"{where} blew up after t = {t:.6g}: the state left |x| <= {bound:g} or became "
-                    f"non-finite in the next step; last finite state: {shown}. "
-                    "Check the model and the initial state, or reduce `dt`.")
+                    f"non-finite in the next step; last finite state: {shown}. " +
+                    ("Check the observer's tuning and its initial estimate, or reduce `dt`." if where.startswith("observer")
+                     else "Check the model and the initial state, or reduce `dt`."))
         super().__init__(text)
         self.where = where
         self.t = float(t)
         self.x = np.asarray(x, dtype=float)
+        #: The one or two entries that left the bound or became non-finite in the next step, with their values.
+        self.culprits = tuple((str(c), float(v)) for c, v in culprits)
+
+    @property
+    def reason(self) -> str:
+        """One line: when, and the quantities that blew up (for a table row)."""
+        went = ", ".join(f"{c} = {v:.3g}" for c, v in self.culprits)
+        return f"blew up after t = {self.t:.6g}" + (f" ({went} in the next step)" if went else "")
+
+
+def _shown(names: Sequence[str], x: np.ndarray, first: Sequence[str], limit: int = 6) -> str:
+    """``name=value`` of a state; a long one (a filter's 36 covariance entries) as the named entries `first`
+    and the largest ones, up to `limit`, and how many are left out."""
+    pairs = list(zip(names, x))
+    if len(pairs) <= limit:
+        return ", ".join(f"{n}={v:.6g}" for n, v in pairs)
+    order = sorted(range(len(pairs)), key=lambda i: (pairs[i][0] not in first, -abs(pairs[i][1]) if np.isfinite(pairs[i][1])
+                                                                              else -np.inf))
+    keep = sorted(order[:limit])
+    return ", ".join(f"{pairs[i][0]}={pairs[i][1]:.6g}" for i in keep) + f" (the largest {limit} of {len(pairs)} entries)"
 
 
 class SolverError(NlobsError, RuntimeError):

@@ -5,6 +5,10 @@ and the function that runs it. Errors print one line (``nlobs: error: ...``) and
 with ``--json`` they print one JSON object ``{"error": {"type": ..., "message": ...}}`` on stderr;
 ``--debug`` shows the traceback. A reader that closes the pipe early (``nlobs analyze M | head``) ends the
 command quietly with status 0.
+
+Exit status: 0 success; 1 an error (one line); 2 a usage error; 3 (``simulate``, ``estimate``) some
+observers failed — each is named on stderr with its reason, and the others' results are printed and written;
+130 interrupted.
 """
 
 from __future__ import annotations

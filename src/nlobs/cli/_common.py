@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -166,3 +167,15 @@ def clean(value: Any) -> Any:
     if isinstance(value, list):
         return [clean(v) for v in value]
     return value
+
+
+#: The exit status of a run in which some observers failed while the others completed (their output written).
+SOME_FAILED = 3
+
+
+def failed_status(run: Any) -> int:
+    """0, or :data:`SOME_FAILED` when observers of `run` failed (each named with its reason on stderr)."""
+    failures = getattr(run, "failures", None) or {}
+    for name, f in failures.items():
+        print(f"nlobs: observer {name!r} failed: {f.message}", file=sys.stderr)
+    return SOME_FAILED if failures else 0

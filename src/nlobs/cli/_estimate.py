@@ -6,7 +6,7 @@ import argparse
 import json
 from typing import Any
 
-from ._common import (HELP_ENGINE, HELP_HOLD, clean, designs_of, parse_columns, parse_matrix, parse_vector,
+from ._common import (HELP_ENGINE, failed_status, HELP_HOLD, clean, designs_of, parse_columns, parse_matrix, parse_vector,
                       positive_float)
 
 
@@ -71,4 +71,4 @@ def run(args: argparse.Namespace) -> int:
             print(f"{name}: final estimate " + ", ".join(f"{s}={v:.6g}" for s, v in zip(run_.state_names, tr.xhat[-1])))
         if args.output:
             print(f"estimates: {args.output}")
-    return 0
+    return failed_status(run_)

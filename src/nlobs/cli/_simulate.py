@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from ._common import HELP_ENGINE, clean, designs_of, parse_assignments, parse_columns, parse_vector, positive_float
+from ._common import failed_status, HELP_ENGINE, clean, designs_of, parse_assignments, parse_columns, parse_vector, positive_float
 
 
 def add_parser(sub: Any) -> None:
@@ -108,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
         for path, what in ((args.output, "trajectory"), (args.plot, "plot")):
             if path:
                 print(f"{what}: {path}")
-    return 0
+    return failed_status(run_)
 
 
 def _validation(run_: Any, rec: Any) -> dict[str, dict[str, float]]:

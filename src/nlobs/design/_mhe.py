@@ -486,6 +486,16 @@ def _build(system: System, N: int, r: int, substeps: int, max_iter: int, tol: fl
     return _Solvers(fast, find_compiler() is not None, pre, post, nlp, ipopt_opts, tag)
 
 
+def _window_text(T: np.ndarray, N: int) -> str:
+    """The window a failing solve was given, in words: while the window fills (its first samples repeat the first
+    time) "t in [0, 0]" would say nothing, so the samples it has are counted instead."""
+    have = np.unique(T).size
+    if have < T.size:
+        return (f"the window at t = {T[-1]:g} (the first {have} sample{'s' if have > 1 else ''} of the run; the window "
+                f"fills up to {N + 1} samples)" if have > 1 else f"the window at the first sample (t = {T[-1]:g})")
+    return f"the window t in [{T[0]:g}, {T[-1]:g}] ({N} intervals)"
+
+
 class _MHEUpdate(ca.Callback):
     """z⁺ = J(t, z, u, y, m): the compiled SQP (or IPOPT) on the shifted window; a failure is recorded
     (raised by the caller after the evaluation, see :mod:`nlobs.engine`) and NaN returned."""
@@ -586,7 +596,7 @@ class _MHEUpdate(ca.Callback):
         hint = (f"the model uses {' and '.join(self.kinks)}, whose switches make the window problem nonsmooth: write them "
                 "as steep smooth steps; otherwise " if self.kinks else "")
         raise SolverError(
-            f"MHE: the window t in [{T1[0]:g}, {T1[-1]:g}] ({self.N} intervals) could not be solved: {status_text}. "
+            f"MHE: {_window_text(T1, self.N)} could not be solved: {status_text}. "
             f"Check the model and the data in that window (a NaN in the model, an output the window cannot explain); {hint}"
             "more process noise (Q), a larger R, bounds on the states, or a larger `max_iter` may help",
             window=(T1[0], T1[-1]), status=status_text)

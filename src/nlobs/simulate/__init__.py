@@ -10,6 +10,7 @@ from ._options import Adaptive as Adaptive
 from ._options import Noise as Noise
 from ._options import ProcessNoise as ProcessNoise
 from ._options import Sampling as Sampling
+from ._results import ObserverFailure as ObserverFailure
 from ._results import ObserverTrace as ObserverTrace
 from ._results import Run as Run
 from ._whiteness import Whiteness as Whiteness

@@ -12,9 +12,10 @@ import numpy as np
 
 from ..design import check_positive
 from ..engine import Backend
-from ..errors import DataError, FiniteEscapeError, ModelError, ShapeError
+from ..errors import DataError, FiniteEscapeError, ModelError, ShapeError, SolverError
 from ..model import ModelFile, System
 from ..observer import AbstractObserver, ParticleObserver, compiled_observer
+from ._isolate import failure_of
 from ._results import ObserverTrace, Run
 from ._options import xhat0_for as _xhat0_for
 from ._run import named_observers
@@ -312,54 +313,66 @@ def estimate(
     t, u = recording.t, recording.u
     if any(o.system.is_discrete for o in obs.values()):
         return _estimate_map(obs, recording, t, u, y0, mask, xhat0, smooth)
-    traces, integration = {}, {}
+    traces, integration, failures, first = {}, {}, {}, None
     for i, (name, o) in enumerate(obs.items()):
         part = progress if progress is None or isinstance(progress, bool) else (
             lambda f, i=i: progress((i + f) / len(obs)))  # type: ignore[operator,misc]
-        # built once per design and cached (see Observer.compiled); the C code is cached on disk
-        z0 = o.initial_state(_xhat0_for(xhat0, name, o.system.n_states))
-        if isinstance(o, ParticleObserver):  # a random particle cloud, run over the samples at once
-            pr, yp = o.trace_on(t, y0, u, mask=mask, xhat0=z0, name=name)
-            traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, pr.z, pr.xhat, pr.xhat_prior[0],
-                                         innovation=np.where(mask > 0, recording.y - yp, np.nan), covariance=o.design.covariance)
-            integration[name] = {"substeps": 0, "max_substeps": 1, "fastest_rate": 0.0, "engine": "c",
-                                 "particles": o.design.particles, "min_ess": float(pr.ess.min()),
-                                 "resampled": int(pr.resampled.sum())}
-            continue
         try:
-            traj = compiled_observer(o.design, hold).run(t, u=u, y=y0, mask=mask, z0=z0, max_step=max_step, engine=engine,
-                                                         name=name, progress=part)
-        except FiniteEscapeError as e:
-            if getattr(e, "interval", None) is None:
-                raise
-            raise _non_finite(name, o, recording, e) from None
-        except DataError as e:   # an interval too long to integrate: name the recording it comes from
-            raise DataError(f"recording ({recording.source}): {e}") from None
-        bad = np.argwhere(~np.isfinite(traj.xhat)) if not np.isfinite(traj.xhat).all() else np.empty((0, 2), dtype=int)
-        if bad.size:  # the internal state is finite, but the estimate read from it is not
-            r, c = (int(v) for v in bad[0])
-            raise FiniteEscapeError(f"observer {name!r}", float(t[r]), traj.z[r], o.design.z_names, np.inf,
-                                    message=f"observer {name!r} on the recording {recording.source}: its estimate of "
-                                            f"{o.system.states[c]} is {traj.xhat[r, c]} at t = {t[r]:.6g} (row {r}) although its "
-                                            "internal state is finite; check the observer's output map x̂ = H(t, z, u, y)")
-        innovation = np.where(mask > 0, recording.y - traj.yhat_prior, np.nan)
-        smoothed: dict[str, Any] = {}
-        info = traj.info()
-        if smooth:
-            from ._smooth import rts_smooth
-            xs, Ps, how = rts_smooth(o.design, traj, u, y0, mask, hold=hold, engine=engine)
-            smoothed = {"filtered": traj.xhat, "smoothed_covariance": Ps}
-            info.update(smoother="urts" if o.design.method == "ukf" else "rts", **how)
-        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, traj.z, xs if smooth else traj.xhat,
-                                     traj.xhat_prior, innovation=innovation, covariance=getattr(o.design, "covariance", None),
-                                     **smoothed)
-        integration[name] = info
+            traces[name], integration[name] = _estimate_one(name, o, recording, xhat0, y0, mask, hold, max_step, engine,
+                                                            smooth, part)
+        except (FiniteEscapeError, SolverError) as e:  # the others still run; when all fail, the first error
+            failures[name] = failure_of(name, o.design.method, e)
+            first = first or e
+    if not traces:
+        raise first  # type: ignore[misc]
     system = next(iter(obs.values())).system
     return Run(f"{system.name} (recorded: {recording.source})", t, system.states, recording.input_names, recording.output_names,
                u, recording.y, traces, x=recording.x,
                info={"max_step": max_step, "substeps": max(v["max_substeps"] for v in integration.values()),
                      "integration": integration, "on_missing": on_missing, "hold": hold, "smoothed": bool(smooth)},
-               estimated_params=system.estimated_params)
+               estimated_params=system.estimated_params, failures=failures)
+
+
+def _estimate_one(name: str, o: AbstractObserver, recording: Recording, xhat0: Any, y0: np.ndarray, mask: np.ndarray,
+                  hold: str, max_step: float | None, engine: Any, smooth: bool,
+                  part: Callable[[float], None] | bool | None) -> tuple[ObserverTrace, dict[str, Any]]:
+    """One observer on the recording: its trace and how it was integrated."""
+    t, u = recording.t, recording.u
+    # built once per design and cached (see Observer.compiled); the C code is cached on disk
+    z0 = o.initial_state(_xhat0_for(xhat0, name, o.system.n_states))
+    if isinstance(o, ParticleObserver):  # a random particle cloud, run over the samples at once
+        pr, yp = o.trace_on(t, y0, u, mask=mask, xhat0=z0, name=name)
+        trace = ObserverTrace(name, o.design.method, o.design.z_names, pr.z, pr.xhat, pr.xhat_prior[0],
+                              innovation=np.where(mask > 0, recording.y - yp, np.nan), covariance=o.design.covariance)
+        return trace, {"substeps": 0, "max_substeps": 1, "fastest_rate": 0.0, "engine": "c",
+                       "particles": o.design.particles, "min_ess": float(pr.ess.min()), "resampled": int(pr.resampled.sum())}
+    try:
+        traj = compiled_observer(o.design, hold).run(t, u=u, y=y0, mask=mask, z0=z0, max_step=max_step, engine=engine,
+                                                     name=name, progress=part)
+    except FiniteEscapeError as e:
+        if getattr(e, "interval", None) is None:
+            raise
+        raise _non_finite(name, o, recording, e) from None
+    except DataError as e:   # an interval too long to integrate: name the recording it comes from
+        raise DataError(f"recording ({recording.source}): {e}") from None
+    bad = np.argwhere(~np.isfinite(traj.xhat)) if not np.isfinite(traj.xhat).all() else np.empty((0, 2), dtype=int)
+    if bad.size:  # the internal state is finite, but the estimate read from it is not
+        r, c = (int(v) for v in bad[0])
+        raise FiniteEscapeError(f"observer {name!r}", float(t[r]), traj.z[r], o.design.z_names, np.inf,
+                                message=f"observer {name!r} on the recording {recording.source}: its estimate of "
+                                        f"{o.system.states[c]} is {traj.xhat[r, c]} at t = {t[r]:.6g} (row {r}) although its "
+                                        "internal state is finite; check the observer's output map x̂ = H(t, z, u, y)")
+    innovation = np.where(mask > 0, recording.y - traj.yhat_prior, np.nan)
+    smoothed: dict[str, Any] = {}
+    info = traj.info()
+    xs = traj.xhat
+    if smooth:
+        from ._smooth import rts_smooth
+        xs, Ps, how = rts_smooth(o.design, traj, u, y0, mask, hold=hold, engine=engine)
+        smoothed = {"filtered": traj.xhat, "smoothed_covariance": Ps}
+        info.update(smoother="urts" if o.design.method == "ukf" else "rts", **how)
+    return ObserverTrace(name, o.design.method, o.design.z_names, traj.z, xs, traj.xhat_prior, innovation=innovation,
+                         covariance=getattr(o.design, "covariance", None), **smoothed), info
 
 
 def _non_finite(name: str, o: AbstractObserver, rec: Recording, err: FiniteEscapeError) -> FiniteEscapeError:

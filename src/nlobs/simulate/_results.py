@@ -13,7 +13,7 @@ from .._display import MISSING, Column, SummaryTable, fmt_number, short_repr
 from ._metrics import CONVERGENCE_RULE, Metrics, error_metrics
 from ._whiteness import Whiteness, ljung_box
 
-__all__ = ["ObserverTrace", "Run", "write_csv"]
+__all__ = ["ObserverFailure", "ObserverTrace", "Run", "write_csv"]
 
 
 def write_csv(path: Any, header: Sequence[str], data: np.ndarray) -> None:
@@ -81,6 +81,38 @@ class ObserverTrace:
         return short_repr(self, {"name": self.name, "method": self.method, "z": self.z, "xhat": self.xhat})
 
 
+@dataclass(frozen=True)
+class ObserverFailure:
+    """An observer that failed in a run while the others completed (see :attr:`Run.failures`).
+
+    Attributes
+    ----------
+    name, method : str
+    t : float or None
+        The last time with a finite estimate (for an optimisation: the end of the data it was given).
+    reason : str
+        One line: what happened, when, and the one or two quantities that blew up.
+    message : str
+        The full error message, with what to try.
+    error : str
+        The error's class (``FiniteEscapeError``, ``SolverError``).
+    partial : ObserverTrace, optional
+        Its signals up to the failure, when kept (on the time grid of the run up to `t`).
+    """
+
+    name: str
+    method: str
+    t: float | None
+    reason: str
+    message: str
+    error: str
+    partial: ObserverTrace | None = field(default=None, repr=False)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"method": self.method, "failed": True, "t_failed": self.t, "reason": self.reason, "error": self.error,
+                "message": self.message}
+
+
 def _std(cov: Any, z: np.ndarray, n: int) -> np.ndarray | None:
     """The standard deviation of each entry of x̂ along a trajectory of z, from a design's
     ``covariance`` function (None for observers that carry none). Negative variances (a covariance
@@ -120,6 +152,8 @@ class Run:
     info: Mapping[str, Any] = field(default_factory=dict)
     #: Names of the parameters estimated jointly with the states (the last entries of the state names).
     estimated_params: tuple[str, ...] = ()
+    #: Observers that failed while the others completed (by name; not in `observers`); see :class:`ObserverFailure`.
+    failures: Mapping[str, ObserverFailure] = field(default_factory=dict)
 
     # -- errors and metrics -------------------------------------------------------------
     def _trace(self, name: str | None) -> ObserverTrace:
@@ -127,6 +161,8 @@ class Run:
             if len(self.observers) != 1:
                 raise KeyError(f"this run has {len(self.observers)} observers; name one of: {', '.join(self.observers)}")
             return next(iter(self.observers.values()))
+        if name in self.failures:
+            raise KeyError(f"observer {name!r} failed in this run: {self.failures[name].reason} (see run.failures[{name!r}])")
         if name not in self.observers:
             raise KeyError(f"no observer named {name!r} in this run; observers: {', '.join(self.observers) or '(none)'}")
         return self.observers[name]
@@ -258,16 +294,29 @@ class Run:
         title = f"{self.model}: t in [{self.t[0]:g}, {self.t[-1]:g}], {len(self.t)} samples"
         if self.x is None:
             res = self.residual_table()
-            return SummaryTable(f"{title}\n{res.title}", res.columns, res.rows, (*res.notes, *self._parameter_lines()))
+            failed = [{"observer": n, "output": "(failed)", "white": MISSING} for n in self.failures]
+            return SummaryTable(f"{title}\n{res.title}", res.columns, [*res.rows, *failed],
+                                (*res.notes, *self._failure_lines(), *self._parameter_lines()))
         cols = [Column("observer", "observer", str, numeric=False), Column("final_error", "final err"),
                 Column("rms_error", "RMS (last 20%)"), Column("peak_error", "peak err"),
                 Column("convergence_time", "conv. time"), Column("tol", "band", lambda v: fmt_number(v, 2))]
         rows = [{"observer": n, **self.metrics(n, tol=tol).to_dict()} for n in self.observers]
+        if self.failures:
+            cols.append(Column("status", "status", str, numeric=False))
+            for r in rows:
+                r["status"] = "ok"
+            rows += [{"observer": n, "status": f"FAILED after t = {f.t:.4g}" if f.t is not None else "FAILED"}
+                     for n, f in self.failures.items()]
         band = ("the tolerance given" if tol is not None else
                 "max(2 % of the initial error, 2 × steady-state error), at most 20 % of the initial error")
         return SummaryTable(title, cols, rows, (f"band: {band}; conv. time: from then on the error stays within it "
-                                                f"({MISSING}: not within the run)", *self._parameter_lines(),
+                                                f"({MISSING}: not within the run)", *self._failure_lines(),
+                                                *self._parameter_lines(),
                                                 *(f"note: {n}" for n in self.info.get("notes", ()))))
+
+    def _failure_lines(self) -> list[str]:
+        """One line per failed observer: its reason (the full message is in ``run.failures[name].message``)."""
+        return [f"{n} failed: {f.reason}; the other observers ran without it" for n, f in self.failures.items()]
 
     def __repr__(self) -> str:
         return short_repr(self, {"model": self.model, "t": (float(self.t[0]), float(self.t[-1])), "samples": int(self.t.size),
@@ -316,7 +365,9 @@ class Run:
         Per observer: ``method``, ``estimate`` (the final estimate by state name),
         ``final_estimate`` (the same as a list); with true states the :class:`Metrics`
         (``final_error``, ``rms_error``, ``convergence_time`` with its band ``tol``, ...); on
-        recorded data the ``innovations`` per output (mean, RMS, Ljung–Box test).
+        recorded data the ``innovations`` per output (mean, RMS, Ljung–Box test). An observer that failed has
+        ``{"method", "failed": true, "t_failed", "reason", "error", "message"}`` instead, and its name is in the
+        top-level ``"failed"`` list.
         With estimated parameters, each observer also has ``"parameters": {k: {"estimate", "std", "true"}}``;
         a smoothed run (``estimate(..., smooth=True)``) has ``"smoothed": true`` (its estimates and metrics are the
         smoothed ones, its innovations the filter's).
@@ -337,7 +388,10 @@ class Run:
             if tr.smoothed:  # the estimates and metrics above are the smoothed ones; the innovations the filter's
                 entry["smoothed"] = True
             obs[name] = entry
+        obs.update({name: f.to_dict() for name, f in self.failures.items()})
         out = {"model": self.model, "t_final": float(self.t[-1]), "samples": int(self.t.size), "observers": obs}
+        if self.failures:
+            out["failed"] = list(self.failures)
         if self.x is not None:
             given = "convergence time: the first time after which ‖x̂ − x‖ stays within `tol`"
             out["convergence_rule"] = given if tol is not None else CONVERGENCE_RULE

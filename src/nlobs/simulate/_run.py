@@ -33,6 +33,7 @@ from ..observer import AbstractObserver, Observer, ParticleObserver, as_observer
 from ._file import file_arguments, observers_of
 from ._options import Adaptive, Noise, ProcessNoise, Sampling
 from ._options import xhat0_for as _xhat0_for
+from ._isolate import culprits, isolate
 from ._results import ObserverTrace, Run
 from ._tables import table_range_notes
 
@@ -228,6 +229,11 @@ class Simulation:
                  integrator: Adaptive | None = None, engine: Backend = "auto", _caller: str = "Simulation"):
         self._prep = prepare(plant, observers, t_final=t_final, dt=dt, inputs=inputs, params=params, noise=noise,
                              process_noise=process_noise, sampling=sampling, caller=_caller, integrator=integrator)
+        # to run an observer on its own when another one fails (see :meth:`run`)
+        self._setup = (plant, dict(t_final=t_final, dt=dt, inputs=inputs, params=params, noise=noise,
+                                   process_noise=process_noise, sampling=sampling, integrator=integrator, engine=engine,
+                                   _caller=_caller))
+        self._alone: dict[str, Simulation] = {}
         self.engine = engine
         self._info = {"dt": dt, "sampling": None if sampling is None else sampling.period, "engine": engine,
                       "integrator": "rk4" if integrator is None else
@@ -250,7 +256,36 @@ class Simulation:
     def run(self, x0: Sequence[float], *, xhat0: Mapping[str, Sequence[float]] | Sequence[float] | None = None,
             seed: int | None = None, progress: bool | Callable[[float], None] | None = None,
             escape_bound: float = 1e12) -> Run:
-        """One run from the plant state `x0` (see :func:`nlobs.simulate` for the arguments and errors)."""
+        """One run from the plant state `x0` (see :func:`nlobs.simulate` for the arguments and errors).
+
+        An observer that fails (blows up, or its window problem cannot be solved) does not stop the others:
+        each observer then runs on its own on the same measurements, and the failing ones are listed in
+        :attr:`Run.failures` with what happened and when. A plant that blows up still raises."""
+        names = (*self._prep.obs, *self._prep.particle)
+        methods = {k: o.design.method for k, o in {**self._prep.obs, **self._prep.particle}.items()}
+
+        def run_with(only: tuple[str, ...] | None) -> Run:
+            if only is None:
+                return self._run_all(x0, xhat0=xhat0, seed=seed, progress=progress, escape_bound=escape_bound)
+            return self._run_alone(only, x0, xhat0=xhat0, seed=seed, escape_bound=escape_bound)
+
+        return isolate(run_with, names, methods)
+
+    def _run_alone(self, only: tuple[str, ...], x0: Sequence[float], *, xhat0: Any, seed: int | None,
+                   escape_bound: float) -> Run:
+        """The plant with the observers `only`, on the measurements of the same seed."""
+        prep, (plant, kw) = self._prep, self._setup
+        key = ",".join(only)
+        if key not in self._alone:
+            obs = {k: o for k, o in {**prep.obs, **prep.particle}.items() if k in only}
+            self._alone[key] = Simulation(plant, obs, **kw)
+        mine = xhat0
+        if isinstance(xhat0, Mapping):
+            mine = {k: v for k, v in xhat0.items() if k in only} or None
+        return self._alone[key]._run_all(x0, xhat0=mine, seed=seed, progress=None, escape_bound=escape_bound)
+
+    def _run_all(self, x0: Sequence[float], *, xhat0: Any, seed: int | None,
+                 progress: bool | Callable[[float], None] | None, escape_bound: float) -> Run:
         prep = self._prep
         plant, obs, layout, N, t = prep.plant, prep.obs, prep.layout, prep.n_steps, prep.t
         s0 = prep.initial_state(x0, xhat0)
@@ -271,7 +306,8 @@ class Simulation:
             O[r] = runner.outputs(S[r:r + 1], A[r:r + 1], c)[0]
             err = _plant_output_failure(plant, S, A, c, layout, runner, r) if where != "plant" else None
             if err is None:
-                err = FiniteEscapeError(where, float(t[r]), S[r, sl], names, escape_bound)
+                err = FiniteEscapeError(where, float(t[r]), S[r, sl], names, escape_bound,
+                                        culprits=culprits(names, S[r + 1, sl], escape_bound))
             err.partial = _assemble(plant, obs, layout, S[:r + 1], O[:r + 1], t[:r + 1], A[:r + 1], info)
             raise err
         O[N] = runner.outputs(S[N:], A[N:], c)[0]  # measurements and estimates at t_final

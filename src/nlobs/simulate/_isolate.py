@@ -1,0 +1,84 @@
+"""One failing observer does not discard a run.
+
+Plant and observers run as one compiled step (their cost is one loop). When an observer fails in
+it — its state blows up, or the optimisation inside it (an MHE window) cannot be solved — the run
+is redone with each observer on its own, on the same measurements (the noise depends only on the
+seed): those that run keep their results, and each failing one gets an :class:`ObserverFailure`
+(what happened, when, and the one or two quantities that blew up) in :attr:`Run.failures`. When
+every observer fails the first error is raised, as is a plant that blows up (not the observers'
+failure).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import replace
+
+import numpy as np
+
+from ..errors import FiniteEscapeError, SolverError
+from ._results import ObserverFailure, Run
+
+__all__ = ["culprits", "isolate", "observer_fault", "failure_of"]
+
+#: Places a FiniteEscapeError can name that are not an observer.
+_NOT_OBSERVERS = ("plant", "the plant's output", "measurement hold")
+
+
+def observer_fault(e: BaseException) -> bool:
+    """Whether `e` is an observer's failure (not the plant's, not a wrong argument)."""
+    if isinstance(e, SolverError):
+        return True
+    return isinstance(e, FiniteEscapeError) and e.where not in _NOT_OBSERVERS
+
+
+def culprits(names: Sequence[str], nxt: np.ndarray, bound: float, k: int = 2) -> list[tuple[str, float]]:
+    """The (at most `k`) entries of the state after the failing step that left |x| <= bound or are not finite:
+    non-finite ones first, then the largest."""
+    nxt = np.asarray(nxt, dtype=float)
+    bad = np.flatnonzero(~(np.abs(nxt) <= bound))
+    order = sorted(bad, key=lambda i: (bool(np.isfinite(nxt[i])), -abs(nxt[i]) if np.isfinite(nxt[i]) else 0.0))
+    return [(str(names[i]), float(nxt[i])) for i in order[:k]]
+
+
+def failure_of(name: str, method: str, e: BaseException, partial: Run | None = None) -> ObserverFailure:
+    """The row of a failed observer: a one-line reason, the time, and the full message."""
+    if isinstance(e, SolverError):
+        t = e.window[1]
+        reason = f"its optimisation failed on the data up to t = {t:.6g} ({e.status})"
+    elif isinstance(e, FiniteEscapeError):
+        t, reason = e.t, e.reason
+    else:  # pragma: no cover - observer_fault admits only the two above
+        t, reason = None, f"{type(e).__name__}: {e}"
+    trace = None
+    if partial is not None and name in partial.observers:
+        trace = partial.observers[name]
+    return ObserverFailure(name, method, t, reason, str(e), type(e).__name__, trace)
+
+
+def isolate(run_with: Callable[[tuple[str, ...] | None], Run], names: Sequence[str], methods: Mapping[str, str]) -> Run:
+    """``run_with(None)`` (all observers together); when an observer fails there, each observer alone
+    (``run_with((name,))``). When every observer fails, the first one's error is raised (there is nothing else
+    to show)."""
+    try:
+        return run_with(None)
+    except (FiniteEscapeError, SolverError) as e:
+        if not observer_fault(e) or not names:
+            raise
+    traces, failures, base, particles, first = {}, {}, None, {}, None
+    for name in names:
+        try:
+            r = run_with((name,))
+        except (FiniteEscapeError, SolverError) as e:
+            if not observer_fault(e):
+                raise
+            failures[name] = failure_of(name, methods.get(name, "?"), e, getattr(e, "partial", None))
+            first = first or e
+            continue
+        traces[name] = r.observers[name]
+        particles.update(r.info.get("particles", {}))
+        base = base or r
+    if base is None:  # every observer failed: nothing to show but the error (of the first one)
+        raise first  # type: ignore[misc]
+    info = dict(base.info, **({"particles": particles} if particles else {}))
+    return replace(base, observers=traces, failures=failures, info=info)
