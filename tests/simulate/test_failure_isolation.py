@@ -131,3 +131,15 @@ def test_the_command_line_writes_the_others_and_exits_with_status_3(tmp_path, ca
     assert "nlobs: observer 'bad' failed: observer 'bad' blew up after t = 0.0" in cap.err
     header = out.read_text(encoding="utf-8").splitlines()[0].split(",")
     assert "ekf.x1" in header and "bad.x1" not in header
+
+
+def test_montecarlo_counts_a_failure_against_the_failing_observer_only():
+    kw = dict(t_final=3.0, dt=1e-3, x0=[1.0, 0.0], runs=4, inputs={"u": "sin(t)"}, noise=Noise.gaussian(0.01))
+    mc = nlobs.montecarlo(PEND, {"ekf": _good(), "bad": _bad()}, **kw)
+    ref = nlobs.montecarlo(PEND, {"ekf": _good()}, **kw)          # the good filter without the bad one
+    assert mc.stats("ekf")["failed"] == 0 and mc.stats("bad")["failed"] == 4 and mc.failed.size == 0
+    np.testing.assert_allclose(mc.observers["ekf"].xhat, ref.observers["ekf"].xhat, rtol=0, atol=1e-12)
+    assert mc.stats("ekf")["rms_error_median"] == ref.stats("ekf")["rms_error_median"]
+    assert all(reason.startswith("observer 'bad' blew up after t = ") for _, reason in mc.failures)
+    df_failed = [bool(v) for v in np.isnan(mc.observers["bad"].final_error)]
+    assert df_failed == [True] * 4

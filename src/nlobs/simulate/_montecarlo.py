@@ -10,6 +10,7 @@ the same numbers on both paths.
 from __future__ import annotations
 
 import functools
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -20,7 +21,7 @@ from .._display import Column, SummaryTable, short_repr
 from .._progress import as_progress
 from ..design import check_positive
 from ..engine import Backend, evaluate_many, run_batch, saved_steps
-from ..errors import FiniteEscapeError, ModelError, ShapeError
+from ..errors import FiniteEscapeError, ModelError, ShapeError, SolverError
 from ..model import System
 from ._metrics import convergence_band, convergence_time
 from ._options import Noise, ProcessNoise, Sampling
@@ -55,6 +56,8 @@ class ObserverStats:
     x: np.ndarray = field(repr=False)
     initial_errors: Callable[[], np.ndarray] = field(repr=False)  #: ‖x̂(0⁻) − x(0)‖ of each run, computed on demand
     tol: float | None = None  #: an absolute convergence tolerance replacing the rule (see ``Run.metrics``)
+    #: (M,) runs in which this observer failed while the plant and the other observers completed (None: none)
+    failed: np.ndarray | None = field(default=None, repr=False)
 
     @functools.cached_property
     def error_norm(self) -> np.ndarray:
@@ -74,7 +77,8 @@ class ObserverStats:
     def rms_error(self) -> np.ndarray:
         t = self.t
         tail = t >= t[-1] - 0.2 * (t[-1] - t[0])
-        with np.errstate(invalid="ignore"):
+        with np.errstate(invalid="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # "mean of empty slice": a failed run's NaN row gives NaN
             return np.sqrt(np.nanmean(self.error_norm[:, tail] ** 2, axis=1))
 
     @functools.cached_property
@@ -83,7 +87,8 @@ class ObserverStats:
 
     @functools.cached_property
     def peak_error(self) -> np.ndarray:
-        with np.errstate(invalid="ignore"):
+        with np.errstate(invalid="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
             return np.nanmax(self.error_norm, axis=1)
 
     def __repr__(self) -> str:
@@ -112,13 +117,19 @@ class MonteCarloResult:
 
     @property
     def failed(self) -> np.ndarray:
-        """Indices of trajectories that blew up."""
+        """Indices of trajectories that blew up (the plant, or every observer)."""
         return np.flatnonzero(self.status < self.n_steps)
+
+    def _ok(self, name: str) -> np.ndarray:
+        """(M,) runs that completed for observer `name` (its trajectory completed and it did not fail in it)."""
+        ok = self.status == self.n_steps
+        failed = self.observers[name].failed
+        return ok if failed is None else ok & ~failed
 
     def stats(self, name: str) -> dict[str, Any]:
         """Median and 90th percentile of convergence time and RMS error, and failure counts."""
         o = self.observers[name]
-        ok = self.status == self.n_steps
+        ok = self._ok(name)
         conv = o.convergence_time[ok]
         rms = o.rms_error[ok]
         settled = conv[np.isfinite(conv)]
@@ -159,7 +170,7 @@ class MonteCarloResult:
         rows = []
         for name, o in self.observers.items():
             for j in range(self.runs):
-                rows.append({"run": j, "observer": name, "seed": int(self.seeds[j]), "failed": bool(self.status[j] < self.n_steps),
+                rows.append({"run": j, "observer": name, "seed": int(self.seeds[j]), "failed": not bool(self._ok(name)[j]),
                              "convergence_time": o.convergence_time[j], "rms_error": o.rms_error[j],
                              "final_error": o.final_error[j], "peak_error": o.peak_error[j]})
         return pd.DataFrame(rows)
@@ -176,9 +187,8 @@ class MonteCarloResult:
 
         fig = Figure(figsize=(8, 3.6), layout="constrained")
         ax = fig.subplots()
-        ok = self.status == self.n_steps
         for i, (name, o) in enumerate(self.observers.items()):
-            e = np.maximum(o.error_norm[ok], 1e-16)
+            e = np.maximum(o.error_norm[self._ok(name)], 1e-16)
             if e.size == 0:
                 continue
             lo, med, hi = np.percentile(e, [10, 50, 90], axis=0)
@@ -394,24 +404,53 @@ def _result(spec: _Spec, S: np.ndarray, O: np.ndarray, status: np.ndarray, tol: 
     steps = saved_steps(N, spec.stride)
     t = steps * prep.dt
     x = S[:, :, :n]
+    xhats = {}
+    for name in prep.obs:
+        zsl, xsl = layout.out[name]
+        xhats[name] = O[:, :, xsl] if xsl is not None else (O[:, :, zsl] if zsl is not None else S[:, :, layout.slices[name]])[:, :, :n]
+    observer_failed = {name: np.zeros(status.size, dtype=bool) for name in prep.obs}
+    failures = _isolate_failed_runs(spec, status, x, xhats, observer_failed, steps, inputs)
     stats = {}
     for name, o in prep.obs.items():
-        zsl, xsl = layout.out[name]
-        xhat = O[:, :, xsl] if xsl is not None else (O[:, :, zsl] if zsl is not None else S[:, :, layout.slices[name]])[:, :, :n]
 
         def initial_errors(o: Any = o, name: str = name) -> np.ndarray:
             prior = evaluate_many(o.design.output, np.zeros((spec.x0.shape[0], 1)), evaluate_many(o.design.initial, spec.xhat0[name]),
                                   np.zeros(prep.plant.n_inputs), np.zeros(prep.plant.n_outputs))
             return np.linalg.norm(prior - spec.x0, axis=1)
 
-        stats[name] = ObserverStats(name, xhat, t, x, initial_errors, tol)
-    failures = []
-    for j in np.flatnonzero(status < N)[:20]:
-        try:
-            spec.rerun(int(j), inputs)
-            reason = f"left |x| <= {spec.bound:g} after t = {status[j] * prep.dt:.6g}"
-        except FiniteEscapeError as err:
-            reason = str(err).split(". Check")[0]
-        failures.append((int(j), reason))
-    failures += [(int(j), f"left |x| <= {spec.bound:g} after t = {status[j] * prep.dt:.6g}") for j in np.flatnonzero(status < N)[20:]]
+        stats[name] = ObserverStats(name, xhats[name], t, x, initial_errors, tol, observer_failed[name])
     return MonteCarloResult(prep.plant.name, t, x, spec.seeds, status, stats, failures, N, info, spec, inputs)
+
+
+#: Trajectories that stopped are re-run alone (to keep the observers that did not fail, and to tell why) up to this many.
+RERUN_LIMIT = 200
+
+
+def _isolate_failed_runs(spec: _Spec, status: np.ndarray, x: np.ndarray, xhats: dict[str, np.ndarray],
+                         observer_failed: dict[str, np.ndarray], steps: np.ndarray, inputs: Any) -> list[tuple[int, str]]:
+    """A trajectory stops (in the batch) when any of its subsystems blows up. Re-run alone, with each observer
+    isolated (:meth:`Simulation.run`), it keeps the plant and the observers that did not fail: their signals are
+    written back into `x` and `xhats`, `status` marks the trajectory complete, and only the failing observers are
+    counted as failed in it. A plant blow-up (or one of every observer) stays a failed trajectory."""
+    N, failures = spec.prep.n_steps, []
+    for k, j in enumerate(np.flatnonzero(status < N)):
+        j = int(j)
+        if k >= RERUN_LIMIT:
+            failures.append((j, f"left |x| <= {spec.bound:g} after t = {status[j] * spec.prep.dt:.6g} (not re-run: more than "
+                                f"{RERUN_LIMIT} runs stopped)"))
+            continue
+        try:
+            r = spec.rerun(j, inputs)
+        except (FiniteEscapeError, SolverError) as err:
+            failures.append((j, str(err).split(". Check")[0]))
+            continue
+        x[j] = r.x[steps, :x.shape[2]]
+        for name, xh in xhats.items():
+            if name in r.failures:
+                observer_failed[name][j] = True
+                xh[j] = np.nan
+                failures.append((j, f"observer {name!r} {r.failures[name].reason}"))
+            else:
+                xh[j] = r.observers[name].xhat[steps, :xh.shape[2]]
+        status[j] = N
+    return failures
