@@ -165,8 +165,37 @@ def test_huge_text_is_cut_in_the_message(size):
     msg = str(info.value)
     assert len(msg) < 400, len(msg)
     assert msg.startswith("big.toml, key `dynamics.x`: ") and f"({size + 1} characters)" in msg
-    assert msg.endswith(f"the expression is {size + 1} characters long; the limit is 10000")
+    assert msg.endswith(f"the expression is {size + 1} characters long; the limit is 200000 (raise it with "
+                        "`nlobs --max-expression N ...` or nlobs.model.set_max_expression(N))")
     assert len(info.value.text) == size + 1  # the attribute keeps the whole text
+
+
+def test_a_published_model_size_expression_is_accepted_and_means_what_it_says():
+    # 100,001 characters: 25,000 terms x_k-like products, beyond Python's parser depth for one chain (~5,000 terms)
+    terms = [f"{k % 7 + 1}*x**{k % 3}" for k in range(12_000)]
+    text = " + ".join(terms) + " - x"
+    assert len(text) > 100_000
+    m = loads_model(BASE.replace('"-x"', '"' + text + '"'))
+    got = sp.expand(m.system.f[0])
+    x = symbol("x")
+    ref = sum((k % 7 + 1) * x ** (k % 3) for k in range(12_000)) - x   # the same sum built without the parser
+    assert sp.expand(got - ref) == 0
+
+
+def test_the_limit_can_be_raised_and_a_unary_chain_stays_a_clean_error():
+    from nlobs.model import set_max_expression
+
+    text = "+".join(["x"] * 150_001)   # 300,001 characters
+    old = set_max_expression(400_000)
+    try:
+        m = loads_model(BASE.replace('"-x"', '"' + text + '"'))
+        assert m.system.f[0] == 150_001 * symbol("x")
+    finally:
+        set_max_expression(old)
+    with pytest.raises(ValueError, match="a positive whole number of characters"):
+        set_max_expression(0)
+    with pytest.raises(ModelFileError, match="nested"):
+        loads_model(BASE.replace('"-x"', '"' + "-(" * 3000 + "x" + ")" * 3000 + '"'))
 
 
 def test_huge_key_and_name_are_cut_in_the_message():
@@ -299,3 +328,16 @@ def test_loads_model_refuses_what_is_not_text(text):
     with pytest.raises(nlobs.ModelFileError, match=r"loads_model takes the text of a model file \(a str\), got "
                                                    + type(text).__name__ + r"; for a file on disk use load_model\(path\)"):
         nlobs.loads_model(text)
+
+
+def test_the_command_line_raises_the_limit_for_one_command(tmp_path, capsys):
+    from nlobs.cli import main
+    from nlobs.model import _expr
+
+    path = tmp_path / "big.toml"
+    path.write_text(BASE.replace('"-x"', '"' + "+".join(["-x"] * 70_000) + '"'), encoding="utf-8")  # 209,999 characters
+    assert main(["analyze", str(path)]) == 1
+    assert "the limit is 200000 (raise it with `nlobs --max-expression N" in capsys.readouterr().err
+    assert main(["--max-expression", "300000", "analyze", str(path)]) == 0
+    assert "locally observable" in capsys.readouterr().out
+    assert _expr.MAX_TEXT == 200_000          # restored after the command

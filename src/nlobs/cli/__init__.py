@@ -20,7 +20,7 @@ from collections.abc import Sequence
 from typing import NoReturn
 
 from . import _analyze, _demo, _design, _estimate, _export, _fit, _kinds, _models, _report, _simulate
-from ._common import error_message
+from ._common import error_message, positive_int
 
 __all__ = ["main", "COMMANDS"]
 
@@ -39,6 +39,8 @@ class _Parser(argparse.ArgumentParser):
 def _parser() -> argparse.ArgumentParser:
     p = _Parser(prog="nlobs", description="Nonlinear observability analysis and state-observer design.")
     p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    p.add_argument("--max-expression", type=positive_int, metavar="N",
+                   help="longest expression a model file may hold, in characters (default 200000)")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for module in COMMANDS:
         module.add_parser(sub)
@@ -61,6 +63,9 @@ def _closed_pipe() -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    from ..model import set_max_expression
+
+    limit = None if args.max_expression is None else set_max_expression(args.max_expression)
     try:
         status = args.run(args)
         sys.stdout.flush()   # a reader that went away shows here, inside the handler below
@@ -79,3 +84,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         else:
             print(f"nlobs: error: {message}", file=sys.stderr)
         return 1
+    finally:
+        if limit is not None:   # main() may run again in the same process (tests, notebooks)
+            set_max_expression(limit)

@@ -2,6 +2,7 @@
 
 from ._expr import FUNCTIONS as FUNCTIONS
 from ._expr import parse_expression as parse_expression
+from ._expr import set_max_expression as set_max_expression
 from ._forms import LTI as LTI
 from ._forms import OutputInjectionForm as OutputInjectionForm
 from ._forms import StateAffine as StateAffine

@@ -52,7 +52,11 @@ FUNCTIONS: Mapping[str, tuple[Callable[..., sp.Expr], int]] = {
 #: Named constants a model expression may use.
 CONSTANTS: Mapping[str, sp.Expr] = {"pi": sp.pi}
 
-MAX_TEXT = 10_000  #: longest accepted expression text, in characters
+#: Longest accepted expression text, in characters: published identifiability models reach 10⁵ (StructuralIdentifiability.jl's
+#: QY model has a 13,260-character output); raise it with ``nlobs --max-expression N`` or :func:`set_max_expression`.
+MAX_TEXT = 200_000
+#: A top-level sum of more terms is parsed in chunks of this many (Python's parser nests one level per term).
+CHUNK_TERMS = 1000
 MAX_DEPTH = 200  #: deepest accepted nesting of operations
 MAX_EXPONENT = 64  #: largest accepted magnitude of a constant exponent
 MAX_CONSTANT = 1e300  #: largest accepted magnitude of a constant sub-expression
@@ -117,11 +121,63 @@ def parse_expression(text: str, symbols: Mapping[str, sp.Expr]) -> sp.Expr:
     if not isinstance(text, str):
         raise ExpressionError(f"an expression must be a string, got {type(text).__name__}")
     if len(text) > MAX_TEXT:
-        raise ExpressionError(f"the expression is {len(text)} characters long; the limit is {MAX_TEXT}")
+        raise ExpressionError(f"the expression is {len(text)} characters long; the limit is {MAX_TEXT} (raise it with "
+                              "`nlobs --max-expression N ...` or nlobs.model.set_max_expression(N))")
     if "__" in text:
         raise ExpressionError("double underscores (dunder names) are not allowed in a model expression")
     if not text.strip():
         raise ExpressionError("the expression is empty")
+    text = text.strip()
+    chunks = _sum_chunks(text) if len(text) > 4 * CHUNK_TERMS else [text]
+    walker = _Walker(symbols)
+    if len(chunks) > 1:   # a long sum: each chunk on its own (its leading sign is a unary one), then one Add
+        return walker.checked(sp.Add(*(walker.expr(_parse(c), 0) for c in chunks)))
+    return walker.expr(_parse(text), 0)
+
+
+def set_max_expression(n: int) -> int:
+    """Set the longest accepted expression text (characters) and return the previous limit.
+
+    The default, 200,000, accepts the largest published models seen; every symbolic step after parsing
+    runs within :func:`nlobs.model.symbolic_budget`.
+    """
+    global MAX_TEXT
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise ValueError(f"set_max_expression: the limit must be a positive whole number of characters, got {n!r}")
+    old, MAX_TEXT = MAX_TEXT, n
+    return old
+
+
+def _sum_chunks(text: str) -> list[str]:
+    """`text` cut before top-level binary + and − into pieces of :data:`CHUNK_TERMS` terms ([text] when shorter)."""
+    import io
+    import tokenize
+
+    starts = [0]
+    for line in text.splitlines(keepends=True):
+        starts.append(starts[-1] + len(line))
+    cuts, depth, prev, count = [], 0, None, 0
+    try:
+        for tok in tokenize.generate_tokens(io.StringIO(text).readline):
+            if tok.type == tokenize.OP and tok.string in "([{":
+                depth += 1
+            elif tok.type == tokenize.OP and tok.string in ")]}":
+                depth -= 1
+            elif (tok.type == tokenize.OP and tok.string in "+-" and depth == 0 and prev is not None
+                  and (prev.type in (tokenize.NAME, tokenize.NUMBER) or prev.string in ")]}")):
+                count += 1
+                if count % CHUNK_TERMS == 0:
+                    cuts.append(starts[tok.start[0] - 1] + tok.start[1])
+            if tok.type not in (tokenize.NL, tokenize.NEWLINE, tokenize.COMMENT, tokenize.INDENT, tokenize.DEDENT,
+                                tokenize.ENDMARKER):
+                prev = tok
+    except (tokenize.TokenError, IndentationError, SyntaxError):
+        return [text]   # the parser reports what is wrong
+    bounds = [0, *cuts, len(text)]
+    return [text[a:b] for a, b in zip(bounds, bounds[1:])]
+
+
+def _parse(text: str) -> ast.expr:
     try:
         tree = ast.parse(text.strip(), mode="eval")
     except SyntaxError as e:
@@ -131,7 +187,7 @@ def parse_expression(text: str, symbols: Mapping[str, sp.Expr]) -> sp.Expr:
                               "split it into shorter expressions") from None
     except (ValueError, MemoryError, OverflowError) as e:
         raise ExpressionError(f"cannot be parsed ({type(e).__name__})") from None
-    return _Walker(symbols).expr(tree.body, 0)
+    return tree.body
 
 
 def _spine(node: ast.AST, ops: tuple[type, ...]) -> list[tuple[bool, ast.AST]]:
