@@ -80,6 +80,21 @@ class AbstractObserver(ABC):
         """An online estimator fed one sample at a time (see :class:`OnlineObserver`)."""
         return OnlineObserver(self, xhat0, max_step=max_step)
 
+    def rate(self, t: float, z: Any, u: Any, y: Any) -> float:
+        """The flow's fastest local rate at (t, z): the spectral radius of ∂F/∂z (1/time), 0 where it is not finite."""
+        fn = getattr(self, "_rate_fn", None)
+        if fn is None:
+            d, s = self.design, self.system
+            zz, tt = ca.MX.sym("z", d.n_z), ca.MX.sym("t")
+            uu, yy = ca.MX.sym("u", s.n_inputs), ca.MX.sym("y", s.n_outputs)
+            fn = ca.Function("flow_jacobian", [tt, zz, uu, yy], [ca.jacobian(d.flow(tt, zz, uu, yy), zz)])
+            self._rate_fn = fn
+        J = np.asarray(fn(float(t), _vec(z, self.n_z, "z"), _vec(u, self.system.n_inputs, "u"),
+                          _vec(y, self.system.n_outputs, "y")), dtype=float)
+        if not J.size or not np.all(np.isfinite(J)):
+            return 0.0
+        return float(np.max(np.abs(np.linalg.eigvals(J))))
+
 
 class Observer(AbstractObserver):
     """An observer whose equations are CasADi functions (every design in nlobs).
@@ -165,6 +180,27 @@ class Observer(AbstractObserver):
         return str(self._design)
 
 
+#: Most RK4 steps the online observer takes between two samples (beyond: a clear error, see ``OnlineObserver``).
+MAX_ONLINE_SUBSTEPS = 10**6
+_CHUNK = 64
+
+
+def _rk4_chunks(obs: AbstractObserver, t: float, z: np.ndarray, dt: float, u: np.ndarray, y: np.ndarray,
+                n: int) -> np.ndarray:
+    """`n` equal RK4 steps from t to t + dt, in calls of at most 64 steps (a few compiled functions, not one per n)."""
+    h = dt / n
+    done = 0
+    while done < n:
+        k = min(_CHUNK, n - done)
+        if k != _CHUNK and k > 8:
+            k = 8 * (k // 8)
+        z = obs.step(t + done * h, z, k * h, u, y, substeps=k)
+        done += k
+        if not np.all(np.isfinite(z)):
+            break
+    return z
+
+
 class OnlineObserver:
     """Run an observer one sample at a time, for use in a real loop.
 
@@ -180,7 +216,9 @@ class OnlineObserver:
     xhat0 : array_like, optional
         Initial estimate (default: the design's).
     max_step : float, optional
-        Largest RK4 step between samples (default: one step per sample interval).
+        Largest RK4 step between samples. The steps are shorter where the flow's fastest rate ρ asks for it
+        (h·ρ <= 1, as :func:`nlobs.estimate` integrates), so a long gap is integrated, not stepped over; a gap that
+        would take more than 10⁶ steps is refused with a DataError.
     """
 
     def __init__(self, observer: AbstractObserver, xhat0: Any = None, *, max_step: float | None = None):
@@ -194,6 +232,32 @@ class OnlineObserver:
         self.max_step = max_step
         self._u = np.zeros(observer.system.n_inputs)
         self._y = np.zeros(observer.system.n_outputs)
+        self._predicted: float | None = None   # the time predict() brought z to, until the update there
+
+    @property
+    def P(self) -> np.ndarray | None:
+        """The covariance of the current estimate (n x n) for observers that carry one (EKF, UKF, Kalman filters);
+        None for the others."""
+        cov = self.observer.design.covariance
+        if cov is None:
+            return None
+        n = self.observer.system.n_states
+        return np.asarray(cov(self.z), dtype=float).reshape(n, n)
+
+    def predict(self, t: float) -> np.ndarray:
+        """Integrate to time `t` without a measurement (the last input and output held) and return the predicted
+        estimate; :meth:`update` at the same `t` then applies the measurement there (filterpy's predict/update)."""
+        try:
+            t = float(t)
+        except (TypeError, ValueError):
+            raise DataError(f"OnlineObserver.predict: `t` must be a number, got {t!r}") from None
+        if self.t is None:
+            raise DataError("OnlineObserver.predict: no sample yet; call update(t0, u=..., y=...) with the first sample")
+        if not (np.isfinite(t) and t > self.t):
+            raise DataError(f"OnlineObserver.predict: `t` must be a finite time after the last one ({self.t:g}), got {t:g}")
+        self.z = self._flow(t, t - self.t)
+        self.t = self._predicted = t
+        return self.xhat
 
     @property
     def xhat(self) -> np.ndarray:
@@ -215,16 +279,18 @@ class OnlineObserver:
             raise DataError(f"OnlineObserver.update: t = {t} and y = {y} must be finite (NaN marks a missing output)")
         if not np.all(np.isfinite(u)):
             raise DataError(f"OnlineObserver.update: the input u = {u} at t = {t:g} must be finite")
-        if self.t is not None:
+        if self._predicted is not None and t == self._predicted:   # predict(t) already brought z to t
+            z_pred = self.z
+        elif self.t is not None:
             dt = t - self.t
             if not dt > 0:
                 raise DataError(f"OnlineObserver.update: time must increase from one sample to the next; got t = {t:g} after "
                                 f"t = {self.t:g}" + (" (the same time again: a second update would count the measurement twice)"
                                                      if dt == 0 else "") + "; give each sample once, in time order")
-            n = 1 if not self.max_step else max(1, int(np.ceil(dt / self.max_step - 1e-9)))
-            z_pred = obs.step(self.t, self.z, dt, self._u, self._y, substeps=n)
+            z_pred = self._flow(t, dt)
         else:
             z_pred = self.z
+        self._predicted = None
         mask = np.isfinite(y)
         if not mask.all():
             yhat = self._predicted_output(t, z_pred, u)
@@ -241,6 +307,30 @@ class OnlineObserver:
         self.z = z
         self.t, self._u, self._y = t, u, y
         return obs.estimate(self.t, self.z, u, y)
+
+    def _flow(self, t: float, dt: float) -> np.ndarray:
+        """z at `t` from the previous sample, with its u and y held: RK4 steps h with h·ρ <= 1 for the flow's fastest
+        rate ρ (measured at both ends of the interval, as the interval runner of :func:`nlobs.estimate` does) and
+        h <= max_step. A gap that needs more than :data:`MAX_ONLINE_SUBSTEPS` steps is refused, never stepped over
+        (one RK4 step across a long gap returns a number, not the estimate)."""
+        obs = self.observer
+        n = 1 if not self.max_step else max(1, int(np.ceil(dt / self.max_step - 1e-9)))
+        rho = obs.rate(self.t, self.z, self._u, self._y)
+        for _ in range(6):
+            n = max(n, int(np.ceil(dt * rho - 1e-9)))
+            if n > MAX_ONLINE_SUBSTEPS:
+                raise DataError(
+                    f"OnlineObserver.update: the gap from t = {self.t:g} to t = {t:g} ({dt:g} time units) needs more than "
+                    f"{MAX_ONLINE_SUBSTEPS:.0e} RK4 steps at the observer's fastest rate {rho:.3g} per time unit; the "
+                    "estimate across it would not be worth the time. Start the observer again at the new sample "
+                    "(Observer(design).start(xhat0=...)), or feed the samples in between")
+            z = _rk4_chunks(obs, self.t, self.z, dt, self._u, self._y, n)
+            h = dt / n
+            end = obs.rate(t, z, self._u, self._y) if np.all(np.isfinite(z)) else np.inf
+            if np.isfinite(end) and h * end <= 2.0:   # RK4 is stable up to h·|λ| ≈ 2.8 on the axes
+                return z
+            rho = max(rho, end if np.isfinite(end) else 0.0, 4.0 * n / dt)
+        return z
 
     def _predicted_output(self, t: float, z: np.ndarray, u: np.ndarray) -> np.ndarray:
         xhat = self.observer.estimate(t, z, u, self._y)
