@@ -250,3 +250,42 @@ def test_a_prepared_simulation_runs_many_times_like_simulate():
         b = simulate(sys_, {"o": obs}, t_final=2.0, dt=0.01, x0=x0, inputs={"u": "sin(t)"}, noise=Noise.gaussian(0.01), seed=seed)
         assert np.array_equal(a.x, b.x) and np.array_equal(a.observers["o"].xhat, b.observers["o"].xhat) and np.array_equal(a.y, b.y)
     assert sim.t.shape == (201,) and sim.plant is sys_
+
+
+class TestInputArrays:
+    """python-control's habit: inputs as arrays on the run's grid, or (t, values) pairs (issue 20 §6)."""
+
+    PEND = None
+
+    @staticmethod
+    def _run(inputs, t_final=2.0, plant=None):
+        import nlobs
+        from nlobs import System
+        plant = plant or System(states=["x1", "x2"], inputs=["u"], outputs=["y"], f=["x2", "-9.81*sin(x1) - 0.5*x2 + u"],
+                                h=["x1"])
+        return nlobs.simulate(plant, None, t_final=t_final, dt=1e-3, x0=[1.0, 0.0], inputs=inputs)
+
+    def test_an_array_on_the_grid_is_the_signal_it_samples(self):
+        t = np.arange(2001) * 1e-3
+        ref = self._run({"u": "sin(t)"})
+        for given in ({"u": np.sin(t)}, np.sin(t), {"u": list(np.sin(t))}):
+            run = self._run(given)
+            np.testing.assert_array_equal(run.u[:, 0], np.sin(t))
+            # between grid points the array is interpolated linearly (RK4's half step): O(dt²) from sin itself
+            np.testing.assert_allclose(run.x, ref.x, rtol=0, atol=1e-7)
+
+    def test_a_t_values_pair_is_interpolated_linearly(self):
+        run = self._run({"u": ([0.0, 1.0, 2.0], [0.0, 2.0, 0.0])})
+        np.testing.assert_allclose(run.u[[0, 500, 1000, 1500, 2000], 0], [0.0, 1.0, 2.0, 1.0, 0.0], rtol=0, atol=1e-12)
+
+    def test_a_2d_array_gives_every_input_and_wrong_sizes_say_what_is_needed(self):
+        import nlobs
+        from nlobs import System
+        two = System(states=["x"], inputs=["a", "b"], outputs=["y"], f=["-x + a - b"], h=["x"])
+        t = np.arange(1001) * 1e-3
+        run = nlobs.simulate(two, None, t_final=1.0, dt=1e-3, x0=[0.0], inputs=np.vstack([np.ones_like(t), t]))
+        np.testing.assert_array_equal(run.u, np.column_stack([np.ones_like(t), t]))
+        with pytest.raises(nlobs.ShapeError, match=r"one value per time of the run \(2001 times.*got 1000; or pass a \(t, values\)"):
+            self._run({"u": np.zeros(1000)})
+        with pytest.raises(nlobs.ShapeError, match="as many values as times"):
+            self._run({"u": ([0.0, 1.0, 2.0], [0.0, 2.0])})

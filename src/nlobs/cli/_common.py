@@ -42,14 +42,21 @@ def designs_of(model_file: Any, names: Sequence[str] | None, *, overrides: Mappi
     from ..design import KINDS, check_identifiable, design_from_config
 
     configured = model_file.observers
+    auto: dict[str, Any] = {}
     if names:
         unknown = [n for n in names if n not in configured]
-        if unknown:
-            raise KeyError(f"{model_file.path}: no observer {unknown[0]!r}; configured: {', '.join(configured) or '(none)'}")
+        bad = [n for n in unknown if n not in KINDS]
+        if bad:
+            raise KeyError(f"{model_file.path}: no observer {bad[0]!r}; configured: {', '.join(configured) or '(none)'}; "
+                           f"or name an observer kind to design it with its automatic tuning ({', '.join(sorted(KINDS))})")
+        auto = _auto_designs(model_file, unknown)
     chosen = names or list(configured)
     check_identifiable(model_file.observer_system, where=model_file.path)
     out = {}
     for n in chosen:
+        if n in auto:
+            out[n] = auto[n]
+            continue
         kind, options = configured[n].kind, dict(configured[n].options)
         for key, value in (overrides or {}).items():
             if kind in KINDS and key not in KINDS[kind].options:
@@ -58,6 +65,25 @@ def designs_of(model_file: Any, names: Sequence[str] | None, *, overrides: Mappi
                                  f"kinds that take it: {', '.join(takes)}")
             options[key] = value
         out[n] = design_from_config(replace(configured[n], options=options), where=f"{model_file.path}: observers.{n}")
+    return out
+
+
+def _auto_designs(model_file: Any, kinds: Sequence[str]) -> dict[str, Any]:
+    """Kinds named on the command line but not configured in the file: designed with the advisor's automatic tuning
+    (as ``nlobs design`` proposes them); a kind that does not apply is refused with the advisor's reason."""
+    if not kinds:
+        return {}
+    from ..advise import advise
+
+    adv = advise(model_file, kinds=list(kinds), run=False, progress=False)
+    out = {}
+    for c in adv.candidates:
+        if c.kind not in kinds:
+            continue
+        if c.design is None or not c.applies:
+            raise ValueError(f"{model_file.path}: --observer {c.kind}: no observer of that name is configured, and the kind "
+                             f"{c.kind!r} cannot be tuned automatically for this model: {c.why}")
+        out[c.kind] = c.design
     return out
 
 

@@ -16,7 +16,9 @@ def add_parser(sub: Any) -> None:
                        description="Simulate the plant of a model file together with its observers. Defaults come from "
                                    "the file's [simulation] table; the options below replace them.")
     s.add_argument("model", help="model file (TOML)")
-    s.add_argument("--observer", action="append", metavar="NAME", help="observer configured in the file (repeatable; default: all)")
+    s.add_argument("--observer", action="append", metavar="NAME",
+                   help="observer configured in the file, or an observer kind (ekf, ukf, ...: designed with the automatic "
+                        "tuning of `nlobs design`) (repeatable; default: every configured observer)")
     s.add_argument("--t-final", type=positive_float, metavar="T",
                    help="horizon in seconds (default: the last time of --input, else the file's [simulation] t_final)")
     s.add_argument("--dt", type=positive_float, help="integration step in seconds (default: the file's, else 1e-3; a "
@@ -102,6 +104,10 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(clean(out)))
     else:
         print(run_.summary(tol=args.tol))
+        if not run_.observers and not run_.failures:
+            print(f"no observers: {mf.path} configures none. `nlobs design {mf.path} --toml` proposes them (paste its "
+                  f"[observers] tables into the file), or `nlobs simulate {mf.path} --observer ekf` runs one kind with its "
+                  "automatic tuning")
         if validation:
             print("simulated vs recorded outputs (" + args.input_csv + "): " + "; ".join(
                 f"{o}: RMSE {v['rmse']:.4g}, fit {v['fit_percent']:.1f} %" for o, v in validation.items()))

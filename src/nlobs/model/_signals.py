@@ -110,21 +110,30 @@ class Sampled(AbstractSignal):
         return cls(times, values, "zoh", name=name)
 
 
-def as_signal(value: Any, *, name: str, params: Mapping[str, float] | None = None) -> AbstractSignal:
+def as_signal(value: Any, *, name: str, params: Mapping[str, float] | None = None,
+              grid: np.ndarray | None = None) -> AbstractSignal:
     """Turn what a user passes for one input into a signal.
 
     Parameters
     ----------
-    value : signal, number, str, sympy.Expr or callable
+    value : signal, number, str, sympy.Expr, callable, array or (t, values) pair
         A signal; a number; an expression in ``t`` (and the model's parameters, substituted
-        by their values); or a callable ``u(t)``.
+        by their values); a callable ``u(t)``; an array with one value per time of `grid`
+        (python-control's ``input_output_response(sys, T, U)`` habit); or a pair ``(t, values)``
+        of sample times and values. Arrays and pairs are interpolated linearly between their
+        times, as python-control does (``nlobs.Sampled(t, values, "zoh")`` holds them instead).
     name : str
         The input's name, for messages.
     params : mapping of str to float, optional
         Parameter values usable in expressions.
+    grid : numpy.ndarray, optional
+        The run's time grid (for an array of values).
     """
     if isinstance(value, AbstractSignal):
         return value
+    samples = _samples(value, name, grid)
+    if samples is not None:
+        return samples
     params = dict(params or {})
     if isinstance(value, (str, sp.Basic, int, float, np.integer, np.floating)) and not isinstance(value, bool):
         allowed = {"t": TIME, **{k: symbol(k) for k in params}}
@@ -133,18 +142,52 @@ def as_signal(value: Any, *, name: str, params: Mapping[str, float] | None = Non
         return Expression(expr)
     if callable(value):
         return Function(value, name)
-    raise ModelError(f"input `{name}`: expected a number, an expression of t, a callable or a signal, got {type(value).__name__}")
+    raise ModelError(f"input `{name}`: expected a number, an expression of t, a callable, a signal (nlobs.Sampled(t, values)), "
+                     f"an array with one value per time of the run or a (t, values) pair, got {type(value).__name__}")
 
 
-def input_signals(system: System, inputs: Any, params: Mapping[str, float] | None = None) -> tuple[AbstractSignal, ...]:
-    """One signal per input of `system` from `inputs`, a mapping ``{name: signal-like}``.
+def _samples(value: Any, name: str, grid: np.ndarray | None) -> Sampled | None:
+    """An array on the run's grid or a ``(t, values)`` pair as a linearly interpolated signal; None for anything else."""
+    if isinstance(value, tuple) and len(value) == 2 and all(np.ndim(v) == 1 and np.size(v) > 1 for v in value):
+        t_, v_ = (np.asarray(v, dtype=float) for v in value)
+        if t_.size != v_.size:
+            raise ShapeError(f"input `{name}`: a (t, values) pair needs as many values as times, got {t_.size} times and "
+                             f"{v_.size} values")
+        return Sampled(t_, v_, "linear", name=name)
+    if not isinstance(value, (np.ndarray, list)) or isinstance(value, str):
+        return None
+    try:
+        v = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ModelError(f"input `{name}`: an array of input values must hold numbers") from None
+    if v.ndim != 1:
+        raise ShapeError(f"input `{name}`: an array of values must be one-dimensional (one value per time), got shape {v.shape}")
+    if grid is None:
+        raise ModelError(f"input `{name}`: an array of values needs the run's time grid; pass a (t, values) pair or "
+                         "nlobs.Sampled(t, values)")
+    if v.size != grid.size:
+        raise ShapeError(f"input `{name}`: an array of values needs one value per time of the run ({grid.size} times, "
+                         f"t = {grid[0]:g} ... {grid[-1]:g} in steps of the run's dt), got {v.size}; or pass a (t, values) pair")
+    return Sampled(grid, v, "linear", name=name)
 
-    Inputs not given are zero. With a single input, a bare signal-like value is accepted.
+
+def input_signals(system: System, inputs: Any, params: Mapping[str, float] | None = None,
+                  grid: np.ndarray | None = None) -> tuple[AbstractSignal, ...]:
+    """One signal per input of `system` from `inputs`, a mapping ``{name: signal-like}`` (see :func:`as_signal`).
+
+    Inputs not given are zero. With a single input, a bare signal-like value is accepted; a 2-D array with one
+    row (or column) per input and one value per time of `grid` gives every input (python-control's ``U``).
     `params` (default: the system's) are the values usable in expressions.
     """
     params = system.params if params is None else params
     if inputs is None:
         inputs = {}
+    if isinstance(inputs, np.ndarray) and inputs.ndim == 2 and system.n_inputs > 1:
+        rows = inputs if inputs.shape[0] == system.n_inputs else inputs.T
+        if rows.shape[0] != system.n_inputs:
+            raise ShapeError(f"`inputs`: a 2-D array needs one row per input of {system.name!r} ({system.n_inputs}: "
+                             f"{', '.join(system.inputs)}), got shape {inputs.shape}")
+        inputs = dict(zip(system.inputs, rows))
     if not isinstance(inputs, Mapping):
         if system.n_inputs != 1:
             raise ModelError(f"{system.name!r} has {system.n_inputs} inputs; pass `inputs` as a mapping {{name: signal}}")
@@ -153,4 +196,4 @@ def input_signals(system: System, inputs: Any, params: Mapping[str, float] | Non
     if unknown:
         raise ModelError(f"`inputs` names {', '.join(map(repr, unknown))}, which {'is' if len(unknown) == 1 else 'are'} not an input of "
                          f"{system.name!r}; its inputs are: {', '.join(system.inputs) or '(none)'}")
-    return tuple(as_signal(inputs.get(n, 0.0), name=n, params=params) for n in system.inputs)
+    return tuple(as_signal(inputs.get(n, 0.0), name=n, params=params, grid=grid) for n in system.inputs)

@@ -49,7 +49,7 @@ def _steps(plant: System, t_final: Any, dt: Any, caller: str) -> int:
 
 def _signals(plant: System, inputs: Any, t: np.ndarray) -> np.ndarray:
     U = np.zeros((t.size, plant.n_inputs))
-    for j, sig in enumerate(input_signals(plant, inputs, plant.params)):
+    for j, sig in enumerate(input_signals(plant, inputs, plant.params, grid=t)):
         v = np.asarray(sig(t), dtype=float)
         bad = np.flatnonzero(~np.isfinite(v))
         if bad.size:

@@ -81,7 +81,7 @@ def stage_inputs(plant: System, inputs: Any, params: Mapping[str, float], t: np.
     Held (piecewise-constant) signals use their left limit at t_k + dt, so a switch exactly
     on the grid takes effect in the next step.
     """
-    signals = input_signals(plant, inputs, params)
+    signals = input_signals(plant, inputs, params, grid=t)
     N, nu = t.size, plant.n_inputs
     out = np.empty((N, 3 * nu))
     # the end of step k is the next grid time: t_k + dt can exceed t_{k+1} by an ulp (0.059 + 0.001 > 0.06), and a
