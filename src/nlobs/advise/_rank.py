@@ -178,10 +178,14 @@ def _without_diverging(ctx: Context, designs: dict[str, Any], t_final: float | N
     while designs:
         try:
             if rec is not None:
-                return estimate(designs, rec, engine=engine), designs, failed
-            return (simulate(ctx.system, designs, t_final=sc.t_final if t_final is None else t_final, dt=sc.dt, x0=sc.x0,
-                             inputs=sc.inputs, noise=sc.noise, process_noise=sc.process_noise, sampling=sc.sampling,
-                             seed=sc.seed, engine=engine, progress=progress), designs, failed)
+                run = estimate(designs, rec, engine=engine)
+            else:
+                run = simulate(ctx.system, designs, t_final=sc.t_final if t_final is None else t_final, dt=sc.dt, x0=sc.x0,
+                               inputs=sc.inputs, noise=sc.noise, process_noise=sc.process_noise, sampling=sc.sampling,
+                               seed=sc.seed, engine=engine, progress=progress)
+            # observers that failed while the others ran (see Run.failures): dropped with their measured reason
+            failed += [Score(name, "diverged", detail=f.reason) for name, f in run.failures.items()]
+            return run, {k: v for k, v in designs.items() if k not in run.failures}, failed
         except FiniteEscapeError as e:
             name = _culprit(e, designs)
             if name is None:

@@ -138,8 +138,8 @@ def parse_expression(text: str, symbols: Mapping[str, sp.Expr]) -> sp.Expr:
 def set_max_expression(n: int) -> int:
     """Set the longest accepted expression text (characters) and return the previous limit.
 
-    The default, 200,000, accepts the largest published models seen; every symbolic step after parsing
-    runs within :func:`nlobs.model.symbolic_budget`.
+    The default limit (two hundred thousand characters) accepts the largest published models seen; every
+    symbolic step after parsing runs within :func:`nlobs.model.symbolic_budget`.
     """
     global MAX_TEXT
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:

@@ -28,7 +28,7 @@ The format (a contract other tools rely on)::
     inputs = { u = "0.5*sin(t)" }     # expressions of t (and the parameters)
     noise = { y = 0.01 }              # std of Gaussian measurement noise per output
     noise_bound = { y = 0.02 }        # or: bound of uniform noise in [-b, b]
-    sample_period = 0.01              # optional: sampled measurements, zero-order hold
+    sample_period = 0.01              # optional: sampled measurements, zero-order hold (or one per output: { y = 0.01, gps = 1.0 })
     true_parameters = { k2 = 0.25 }   # the plant's values in a simulation (default: the values above)
     seed = 1
     [observers.ekf]           # named observer configurations: kind + tuning
@@ -91,7 +91,7 @@ class SimulationConfig:
     noise: Mapping[str, float] = field(default_factory=dict)
     noise_bound: Mapping[str, float] = field(default_factory=dict)
     process_noise: Mapping[str, float] = field(default_factory=dict)
-    sample_period: float | None = None
+    sample_period: float | Mapping[str, float] | None = None  #: one period, or one per output
     seed: int | None = None
     true_parameters: Mapping[str, float] = field(default_factory=dict)
 
@@ -406,8 +406,20 @@ class _Loader:
             raise self.err(f"unknown key; allowed: {', '.join(_SIM)}", f"simulation.{unknown[0]}")
         out: dict[str, Any] = {}
         for k in ("t_final", "dt", "sample_period"):
-            if k in sim:
+            if k in sim and not (k == "sample_period" and isinstance(sim[k], Mapping)):
                 out[k] = self.number(sim[k], f"simulation.{k}", positive=True)
+        if isinstance(sim.get("sample_period"), Mapping):   # one clock per output: { y = 0.01, gps = 1.0 }
+            periods = {}
+            for k, v in sim["sample_period"].items():
+                if k not in system.outputs:
+                    raise self.err(f"`{shorten(k, 40)[1:-1]}` is not an output; outputs: {shorten_list(system.outputs)}",
+                                   f"simulation.sample_period.{k}")
+                periods[k] = self.number(v, f"simulation.sample_period.{k}", positive=True)
+            missing = [k for k in system.outputs if k not in periods]
+            if missing:
+                raise self.err(f"no period for {', '.join(missing)}: give one per output ({shorten_list(system.outputs)}), or "
+                               "one number for all", "simulation.sample_period")
+            out["sample_period"] = MappingProxyType(periods)
         if system.is_discrete:
             for k in ("dt", "sample_period"):
                 if k in out:

@@ -17,23 +17,58 @@ __all__ = ["Sampling", "Noise", "ProcessNoise", "Adaptive"]
 class Sampling:
     """Measurements taken every `period` seconds and held (zero-order hold) in between.
 
-    The period must be a whole multiple of the integration step ``dt``.
-    Without a ``Sampling``, observers see the output continuously (at every RK4 stage).
+    `period` is one number for all outputs, or a mapping ``{output: period}`` with one period per output
+    (multi-rate sensors: a GPS at 1 s beside an IMU at 0.01 s). Each period must be a whole multiple of
+    the integration step ``dt``. At an instant where only some outputs are sampled, the observers update
+    with those (the others are masked out, as a recording's NaN cells are), and each output is held
+    between its own samples. Without a ``Sampling``, observers see the output continuously (at every RK4
+    stage).
     """
 
-    period: float
+    period: float | Mapping[str, float]
 
     def __post_init__(self) -> None:
-        if not (np.isfinite(self.period) and self.period > 0):
-            raise ValueError(f"Sampling: `period` must be a positive number, got {self.period!r}")
+        values = list(self.period.values()) if isinstance(self.period, Mapping) else [self.period]
+        for v in values:
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not (np.isfinite(v) and v > 0):
+                raise ValueError(f"Sampling: `period` must be a positive number (or one per output), got {self.period!r}")
+        if isinstance(self.period, Mapping) and not self.period:
+            raise ValueError("Sampling: `period` is an empty mapping; give one period per output")
+
+    @property
+    def multirate(self) -> bool:
+        """Whether the outputs have periods of their own."""
+        return isinstance(self.period, Mapping)
+
+    def periods(self, outputs: Sequence[str]) -> np.ndarray:
+        """The period of each of `outputs` (a mapping must name every output, and only outputs)."""
+        if not isinstance(self.period, Mapping):
+            return np.full(len(outputs), float(self.period))
+        unknown = [k for k in self.period if k not in outputs]
+        if unknown:
+            raise ShapeError(f"Sampling: {unknown[0]!r} is not an output; the outputs are {', '.join(outputs)}")
+        missing = [k for k in outputs if k not in self.period]
+        if missing:
+            raise ShapeError(f"Sampling: no sample period for {', '.join(missing)}; give one period per output "
+                             f"({', '.join(outputs)}) or one number for all")
+        return np.array([float(self.period[k]) for k in outputs])
 
     def every(self, dt: float) -> int:
-        """Steps of size `dt` per sample."""
-        rel = max([1e-9] + [4 * float(np.finfo(v.dtype).eps) for v in (self.period, dt) if isinstance(v, np.floating)])
-        m = float(self.period) / float(dt)
-        if abs(m - round(m)) > rel * max(1.0, m) or round(m) < 1:
-            raise ValueError(f"Sampling: the period {self.period:g} must be a whole multiple of dt = {dt:g}")
-        return int(round(m))
+        """Steps of size `dt` per sample (the shortest period's, for per-output periods)."""
+        period = min(self.period.values()) if isinstance(self.period, Mapping) else self.period
+        return _steps(period, dt)
+
+    def every_each(self, dt: float, outputs: Sequence[str]) -> np.ndarray:
+        """Steps of size `dt` per sample, for each output."""
+        return np.array([_steps(p, dt) for p in self.periods(outputs)], dtype=int)
+
+
+def _steps(period: float, dt: float) -> int:
+    rel = max([1e-9] + [4 * float(np.finfo(v.dtype).eps) for v in (period, dt) if isinstance(v, np.floating)])
+    m = float(period) / float(dt)
+    if abs(m - round(m)) > rel * max(1.0, m) or round(m) < 1:
+        raise ValueError(f"Sampling: the period {period:g} must be a whole multiple of dt = {dt:g}")
+    return int(round(m))
 
 
 Kind = Literal["gaussian", "uniform"]

@@ -27,8 +27,9 @@ __all__ = ["Recording", "estimate"]
 class Recording:
     """Recorded signals on sample times ``t`` (time on the first axis).
 
-    NaN in `y` marks a missing sample (allowed only with ``on_missing="skip"`` in
-    :func:`estimate`); NaN or inf anywhere else is rejected with its row and column.
+    NaN in `y` marks a sample not taken: per-output clocks (each output measured at regular times of its own,
+    a multi-rate recording) are accepted as they are; other missing samples only with ``on_missing="skip"`` in
+    :func:`estimate`. NaN or inf anywhere else is rejected with its row and column.
     """
 
     t: np.ndarray
@@ -161,6 +162,22 @@ class Recording:
             raise DataError(f"recording ({self.source}): time does not increase at row {k + 1} "
                             f"(t = {self.t[k]:g} then {self.t[k + 1]:g}); sort the samples or remove duplicates")
 
+    def clocked(self) -> bool:
+        """Whether the missing outputs (NaN) are per-output clocks: each output is measured at regular times of its
+        own (a multi-rate recording: a GPS at 1 s beside a wheel encoder at 10 ms) and every row measures some output.
+        Such NaN cells mean "not measured at this row" and need no ``on_missing='skip'``."""
+        finite = np.isfinite(self.y)
+        if not finite.any(axis=1).all():
+            return False
+        for j in np.flatnonzero(~finite.all(axis=0)):
+            times = self.t[finite[:, j]]
+            if times.size < 2:
+                return False
+            d = np.diff(times)
+            if np.max(np.abs(d - d[0])) > 1e-6 * d[0]:
+                return False
+        return True
+
     def check_finite(self, on_missing: str) -> np.ndarray:
         """The mask of measured outputs (1 = measured), after rejecting what may not be missing."""
         for name, arr, names in (("u", self.u, self.input_names), ("x", self.x, self.state_names)):
@@ -179,7 +196,7 @@ class Recording:
             r, c = inf[0]
             raise DataError(f"recording ({self.source}): output {self.output_names[c]!r} is {self.y[r, c]} at row {r} (t = {self.t[r]:g})")
         nan = np.argwhere(np.isnan(self.y))
-        if nan.size and on_missing == "error":
+        if nan.size and on_missing == "error" and not self.clocked():
             r, c = nan[0]
             raise DataError(f"recording ({self.source}): output {self.output_names[c]!r} is missing (NaN) at row {r} (t = {self.t[r]:g}), "
                             f"{len(nan)} missing value(s) in all; to leave them out of the observer's update pass "

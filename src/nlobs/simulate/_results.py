@@ -405,14 +405,22 @@ class Run:
         Columns: ``t``, the inputs, the measured outputs, the true states (when known), then
         ``NAME.STATE`` for each observer's estimate. Numbers are written in their shortest form
         that reads back to the same double (Python's ``repr``); missing values as empty cells.
-        `every` keeps rows 0, k, 2k, ... (e.g. only the sample instants of a sampled run).
+        `every` keeps rows 0, k, 2k, ... (e.g. only the sample instants of a sampled run); with per-output sample
+        periods every output is written in the rows where it was sampled and left empty (NaN: not measured) in the
+        others, and `every` > 1 keeps the rows where any output was sampled.
         """
         every = int(every)
         if every < 1:
             raise ValueError(f"to_csv: `every` must be a positive whole number of rows, got {every!r}")
         keep = np.arange(0, self.t.size, every)
         header = ["t", *self.input_names, *self.output_names]
-        blocks = [self.t[:, None], self.u, self.y]
+        y = self.y
+        measured = self.info.get("measured")
+        if measured is not None:   # per-output clocks: each output in the rows where it was sampled, empty elsewhere
+            y = np.where(measured, y, np.nan)
+            if every > 1:
+                keep = np.flatnonzero(measured.any(axis=1))
+        blocks = [self.t[:, None], self.u, y]
         if self.x is not None:
             header += list(self.state_names[:self.x.shape[1]])  # recorded truth may lack the estimated parameters
             blocks.append(self.x)

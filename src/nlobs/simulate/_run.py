@@ -293,6 +293,8 @@ class Simulation:
         c = self._c
         report = as_progress(progress, f"simulate {plant.name}")
         info = dict(self._info, seed=seed)
+        if prep.kind.multirate:   # which outputs were sampled at each time (the others are held, NaN in a CSV)
+            info["measured"] = A[:, layout.flags] > 0
         runner = layout.runner(self.engine)
         S = np.empty((N + 1, layout.size))
         O = np.empty((N + 1, layout.no))
@@ -359,6 +361,8 @@ class Prepared:
     x0_tail: tuple[float, ...] = ()  # true values of the estimated parameters, appended to a model-state x0
     #: particle filters: run on the sampled measurements after the plant (not in the joint step)
     particle: Mapping[str, ParticleObserver] = field(default_factory=dict)
+    #: per-output sampling: steps per sample of each output (None: one clock, `every`)
+    every_each: tuple[int, ...] | None = None
 
     def initial_state(self, x0: Sequence[float], xhat0: Any) -> np.ndarray:
         n, ny = self.plant.n_states, self.plant.n_outputs
@@ -389,8 +393,14 @@ class Prepared:
         if self.process_noise is not None:
             columns.append(np.vstack([self.process_noise.draw(rng, N, plant.states, self.dt), np.zeros((1, plant.n_states))]))
         if self.kind.sampled:
-            columns.append((np.arange(N + 1) % self.every == 0).astype(float)[:, None])
+            columns.append(self.sample_flags())
         return columns[0] if len(columns) == 1 else np.hstack(columns)
+
+    def sample_flags(self) -> np.ndarray:
+        """(N + 1, 1) or, per output, (N + 1, ny): 1 where a sample is taken."""
+        k = np.arange(self.n_steps + 1)[:, None]
+        every = np.asarray(self.every_each if self.kind.multirate else (self.every,))
+        return (k % every[None, :] == 0).astype(float)
 
     @property
     def seeded(self) -> bool:
@@ -438,8 +448,10 @@ def prepare(plant: System, observers: Any, *, t_final: float, dt: float, inputs:
     obs = {k: o for k, o in obs.items() if k not in particle}
     if integrator is not None and not isinstance(integrator, Adaptive):
         raise TypeError(f"{caller}: `integrator` must be an nlobs.Adaptive (or None for fixed-step RK4), got {integrator!r}")
+    multirate = sampling is not None and sampling.multirate
+    every_each = tuple(int(v) for v in sampling.every_each(dt, plant.outputs)) if multirate else None
     kind = _Kind(sampled=sampling is not None, noisy=noise is not None, process=process_noise is not None, adaptive=integrator,
-                 folded=tuple(float(v) for v in plant.param_values) if fold_params else None)
+                 folded=tuple(float(v) for v in plant.param_values) if fold_params else None, multirate=multirate)
     _, layout = _joint_step(plant, obs, kind)
     t = _grid(N, dt)
     base = t[:, None]
@@ -448,7 +460,8 @@ def prepare(plant: System, observers: Any, *, t_final: float, dt: float, inputs:
     elif inputs:
         input_signals(plant, inputs)  # reports unknown input names
     every = sampling.every(dt) if sampling is not None else 1
-    return Prepared(plant, obs, kind, layout, N, float(dt), t, base, noise, process_noise, every, caller, x0_tail, particle)
+    return Prepared(plant, obs, kind, layout, N, float(dt), t, base, noise, process_noise, every, caller, x0_tail, particle,
+                    every_each)
 
 
 @functools.lru_cache(maxsize=8)
@@ -479,12 +492,14 @@ def augmented_plant(plant: System, obs: Mapping[str, AbstractObserver]) -> tuple
 def _with_particles(run: Run, prep: Prepared, A: np.ndarray, xhat0: Any) -> Run:
     """`run` with the traces of the particle filters, run on the measurements at the sample instants
     (every step without `sampling`); between samples their estimate is held."""
-    flags = A[:, prep.layout.flag] > 0 if prep.kind.sampled else np.ones(run.t.size, dtype=bool)
+    F = A[:, prep.layout.flags] > 0 if prep.kind.sampled else np.ones((run.t.size, 1), dtype=bool)
+    flags = F.any(axis=1)
     held = np.cumsum(flags) - 1
+    mask = np.broadcast_to(F[flags], (int(flags.sum()), run.y.shape[1])).astype(float)
     traces, info = dict(run.observers), dict(run.info)
     for name, o in prep.particle.items():
-        pr, _ = o.trace_on(run.t[flags], run.y[flags], run.u[flags], xhat0=_xhat0_for(xhat0, name, prep.plant.n_states),
-                           name=name)
+        pr, _ = o.trace_on(run.t[flags], run.y[flags], run.u[flags], mask=mask,
+                           xhat0=_xhat0_for(xhat0, name, prep.plant.n_states), name=name)
         traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, pr.z[held], pr.xhat[held], pr.xhat_prior[0],
                                      covariance=o.design.covariance)
         info.setdefault("particles", {})[name] = {"particles": o.design.particles, "samples": int(flags.sum()),
@@ -499,6 +514,7 @@ class _Kind:
     sampled: bool
     noisy: bool
     process: bool
+    multirate: bool = False   # one sample clock per output (flags per output in the per-step inputs)
     adaptive: Adaptive | None = None
     folded: tuple[float, ...] | None = None  # plant parameter values compiled in as constants
 
@@ -523,8 +539,10 @@ class _Layout:
         self.u = slice(k, k + 3 * nu); k += 3 * nu  # noqa: E702
         self.noise = slice(k, k + (ny if kind.noisy else 0)); k = self.noise.stop  # noqa: E702
         self.w = slice(k, k + (n if kind.process else 0)); k = self.w.stop  # noqa: E702
+        nflag = (ny if kind.multirate else 1) if kind.sampled else 0
         self.flag = k if kind.sampled else None
-        self.na = k + (1 if kind.sampled else 0)
+        self.flags = slice(k, k + nflag)
+        self.na = k + nflag
         # per-step outputs o = [y_true, y_measured, (z after the sample update, xhat) per observer];
         # the ones that are plain copies of the state are not written (None: read them from the state)
         self.y_true = slice(0, ny)
@@ -609,7 +627,13 @@ def _build_step(plant: System, obs: Mapping[str, AbstractObserver], kind: _Kind)
     x = rows(s, 0, n)
     y_true = comp.h(t, x, U[0], p)
     y_now = y_true + noise
-    if kind.sampled:
+    mask = ca.DM.ones(ny)
+    if kind.multirate:   # each output on its own clock: held between its samples; an update uses the ones sampled now
+        F = rows(a, layout.flags.start, layout.flags.stop)
+        held = rows(s, layout.held.start, layout.held.stop)
+        y_s = ca.vertcat(*[ca.if_else(F[i], y_now[i], held[i]) for i in range(ny)])
+        flag, mask = ca.mmax(F), F
+    elif kind.sampled:
         flag = a[layout.flag]
         y_s = ca.if_else(flag, y_now, rows(s, layout.held.start, layout.held.stop))
     else:
@@ -620,7 +644,7 @@ def _build_step(plant: System, obs: Mapping[str, AbstractObserver], kind: _Kind)
         z = rows(s, sl.start, sl.stop)
         d = o.design
         if d.update is not None:
-            jumped = d.update(t, z, U[0], y_s, ca.DM.ones(ny))
+            jumped = d.update(t, z, U[0], y_s, mask)
             z = ca.if_else(flag, jumped, z, X is ca.MX) if kind.sampled else jumped  # MX: solve only when sampled
             outs.append(z)
         zs[name] = z
