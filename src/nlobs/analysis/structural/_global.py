@@ -1061,85 +1061,89 @@ def _grad_rational(sian: _Sian, num: list, den: list, vals: list[int], cols: Map
     return (gn * dv - gd * nv) % p
 
 
-def _rewritten_pass(prep: _Rewritten, pinned: set[int], eng: GroebnerEngine,
-                    max_solutions: int) -> tuple[dict[str, Any], dict[int, str], _System, dict[str, bool]]:
-    """One SIAN decision on the rewritten model with the ties in `pinned` fixed to their values at the point.
+def _rewritten_pass(prep: _Rewritten, pinned: set[int], fixed: set[int], eng: GroebnerEngine,
+                    max_solutions: int) -> tuple[dict[str, Any], dict[int, str], _System]:
+    """One SIAN decision on the rewritten model, with the new states of the ties in `pinned`, and the arguments of
+    those in `fixed`, equal to their values at the point.
 
-    Returns the verdicts (as :func:`_decide`), the verdict of each unpinned tie's argument, the system and the
-    local verdicts in the rewritten model.
+    Returns the verdicts (as :func:`_decide`, over the original unknowns and the new states), the verdict of each
+    unpinned tie's argument, and the polynomial system.
     """
     sian, pt, p, rm = prep.sian, prep.pt, prep.p, prep.rm
     J = sian.J
-    col_list = sorted(prep.have)
-    cols = {c: i for i, c in enumerate(col_list)}
-    n = len(col_list)
+    cols = {c: i for i, c in enumerate(sorted(prep.have))}
+    n = len(cols)
     ech = RowEchelon(n, p)
     for kind, i, k in prep.eqs:
         ech.add(_gradient(sian.sp(kind, i, k), pt.vals, p, cols, n))
     pin_vars = [ix for t in sorted(pinned) for ix in sian.ties[t][1]]
     for ix in pin_vars:
-        row = np.zeros(n, dtype=np.int64)
-        row[cols[ix]] = 1
-        ech.add(row)
-    var_of = {rm.names[x]: J.index[f"{x}_0"] for x in rm.states} | {rm.names[v]: J.index[v] for v in rm.params}
-
-    def unit(ix: int) -> np.ndarray:
-        row = np.zeros(n, dtype=np.int64)
-        row[cols[ix]] = 1
-        return row
-
-    loc = {u: ech.contains(unit(ix)) for u, ix in var_of.items()}
+        ech.add(np.eye(1, n, cols[ix], dtype=np.int64)[0])
     open_ties = [t for t in range(len(sian.ties)) if t not in pinned]
-    tie_local = {t: ech.contains(_grad_rational(sian, sian.ties[t][2], sian.ties[t][3], pt.vals, cols, n))
-                 for t in open_ties}
+    grad = {t: _grad_rational(sian, sian.ties[t][2], sian.ties[t][3], pt.vals, cols, n) for t in open_ties}
+    for t in fixed:
+        ech.add(grad[t])
+    var_of = {rm.names[x]: J.index[f"{x}_0"] for x in rm.states} | {rm.names[v]: J.index[v] for v in rm.params}
+    loc = {u: ech.contains(np.eye(1, n, cols[ix], dtype=np.int64)[0]) for u, ix in var_of.items()}
+    tie_local = {t: t not in fixed and ech.contains(grad[t]) for t in open_ties}
     extra = [(f"phi{k}", *sian.tie_polys(rm.ties[t][2], rm.ties[t][3])) for k, t in enumerate(open_ties)]
     user = _function_polys(sian, prep.funcs, prep.params_unknown, prep.system)
     extra += [(f"phi{len(open_ties) + k}", num, den) for k, (_, num, den) in enumerate(user)]
     hs = _hat_system(sian, pt, prep.eqs, prep.have, extra)
     nv = len(hs.names)
-    for ix in pin_vars:  # the pinned initial value equals its value at the point
-        name = J.names[ix]
+    fixed_vars = [J.names[ix] for ix in pin_vars] + [f"phi{k}" for k, t in enumerate(open_ties) if t in fixed]
+    for name in fixed_vars:  # a pinned initial value or fixed argument equals its value at the point
         m = [0] * nv
         m[hs.names.index(name)] = 1
         hs.F.append({tuple(m): 1, tuple([0] * nv): (-hs.value[name]) % p})
-    free = [hs.unknown_var[u] for u, ok in loc.items() if not ok]
-    hs.slices = _slice(hs, free, n - ech.rank, prep.rng)
+    hs.slices = _slice(hs, [hs.unknown_var[u] for u, ok in loc.items() if not ok], n - ech.rank, prep.rng)
     _apply_weights(hs, _weights(rm, {u for u, ok in loc.items() if ok}))
     tie_text = [f"tie{t}" for t in open_ties]
     user_loc = [bool(fl) and ech.contains(_grad_rational(sian, _sparse(num, p), _sparse(den, p), pt.vals, cols, n))
                 for fl, (_, num, den) in zip(prep.fn_locals, user)]
-    checks = [(u, hs.unknown_var[u]) for u in prep.original if loc[u]]
+    unknowns = [*prep.original, *(a.name for a in prep.rw.added)]
+    checks = [(u, hs.unknown_var[u]) for u in unknowns if loc[u]]
     checks += [(tie_text[k], f"phi{k}") for k, t in enumerate(open_ties) if tie_local[t]]
     checks += [(text, f"phi{len(open_ties) + k}") for k, (text, _) in enumerate(prep.funcs) if user_loc[k]]
-    fake = _Prepared(prep.system, hs, p, checks, prep.original, {u for u in prep.original if loc[u]},
+    fake = _Prepared(prep.system, hs, p, checks, unknowns, {u for u in unknowns if loc[u]},
                      [(t, None) for t in tie_text] + list(prep.funcs), [tie_local[t] for t in open_ties] + user_loc,
                      prep.orders, [])
     res = _decide(fake, eng, max_solutions)
     verdicts = {t: v for t, (_, v, _) in zip(open_ties, res["functions"])}
     res["functions"] = res["functions"][len(open_ties):]
-    return res, verdicts, hs, loc
+    return res, verdicts, hs
 
 
 def _decide_rewritten(prep: _Rewritten, eng: GroebnerEngine, max_solutions: int) -> dict[str, Any]:
     """Pin every tie whose argument is globally identifiable, again until none more; then say what transfers."""
     rw, ties = prep.rw, prep.rw.ties
     pinned = {t for t, tie in enumerate(ties) if tie.constant}
+    fixed: set[int] = set()
     rounds = 0
     while True:
         rounds += 1
-        res, verdicts, hs, loc = _rewritten_pass(prep, pinned, eng, max_solutions)
-        new = {t for t, v in verdicts.items() if v == "globally"}
-        if not new:
+        res, verdicts, hs = _rewritten_pass(prep, pinned, fixed, eng, max_solutions)
+        new = {t for t, v in verdicts.items() if v == "globally" and t not in fixed}
+        # exp, log and atan are one-to-one over the reals: a known new initial value fixes the argument
+        back = {t for t, tie in enumerate(ties) if tie.kind == "free" and t not in pinned | fixed | new
+                and tie.states[0] in res["globally"]}
+        if not new and not back:
             break
         pinned |= new
-    exact_ = len(pinned) == len(ties)
+        fixed |= back
+    exact_ = len(pinned | fixed) == len(ties)
     notes, lines = [], rw.describe()
     for t, tie in enumerate(ties):
         names = " and ".join(f"{s}(0)" for s in tie.states)
+        verb = "are" if len(tie.states) > 1 else "is"
         if tie.constant:
             notes.append(f"{names}: known (its argument {tie.argument} involves no unknown)")
         elif t in pinned:
-            notes.append(f"{names}: pinned — the argument {tie.argument} is globally identifiable, so {names} is known")
+            notes.append(f"{names}: pinned — the argument {tie.argument} is globally identifiable, so {names} {verb} "
+                         "known")
+        elif t in fixed:
+            notes.append(f"{names}: used backwards — {names} is globally identifiable and the function is one-to-one "
+                         f"over the reals, so the argument {tie.argument} is known")
         else:
             what = {"free": "the transcendental tie was not used", "circle": "the angle was not used",
                     "root": "the branch of the root was not fixed"}[tie.kind]
