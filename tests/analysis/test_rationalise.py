@@ -73,6 +73,7 @@ def _same_trajectories(system, params, x0, t_end=1.0, inputs=None):
     z0 = [float(a.definition.xreplace(dict(zip(system.x, x0))).xreplace(pv).subs(TIME, 0.0)) for a in rw.added]
     a = solve_ivp(rhs(system), (0.0, t_end), x0, rtol=1e-11, atol=1e-12)
     b = solve_ivp(rhs(rw.system), (0.0, t_end), [*x0, *z0], rtol=1e-11, atol=1e-12, t_eval=a.t)
+    assert a.success and b.success and b.y.shape == (rw.system.n_states, a.t.size), b.message
     assert np.max(np.abs(a.y - b.y[: system.n_states])) < 1e-8
 
 
@@ -214,6 +215,34 @@ def test_exact_rewriting_keeps_locally_only():
     # x' = a² exp(x), y = x: the tie is pinned (x known), the rewriting is exact, and a -> -a remains: 2 values
     g = _glob(System(states=["x"], f=["a**2*exp(x)"], outputs=["y"], h=["x"], params={"a": 1.0}), "all")
     assert g.globally == ("x",) and [(lo.name, lo.solutions) for lo in g.locally_only] == [("a", 2)]
+
+
+@needs_engine
+def test_random_point_lies_on_the_polynomial_ties():
+    # drawn off the tie, the zero output w² - g would be a nonzero measurement (of g, up to a constant): the
+    # verdicts would use information the model does not give (x' = -k sqrt(x), y = x² then looks globally
+    # identifiable; on the tie x and k are undecided: over C, x = ±sqrt(y))
+    from nlobs.analysis.structural import _global as G
+
+    s = System(states=["x1", "x2"], f=["x2 - k*sqrt(x1)", "-w*sin(x1) + x1**(1/3)"], outputs=["y"], h=["x1"],
+               params={"k": 1.0, "w": 1.0})
+    prep = G._prepare(s, unknown_params="all", rewrite=True)
+    assert isinstance(prep, G._Rewritten) and sorted(k for k, *_ in prep.rm.ties) == ["circle", "root"]
+    p, J = prep.p, prep.sian.J
+    for pt in (prep.pt, prep.sian.point()):
+        for kind, idx, num, den, Q in prep.sian.ties:
+            g = G._value(num, pt.vals, p) * pow(G._value(den, pt.vals, p), -1, p) % p
+            vals = [pt.vals[i] for i in idx]
+            if kind == "root":
+                assert pow(vals[0], Q, p) == g and Q == 6   # sqrt and cube root of x1 share w = x1**(1/6)
+            else:
+                assert (vals[0] ** 2 + vals[1] ** 2) % p == 1
+        for j, name in enumerate(prep.rw.system.outputs):
+            if name.startswith("tie_"):
+                assert all(pt.vals[J.index[f"y{j}_{k}"]] == 0 for k in range(J.K + 1))  # every derivative 0
+    g = global_identifiability(System(states=["x"], f=["-k*sqrt(x)"], outputs=["y"], h=["x**2"], params={"k": 1.0}),
+                               unknown_params="all", engine=ENGINE)
+    assert g.globally == () and {n for n, _ in g.undecided} == {"x", "k"}
 
 
 # ----------------------------------------------------------------------------------------------
