@@ -771,8 +771,11 @@ def global_identifiability(system: System, *, unknown_params: Any = (), inputs: 
     Parameters
     ----------
     system : System
-        A model with rational right-hand sides and outputs. Anything else (sqrt, exp, sin, abs)
-        gets ``refused`` set, and no verdict.
+        A model with rational right-hand sides and outputs, or one that :func:`._rationalise.rationalise`
+        rewrites into such a model by adding states (exp, log, sin, cos, atan, non-integer powers): then the
+        verdicts are those that transfer to the original model (``undecided`` for the others) and
+        ``rewriting`` lists the added states. Anything else (abs, sign, min/max, tables) gets ``refused`` set,
+        naming the function, and no verdict.
     unknown_params : sequence of str, "all" or bool, optional
         As for :func:`nlobs.analysis.analyze`.
     inputs : "generic", "constant", int or mapping, optional
@@ -1422,7 +1425,8 @@ def multi_experiment(system: System, experiments: int = 1, *, unknown_params: An
             keep = set(params)
             g = GlobalResult(**{**g.__dict__, "globally": tuple(n for n in g.globally if n in keep),
                                 "locally_only": tuple(lo for lo in g.locally_only if lo.name in keep),
-                                "non_identifiable": tuple(n for n in g.non_identifiable if n in keep)})
+                                "non_identifiable": tuple(n for n in g.non_identifiable if n in keep),
+                                "undecided": tuple(u for u in g.undecided if u[0] in keep)})
         glob = g
     return MultiExperiment(experiments=int(experiments), needed=needed, parameter_ranks=tuple(ranks),
                            parameters=tuple(params), locally_identifiable=tuple(rep.identifiable_params),
