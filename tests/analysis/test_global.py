@@ -178,16 +178,17 @@ def test_experiments_global_example_7_7():
 # ----------------------------------------------------------------------------------------------
 # bad input and missing engines
 # ----------------------------------------------------------------------------------------------
-def _pendulum() -> System:
-    return System(states=["x1", "x2"], f=["x2", "-a*sin(x1) - b*x2"], outputs=["y"], h=["x1"],
+def _quadratic_drag() -> System:
+    return System(states=["x1", "x2"], f=["x2", "-a*x1 - b*x2*abs(x2)"], outputs=["y"], h=["x1"],
                   params={"a": 9.81, "b": 0.5})
 
 
 def test_non_rational_refused_local_kept():
-    rep = analyze(_pendulum(), unknown_params="all", global_check=True)
+    # sin is rewritten now (tests/analysis/test_rationalise.py); abs cannot be, and keeps the refusal
+    rep = analyze(_quadratic_drag(), unknown_params="all", global_check=True)
     assert rep.observable  # the local verdict is still there
     g = rep.global_check
-    assert not g.ok and "sin" in g.refused and "rational" in g.refused
+    assert not g.ok and "abs" in g.refused and "rational" in g.refused
     assert g.globally == () and rep.globally_observable is None
     assert "global check not done" in str(rep)
     assert rep.to_dict()["global"] is None and rep.to_dict()["global_detail"] == {"refused": g.refused}
@@ -282,12 +283,12 @@ def test_cli_hidden_engine_keeps_local_verdict(tmp_path, capsys, monkeypatch):
 def test_cli_non_rational_refused_with_local_verdict(tmp_path, capsys):
     path = tmp_path / "pend.toml"
     path.write_text('name = "pend"\nstates = ["th", "w"]\noutputs = ["y"]\n[parameters]\ng = 9.8\n'
-                    '[dynamics]\nth = "w"\nw = "-g*sin(th)"\n[output]\ny = "th"\n')
+                    '[dynamics]\nth = "w"\nw = "-g*th*abs(th)"\n[output]\ny = "th"\n')
     assert main(["analyze", str(path), "--params", "all", "--global", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["observable"] is True
     refused = out["global_detail"]["refused"]
-    assert out["global"] is None and "sin(th)" in refused and "rational" in refused and "w' = " in refused
+    assert out["global"] is None and "Abs(th)" in refused and "rational" in refused and "w' = " in refused
 
 
 # ----------------------------------------------------------------------------------------------

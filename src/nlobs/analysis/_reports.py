@@ -147,7 +147,9 @@ class ObservabilityReport:
             return False
         g = self.global_check
         if g is not None and g.ok:
-            return not g.locally_only and not g.non_identifiable
+            if g.locally_only or g.non_identifiable:
+                return False
+            return None if getattr(g, "undecided", ()) else True
         return None
 
     def to_dict(self) -> dict[str, Any]:
@@ -180,7 +182,7 @@ class ObservabilityReport:
         if self.global_check is not None:  # "global": exactly the three lists (null when refused); evidence apart
             d = self.global_check.to_dict()
             out["global"] = None if self.global_check.refused else {
-                k: d[k] for k in ("globally", "locally_only", "non_identifiable")}
+                k: d[k] for k in ("globally", "locally_only", "non_identifiable", "undecided") if k in d}
             out["global_detail"] = d
         if self.identifiable_functions is not None:
             idf = self.identifiable_functions

@@ -52,16 +52,14 @@ from ...algebra._modular import sparse_gradient as _gradient
 from ...algebra._modular import sparse_mod_p as _sparse
 from ...algebra._modular import sparse_value as _value
 from ...algebra._modular import var_power as _var_power
+from ...algebra._modular import root as _root
+from ._rationalise import NotRational, Rewriting, rationalise
 
 __all__ = ["GlobalResult", "LocallyOnly", "global_identifiability", "NotRational"]
 
 #: Primes for the Gröbner step are drawn from [2^26, 2^27): msolve takes primes below 2^31, and the
 #: linear algebra over GF(p) (``RowEchelon``) is exact in int64 for primes below 2^27 (``MAX_TERMS``).
 _PRIME_RANGE = (1 << (PRIME_BITS - 1), 1 << PRIME_BITS)
-
-
-class NotRational(ModelError):
-    """The model is outside the class of the global algorithm (a non-rational right-hand side)."""
 
 
 @dataclass(frozen=True)
@@ -110,6 +108,13 @@ class GlobalResult:
     seconds, engine_seconds : float
         Total time of the global check and the part spent in the Gröbner engine.
     notes : tuple of str
+    undecided : tuple of (str, str)
+        Unknowns of a rewritten model (``rewriting``) that are locally identifiable but whose global verdict
+        does not transfer to the original model, with the reason: a tie between a new state and the old
+        unknowns (``z(0) = exp(g)``) could not be used. Never "not identifiable".
+    rewriting : tuple of str
+        The states added to make a non-rational model rational (module :mod:`._rationalise`): each with what it
+        stands for, its ODE, its tie, and whether the tie was used. Empty for a rational model.
     """
 
     globally: tuple[str, ...] = ()
@@ -126,6 +131,8 @@ class GlobalResult:
     seconds: float = 0.0
     engine_seconds: float = 0.0
     notes: tuple[str, ...] = ()
+    undecided: tuple[tuple[str, str], ...] = ()
+    rewriting: tuple[str, ...] = ()
 
     @property
     def ok(self) -> bool:
@@ -133,9 +140,12 @@ class GlobalResult:
         return not self.refused
 
     def verdict(self, name: str) -> str:
-        """``"globally"``, ``"locally"`` or ``"non-identifiable"`` for an unknown or a checked function."""
+        """``"globally"``, ``"locally"``, ``"non-identifiable"`` or ``"undecided"`` for an unknown or a checked
+        function."""
         if name in self.globally:
             return "globally"
+        if any(n == name for n, _ in self.undecided):
+            return "undecided"
         if any(lo.name == name for lo in self.locally_only):
             return "locally"
         if name in self.non_identifiable:
@@ -166,8 +176,12 @@ class GlobalResult:
             "locally_only": [{"name": lo.name, "solutions": lo.solutions} for lo in self.locally_only],
             "non_identifiable": list(self.non_identifiable),
         }
+        if self.undecided:
+            out["undecided"] = [{"name": n, "reason": r} for n, r in self.undecided]
         if self.functions:
             out["functions"] = [{"expr": e, "verdict": v, "solutions": k} for e, v, k in self.functions]
+        if self.rewriting:
+            out["rewriting"] = list(self.rewriting)
         out.update({"method": self.method, "engine": self.engine, "prime": self.prime, "orders": list(self.orders),
                     "n_equations": self.n_equations, "n_variables": self.n_variables, "seconds": self.seconds,
                     "engine_seconds": self.engine_seconds, "notes": list(self.notes)})
@@ -177,8 +191,11 @@ class GlobalResult:
         """The global verdict in one sentence."""
         if self.refused:
             return f"global check not done: {self.refused}"
-        if not self.locally_only and not self.non_identifiable:
+        if not self.locally_only and not self.non_identifiable and not self.undecided:
             return f"GLOBALLY {what.upper()}: the output determines every unknown uniquely"
+        if not self.locally_only and not self.non_identifiable:
+            return (f"UNDECIDED for {', '.join(n for n, _ in self.undecided)} (locally {what}); the output determines "
+                    f"{', '.join(self.globally) or 'nothing else'} uniquely")
         parts = []
         if self.locally_only:
             parts.append(", ".join(f"{lo.name} only up to {lo.solutions if lo.solutions else 'finitely many'} values"
@@ -194,15 +211,21 @@ class GlobalResult:
         if self.refused:
             return [f"global check not done: {self.refused}"]
         lines = [self.summary(what)]
+        if self.rewriting:
+            lines.append("the model was rewritten into a rational one (states added):")
+            lines += [f"  {t}" for t in self.rewriting]
         lines.append(f"globally {what}: {', '.join(self.globally) or '(none)'}")
         if self.locally_only:
             lines.append(f"locally but NOT globally {what} (number of solutions): "
                          + ", ".join(str(lo) for lo in self.locally_only))
         if self.non_identifiable:
             lines.append(f"not {what} (a continuum of values fits the output): {', '.join(self.non_identifiable)}")
+        for n, r in self.undecided:
+            lines.append(f"{n}: undecided globally ({r})")
         for e, v, k in self.functions:
             extra = f" ({k} solutions)" if v == "locally" and k else ""
             lines.append(f"{e}: {v}{extra}")
+        lines += [f"note: {t}" for t in self.notes if self.rewriting]
         return lines
 
 
@@ -223,6 +246,8 @@ class _Rational:
     h: list[tuple[sp.Expr, sp.Expr]]
     generic_consts: list[str]  # internal names of transcendental constants (pi, E): random known values
     chain_scale: dict[str, int]  # unknown-input state -> k! (its value is k! times the Taylor coefficient)
+    ties: list[tuple[str, list[str], sp.Expr, sp.Expr, int]] = field(default_factory=list)
+    # rewritten models (_rationalise.py): (kind, internal states, numerator and denominator of the argument g, Q)
 
 
 _PI = sp.Symbol("c_pi")
@@ -238,7 +263,7 @@ def _ratify(e: sp.Expr) -> sp.Expr:
 
 
 def _to_rational(system: System, params_unknown: Sequence[str], classes: Mapping[str, Any],
-                 unknown_inputs: Mapping[str, int]) -> _Rational:
+                 unknown_inputs: Mapping[str, int], force_time: bool = False) -> _Rational:
     from ._inputs import InputClass
 
     known = {symbol(k): exact(v) for k, v in system.params.items() if k not in params_unknown}
@@ -284,7 +309,7 @@ def _to_rational(system: System, params_unknown: Sequence[str], classes: Mapping
         names[nm] = u
         inputs.append((nm, None if cls.kind == "generic" else int(cls.degree)))
     exprs = [e.xreplace(known).xreplace(signals) for e in (*system.f, *system.h)]
-    if any(e.has(TIME) for e in exprs):
+    if force_time or any(e.has(TIME) for e in exprs):
         sub[TIME] = sp.Symbol("tt")
         names["tt"] = "t"
         inputs.append(("tt", 1))  # t' = 1: jets (t0, 1, 0, ...)
@@ -407,6 +432,14 @@ class _Sian:
         self.rm, self.p, self.rng = rm, p, rng
         self.J = _Jets(rm, K)
         self.cache: dict[tuple[str, int, int], list] = {}
+        self.ties = [(kind, [self.J.index[f"{x}_0"] for x in xs], *(_sparse(P, p) for P in self.tie_polys(num, den)), Q)
+                     for kind, xs, num, den, Q in rm.ties]
+
+    def tie_polys(self, num: sp.Expr, den: sp.Expr) -> tuple[Any, Any]:
+        """A rewritten model's tie argument g = num/den in the jet ring (states and time at order 0)."""
+        sub0 = {sp.Symbol(x): sp.Symbol(f"{x}_0") for x in self.rm.states}
+        sub0.update({sp.Symbol(u): sp.Symbol(f"{u}_0") for u, _ in self.rm.inputs})
+        return self.J._poly(sp.expand(num.xreplace(sub0))), self.J._poly(sp.expand(den.xreplace(sub0)))
 
     def sp(self, kind: str, i: int, k: int) -> list:
         key = (kind, i, k)
@@ -416,7 +449,39 @@ class _Sian:
         return self.cache[key]
 
     def point(self) -> _Point:
-        """Random parameters, initial states, input jets; state and output jets follow."""
+        """Random parameters, initial states, input jets; state and output jets follow.
+
+        In a rewritten model the new states' initial values are drawn on their polynomial ties: a Q-th root of g
+        for :math:`w^Q = g` (a new draw when g has none in GF(p)), a rational point of the circle
+        :math:`s^2 + c^2 = 1`; exp, log and atan states are free (their tie is transcendental).
+        """
+        for _ in range(64):
+            try:
+                return self._point()
+            except _Redraw:
+                continue
+        raise ZeroDivisionError("no point on the ties of the rewritten model (no root in GF(p))")
+
+    def _tie_values(self, vals: list[int]) -> None:
+        p = self.p
+        for kind, idx, num, den, Q in self.ties:
+            if kind == "circle":
+                t = int(self.rng.integers(1, p))
+                d = (1 + t * t) % p
+                if d == 0:
+                    raise _Redraw()
+                di = inv(d, p)
+                vals[idx[0]], vals[idx[1]] = 2 * t * di % p, (1 - t * t) * di % p
+            elif kind == "root":
+                dv = _value(den, vals, p)
+                if dv == 0:
+                    raise _Redraw()
+                r = _root(_value(num, vals, p) * inv(dv, p) % p, Q, p)
+                if r is None or r == 0:
+                    raise _Redraw()
+                vals[idx[0]] = r
+
+    def _point(self) -> _Point:
         p, J, rm = self.p, self.J, self.rm
         rng = self.rng
         vals = [0] * len(J.names)
@@ -432,6 +497,7 @@ class _Sian:
                 else:
                     v = draw() if deg is None or k <= deg else 0
                 vals[J.index[f"{u}_{k}"]] = v
+        self._tie_values(vals)
         for k in range(1, J.K + 2):
             for i, x in enumerate(rm.states):
                 eq = self.sp("x", i, k)
@@ -511,6 +577,10 @@ class _Sian:
 
 class _OrderOverflow(Exception):
     pass
+
+
+class _Redraw(Exception):
+    """The random point missed a tie of a rewritten model (no root in GF(p)): draw again."""
 
 
 # ----------------------------------------------------------------------------------------------
@@ -701,8 +771,11 @@ def global_identifiability(system: System, *, unknown_params: Any = (), inputs: 
     Parameters
     ----------
     system : System
-        A model with rational right-hand sides and outputs. Anything else (sqrt, exp, sin, abs)
-        gets ``refused`` set, and no verdict.
+        A model with rational right-hand sides and outputs, or one that :func:`._rationalise.rationalise`
+        rewrites into such a model by adding states (exp, log, sin, cos, atan, non-integer powers): then the
+        verdicts are those that transfer to the original model (``undecided`` for the others) and
+        ``rewriting`` lists the added states. Anything else (abs, sign, min/max, tables) gets ``refused`` set,
+        naming the function, and no verdict.
     unknown_params : sequence of str, "all" or bool, optional
         As for :func:`nlobs.analysis.analyze`.
     inputs : "generic", "constant", int or mapping, optional
@@ -755,12 +828,17 @@ def global_identifiability(system: System, *, unknown_params: Any = (), inputs: 
               "of GF(p), Gröbner basis and normal forms")
     try:
         prep = _prepare(system, unknown_params=unknown_params, inputs=inputs, unknown_inputs=unknown_inputs,
-                        functions=functions, local=local, seed=seed)
+                        functions=functions, local=local, seed=seed, rewrite=True)
     except NotRational as e:
         return GlobalResult(refused=str(e), method=method, seconds=time.perf_counter() - t_start)
     eng = engine if isinstance(engine, GroebnerEngine) else get_engine(engine)
     if eng is None:
         return GlobalResult(refused=NO_ENGINE, method=method, seconds=time.perf_counter() - t_start)
+    if isinstance(prep, _Rewritten):
+        res = _decide_rewritten(prep, eng, max_solutions)
+        return GlobalResult(**res, method=method + "; on the model rewritten into a rational one (_rationalise)",
+                            engine=eng.version() or eng.name, prime=prep.p, orders=prep.orders,
+                            seconds=time.perf_counter() - t_start, engine_seconds=eng.seconds)
     res = _decide(prep, eng, max_solutions)
     return GlobalResult(**res, method=method, engine=eng.version() or eng.name, prime=prep.p, orders=prep.orders,
                         n_equations=len(prep.hs.F), n_variables=len(prep.hs.names),
@@ -815,7 +893,9 @@ class _Prepared:
 
 def _prepare(system: System, *, unknown_params: Any = (), inputs: Any = "generic",
              unknown_inputs: Mapping[str, int] | None = None, functions: Sequence[ExprLike] = (), local: Any = None,
-             seed: int = 0, weighted: bool = True) -> _Prepared:
+             seed: int = 0, weighted: bool = True, rewrite: bool = False) -> Any:
+    """Steps 1-3 for :func:`global_identifiability` (a :class:`_Prepared`); with `rewrite`, a non-rational model
+    that :func:`._rationalise.rationalise` can rewrite gives a :class:`_Rewritten` instead of NotRational."""
     from ._inputs import _input_classes, _parse_functions, _unknown_params
     from ._lie import observable_function
     from ._lie import local_analysis as analyze
@@ -829,7 +909,21 @@ def _prepare(system: System, *, unknown_params: Any = (), inputs: Any = "generic
         raise ModelError(f"`unknown_inputs` names {', '.join(map(repr, bad))}, not an input of {system.name!r}")
     classes = _input_classes(system, inputs, ui)
     funcs = _parse_functions(system, functions)
-    rm = _to_rational(system, params_unknown, classes, ui)
+    try:
+        rm = _to_rational(system, params_unknown, classes, ui)
+    except NotRational:
+        if not rewrite:
+            raise
+        known = {symbol(k): exact(v) for k, v in system.params.items() if k not in params_unknown}
+        known.update({symbol(k): c.expr for k, c in classes.items() if getattr(c, "kind", "") == "signal"})
+        symbolic = [u for u in system.inputs if symbol(u) not in known]
+        rw = rationalise(system, known, symbolic)
+        if not rw.added:
+            raise
+        if local is None:
+            local = analyze(system, unknown_params=params_unknown, inputs=inputs, unknown_inputs=ui, symmetries=False,
+                            seed=seed)
+        return _prepare_rewritten(system, rw, params_unknown, classes, ui, funcs, local, seed)
     if local is None:
         local = analyze(system, unknown_params=params_unknown, inputs=inputs, unknown_inputs=ui, symmetries=False,
                         seed=seed)
@@ -873,6 +967,221 @@ def _prepare(system: System, *, unknown_params: Any = (), inputs: Any = "generic
                      tuple(b - 1 for b in beta), notes, sian=sian, eqs=eqs, have=have,
                      extra=_function_polys(sian, funcs, params_unknown, system), free=free, d=d, weights=weights,
                      rng=rng, local=local)
+
+
+# ----------------------------------------------------------------------------------------------
+# a non-rational model, rewritten (_rationalise.py): ties, pinning, and what transfers to the original
+# ----------------------------------------------------------------------------------------------
+@dataclass
+class _Rewritten:
+    """Steps 1-3 on the rewritten model (module docstring of ``_rationalise``)."""
+
+    system: System  # the original model
+    rw: Rewriting
+    rm: _Rational
+    sian: _Sian
+    pt: _Point  # the decision point (on the polynomial ties)
+    eqs: list[tuple[str, int, int]]
+    have: set[int]
+    p: int
+    orders: tuple[int, ...]
+    original: list[str]  # the original unknowns (model names)
+    local_ok: set[str]  # locally identifiable in the original model (the local test handles exp, sin, sqrt...)
+    funcs: list[tuple[str, sp.Expr]]
+    fn_locals: list[bool]
+    params_unknown: list[str]
+    rng: np.random.Generator
+
+
+def _internal_ties(rm: _Rational, rw: Rewriting) -> list[tuple[str, list[str], sp.Expr, sp.Expr, int]]:
+    """The ties of `rw` over the internal names of `rm` (x0, p0, tt, c_pi...)."""
+    back = {symbol(v): sp.Symbol(k) for k, v in rm.names.items()}
+    inner = {v: k for k, v in rm.names.items()}
+    out = []
+    for t in rw.ties:
+        g = _ratify(t.argument.xreplace(back))
+        num, den = sp.fraction(sp.cancel(sp.together(g)))
+        out.append((t.kind, [inner[x] for x in t.states], num, den, t.degree))
+    return out
+
+
+def _rewritten_prime(rng: np.random.Generator, rm: _Rational) -> int:
+    """A prime for a rewritten model: every Q-th root exists where one should (p ≡ 3 mod 4 for square roots,
+    gcd(odd part of Q, p - 1) = 1), and the roots of numbers (``sqrt(2)``) exist."""
+    Qs = [Q for kind, *_, Q in rm.ties if kind == "root"]
+    odd = frozenset(q for q in (Q // (Q & -Q) for Q in Qs) if q > 1)
+    numbers = [(num, den, Q) for kind, _, num, den, Q in rm.ties if kind == "root" and not (num.free_symbols | den.free_symbols)]
+    for _ in range(200):
+        p = random_prime(rng, odd, interval=_PRIME_RANGE, three_mod_four=any(Q % 2 == 0 for Q in Qs))
+        if all(_root(int(num) * inv(int(den), p) % p, Q, p) for num, den, Q in numbers):
+            return p
+    raise ModelError("no prime found in which the model's roots of numbers exist")  # pragma: no cover
+
+
+def _prepare_rewritten(system: System, rw: Rewriting, params_unknown: Sequence[str], classes: Mapping[str, Any],
+                       ui: Mapping[str, int], funcs: list[tuple[str, sp.Expr]], local: Any, seed: int) -> _Rewritten:
+    from ._lie import observable_function
+
+    rm = _to_rational(rw.system, params_unknown, classes, ui, force_time=any(t.argument.has(TIME) for t in rw.ties))
+    rm.ties = _internal_ties(rm, rw)
+    added = {a.name for a in rw.added}
+    original = [n for n in (*rm.state_names, *rm.param_names) if n not in added]
+    local_ok = set(local.extra.get("observable_unknowns", (*local.observable_states, *local.identifiable_params)))
+    fn_locals = [observable_function(system, text, unknown_params=params_unknown, inputs="generic", unknown_inputs=ui,
+                                     seed=seed).observable for text, _ in funcs]
+    n_out = system.n_outputs
+    orders = list(local.orders) if local.orders else [0] * n_out
+    # an unpinned tie adds at most one unknown: one more derivative per added state, at most
+    max_orders = [max(o, 0) + 1 + len(rw.ties) for o in orders] + [1] * len(rw.tie_outputs)
+    K = max(max_orders) + 2
+    rng = np.random.default_rng([seed, 12])
+    for _ in range(8):
+        p = _rewritten_prime(rng, rm)
+        try:
+            sian = _Sian(rm, K, p, rng)
+            pt = sian.point()
+            try:
+                eqs, have, beta = sian.truncate(pt, max_orders)
+            except _OrderOverflow:
+                K += 2
+                continue
+            pt2 = sian.point()
+            break
+        except ZeroDivisionError:
+            continue
+    else:
+        raise ModelError(f"{system.name!r}: the global check of the rewritten model hit a zero denominator at 8 random "
+                         "points; the model's expressions may be undefined almost everywhere (check the divisions)")
+    return _Rewritten(system, rw, rm, sian, pt2, eqs, have, p, tuple(b - 1 for b in beta[:n_out]), original,
+                      local_ok, funcs, fn_locals, list(params_unknown), rng)
+
+
+def _grad_rational(sian: _Sian, num: list, den: list, vals: list[int], cols: Mapping[int, int], n: int) -> np.ndarray:
+    """Gradient of num/den at `vals` (quotient rule), over the columns `cols`."""
+    p = sian.p
+    nv, dv = _value(num, vals, p), _value(den, vals, p)
+    gn, gd = _gradient(num, vals, p, cols, n), _gradient(den, vals, p, cols, n)
+    return (gn * dv - gd * nv) % p
+
+
+def _rewritten_pass(prep: _Rewritten, pinned: set[int], fixed: set[int], eng: GroebnerEngine,
+                    max_solutions: int) -> tuple[dict[str, Any], dict[int, str], _System]:
+    """One SIAN decision on the rewritten model, with the new states of the ties in `pinned`, and the arguments of
+    those in `fixed`, equal to their values at the point.
+
+    Returns the verdicts (as :func:`_decide`, over the original unknowns and the new states), the verdict of each
+    unpinned tie's argument, and the polynomial system.
+    """
+    sian, pt, p, rm = prep.sian, prep.pt, prep.p, prep.rm
+    J = sian.J
+    cols = {c: i for i, c in enumerate(sorted(prep.have))}
+    n = len(cols)
+    ech = RowEchelon(n, p)
+    for kind, i, k in prep.eqs:
+        ech.add(_gradient(sian.sp(kind, i, k), pt.vals, p, cols, n))
+    pin_vars = [ix for t in sorted(pinned) for ix in sian.ties[t][1]]
+    for ix in pin_vars:
+        ech.add(np.eye(1, n, cols[ix], dtype=np.int64)[0])
+    open_ties = [t for t in range(len(sian.ties)) if t not in pinned]
+    grad = {t: _grad_rational(sian, sian.ties[t][2], sian.ties[t][3], pt.vals, cols, n) for t in open_ties}
+    for t in fixed:
+        ech.add(grad[t])
+    var_of = {rm.names[x]: J.index[f"{x}_0"] for x in rm.states} | {rm.names[v]: J.index[v] for v in rm.params}
+    loc = {u: ech.contains(np.eye(1, n, cols[ix], dtype=np.int64)[0]) for u, ix in var_of.items()}
+    tie_local = {t: t not in fixed and ech.contains(grad[t]) for t in open_ties}
+    extra = [(f"phi{k}", *sian.tie_polys(rm.ties[t][2], rm.ties[t][3])) for k, t in enumerate(open_ties)]
+    user = _function_polys(sian, prep.funcs, prep.params_unknown, prep.system)
+    extra += [(f"phi{len(open_ties) + k}", num, den) for k, (_, num, den) in enumerate(user)]
+    hs = _hat_system(sian, pt, prep.eqs, prep.have, extra)
+    nv = len(hs.names)
+    fixed_vars = [J.names[ix] for ix in pin_vars] + [f"phi{k}" for k, t in enumerate(open_ties) if t in fixed]
+    for name in fixed_vars:  # a pinned initial value or fixed argument equals its value at the point
+        m = [0] * nv
+        m[hs.names.index(name)] = 1
+        hs.F.append({tuple(m): 1, tuple([0] * nv): (-hs.value[name]) % p})
+    hs.slices = _slice(hs, [hs.unknown_var[u] for u, ok in loc.items() if not ok], n - ech.rank, prep.rng)
+    _apply_weights(hs, _weights(rm, {u for u, ok in loc.items() if ok}))
+    tie_text = [f"tie{t}" for t in open_ties]
+    user_loc = [bool(fl) and ech.contains(_grad_rational(sian, _sparse(num, p), _sparse(den, p), pt.vals, cols, n))
+                for fl, (_, num, den) in zip(prep.fn_locals, user)]
+    unknowns = [*prep.original, *(a.name for a in prep.rw.added)]
+    checks = [(u, hs.unknown_var[u]) for u in unknowns if loc[u]]
+    checks += [(tie_text[k], f"phi{k}") for k, t in enumerate(open_ties) if tie_local[t]]
+    checks += [(text, f"phi{len(open_ties) + k}") for k, (text, _) in enumerate(prep.funcs) if user_loc[k]]
+    fake = _Prepared(prep.system, hs, p, checks, unknowns, {u for u in unknowns if loc[u]},
+                     [(t, None) for t in tie_text] + list(prep.funcs), [tie_local[t] for t in open_ties] + user_loc,
+                     prep.orders, [])
+    res = _decide(fake, eng, max_solutions)
+    verdicts = {t: v for t, (_, v, _) in zip(open_ties, res["functions"])}
+    res["functions"] = res["functions"][len(open_ties):]
+    return res, verdicts, hs
+
+
+def _decide_rewritten(prep: _Rewritten, eng: GroebnerEngine, max_solutions: int) -> dict[str, Any]:
+    """Pin every tie whose argument is globally identifiable, again until none more; then say what transfers."""
+    rw, ties = prep.rw, prep.rw.ties
+    pinned = {t for t, tie in enumerate(ties) if tie.constant}
+    fixed: set[int] = set()
+    rounds = 0
+    while True:
+        rounds += 1
+        res, verdicts, hs = _rewritten_pass(prep, pinned, fixed, eng, max_solutions)
+        new = {t for t, v in verdicts.items() if v == "globally" and t not in fixed}
+        # exp, log and atan are one-to-one over the reals: a known new initial value fixes the argument
+        back = {t for t, tie in enumerate(ties) if tie.kind == "free" and t not in pinned | fixed | new
+                and tie.states[0] in res["globally"]}
+        if not new and not back:
+            break
+        pinned |= new
+        fixed |= back
+    exact_ = len(pinned | fixed) == len(ties)
+    notes, lines = [], rw.describe()
+    for t, tie in enumerate(ties):
+        names = " and ".join(f"{s}(0)" for s in tie.states)
+        verb = "are" if len(tie.states) > 1 else "is"
+        if tie.constant:
+            notes.append(f"{names}: known (its argument {tie.argument} involves no unknown)")
+        elif t in pinned:
+            notes.append(f"{names}: pinned — the argument {tie.argument} is globally identifiable, so {names} {verb} "
+                         "known")
+        elif t in fixed:
+            notes.append(f"{names}: used backwards — {names} is globally identifiable and the function is one-to-one "
+                         f"over the reals, so the argument {tie.argument} is known")
+        else:
+            what = {"free": "the transcendental tie was not used", "circle": "the angle was not used",
+                    "root": "the branch of the root was not fixed"}[tie.kind]
+            notes.append(f"{names}: not pinned — {tie.argument} is not globally identifiable in the rewritten model; {what}")
+    locally = {lo.name: lo.solutions for lo in res["locally_only"]}
+    glob = [u for u in prep.original if u in res["globally"] and u in prep.local_ok]
+    lonly, undecided = [], []
+    for u in prep.original:
+        if u not in prep.local_ok or u in glob:
+            continue
+        if exact_ and u in locally:
+            lonly.append(LocallyOnly(u, locally[u]))
+        elif u in locally:
+            k = locally[u]
+            undecided.append((u, f"at most {k if k else 'finitely many'} values; the rewritten model's count includes "
+                                 "values the unused tie excludes"))
+        else:
+            undecided.append((u, "not locally identifiable in the rewritten model, where the unused tie leaves an extra "
+                                 "degree of freedom; locally identifiable in the original"))
+    funcs = []
+    for (text, v, k), fl in zip(res["functions"], prep.fn_locals):
+        if not fl:
+            funcs.append((text, "non-identifiable", None))
+        elif v == "globally" or (exact_ and v == "locally"):
+            funcs.append((text, v, k))
+        else:
+            funcs.append((text, "undecided", None))
+    if not exact_:
+        notes.append("verdicts other than 'globally' are undecided: some ties were not used (rewritten model: "
+                     f"{', '.join(lo.name + ' ' + str(lo.solutions) + ' solutions' for lo in res['locally_only']) or 'no locally-only unknown'})")
+    notes.append(f"{rounds} Gröbner pass(es) on the rewritten model")
+    return dict(globally=tuple(glob), locally_only=tuple(lonly),
+                non_identifiable=tuple(u for u in prep.original if u not in prep.local_ok), functions=tuple(funcs),
+                notes=(*res["notes"], *notes), undecided=tuple(undecided), rewriting=tuple(lines),
+                n_equations=len(hs.F), n_variables=len(hs.names))
 
 
 def _decide(prep: _Prepared, eng: GroebnerEngine, max_solutions: int) -> dict[str, Any]:
@@ -1116,7 +1425,8 @@ def multi_experiment(system: System, experiments: int = 1, *, unknown_params: An
             keep = set(params)
             g = GlobalResult(**{**g.__dict__, "globally": tuple(n for n in g.globally if n in keep),
                                 "locally_only": tuple(lo for lo in g.locally_only if lo.name in keep),
-                                "non_identifiable": tuple(n for n in g.non_identifiable if n in keep)})
+                                "non_identifiable": tuple(n for n in g.non_identifiable if n in keep),
+                                "undecided": tuple(u for u in g.undecided if u[0] in keep)})
         glob = g
     return MultiExperiment(experiments=int(experiments), needed=needed, parameter_ranks=tuple(ranks),
                            parameters=tuple(params), locally_identifiable=tuple(rep.identifiable_params),

@@ -519,7 +519,8 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
     try:
         prep = _prepare(system, unknown_params=unknown_params, inputs=inputs, local=local, seed=seed)
     except NotRational as e:
-        return IdentifiableFunctions(with_states=with_states, refused=str(e))
+        return IdentifiableFunctions(with_states=with_states, refused=f"{e} (the global check rewrites exp, sin, sqrt... "
+                                     "into a rational model by adding states; identifiable functions do not yet)")
     rng = np.random.default_rng([seed, 99])
     params = [u for u in prep.unknown_names if u not in system.states]
     U = list(prep.unknown_names) if with_states else params
