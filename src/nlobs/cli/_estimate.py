@@ -57,7 +57,8 @@ def run(args: argparse.Namespace) -> int:
         xhat0 = {n: parse_vector(args.xhat0, estimated.states, "--xhat0", d.xhat0) for n, d in designs.items()}
     rec = Recording.from_csv(args.data, system, columns=parse_columns(args.column))
     run_ = estimate(designs, rec, xhat0=xhat0, on_missing="skip" if args.skip_missing else "error", hold=args.hold,
-                    max_step=args.max_step, engine=args.engine, progress=not args.json, smooth=args.smooth)
+                    max_step=args.max_step, engine=args.engine, progress=not args.json, smooth=args.smooth,
+                    delay=dict(mf.simulation.delay) or None)
     if args.output:
         run_.to_csv(args.output)
     if args.json:

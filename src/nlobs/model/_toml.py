@@ -29,6 +29,7 @@ The format (a contract other tools rely on)::
     noise = { y = 0.01 }              # std of Gaussian measurement noise per output
     noise_bound = { y = 0.02 }        # or: bound of uniform noise in [-b, b]
     sample_period = 0.01              # optional: sampled measurements, zero-order hold (or one per output: { y = 0.01, gps = 1.0 })
+    delay = { y = 0.15 }              # optional: known measurement delays (s), for simulate and estimate
     true_parameters = { k2 = 0.25 }   # the plant's values in a simulation (default: the values above)
     seed = 1
     [observers.ekf]           # named observer configurations: kind + tuning
@@ -70,7 +71,8 @@ __all__ = ["ModelFile", "SimulationConfig", "ObserverConfig", "load_model", "loa
 
 _TOP = ("name", "description", "time", "sample_time", "states", "inputs", "outputs", "parameters", "tables", "definitions",
         "dynamics", "output", "units", "simulation", "observers")
-_SIM = ("t_final", "dt", "x0", "inputs", "noise", "noise_bound", "process_noise", "sample_period", "true_parameters", "seed")
+_SIM = ("t_final", "dt", "x0", "inputs", "noise", "noise_bound", "process_noise", "sample_period", "delay", "true_parameters",
+        "seed")
 _PARAM_KEYS = ("value", "unknown")
 #: Observer names become JSON keys, CSV column prefixes and C file names: a conservative alphabet.
 _OBSERVER_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_-]{0,59}")
@@ -91,6 +93,8 @@ class SimulationConfig:
     noise: Mapping[str, float] = field(default_factory=dict)
     noise_bound: Mapping[str, float] = field(default_factory=dict)
     process_noise: Mapping[str, float] = field(default_factory=dict)
+    #: Known measurement delays by output (seconds): a sample taken at t reaches the observers at t + delay.
+    delay: Mapping[str, float] = field(default_factory=dict)
     sample_period: float | Mapping[str, float] | None = None  #: one period, or one per output
     seed: int | None = None
     true_parameters: Mapping[str, float] = field(default_factory=dict)
@@ -465,7 +469,8 @@ class _Loader:
                                    "the parameters and definitions built from those", key, v)
             inputs[k] = self.expr(v, key, sym_t)
         out["inputs"] = MappingProxyType(inputs)
-        for key, names in (("noise", system.outputs), ("noise_bound", system.outputs), ("process_noise", system.states)):
+        for key, names in (("noise", system.outputs), ("noise_bound", system.outputs), ("process_noise", system.states),
+                           ("delay", system.outputs)):
             values = {}
             for k, v in self.table(sim, f"simulation.{key}").items():
                 if k not in names:

@@ -85,12 +85,14 @@ class AbstractObserver(ABC):
         fn = getattr(self, "_rate_fn", None)
         if fn is None:
             d, s = self.design, self.system
-            zz, tt = ca.MX.sym("z", d.n_z), ca.MX.sym("t")
-            uu, yy = ca.MX.sym("u", s.n_inputs), ca.MX.sym("y", s.n_outputs)
-            fn = ca.Function("flow_jacobian", [tt, zz, uu, yy], [ca.jacobian(d.flow(tt, zz, uu, yy), zz)])
+            X = ca.MX if d.needs_mx else ca.SX   # SX where the flow allows it: evaluated on every online step
+            zz, tt = X.sym("z", d.n_z), X.sym("t")
+            uu, yy = X.sym("u", s.n_inputs), X.sym("y", s.n_outputs)
+            fn = ca.Function("flow_jacobian", [tt, zz, uu, yy], [ca.densify(ca.jacobian(d.flow(tt, zz, uu, yy), zz))])
             self._rate_fn = fn
-        J = np.asarray(fn(float(t), _vec(z, self.n_z, "z"), _vec(u, self.system.n_inputs, "u"),
-                          _vec(y, self.system.n_outputs, "y")), dtype=float)
+        n = self.n_z
+        J = evaluate_one(fn, np.array([float(t)]), _vec(z, n, "z"), _vec(u, self.system.n_inputs, "u"),
+                         _vec(y, self.system.n_outputs, "y")).reshape(n, n, order="F")
         if not J.size or not np.all(np.isfinite(J)):
             return 0.0
         return float(np.max(np.abs(np.linalg.eigvals(J))))
@@ -155,9 +157,8 @@ class Observer(AbstractObserver):
         if substeps < 1:
             raise ValueError(f"`substeps` must be at least 1, got {substeps}")
         s = self.system
-        out = self.step_function(substeps)(_vec(z, self.n_z, "z"), float(t), float(dt),
-                                            _vec(u, s.n_inputs, "u"), _vec(y, s.n_outputs, "y"))
-        return np.asarray(out, dtype=float).reshape(-1)
+        return evaluate_one(self.step_function(substeps), _vec(z, self.n_z, "z"), np.array([float(t)]),
+                            np.array([float(dt)]), _vec(u, s.n_inputs, "u"), _vec(y, s.n_outputs, "y"))
 
     def compiled(self, *, hold: Literal["zoh", "linear"] = "zoh") -> CompiledObserver:
         """This observer prepared to run on sampled data many times (see :class:`CompiledObserver`).
@@ -199,6 +200,41 @@ def _rk4_chunks(obs: AbstractObserver, t: float, z: np.ndarray, dt: float, u: np
         if not np.all(np.isfinite(z)):
             break
     return z
+
+
+def integrate(obs: AbstractObserver, t0: float, z: np.ndarray, t1: float, u: np.ndarray, y: np.ndarray, *,
+              max_step: float | None = None, where: str = "the observer", rate: list[float] | None = None) -> np.ndarray:
+    """The observer's flow from (t0, z) to t1 with u and y held: RK4 steps h with h·ρ <= 1 for the flow's fastest
+    rate ρ (measured at both ends of the interval, as the interval runner of :func:`nlobs.estimate` does) and
+    h <= `max_step`. An interval that needs more than :data:`MAX_ONLINE_SUBSTEPS` steps is refused, never stepped
+    over (one RK4 step across a long gap returns a number, not the estimate).
+
+    `rate`, a one-element list, carries the rate at t0 in (when the caller knows it: the end of its previous
+    interval, with the same u and y) and the rate at t1 out."""
+    dt = t1 - t0
+    if dt == 0:
+        return np.asarray(z, dtype=float)
+    n = 1 if not max_step else max(1, int(np.ceil(dt / max_step - 1e-9)))
+    rho = rate[0] if rate and np.isfinite(rate[0]) else obs.rate(t0, z, u, y)
+    for _ in range(6):
+        n = max(n, int(np.ceil(dt * rho - 1e-9)))
+        if n > MAX_ONLINE_SUBSTEPS:
+            raise DataError(
+                f"{where}: the gap from t = {t0:g} to t = {t1:g} ({dt:g} time units) needs more than "
+                f"{MAX_ONLINE_SUBSTEPS:.0e} RK4 steps at the observer's fastest rate {rho:.3g} per time unit; the "
+                "estimate across it would not be worth the time. Start the observer again at the new sample "
+                "(Observer(design).start(xhat0=...)), or feed the samples in between")
+        zn = _rk4_chunks(obs, t0, z, dt, u, y, n)
+        h = dt / n
+        end = obs.rate(t1, zn, u, y) if np.all(np.isfinite(zn)) else np.inf
+        if np.isfinite(end) and h * end <= 2.0:   # RK4 is stable up to h·|λ| ≈ 2.8 on the axes
+            if rate is not None:
+                rate[:] = [end]
+            return zn
+        rho = max(rho, end if np.isfinite(end) else 0.0, 4.0 * n / dt)
+    if rate is not None:
+        rate[:] = [np.nan]
+    return zn
 
 
 class OnlineObserver:
@@ -309,28 +345,9 @@ class OnlineObserver:
         return obs.estimate(self.t, self.z, u, y)
 
     def _flow(self, t: float, dt: float) -> np.ndarray:
-        """z at `t` from the previous sample, with its u and y held: RK4 steps h with h·ρ <= 1 for the flow's fastest
-        rate ρ (measured at both ends of the interval, as the interval runner of :func:`nlobs.estimate` does) and
-        h <= max_step. A gap that needs more than :data:`MAX_ONLINE_SUBSTEPS` steps is refused, never stepped over
-        (one RK4 step across a long gap returns a number, not the estimate)."""
-        obs = self.observer
-        n = 1 if not self.max_step else max(1, int(np.ceil(dt / self.max_step - 1e-9)))
-        rho = obs.rate(self.t, self.z, self._u, self._y)
-        for _ in range(6):
-            n = max(n, int(np.ceil(dt * rho - 1e-9)))
-            if n > MAX_ONLINE_SUBSTEPS:
-                raise DataError(
-                    f"OnlineObserver.update: the gap from t = {self.t:g} to t = {t:g} ({dt:g} time units) needs more than "
-                    f"{MAX_ONLINE_SUBSTEPS:.0e} RK4 steps at the observer's fastest rate {rho:.3g} per time unit; the "
-                    "estimate across it would not be worth the time. Start the observer again at the new sample "
-                    "(Observer(design).start(xhat0=...)), or feed the samples in between")
-            z = _rk4_chunks(obs, self.t, self.z, dt, self._u, self._y, n)
-            h = dt / n
-            end = obs.rate(t, z, self._u, self._y) if np.all(np.isfinite(z)) else np.inf
-            if np.isfinite(end) and h * end <= 2.0:   # RK4 is stable up to h·|λ| ≈ 2.8 on the axes
-                return z
-            rho = max(rho, end if np.isfinite(end) else 0.0, 4.0 * n / dt)
-        return z
+        """z at `t` from the previous sample, with its u and y held (see :func:`integrate`)."""
+        return integrate(self.observer, self.t, self.z, t, self._u, self._y, max_step=self.max_step,
+                         where="OnlineObserver.update")
 
     def _predicted_output(self, t: float, z: np.ndarray, u: np.ndarray) -> np.ndarray:
         xhat = self.observer.estimate(t, z, u, self._y)

@@ -73,6 +73,8 @@ def file_arguments(mf: ModelFile, observers: Any = None, **given: Any) -> dict[s
         out["noise"] = Noise.per_output(dict(cfg.noise), dict(cfg.noise_bound))
     if "process_noise" not in out and cfg.process_noise:
         out["process_noise"] = ProcessNoise(dict(cfg.process_noise))
+    if "delay" not in out and cfg.delay:
+        out["delay"] = dict(cfg.delay)
     if "sampling" not in out and cfg.sample_period:
         out["sampling"] = Sampling(cfg.sample_period)
     if "seed" not in out and cfg.seed is not None:

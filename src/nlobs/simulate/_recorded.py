@@ -239,6 +239,7 @@ def estimate(
     engine: Backend = "auto",
     progress: bool | Callable[[float], None] | None = None,
     smooth: bool = False,
+    delay: Mapping[str, float] | None = None,
 ) -> Run:
     """Run observers on recorded data (filtering, or with ``smooth=True`` fixed-interval smoothing).
 
@@ -284,6 +285,11 @@ def estimate(
         bounds; other kinds are refused. The smoother's prediction is the filter's own: the RK4 map
         it integrates between samples (same sub-steps), linearised by its exact Jacobian (EKF) or
         statistically (UKF); see :mod:`nlobs.simulate._smooth`.
+    delay : mapping of output name to seconds, optional
+        Known measurement delays: the recording is stamped when each sample *arrived*, and a delayed output's
+        value in a row was measured `delay` seconds earlier. The continuous-discrete observers apply it at the
+        time it was taken (filter recalculation from a state history, :mod:`nlobs.simulate._delays`); the
+        estimate at each row uses the samples that have arrived by then.
 
     Returns
     -------
@@ -330,6 +336,8 @@ def estimate(
     t, u = recording.t, recording.u
     if any(o.system.is_discrete for o in obs.values()):
         return _estimate_map(obs, recording, t, u, y0, mask, xhat0, smooth)
+    if delay and any(float(v) > 0 for v in delay.values()):
+        return _estimate_delayed(obs, recording, delay, mask, xhat0, max_step, smooth)
     traces, integration, failures, first = {}, {}, {}, None
     for i, (name, o) in enumerate(obs.items()):
         part = progress if progress is None or isinstance(progress, bool) else (
@@ -390,6 +398,39 @@ def _estimate_one(name: str, o: AbstractObserver, recording: Recording, xhat0: A
         info.update(smoother="urts" if o.design.method == "ukf" else "rts", **how)
     return ObserverTrace(name, o.design.method, o.design.z_names, traj.z, xs, traj.xhat_prior, innovation=innovation,
                          covariance=getattr(o.design, "covariance", None), **smoothed), info
+
+
+def _estimate_delayed(obs: Mapping[str, Any], rec: Recording, delay: Mapping[str, float], mask: np.ndarray, xhat0: Any,
+                      max_step: float | None, smooth: bool) -> Run:
+    """Observers on a recording stamped at arrival, with the delayed samples applied when they were taken."""
+    from ._delays import Events, delays_of, run_delayed
+
+    if smooth:
+        raise ModelError("estimate: smoothing a recording with measurement delays is not supported (the smoother "
+                         "uses every sample at its row); estimate without `smooth`, or without `delay`")
+    d = delays_of(delay, list(rec.output_names), "estimate")
+    events = Events.from_rows(rec.t, rec.y, mask > 0, d, stamped_at_arrival=True)
+    traces, failures, errors = {}, {}, []
+    for name, o in obs.items():
+        z0 = o.initial_state(_xhat0_for(xhat0, name, o.system.n_states))
+        try:
+            Z, X = run_delayed(o, rec.t, rec.u, events, z0, max_step=max_step, name=name)
+        except (FiniteEscapeError, SolverError) as e:
+            failures[name] = failure_of(name, o.design.method, e)
+            errors.append(e)
+            continue
+        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, Z, X,
+                                     o.estimate(rec.t[0], z0, rec.u[0], np.zeros(rec.y.shape[1])),
+                                     covariance=getattr(o.design, "covariance", None))
+    if errors and not traces:
+        raise errors[0]
+    system = next(iter(obs.values())).system
+    early = int(np.sum(events.taken < rec.t[0] - 1e-12))
+    notes = ([f"{early} delayed sample(s) taken before the recording's first time were left out"] if early else [])
+    return Run(f"{system.name} (recorded: {rec.source})", rec.t, system.states, rec.input_names, rec.output_names,
+               rec.u, rec.y, traces, x=rec.x, info={"delay": {k: float(v) for k, v in delay.items()}, "notes": notes,
+                                                    "max_step": max_step},
+               estimated_params=system.estimated_params, failures=failures)
 
 
 def _non_finite(name: str, o: AbstractObserver, rec: Recording, err: FiniteEscapeError) -> FiniteEscapeError:

@@ -27,7 +27,7 @@ from .._progress import as_progress
 from ..design import ObserverDesign
 from ..design._pf import ParticleDesign
 from ..engine import Backend, StepRunner, compile_system, evaluate_many, rk4_step, rows
-from ..errors import FiniteEscapeError, ModelError, ShapeError
+from ..errors import FiniteEscapeError, ModelError, ShapeError, SolverError
 from ..model import ModelFile, ObserverConfig, System, input_signals
 from ..observer import AbstractObserver, Observer, ParticleObserver, as_observer
 from ._file import file_arguments, observers_of
@@ -117,6 +117,7 @@ def simulate(
     progress: bool | Callable[[float], None] | None = None,
     escape_bound: float = 1e12,
     integrator: Adaptive | None = None,
+    delay: Mapping[str, float] | None = None,
 ) -> Run:
     """Simulate a plant and observers on the same measurements, with fixed-step RK4 (or CVODES).
 
@@ -165,6 +166,10 @@ def simulate(
     integrator : Adaptive, optional
         Integrate each step adaptively with CVODES instead of one RK4 step (see
         :class:`nlobs.Adaptive`); measurements, noise and sample-time updates are unchanged.
+    delay : mapping of output name to seconds, optional
+        Known measurement delays: a sample of the output taken at t reaches the observers at t + delay. Needs
+        sampled measurements; the continuous-discrete observers re-apply a late sample at the time it was taken
+        (filter recalculation from a state history, :mod:`nlobs.simulate._delays`).
 
     Returns
     -------
@@ -182,7 +187,7 @@ def simulate(
         run = simulate(**file_arguments(plant, observers, t_final=t_final, dt=dt, x0=x0, inputs=inputs, params=params,
                                          noise=noise, process_noise=process_noise, sampling=sampling, seed=seed,
                                          xhat0=xhat0, engine=engine, progress=progress, escape_bound=escape_bound,
-                                         integrator=integrator))
+                                         integrator=integrator, delay=delay))
         return replace(run, info={**run.info, "units": dict(plant.units)})  # the file's [units] label the plots
     if isinstance(plant, System) and plant.is_discrete:   # a map: iterated, never integrated
         if integrator is not None:
@@ -197,11 +202,63 @@ def simulate(
         return simulate_map(plant_, obs, t_final=t_final, dt=dt, x0=x0, inputs=inputs, noise=noise,
                             process_noise=process_noise, sampling=sampling, seed=seed, xhat0=xhat0,
                             escape_bound=escape_bound, x0_tail=tail)
+    if delay and any(float(v) > 0 for v in delay.values()):
+        return _simulate_delayed(plant, observers, delay, t_final=t_final, dt=dt, x0=x0, inputs=inputs, params=params,
+                                 noise=noise, process_noise=process_noise, sampling=sampling, seed=seed, xhat0=xhat0,
+                                 engine=engine, progress=progress, escape_bound=escape_bound, integrator=integrator)
     sim = Simulation(plant, observers, t_final=t_final, dt=dt, inputs=inputs, params=params, noise=noise,
                      process_noise=process_noise, sampling=sampling, integrator=integrator, engine=engine, _caller="simulate")
     run = sim.run(x0, xhat0=xhat0, seed=seed, progress=progress, escape_bound=escape_bound)
     notes = table_range_notes(sim.plant, run.t, run.x, run.u)
     return replace(run, info={**run.info, "notes": (*run.info.get("notes", ()), *notes)}) if notes else run
+
+
+def _simulate_delayed(plant: System, observers: Any, delay: Mapping[str, float], *, sampling: Sampling | None,
+                      x0: Any, xhat0: Any, params: Mapping[str, float] | None, **kw: Any) -> Run:
+    """The plant on its own, then each observer on the samples as they arrive (see :mod:`nlobs.simulate._delays`)."""
+    from ._delays import Events, delays_of, run_delayed
+    from ._isolate import failure_of
+
+    if not isinstance(plant, System) or plant.is_discrete:
+        raise ModelError("simulate: measurement delays are handled for continuous-time models")
+    if sampling is None:
+        raise ModelError("simulate: measurement delays need sampled measurements (a sample is taken, then arrives later): "
+                         "give sampling=Sampling(period) or [simulation] sample_period")
+    obs = named_observers(observers)
+    d = delays_of(delay, list(plant.outputs), "simulate")
+    plant_ = plant.with_params(**params) if params else plant
+    plant_, tail = augmented_plant(plant_, obs)
+    x0v = list(np.asarray(x0, dtype=float).reshape(-1))
+    if tail and len(x0v) == plant_.n_states - len(tail):
+        x0v += list(tail)
+    base = simulate(plant_, None, x0=x0v, sampling=sampling, **kw)
+    measured = base.info.get("measured")
+    if measured is None:   # one clock for all outputs
+        every = sampling.every(float(kw["dt"]))
+        measured = np.repeat((np.arange(base.t.size) % every == 0)[:, None], plant_.n_outputs, axis=1)
+    events = Events.from_rows(base.t, base.y, measured, d, stamped_at_arrival=False)
+    traces, failures, errors = {}, {}, []
+    for name, o in obs.items():
+        check_compatible(plant_, name, o)
+        z0 = o.initial_state(_xhat0_for(xhat0, name, plant_.n_states))
+        try:
+            Z, X = run_delayed(o, base.t, base.u, events, z0, name=name)
+            bad = np.flatnonzero(~np.isfinite(X).all(axis=1))
+            if bad.size:
+                r = max(int(bad[0]) - 1, 0)
+                raise FiniteEscapeError(f"observer {name!r}", float(base.t[r]), Z[r], o.design.z_names, np.inf,
+                                        hint=f"after t = {base.t[r]:g}")
+        except (FiniteEscapeError, SolverError) as e:   # the others still run; when all fail, the first error
+            failures[name] = failure_of(name, o.design.method, e)
+            errors.append(e)
+            continue
+        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, Z, X,
+                                     o.estimate(base.t[0], z0, base.u[0], base.y[0]),
+                                     covariance=getattr(o.design, "covariance", None))
+    if errors and not traces:
+        raise errors[0]
+    info = {**base.info, "delay": {k: float(v) for k, v in delay.items()}, "measured": measured}
+    return replace(base, observers=traces, failures=failures, info=info)
 
 
 class Simulation:

@@ -1,0 +1,125 @@
+"""Known measurement delays (issue 21 §3): late samples re-applied at the time they were taken."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import nlobs
+from nlobs import System
+from nlobs.cli import main
+from nlobs.simulate import Noise, Sampling
+from nlobs.simulate._delays import Events, run_delayed
+
+CART = System(states=["p", "v", "b"], inputs=["a"], outputs=["gps", "wheel"], f=["v", "a - 0.1*v", "0"],
+              h=["p", "v + b"], name="cart")
+# the issue's check: a 10 Hz and a 4 Hz sensor
+CLOCKS = Sampling({"gps": 0.25, "wheel": 0.1})
+KW = dict(dt=0.01, x0=[0.0, 1.0, 0.3], inputs={"a": "sin(0.5*t)"}, noise=Noise.per_output({"gps": 0.5, "wheel": 0.1}),
+          sampling=CLOCKS, seed=3)
+
+
+def _ekf():
+    return nlobs.design_ekf(CART, R=np.diag([0.25, 0.01]), Q=np.diag([1e-4, 1e-3, 1e-6]), xhat0=[5.0, 0.0, 0.0])
+
+
+def _samples(run):
+    """The run's samples as a recording stamped when they were taken (NaN where an output was not sampled)."""
+    return nlobs.Recording.from_arrays(CART, run.t, np.where(run.info["measured"], run.y, np.nan), run.u, x=run.x)
+
+
+def test_without_delay_the_recalculation_is_the_plain_filter():
+    # run_delayed with zero delays against estimate()'s interval runner on the same samples: two code paths
+    plant = nlobs.simulate(CART, None, t_final=10.0, **KW)
+    rec = _samples(plant)
+    ref = nlobs.estimate({"ekf": _ekf()}, rec, on_missing="skip")   # rows between samples measure nothing
+    obs = nlobs.Observer(_ekf())
+    ev = Events.from_rows(rec.t, rec.y, np.isfinite(rec.y), np.zeros(2), stamped_at_arrival=False)
+    Z, X = run_delayed(obs, rec.t, rec.u, ev, obs.initial_state())
+    np.testing.assert_allclose(X, ref.observers["ekf"].xhat, rtol=0, atol=1e-9)
+
+
+def test_the_estimate_at_t_is_the_plain_filter_on_the_samples_arrived_by_t():
+    # the definition of exact delay handling, checked at a few times against estimate() on the arrived samples only
+    delay = {"gps": 0.15, "wheel": 0.15}
+    run = nlobs.simulate(CART, {"ekf": _ekf()}, t_final=6.0, delay=delay, **KW)
+    rec = _samples(nlobs.simulate(CART, None, t_final=6.0, **KW))
+    for k in (101, 333, 517, 600):
+        tk = rec.t[k]
+        y = rec.y[:k + 1].copy()
+        y[rec.t[:k + 1] + 0.15 > tk + 1e-12] = np.nan          # not arrived by t_k
+        part = nlobs.Recording.from_arrays(CART, rec.t[:k + 1], y, rec.u[:k + 1])
+        plain = nlobs.estimate({"ekf": _ekf()}, part, on_missing="skip")
+        np.testing.assert_allclose(run.observers["ekf"].xhat[k], plain.observers["ekf"].xhat[-1], rtol=0, atol=1e-8)
+
+
+def test_a_150_ms_latency_costs_less_than_10_percent_of_rms_error_and_ignoring_it_costs_more():
+    ref = nlobs.simulate(CART, {"ekf": _ekf()}, t_final=60.0, **KW).metrics("ekf").rms_error
+    late = nlobs.simulate(CART, {"ekf": _ekf()}, t_final=60.0, delay={"gps": 0.15, "wheel": 0.15}, **KW)
+    assert late.metrics("ekf").rms_error <= 1.10 * ref
+    # the same late samples used as if they were current (a recording stamped at arrival, no delay given)
+    plant = nlobs.simulate(CART, None, t_final=60.0, **KW)
+    shifted = np.full_like(plant.y, np.nan)
+    shifted[15:] = np.where(plant.info["measured"], plant.y, np.nan)[:-15]
+    naive = nlobs.estimate({"ekf": _ekf()}, nlobs.Recording.from_arrays(CART, plant.t, shifted, plant.u, x=plant.x),
+                           on_missing="skip")
+    told = nlobs.estimate({"ekf": _ekf()}, nlobs.Recording.from_arrays(CART, plant.t, shifted, plant.u, x=plant.x),
+                          on_missing="skip", delay={"gps": 0.15, "wheel": 0.15})
+    np.testing.assert_allclose(told.observers["ekf"].xhat, late.observers["ekf"].xhat, rtol=0, atol=1e-9)
+    assert naive.metrics("ekf").rms_error > 1.5 * late.metrics("ekf").rms_error
+
+
+def test_errors_name_what_to_change():
+    with pytest.raises(nlobs.ModelError, match="need sampled measurements"):
+        nlobs.simulate(CART, {"ekf": _ekf()}, t_final=1.0, dt=0.01, x0=[0, 1, 0.3], delay={"gps": 0.1})
+    with pytest.raises(nlobs.ShapeError, match="`delay` names 'z', which is not an output"):
+        nlobs.simulate(CART, {"ekf": _ekf()}, t_final=1.0, delay={"z": 0.1}, **{**KW, "sampling": CLOCKS})
+    lue = nlobs.design_luenberger(System(states=["x"], outputs=["y"], f=["-x"], h=["x"]), poles=[-2.0])
+    with pytest.raises(nlobs.ModelError, match="takes the output continuously; measurement delays are handled by the "
+                                               "continuous-discrete observers"):
+        nlobs.simulate(System(states=["x"], outputs=["y"], f=["-x"], h=["x"]), {"l": lue}, t_final=1.0, dt=0.01, x0=[1.0],
+                       sampling=Sampling(0.1), delay={"y": 0.05})
+
+
+MODEL = """
+name = "cart"
+states = ["p", "v", "b"]
+inputs = ["a"]
+outputs = ["gps", "wheel"]
+[dynamics]
+p = "v"
+v = "a - 0.1*v"
+b = "0"
+[output]
+gps = "p"
+wheel = "v + b"
+[simulation]
+t_final = 10.0
+dt = 0.01
+x0 = [0.0, 1.0, 0.3]
+inputs = { a = "sin(0.5*t)" }
+noise = { gps = 0.5, wheel = 0.1 }
+sample_period = { gps = 0.25, wheel = 0.1 }
+delay = { gps = 0.15, wheel = 0.15 }
+seed = 3
+[observers.ekf]
+kind = "ekf"
+xhat0 = [5.0, 0.0, 0.0]
+R = [[0.25, 0.0], [0.0, 0.01]]
+Q = [[1e-4, 0.0, 0.0], [0.0, 1e-3, 0.0], [0.0, 0.0, 1e-6]]
+"""
+
+
+def test_the_model_file_and_the_command_line(tmp_path, capsys):
+    model = tmp_path / "cart.toml"
+    model.write_text(MODEL, encoding="utf-8")
+    assert main(["simulate", str(model), "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    kw = {**KW, "inputs": {"a": "sin(0.5*t)"}}
+    ref = nlobs.simulate(CART, {"ekf": _ekf()}, t_final=10.0, delay={"gps": 0.15, "wheel": 0.15}, **kw)
+    assert d["observers"]["ekf"]["final_estimate"] == pytest.approx(ref.observers["ekf"].xhat[-1].tolist(), abs=1e-9)
+    model.write_text(MODEL.replace("delay = { gps = 0.15, wheel = 0.15 }", "delay = { gps = -1 }"), encoding="utf-8")
+    assert main(["simulate", str(model)]) == 1
+    assert "simulation.delay.gps" in capsys.readouterr().err
