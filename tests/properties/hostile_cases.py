@@ -715,6 +715,76 @@ def loads_model_none(d):
     return nlobs.loads_model(None)
 
 
+# -- issue 20's audit: one case per item ----------------------------------------------------------
+@api(expect="ok")
+def online_gap_100s(d):
+    """An online update after a 100 s gap: integrated (was |x̂| = 9e5 from one RK4 step over the gap)."""
+    import numpy as np
+
+    import nlobs
+    o = nlobs.Observer(nlobs.design_ekf(_pend(), Q=[[1e-4, 0], [0, 1e-2]], R=[[1e-4]], xhat0=[0.5, 0.0])).start()
+    o.update(0.0, u=[0.0], y=[1.0])
+    x = o.update(100.0, u=[0.0], y=[1.0])
+    assert np.all(np.abs(x) < 2), x
+    return x
+
+
+
+@api()
+def online_gap_1e6s(d):
+    """After a 10⁶ s gap: a DataError that says to restart (was 4.3e22, no error)."""
+    import nlobs
+    o = nlobs.Observer(nlobs.design_ekf(_pend(), Q=[[1e-4, 0], [0, 1e-2]], R=[[1e-4]], xhat0=[0.5, 0.0])).start()
+    o.update(0.0, u=[0.0], y=[1.0])
+    return o.update(1e6, u=[0.0], y=[1.0])
+
+
+@api(expect="ok")
+def input_as_array_on_the_grid(d):
+    import numpy as np
+
+    import nlobs
+    t = np.arange(1001) * 1e-3
+    return nlobs.simulate(_pend(), None, t_final=1.0, dt=1e-3, x0=[1.0, 0.0], inputs={"u": np.sin(t)})
+
+
+@api()
+def input_array_wrong_length(d):
+    import numpy as np
+
+    import nlobs
+    return nlobs.simulate(_pend(), None, t_final=1.0, dt=1e-3, x0=[1.0, 0.0], inputs={"u": np.zeros(10)})
+
+
+@api(expect="ok")
+def online_covariance_and_predict(d):
+    import nlobs
+    o = nlobs.Observer(nlobs.design_ekf(_pend(), Q=[[1e-4, 0], [0, 1e-2]], R=[[1e-4]], xhat0=[0.5, 0.0])).start()
+    o.update(0.0, u=[0.0], y=[1.0])
+    o.predict(0.01)
+    assert o.P.shape == (2, 2)
+    return o.update(0.01, u=[0.0], y=[1.0])
+
+
+@api()
+def poles_malformed_strings(d):
+    import nlobs
+    lin = nlobs.System(states=["x1", "x2"], f=["x2", "-x1"], outputs=["y"], h=["x1"])
+    return nlobs.design_luenberger(lin, poles=["a", "b"])
+
+
+case("toml-integer-4301-digits", "toml", _model(dyn='x1 = "x2"\nx2 = "' + "9" * 4301 + '*x1"'))
+case("toml-unary-chain-100k", "toml", _model(dyn='x1 = "x2"\nx2 = "' + "-(" * 50_000 + "x1" + ")" * 50_000 + '"'))
+case("toml-expression-100k-ok", "toml", _model(dyn='x1 = "x2"\nx2 = "' + " + ".join(["0.0001*x1"] * 8000) + '"'),
+     expect="ok")
+for fid, argv, exp in (("sim-no-observers", ["simulate", "{dir}/plain.toml", "--engine", "vm", "--t-final", "0.5"], "ok"),
+                       ("sim-observer-kind", ["simulate", "{dir}/plain.toml", "--engine", "vm", "--t-final", "0.5",
+                                              "--observer", "ekf"], "ok"),
+                       ("max-expression-zero", ["--max-expression", "0", "analyze", "{dir}/plain.toml"], "error")):
+    case(f"cli-{fid}", "cli", argv, expect=exp,
+         files={"plain.toml": _model(extra="[simulation]\nx0 = [1.0, 0.0]\nt_final = 1.0\n")})
+
+
 # ---------------------------------------------------------------------------------------------
 # The worker and the runner
 # ---------------------------------------------------------------------------------------------
