@@ -104,8 +104,8 @@ def test_twin_check_reports_a_failing_user_function_and_accepts_points():
 def test_bad_plants_are_refused_with_the_fix():
     with pytest.raises(TypeError, match=r"transfer function.*control.ss\(sys\)"):
         nlobs.from_control(ct.tf([1], [1, 2, 3]))
-    with pytest.raises(PreconditionError, match=r"discrete-time \(dt = 0.1\).*continuous-time"):
-        nlobs.from_control(ct.ss(A, B, C, 0, dt=0.1))
+    with pytest.raises(PreconditionError, match=r"unspecified sample period \(dt = True\)"):
+        nlobs.from_control(ct.ss(A, B, C, 0, dt=True))
     with pytest.raises(TypeError, match="expected a control.StateSpace"):
         nlobs.from_control(np.eye(2))
     with pytest.raises(ShapeError, match="`states` must be a list of 2"):
@@ -267,3 +267,32 @@ def test_importing_nlobs_does_not_import_control():
     code = "import sys, nlobs; nlobs.interop; print('control' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "False"
+
+
+def test_discrete_time_systems_both_ways():
+    """A discrete StateSpace becomes a map (checked against python-control's own forced response), and a map's EKF
+    becomes a discrete nlsys with the model's period that reproduces nlobs.estimate."""
+    Ad, Bd, Cd = np.array([[1.0, 0.1], [-0.1, 0.98]]), np.array([[0.0], [0.1]]), np.array([[1.0, 0.0]])
+    plant = ct.ss(Ad, Bd, Cd, 0, dt=0.1, states=["p", "v"], inputs=["F"], outputs=["pos"], name="dcart")
+    m = nlobs.from_control(plant)
+    assert m.is_discrete and m.sample_time == 0.1 and m.states == ("p", "v")
+    k = np.arange(101)
+    u = np.sin(0.3 * k)
+    ref = ct.forced_response(plant, T=k * 0.1, U=u, X0=[1.0, 0.0])
+    run = nlobs.simulate(m, None, t_final=10.0, x0=[1.0, 0.0], inputs={"F": (k * 0.1, u)})
+    np.testing.assert_allclose(run.x, np.asarray(ref.states).T, rtol=0, atol=1e-12)
+    # the map's EKF as python-control sees it: dt taken from the model, driven by [y, u]
+    ekf = nlobs.design_ekf(m, Q=np.eye(2) * 1e-4, R=[[1e-2]], P0=np.eye(2), xhat0=[0.0, 0.0])
+    est = nlobs.to_control(ekf, name="est")
+    assert est.dt == 0.1
+    y = np.asarray(ref.outputs).reshape(-1) + 0.05 * np.random.default_rng(0).standard_normal(k.size)
+    resp = ct.input_output_response(est, T=k * 0.1, U=np.vstack([y, u]), X0=nlobs.Observer(ekf).initial_state())
+    rec = nlobs.Recording.from_arrays(m, k * 0.1, y[:, None], u[:, None])
+    np.testing.assert_allclose(np.asarray(resp.outputs).T, nlobs.estimate(ekf, rec).observers["ekf"].xhat, rtol=0,
+                               atol=1e-12)
+    with pytest.raises(PreconditionError, match="sample_time = 0.1; dt = 0.2 differs"):
+        nlobs.to_control(ekf, dt=0.2)
+    twin = nlobs.System(states=["p", "v"], inputs=["F"], outputs=["pos"], f=["p + 0.1*v", "-0.1*p + 0.98*v + 0.1*F"],
+                        h=["p"], name="dcart")
+    with pytest.raises(nlobs.ModelError, match="is discrete-time with dt = 0.1 but the twin 'dcart' is continuous-time"):
+        nlobs.from_control(plant, twin=twin)

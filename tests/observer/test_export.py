@@ -285,3 +285,20 @@ def test_export_name_must_be_a_c_identifier_exactly(bad, tmp_path):
         export_c(design_output_injection(PEND.system, poles=[-2.0, -3.0]), tmp_path, name=bad)
     assert len(str(info.value)) < 300
     assert not any(tmp_path.iterdir())
+
+
+@needs_cc
+@pytest.mark.parametrize("kind", ["ekf", "ukf"])
+def test_a_discrete_time_observer_exports_its_map_step(kind, tmp_path):
+    # a map's observer has no flow between samples: the exported step is its predict-from-the-last-sample + correct
+    osc = nlobs.System(states=["x1", "x2"], inputs=["u"], outputs=["y"], f=["x1 + 0.1*x2", "x2 + 0.1*(-sin(x1) - 0.2*x2 + u)"],
+                       h=["x1"], time="discrete", sample_time=0.1, name="osc_map")
+    design = getattr(nlobs, f"design_{kind}")(osc, Q=np.eye(2) * 1e-4, R=[[1e-2]], P0=np.eye(2), xhat0=[0.5, 0.0])
+    run = nlobs.simulate(osc, None, t_final=20.0, x0=[1.0, 0.0], inputs={"u": "sin(0.5*t)"}, noise=nlobs.Noise.gaussian(0.1),
+                         seed=4)
+    rec = nlobs.Recording.from_run(run)
+    exe = _build_program(export_c(design, tmp_path), tmp_path)
+    out = _run_program(exe, "t,u,y\n" + _csv(rec.t, rec.u, rec.y))
+    xhat = nlobs.estimate({kind: design}, rec).observers[kind].xhat
+    assert np.abs(out[:, 1:] - xhat).max() <= 1e-12 * max(1.0, np.abs(xhat).max())
+    assert np.abs(xhat[-1] - run.x[-1]).max() < 0.2 and np.abs(xhat[0] - xhat[-1]).max() > 0.1

@@ -62,6 +62,22 @@ def numpy_ekf(u, y):
     return np.array(out)
 
 
+def numpy_ekf_innovations(u, y):
+    """y[k] − h(x[k|k−1]) of the same EKF (x[0|−1] = X0)."""
+    x, P, out = X0.copy(), P0.copy(), []
+    for k in range(len(y)):
+        if k:
+            Fk = F(x, u[k - 1])
+            x, P = f(x, u[k - 1]), Fk @ P @ Fk.T + Q
+        out.append(y[k] - h(x))
+        Hk = H(x)
+        K = P @ Hk.T @ np.linalg.inv(Hk @ P @ Hk.T + R)
+        x = x + K @ (y[k] - h(x))
+        IKH = np.eye(2) - K @ Hk
+        P = IKH @ P @ IKH.T + K @ R @ K.T
+    return np.array(out)
+
+
 def numpy_ukf(u, y, alpha=0.5, beta=2.0, kappa=0.0):
     n = 2
     lam = alpha ** 2 * (n + kappa) - n
@@ -101,6 +117,13 @@ def test_discrete_ekf_matches_an_independent_ekf():
     run = nlobs.estimate(d, _recording(t, u, y))
     np.testing.assert_allclose(run.observers["ekf"].xhat, numpy_ekf(u, y), rtol=0, atol=1e-10)
     assert np.sqrt(np.mean((run.observers["ekf"].xhat[50:] - x[50:]) ** 2)) < 0.05
+
+
+def test_discrete_innovations_are_against_the_one_step_prediction():
+    t, u, x, y = _data()
+    run = nlobs.estimate(nlobs.design_ekf(PEND, Q=Q, R=R, P0=P0, xhat0=X0), _recording(t, u, y))
+    np.testing.assert_allclose(run.innovations("ekf"), numpy_ekf_innovations(u, y), rtol=0, atol=1e-10)
+    assert set(run.whiteness("ekf")) == {"y1", "y2"}     # the recorded-data summary works on maps
 
 
 def test_discrete_ukf_matches_an_independent_ukf():
@@ -179,3 +202,18 @@ def test_map_identifiability_and_a_symmetry():
                         time="discrete")
     rp = nlobs.analyze(prod, unknown_params=["a", "b"])
     assert rp.rank == 2 and rp.identifiable_params == () and rp.observable_states == ("x",)
+
+
+def test_montecarlo_on_a_map_is_simulate_per_seed():
+    d = nlobs.design_ekf(PEND, Q=Q, R=R, P0=P0, xhat0=X0)
+    kw = dict(t_final=5.0, inputs={"u": "0.5*sin(2*t)"}, noise=nlobs.Noise.gaussian(0.05),
+              process_noise=nlobs.ProcessNoise(0.01))
+    mc = nlobs.montecarlo(PEND, {"ekf": d}, x0=[[1.0, 0.0], [0.5, 0.2], [-1.0, 0.5]], **kw)
+    assert mc.runs == 3 and mc.failed.size == 0 and mc.info["time"] == "discrete"
+    for j in range(3):
+        one = nlobs.simulate(PEND, {"ekf": d}, x0=mc.x[j, 0], seed=int(mc.seeds[j]), **kw)
+        np.testing.assert_array_equal(mc.observers["ekf"].xhat[j], one.observers["ekf"].xhat)
+        assert mc.observers["ekf"].rms_error[j] == pytest.approx(one.metrics("ekf").rms_error, rel=1e-12)
+    np.testing.assert_array_equal(mc.trajectory(1).x, nlobs.simulate(PEND, {"ekf": d}, x0=[0.5, 0.2],
+                                                                      seed=int(mc.seeds[1]), **kw).x)
+    assert "ekf" in str(mc.summary())

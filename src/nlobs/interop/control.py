@@ -59,11 +59,16 @@ def _names(given: Sequence[str] | None, labels: Sequence[str], kind: str, sysnam
     return names
 
 
-def _check_timebase(sys: Any, caller: str) -> None:
+def _sample_time(sys: Any, caller: str) -> float | None:
+    """None for a continuous-time python-control system; its sample period for a discrete-time one."""
     dt = getattr(sys, "dt", 0)
-    if dt is not None and dt is not False and dt != 0:
-        raise PreconditionError(f"{caller}: the python-control system {sys.name!r} is discrete-time (dt = {dt}); nlobs "
-                                "plants are continuous-time. Pass the continuous-time model (dt = 0)")
+    if dt is None or dt is False or dt == 0:
+        return None
+    if dt is True:
+        raise PreconditionError(f"{caller}: the python-control system {sys.name!r} is discrete-time with an unspecified "
+                                "sample period (dt = True); give it one (e.g. control.ss(A, B, C, D, 0.1)): nlobs maps have "
+                                "a sample time in seconds")
+    return float(dt)
 
 
 def from_control(sys: Any, *, twin: System | None = None, name: str | None = None,
@@ -73,7 +78,8 @@ def from_control(sys: Any, *, twin: System | None = None, name: str | None = Non
     r"""An nlobs plant from a python-control system.
 
     - A ``control.StateSpace`` (continuous-time) becomes the LTI model
-      :math:`\dot x = Ax + Bu,\ y = Cx + Du` (exactly, through :class:`nlobs.model.LTI`).
+      :math:`\dot x = Ax + Bu,\ y = Cx + Du` (exactly, through :class:`nlobs.model.LTI`); a discrete-time one
+      (``dt = T``) the map :math:`x[k+1] = Ax[k] + Bu[k]` with ``sample_time = T``.
       Signal labels become names: ``x[0]`` becomes ``x0``; other characters become ``_``.
     - A ``control.NonlinearIOSystem`` holds opaque Python functions, while nlobs needs f and h
       symbolically (Lie derivatives, Jacobians, C code). Pass its symbolic `twin`, an
@@ -85,7 +91,8 @@ def from_control(sys: Any, *, twin: System | None = None, name: str | None = Non
     Parameters
     ----------
     sys : control.StateSpace or control.NonlinearIOSystem
-        The plant, continuous-time (``dt = 0``).
+        The plant, continuous-time (``dt = 0``) or discrete-time (``dt = T``; a twin must then be a map with
+        ``sample_time = T``).
     twin : System, optional
         The symbolic model of a ``NonlinearIOSystem`` (required for one; optional for a
         ``StateSpace``, which is then checked against it the same way).
@@ -113,7 +120,8 @@ def from_control(sys: Any, *, twin: System | None = None, name: str | None = Non
     TypeError
         For a transfer function (convert it with ``control.ss`` first) or another object.
     PreconditionError
-        For a discrete-time system, or a ``NonlinearIOSystem`` without a twin.
+        For a discrete-time system without a sample period (``dt = True``), or a ``NonlinearIOSystem`` without
+        a twin.
     ModelError
         When the twin's sizes, signal names or equations differ from the python-control
         system's (naming the equation, the point and both values), or labels collide.
@@ -132,7 +140,7 @@ def from_control(sys: Any, *, twin: System | None = None, name: str | None = Non
                         "control.ss(sys) (the states then are that realisation's)")
     if not isinstance(sys, ct.NonlinearIOSystem):
         raise TypeError(f"{caller}: expected a control.StateSpace or control.NonlinearIOSystem, got {type(sys).__name__}")
-    _check_timebase(sys, caller)
+    T = _sample_time(sys, caller)
     label = name or sys.name
     if twin is None:
         if not isinstance(sys, ct.StateSpace):
@@ -142,12 +150,22 @@ def from_control(sys: Any, *, twin: System | None = None, name: str | None = Non
                 "numerically against updfcn and outfcn)")
         A, B, C, D = (np.asarray(M, dtype=float) for M in (sys.A, sys.B, sys.C, sys.D))
         n, m, p = sys.nstates, sys.ninputs, sys.noutputs
-        return LTI(A, B.reshape(n, m), C.reshape(p, n), D.reshape(p, m),
-                   states=_names(states, sys.state_labels, "states", sys.name),
-                   inputs=_names(inputs, sys.input_labels, "inputs", sys.name),
-                   outputs=_names(outputs, sys.output_labels, "outputs", sys.name), name=label).to_system()
+        lti = LTI(A, B.reshape(n, m), C.reshape(p, n), D.reshape(p, m),
+                  states=_names(states, sys.state_labels, "states", sys.name),
+                  inputs=_names(inputs, sys.input_labels, "inputs", sys.name),
+                  outputs=_names(outputs, sys.output_labels, "outputs", sys.name), name=label).to_system()
+        if T is None:
+            return lti
+        # x[k+1] = A x[k] + B u[k]: the same matrices as a map with python-control's sample period
+        return System(states=list(lti.states), inputs=list(lti.inputs), outputs=list(lti.outputs), f=list(lti.f),
+                      h=list(lti.h), params=dict(lti.params), name=label, time="discrete", sample_time=T)
     if not isinstance(twin, System):
         raise TypeError(f"{caller}: `twin` must be an nlobs.System, got {type(twin).__name__}")
+    if (T is None) != (not twin.is_discrete) or (T is not None and abs(T - twin.sample_time) > 1e-12 * T):
+        theirs = "continuous-time" if T is None else f"discrete-time with dt = {T:g}"
+        mine = f"discrete-time with sample_time = {twin.sample_time:g}" if twin.is_discrete else "continuous-time"
+        raise ModelError(f"{caller}: {sys.name!r} is {theirs} but the twin {twin.name!r} is {mine}; give the twin the same "
+                         "time base (System(..., time='discrete', sample_time=dt) for a map)")
     if states is not None or inputs is not None or outputs is not None:
         raise ModelError(f"{caller}: with a twin the names are the twin's; rename in the twin instead of passing "
                          "states/inputs/outputs")
@@ -323,6 +341,14 @@ def to_control(observer: Any, *, plant: Any = None, dt: float | None = None, max
         v = np.asarray(v, dtype=float).reshape(-1)
         return v[:ny], v[ny:]
 
+    if s.is_discrete:   # a map's observer steps with the map: its period is the model's
+        if dt is not None and abs(float(dt) - s.sample_time) > 1e-12 * s.sample_time:
+            raise PreconditionError(f"{caller}: the observer {label!r} runs on the discrete-time model {s.name!r} with "
+                                    f"sample_time = {s.sample_time:g}; dt = {dt!r} differs (leave dt out)")
+        if max_step is not None:
+            raise PreconditionError(f"{caller}: `max_step` does not apply to a discrete-time model's observer (no flow "
+                                    "between samples)")
+        dt = s.sample_time
     if dt is None:
         if max_step is not None:
             raise PreconditionError(f"{caller}: `max_step` applies to a discrete-time system; give `dt` too, or leave "

@@ -253,7 +253,7 @@ def montecarlo(
     observers: Any,
     *,
     t_final: float,
-    dt: float,
+    dt: float | None = None,
     x0: Sequence[float] | np.ndarray,
     runs: int | None = None,
     xhat0: Mapping[str, Any] | Sequence[float] | np.ndarray | None = None,
@@ -278,7 +278,8 @@ def montecarlo(
     plant : System
     observers : mapping of name to observer/design, or a sequence
     t_final, dt : float
-        As in :func:`nlobs.simulate`.
+        As in :func:`nlobs.simulate` (`dt` is required for a continuous-time plant; a discrete-time one steps by
+        its sample_time, each run iterating the map as :func:`nlobs.simulate` does).
     x0 : array_like of shape (n,) or (M, n)
         Initial plant states, the same for every run or one per run.
     runs : int, optional
@@ -315,6 +316,12 @@ def montecarlo(
     """
     if tol is not None:
         tol = check_positive(tol, "tol", "montecarlo")
+    if isinstance(plant, System) and plant.is_discrete:
+        return _montecarlo_map(plant, observers, t_final=t_final, dt=dt, x0=x0, runs=runs, xhat0=xhat0, params=params,
+                               inputs=inputs, noise=noise, process_noise=process_noise, sampling=sampling, seed=seed,
+                               tol=tol, progress=progress, escape_bound=escape_bound)
+    if dt is None:
+        raise ShapeError("montecarlo: give `dt`, the integration step of a continuous-time plant")
     # parameters nobody varies are compiled in as constants (one build per model and values)
     prep = prepare(plant, observers, t_final=t_final, dt=dt, inputs=inputs, params=None, noise=noise,
                    process_noise=process_noise, sampling=sampling, caller="montecarlo", fold_params=not params)
@@ -369,6 +376,84 @@ def montecarlo(
     status = np.concatenate([p[2] for p in parts])
     return _result(spec, S, O, status, tol, inputs, info={"dt": dt, "save_every": stride, "engine": engine,
                                                           "dask": scheduler is not None, "chunk": chunk})
+
+
+@dataclass(frozen=True, eq=False)
+class _MapSpec:
+    """How to re-run trajectory j of a discrete-time Monte Carlo run (:meth:`MonteCarloResult.trajectory`)."""
+
+    plant: System
+    obs: Mapping[str, Any]
+    kw: Mapping[str, Any]
+    X0: np.ndarray
+    XH: Mapping[str, np.ndarray]
+    P: np.ndarray
+    seeds: np.ndarray
+
+    def rerun(self, j: int, inputs: Any) -> Run:
+        from ._discrete import simulate_map
+
+        plant = self.plant.with_params(**dict(zip(self.plant.param_names, self.P[j]))) if self.plant.n_params else self.plant
+        return simulate_map(plant, self.obs, x0=self.X0[j], xhat0={k: v[j] for k, v in self.XH.items()}, inputs=inputs,
+                            seed=int(self.seeds[j]), caller="montecarlo", **self.kw)
+
+
+def _montecarlo_map(plant: System, observers: Any, *, x0: Any, runs: int | None, xhat0: Any, params: Any, inputs: Any,
+                    seed: int, tol: float | None, progress: Any, **kw: Any) -> MonteCarloResult:
+    """Monte Carlo runs of a discrete-time plant and its observers: each run is :func:`nlobs.simulate`'s map
+    iteration (one compiled mapaccum for the plant, the compiled observer loop), with the seeds, initial states and
+    parameter draws of the continuous-time runner; a run that leaves the bound counts as failed."""
+    from ._discrete import simulate_map
+    from ._run import augmented_plant, named_observers
+
+    obs = named_observers(observers)
+    plant_, tail = augmented_plant(plant, obs)
+    n = plant_.n_states
+    sizes = [np.shape(x0)[0]] if np.ndim(x0) == 2 else []
+    sizes += [np.size(v) for v in (params or {}).values() if np.ndim(v) == 1]
+    if runs is not None:
+        sizes.append(int(runs))
+    if not sizes or any(s != sizes[0] for s in sizes):
+        raise ShapeError("montecarlo: give `runs`, or x0/params with one row per run (the same number of rows)")
+    M = sizes[0]
+    x0 = np.asarray(x0, dtype=float)
+    if tail and x0.shape[-1] == n - len(tail):
+        x0 = np.concatenate([x0, np.broadcast_to(np.asarray(tail), x0.shape[:-1] + (len(tail),))], axis=-1)
+    X0 = _per_run(x0, M, n, "x0")
+    XH = {}
+    for name, o in obs.items():
+        given = xhat0.get(name) if isinstance(xhat0, Mapping) else xhat0
+        XH[name] = _per_run(o.design.xhat0 if given is None else given, M, n, f"xhat0[{name}]")
+    unknown = [k for k in (params or {}) if k not in plant_.params]
+    if unknown:
+        raise ShapeError(f"montecarlo: `params` names {unknown[0]!r}, which is not a parameter of {plant_.name!r}")
+    P = np.column_stack([np.broadcast_to(np.asarray((params or {}).get(k, v), dtype=float), (M,))
+                         for k, v in plant_.params.items()]) if plant_.n_params else np.zeros((M, 0))
+    seeds = np.random.SeedSequence(seed).generate_state(M).astype(np.int64)
+    spec = _MapSpec(plant_, obs, kw, X0, XH, P, seeds)
+    report = as_progress(progress, f"montecarlo {plant_.name}")
+    runs_, failures = [], []
+    for j in range(M):
+        try:
+            runs_.append(spec.rerun(j, inputs))
+        except FiniteEscapeError as err:
+            runs_.append(None)
+            failures.append((j, str(err).split(". Check")[0]))
+        if report is not None:
+            report((j + 1) / M)
+    ok = next((r for r in runs_ if r is not None), None)
+    if ok is None:
+        raise ModelError(f"montecarlo: every run of {plant_.name!r} failed; the first: {failures[0][1]}")
+    t, N = ok.t, ok.t.size - 1
+    status = np.array([N if r is not None else 0 for r in runs_])
+    x = np.stack([r.x if r is not None else np.full_like(ok.x, np.nan) for r in runs_])
+    stats = {}
+    for name in obs:
+        xh = np.stack([r.observers[name].xhat if r is not None else np.full_like(ok.x, np.nan) for r in runs_])
+        priors = np.stack([r.observers[name].xhat_prior if r is not None else np.full(n, np.nan) for r in runs_])
+        stats[name] = ObserverStats(name, xh, t, x, lambda p=priors: np.linalg.norm(p - X0, axis=1), tol)
+    return MonteCarloResult(plant_.name, t, x, seeds, status, stats, failures, N,
+                            {"time": "discrete", "sample_time": plant_.sample_time, "save_every": 1}, spec, inputs)
 
 
 def _on_dask(scheduler: Any, spec: _Spec, bounds: Sequence[tuple[int, int]], report: Any) -> list[Any]:

@@ -465,15 +465,39 @@ def _estimate_map(obs: Mapping[str, Any], recording: Recording, t: np.ndarray, u
     if smooth or not all(o.system.is_discrete for o in obs.values()):
         raise ModelError("estimate: a discrete-time model's observers run alone (no smoothing yet, no continuous-time "
                          "observers beside them)")
-    traces = {}
+    traces, failures, errors = {}, {}, []
     for name, o in obs.items():
         check_map_grid(o.system, t, f"recording ({recording.source})")
         z0 = o.initial_state(_xhat0_for(xhat0, name, o.system.n_states))
-        Z, X = run_map_observer(o.design, t, u, y0, mask, z0, name=name)
-        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, Z, X, o.estimate(t[0], z0, u[0], y0[0]),
-                                     covariance=o.design.covariance)
+        try:
+            Z, X = run_map_observer(o.design, t, u, y0, mask, z0, name=name)
+        except (FiniteEscapeError, SolverError) as e:   # the others still run; when all fail, the first error
+            failures[name] = failure_of(name, o.design.method, e)
+            errors.append(e)
+            continue
+        prior = o.estimate(t[0], z0, u[0], y0[0])
+        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, Z, X, prior, covariance=o.design.covariance,
+                                     innovation=_map_innovations(o.system, t, u, recording.y, mask, X, prior))
+    if errors and not traces:
+        raise errors[0]
     system = next(iter(obs.values())).system
     return Run(system.name, t, system.states, recording.input_names, recording.output_names, u,
                np.where(mask > 0, recording.y, np.nan), traces, x=recording.x,
                info={"source": recording.source, "time": "discrete", "sample_time": system.sample_time},
-               estimated_params=system.estimated_params)
+               estimated_params=system.estimated_params, failures=failures)
+
+
+def _map_innovations(system: System, t: np.ndarray, u: np.ndarray, y: np.ndarray, mask: np.ndarray, X: np.ndarray,
+                     prior: np.ndarray) -> np.ndarray:
+    """y[k] − h(x̂[k|k−1]) of a map's filter: the prediction f(x̂[k−1|k−1], u[k−1]) from its previous estimate (the
+    prior x̂0 at k = 0); NaN where an output was not measured."""
+    from ..engine import compile_system
+
+    f, h = compile_system(system).bind()
+    N = t.size
+    pred = np.empty_like(X)
+    pred[0] = prior
+    if N > 1:
+        pred[1:] = np.asarray(f.map(N - 1)(t[None, :-1], X[:-1].T, u[:-1].T), dtype=float).T
+    yp = np.asarray(h.map(N)(t[None, :], pred.T, u.T), dtype=float).T.reshape(N, -1)
+    return np.where(mask > 0, y - yp, np.nan)
