@@ -7,6 +7,9 @@ import sympy as sp
 
 from nlobs.model import parse_expression, symbol
 from nlobs.model._expr import ExpressionError
+from nlobs import System
+from nlobs.errors import FormError
+from nlobs.model import LTI
 
 X, Y = symbol("x"), symbol("y")
 SYMS = {"x": X, "y": Y}
@@ -83,3 +86,18 @@ def test_refused_with_reason(text, reason):
 def test_non_string_refused():
     with pytest.raises(ExpressionError, match="must be a string"):
         parse_expression(3, SYMS)  # type: ignore[arg-type]
+
+
+def test_messages_show_numbers_as_the_file_wrote_them():
+    from nlobs.model._expr import as_written
+    from nlobs.model._system import symbol
+
+    t, x = symbol("t"), symbol("x")
+    assert as_written(parse_expression("1.2*9.81 + 0.5*sin(t)", {"t": t})) == "0.5*sin(t) + 11.772"
+    assert as_written(parse_expression("9.81*x", {"x": x})) == "9.81*x"
+    assert as_written(parse_expression("x/3", {"x": x})) == "x/3"          # not a decimal in any file: kept exact
+    assert as_written("0.5*sin(t)") == "0.5*sin(t)" and as_written(2) == "2"
+    quad = System(states=["vx", "th"], inputs=["T"], f=["-T*sin(th)/m", "0"], outputs=["y"], h=["th"],
+                  params={"m": 1.2})
+    with pytest.raises(FormError, match=r"f\[vx\] = -T\*sin\(th\)/m is not linear .*a derivative is -T\*cos\(th\)/m"):
+        LTI.from_system(quad)

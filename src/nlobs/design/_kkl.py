@@ -32,6 +32,7 @@ from ..algebra._modular import monomial_exponents
 from ..engine import compile_system, rk4_step
 from ..errors import PreconditionError, ShapeError
 from ..model import System
+from ..model._expr import as_written
 from ..references import cite, work
 from ._base import Certificate, Check, ObserverDesign
 from ._kind import Tuning, kind
@@ -109,7 +110,8 @@ def tune_kkl_learned(ctx: Any) -> Tuning:
             if expr is not None and not expr.free_symbols:
                 val = float(expr)
             else:
-                return Tuning.fails(f"learns φᴸ for constant inputs only; the run drives {k} = {v} (time-varying). Use kkl with a φ "
+                return Tuning.fails(f"learns φᴸ for constant inputs only; the run drives {k} = {as_written(v)} (time-varying). Use kkl "
+                              "with a φ "
                               "that holds for every input, or a constant input")
         consts[k] = val
     box = [list(ctx.region[s]) for s in ctx.system.states]

@@ -17,11 +17,14 @@ regime at a time (see :func:`nlobs.analyze`).
 
 from __future__ import annotations
 
+from typing import Any
+
 import ast
 import math
 from collections.abc import Callable, Mapping
 
 import sympy as sp
+from sympy.printing.str import StrPrinter
 
 from .._text import shorten_list
 
@@ -133,6 +136,25 @@ def parse_expression(text: str, symbols: Mapping[str, sp.Expr]) -> sp.Expr:
     if len(chunks) > 1:   # a long sum: each chunk on its own (its leading sign is a unary one), then one Add
         return walker.checked(sp.Add(*(walker.expr(_parse(c), 0) for c in chunks)))
     return walker.expr(_parse(text), 0)
+
+
+def _terminating(r: sp.Rational) -> bool:
+    """Whether the rational has a finite decimal expansion (a denominator of 2s and 5s only)."""
+    q = int(r.q)
+    for d in (2, 5):
+        while q % d == 0:
+            q //= d
+    return q == 1 and r.q != 1
+
+
+def as_written(expr: Any) -> str:
+    """`expr` as text for a message, with decimals where the file had them: a model file's decimals become exact
+    rationals when parsed (0.1 -> 1/10), and 2943/250 is shown as 11.772, not as a fraction the user never wrote."""
+    if not isinstance(expr, sp.Basic):
+        return expr if isinstance(expr, str) else repr(expr)   # already text, or a plain number
+    e = expr
+    reps = {r: sp.Float(repr(float(r))) for r in e.atoms(sp.Rational) if _terminating(r)}
+    return StrPrinter({"full_prec": False}).doprint(e.xreplace(reps))
 
 
 def set_max_expression(n: int) -> int:

@@ -15,6 +15,7 @@ import numpy as np
 import sympy as sp
 
 from ..errors import FormError, ModelError, ShapeError
+from ._expr import as_written
 from ._system import TIME, System, exact, symbol, to_expr
 
 __all__ = ["LTI", "StateAffine", "OutputInjectionForm", "matrix_of"]
@@ -118,19 +119,22 @@ class LTI:
         f, h = system.substituted()
         x, u = sp.Matrix(system.x), sp.Matrix(system.u)
         mats = {}
-        for label, eqs, names in (("f", f, system.states), ("h", h, system.outputs)):
+        for label, eqs, names, written in (("f", f, system.states, system.f), ("h", h, system.outputs, system.h)):
             Jx = eqs.jacobian(x)
             Ju = eqs.jacobian(u) if system.n_inputs else sp.zeros(len(eqs), 0)
             for i, name in enumerate(names):
                 row = list(Jx.row(i)) + (list(Ju.row(i)) if system.n_inputs else [])
-                bad = [e for e in row if e.free_symbols]
+                bad = [k for k, e in enumerate(row) if e.free_symbols]
+                # the message shows the equation as written (parameters by name, decimals as decimals)
+                wx = sp.Matrix([written[i]]).jacobian(list(x) + list(u))
                 if bad:
-                    raise FormError(f"{system.name!r} is not LTI: {label}[{name}] = {eqs[i]} is not linear in (x, u) "
-                                    f"with constant coefficients (a derivative is {bad[0]})")
+                    raise FormError(f"{system.name!r} is not LTI: {label}[{name}] = {as_written(written[i])} is not linear "
+                                    f"in (x, u) with constant coefficients (a derivative is {as_written(wx[bad[0]])})")
                 rest = sp.expand(eqs[i] - (Jx.row(i) * x)[0] - ((Ju.row(i) * u)[0] if system.n_inputs else 0))
                 if rest != 0:
-                    raise FormError(f"{system.name!r} is not LTI: {label}[{name}] = {eqs[i]} has the term {rest}, "
-                                    "which is not proportional to a state or an input")
+                    rest_w = sp.expand(written[i] - (wx * sp.Matrix(list(x) + list(u)))[0])
+                    raise FormError(f"{system.name!r} is not LTI: {label}[{name}] = {as_written(written[i])} has the term "
+                                    f"{as_written(rest_w)}, which is not proportional to a state or an input")
             mats[label] = (np.array(Jx, dtype=float), np.array(Ju, dtype=float).reshape(len(eqs), system.n_inputs))
         return cls(mats["f"][0], mats["f"][1], mats["h"][0], mats["h"][1], states=system.states,
                    inputs=system.inputs, outputs=system.outputs, name=system.name)
