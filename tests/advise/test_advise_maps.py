@@ -36,10 +36,11 @@ def test_a_map_is_advised_with_the_kinds_that_run_on_maps(tmp_path):
     path.write_text(RICKER)
     adv = nlobs.advise(nlobs.load_model(path), run=True)
     applies = {c.kind for c in adv.candidates if c.applies}
-    assert applies == {"ekf", "ukf"}
+    assert applies == {"ekf", "ukf", "mhe"}
     assert adv.candidate("high_gain").why == "continuous-time only (the model is discrete-time)"
     est = {s.kind: s for s in adv.scores}
     assert est["ekf"].status == "ok" and est["ekf"].convergence_time is not None
+    assert est["mhe"].status == "ok"                   # the moving horizon on the map runs in the advisor too
     r_hat = adv.run.observers["ekf"].xhat[-1, 1]
     assert abs(r_hat - 1.4) < 0.05                      # the growth rate recovered (true 1.4, guess 1.2)
     assert adv.forms == ()                              # the ODE forms are not shown for a map

@@ -217,3 +217,24 @@ def test_montecarlo_on_a_map_is_simulate_per_seed():
     np.testing.assert_array_equal(mc.trajectory(1).x, nlobs.simulate(PEND, {"ekf": d}, x0=[0.5, 0.2],
                                                                       seed=int(mc.seeds[1]), **kw).x)
     assert "ekf" in str(mc.summary())
+
+
+def test_mhe_on_a_linear_map_is_the_kalman_filter():
+    # unconstrained MHE on a linear map with the Kalman filter's arrival cost is the Kalman filter (Rao, Rawlings &
+    # Mayne (2003)): the window adds nothing a KF does not already hold, whatever the horizon
+    lin = nlobs.System(states=["x1", "x2"], inputs=["u"], outputs=["y"], f=["x1 + 0.1*x2", "-0.1*x1 + 0.98*x2 + 0.1*u"],
+                       h=["x1"], time="discrete", sample_time=0.1, name="dlin")
+    Qd, Rd, P0d = np.diag([1e-3, 1e-2]), np.array([[0.04]]), np.eye(2)
+    run = nlobs.simulate(lin, None, t_final=6.0, x0=[1.0, 0.0], inputs={"u": "sin(t)"}, noise=nlobs.Noise.gaussian(0.2),
+                         process_noise=nlobs.ProcessNoise([0.03, 0.1]), seed=2)
+    kf = nlobs.design_ekf(lin, Q=Qd, R=Rd, P0=P0d, xhat0=[0.0, 0.0])
+    mhe = nlobs.design_mhe(lin, horizon=5, Q=Qd, R=Rd, P0=P0d, xhat0=[0.0, 0.0])
+    r = nlobs.estimate({"kf": kf, "mhe": mhe}, nlobs.Recording.from_run(run))
+    np.testing.assert_allclose(r.observers["mhe"].xhat, r.observers["kf"].xhat, rtol=0, atol=1e-9)
+
+
+def test_mhe_on_a_nonlinear_map_converges():
+    t, u, x, y = _data(N=120)
+    mhe = nlobs.design_mhe(PEND, horizon=8, Q=Q, R=R, P0=P0, xhat0=X0)
+    run = nlobs.estimate(mhe, _recording(t, u, y))
+    assert np.sqrt(np.mean((run.observers["mhe"].xhat[60:] - x[60:]) ** 2)) < 0.05

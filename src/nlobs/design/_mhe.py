@@ -165,7 +165,7 @@ def tune_mhe(ctx: Any) -> Tuning:
 
 
 @kind('mhe', summary='moving-horizon estimator over the last samples (multiple shooting, compiled NLP)',
-      references=(work("002", "trajectory-based observers (moving horizon)"),), tune=tune_mhe)
+      references=(work("002", "trajectory-based observers (moving horizon)"),), tune=tune_mhe, time_base="both")
 def design_mhe(system: System, *, horizon: int = 20, R: Any = None, Q: Any = None, P0: Any = None,
                bounds: Mapping[str, Any] | None = None, arrival: Literal["ekf", "fixed"] = "ekf",
                solver: Literal["sqp", "ipopt"] = "sqp", substeps: int = 2, max_iter: int = 50, tol: float = 1e-8,
@@ -195,7 +195,8 @@ def design_mhe(system: System, *, horizon: int = 20, R: Any = None, Q: Any = Non
     Q : array_like of shape (n, n), optional
         Process-noise intensity (continuous time, as for :func:`design_ekf`), positive
         semidefinite; the noise of an interval Δ has covariance QΔ. Default 0: the window's
-        trajectory is an exact model trajectory.
+        trajectory is an exact model trajectory. For a discrete-time model (a map), the covariance of
+        the noise per step: the window's constraint is then :math:`x_{i+1} = f(x_i, u_i, t_i) + L v_i`.
     P0 : array_like of shape (n, n), optional
         Covariance of the initial estimate (the first arrival cost), positive definite (identity).
     bounds : mapping of state name to (lo, hi), optional
@@ -266,6 +267,9 @@ def design_mhe(system: System, *, horizon: int = 20, R: Any = None, Q: Any = Non
     consts = np.concatenate([Lq.reshape(-1, order="F"), Rm.reshape(-1, order="F"), Ri.reshape(-1, order="F"),
                              P0m.reshape(-1, order="F"), lo, hi, system.param_values, [1.0 if arrival == "ekf" else 0.0]])
     lay = _Layout(n, nu, p, N, r)
+    if system.is_discrete:   # a map: one step per interval, and the per-step noise enters as sqrt(Ts)·(L/sqrt(Ts))·v
+        substeps = 1
+        consts[:n * r] = (Lq / np.sqrt(system.sample_time)).reshape(-1, order="F")
     solvers = _solvers(system, N, r, int(substeps), int(max_iter), float(tol), lay)
     name = f"mhe_update_{next(_NAMES)}"
     kink_fns = sorted({nm for e in (*system.f, *system.h) for fn, nm in ((sp.sign, "sign"), (sp.Abs, "abs")) if e.has(fn)})
@@ -275,7 +279,8 @@ def design_mhe(system: System, *, horizon: int = 20, R: Any = None, Q: Any = Non
     f, _ = compile_system(system).bind()
     t, z, u, y = ca.SX.sym("t"), ca.SX.sym("z", lay.size), ca.SX.sym("u", nu), ca.SX.sym("y", p)
     xh = z[:n]
-    flow = ca.vertcat(f(t, clip_const(xh, box), u), ca.SX.zeros(lay.size - n))
+    flow = (ca.SX.zeros(lay.size) if system.is_discrete   # a map's estimate changes at the samples only
+            else ca.vertcat(f(t, clip_const(xh, box), u), ca.SX.zeros(lay.size - n)))
     x0 = ca.SX.sym("xhat0", n)
     z0 = ca.vertcat(x0, ca.SX.zeros(lay.dims["T"] + lay.dims["U"] + lay.dims["Y"] + lay.dims["M"]), ca.repmat(x0, N + 1, 1),
                     ca.SX.zeros(lay.dims["V"] + lay.dims["LG"]), x0, ca.DM(P0m.reshape(-1, order="F")), 0, 0)
@@ -355,8 +360,12 @@ def _build(system: System, N: int, r: int, substeps: int, max_iter: int, tol: fl
     # derivatives do not grow with substeps), the output residual, the arrival EKF step
     xs, us, ts, hs = ca.SX.sym("x", n), ca.SX.sym("u", nu), ca.SX.sym("t"), ca.SX.sym("h")
     ps, los, his = ca.SX.sym("p", npar), ca.SX.sym("lo", n), ca.SX.sym("hi", n)
-    one = ca.Function(f"{tag}_rk4", [xs, ts, hs, us, ps, los, his],
-                      [rk4_step(lambda tt, xx, _k: comp.f(tt, clip(xx, los, his), us, ps), ts, xs, hs)])
+    if system.is_discrete:   # the interval is one step of the map x[k+1] = f(x[k], u[k], t[k]); none in an empty slot
+        one = ca.Function(f"{tag}_map", [xs, ts, hs, us, ps, los, his],   # of a filling window (h = 0)
+                          [ca.if_else(hs > 0, comp.f(ts, clip(xs, los, his), us, ps), xs)])
+    else:
+        one = ca.Function(f"{tag}_rk4", [xs, ts, hs, us, ps, los, his],
+                          [rk4_step(lambda tt, xx, _k: comp.f(tt, clip(xx, los, his), us, ps), ts, xs, hs)])
     xm, um, tm, dtm = ca.MX.sym("x", n), ca.MX.sym("u", nu), ca.MX.sym("t"), ca.MX.sym("dt")
     pm, lom, him = ca.MX.sym("p", npar), ca.MX.sym("lo", n), ca.MX.sym("hi", n)
     xe = xm
