@@ -238,3 +238,92 @@ def test_mhe_on_a_nonlinear_map_converges():
     mhe = nlobs.design_mhe(PEND, horizon=8, Q=Q, R=R, P0=P0, xhat0=X0)
     run = nlobs.estimate(mhe, _recording(t, u, y))
     assert np.sqrt(np.mean((run.observers["mhe"].xhat[60:] - x[60:]) ** 2)) < 0.05
+
+
+def numpy_eks(u, y):
+    """The extended RTS smoother (Simon (2006) §9.4.2) after numpy_ekf: x_s[k] = x[k] + G (x_s[k+1] − f(x[k]))."""
+    x, P, xf, Pf = X0.copy(), P0.copy(), [], []
+    for k in range(len(y)):
+        if k:
+            Fk = F(x, u[k - 1])
+            x, P = f(x, u[k - 1]), Fk @ P @ Fk.T + Q
+        Hk = H(x)
+        K = P @ Hk.T @ np.linalg.inv(Hk @ P @ Hk.T + R)
+        x = x + K @ (y[k] - h(x))
+        IKH = np.eye(2) - K @ Hk
+        P = IKH @ P @ IKH.T + K @ R @ K.T
+        xf.append(x)
+        Pf.append(P)
+    xs = [xf[-1]]
+    for k in range(len(y) - 2, -1, -1):
+        Fk = F(xf[k], u[k])
+        Pp = Fk @ Pf[k] @ Fk.T + Q
+        G = Pf[k] @ Fk.T @ np.linalg.inv(Pp)
+        xs.insert(0, xf[k] + G @ (xs[0] - f(xf[k], u[k])))
+    return np.array(xs)
+
+
+def test_the_map_smoother_is_the_extended_rts_smoother():
+    t, u, x, y = _data()
+    d = nlobs.design_ekf(PEND, Q=Q, R=R, P0=P0, xhat0=X0)
+    run = nlobs.estimate(d, _recording(t, u, y), smooth=True)
+    tr = run.observers["ekf"]
+    np.testing.assert_allclose(tr.xhat, numpy_eks(u, y), rtol=0, atol=1e-10)
+    np.testing.assert_allclose(tr.filtered, numpy_ekf(u, y), rtol=0, atol=1e-10)
+    err = lambda e: np.sqrt(np.mean((e[20:-20] - x[20:-20]) ** 2))  # noqa: E731
+    assert err(tr.xhat) < err(tr.filtered)                            # the samples after help
+    ukf = nlobs.estimate(nlobs.design_ukf(PEND, Q=Q, R=R, P0=P0, xhat0=X0), _recording(t, u, y), smooth=True)
+    assert err(ukf.observers["ukf"].xhat) < err(ukf.observers["ukf"].filtered)
+    lue = nlobs.design_luenberger(nlobs.System(states=["x"], outputs=["y"], f=["0.5*x"], h=["x"], time="discrete",
+                                               sample_time=0.1), poles=[0.2])
+    with pytest.raises(PreconditionError, match="smoothers of a discrete-time model exist for its ekf and ukf"):
+        nlobs.estimate(lue, nlobs.Recording.from_arrays(lue.system, [0.0, 0.1], [[1.0], [0.5]]), smooth=True)
+
+
+def numpy_urts(u, y, alpha=0.5, beta=2.0, kappa=0.0):
+    """numpy_ukf's filter, then the unscented RTS smoother of Särkkä (2008) with the same sigma points."""
+    n = 2
+    lam = alpha ** 2 * (n + kappa) - n
+    Wm = np.full(2 * n + 1, 0.5 / (n + lam))
+    Wc = Wm.copy()
+    Wm[0], Wc[0] = lam / (n + lam), lam / (n + lam) + 1 - alpha ** 2 + beta
+
+    def points(x, P):
+        U = np.linalg.cholesky((n + lam) * P)
+        return np.array([x] + [x + U[:, i] for i in range(n)] + [x - U[:, i] for i in range(n)])
+
+    def predict(x, P, uk):
+        sig = points(x, P)
+        fs = np.array([f(s, uk) for s in sig])
+        xp = Wm @ fs
+        Pp = sum(w * np.outer(v - xp, v - xp) for w, v in zip(Wc, fs)) + Q
+        C = sum(w * np.outer(s - x, v - xp) for w, s, v in zip(Wc, sig, fs))
+        return xp, Pp, C
+
+    x, P, xf, Pf = X0.copy(), P0.copy(), [], []
+    for k in range(len(y)):
+        sig = points(x, P)
+        if k:   # the update reuses the propagated points (as the filter does)
+            sig = np.array([f(s, u[k - 1]) for s in sig])
+            x = Wm @ sig
+            P = sum(w * np.outer(s - x, s - x) for w, s in zip(Wc, sig)) + Q
+        ys = np.array([h(s) for s in sig])
+        yh = Wm @ ys
+        S = sum(w * np.outer(v - yh, v - yh) for w, v in zip(Wc, ys)) + R
+        Pxy = sum(w * np.outer(s - x, v - yh) for w, s, v in zip(Wc, sig, ys))
+        K = Pxy @ np.linalg.inv(S)
+        x, P = x + K @ (y[k] - yh), P - K @ S @ K.T
+        xf.append(x)
+        Pf.append(P)
+    xs = [xf[-1]]
+    for k in range(len(y) - 2, -1, -1):
+        xp, Pp, C = predict(xf[k], Pf[k], u[k])
+        xs.insert(0, xf[k] + C @ np.linalg.inv(Pp) @ (xs[0] - xp))
+    return np.array(xs)
+
+
+def test_the_unscented_map_smoother_is_sarkkas():
+    t, u, x, y = _data()
+    run = nlobs.estimate(nlobs.design_ukf(PEND, Q=Q, R=R, P0=P0, xhat0=X0, alpha=0.5, beta=2.0), _recording(t, u, y),
+                         smooth=True)
+    np.testing.assert_allclose(run.observers["ukf"].xhat, numpy_urts(u, y), rtol=0, atol=1e-9)

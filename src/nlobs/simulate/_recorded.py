@@ -12,7 +12,7 @@ import numpy as np
 
 from ..design import check_positive
 from ..engine import Backend
-from ..errors import DataError, FiniteEscapeError, ModelError, ShapeError, SolverError
+from ..errors import DataError, FiniteEscapeError, ModelError, PreconditionError, ShapeError, SolverError
 from ..model import ModelFile, System
 from ..observer import AbstractObserver, ParticleObserver, compiled_observer
 from ._isolate import failure_of
@@ -327,7 +327,7 @@ def estimate(
         if tuple(s.outputs) != recording.output_names or tuple(s.inputs) != recording.input_names:
             raise ModelError(f"estimate: observer {name!r} expects outputs {list(s.outputs)} and inputs {list(s.inputs)}; "
                              f"the recording has {list(recording.output_names)} and {list(recording.input_names)}")
-    if smooth:
+    if smooth and not any(o.system.is_discrete for o in obs.values()):   # maps: checked by _estimate_map
         from ._smooth import check_smoothable
         for name, o in obs.items():
             check_smoothable(o.design, name)
@@ -462,9 +462,14 @@ def _estimate_map(obs: Mapping[str, Any], recording: Recording, t: np.ndarray, u
     """Observers of a discrete-time model on a recording on its grid (one row per step; NaN: not measured)."""
     from ._discrete import check_map_grid, run_map_observer
 
-    if smooth or not all(o.system.is_discrete for o in obs.values()):
-        raise ModelError("estimate: a discrete-time model's observers run alone (no smoothing yet, no continuous-time "
-                         "observers beside them)")
+    if not all(o.system.is_discrete for o in obs.values()):
+        raise ModelError("estimate: a discrete-time model's observers run alone (no continuous-time observers beside "
+                         "them)")
+    if smooth:
+        bad = [k for k, o in obs.items() if o.design.method not in ("ekf", "ukf") or o.design.covariance is None]
+        if bad:
+            raise PreconditionError(f"smoothing: observer {bad[0]!r} is of kind {obs[bad[0]].design.method!r}; smoothers of "
+                                    "a discrete-time model exist for its ekf and ukf")
     traces, failures, errors = {}, {}, []
     for name, o in obs.items():
         check_map_grid(o.system, t, f"recording ({recording.source})")
@@ -476,8 +481,20 @@ def _estimate_map(obs: Mapping[str, Any], recording: Recording, t: np.ndarray, u
             errors.append(e)
             continue
         prior = o.estimate(t[0], z0, u[0], y0[0])
-        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, Z, X, prior, covariance=o.design.covariance,
-                                     innovation=_map_innovations(o.system, t, u, recording.y, mask, X, prior))
+        smoothed: dict[str, Any] = {}
+        if smooth:   # Rauch-Tung-Striebel on the map (unscented for the UKF), from the filter's means and covariances
+            from ..engine import evaluate_many
+            from ._smooth_map import rts_smooth_map
+
+            n = o.system.n_states
+            P = evaluate_many(o.design.covariance, Z).reshape(-1, n, n, order="F")
+            xs, Ps = rts_smooth_map(o.design, t, u, X, P)
+            smoothed = {"filtered": X, "smoothed_covariance": Ps}
+            X_out = xs
+        else:
+            X_out = X
+        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, Z, X_out, prior, covariance=o.design.covariance,
+                                     innovation=_map_innovations(o.system, t, u, recording.y, mask, X, prior), **smoothed)
     if errors and not traces:
         raise errors[0]
     system = next(iter(obs.values())).system
