@@ -327,3 +327,64 @@ def test_the_unscented_map_smoother_is_sarkkas():
     run = nlobs.estimate(nlobs.design_ukf(PEND, Q=Q, R=R, P0=P0, xhat0=X0, alpha=0.5, beta=2.0), _recording(t, u, y),
                          smooth=True)
     np.testing.assert_allclose(run.observers["ukf"].xhat, numpy_urts(u, y), rtol=0, atol=1e-9)
+
+
+def numpy_ekf_loglik(u, y):
+    """Σ −½(log det(2π S_k) + ν_kᵀ S_k⁻¹ ν_k) of numpy_ekf (Schweppe's prediction-error decomposition)."""
+    x, P, ll = X0.copy(), P0.copy(), 0.0
+    for k in range(len(y)):
+        if k:
+            Fk = F(x, u[k - 1])
+            x, P = f(x, u[k - 1]), Fk @ P @ Fk.T + Q
+        Hk = H(x)
+        S = Hk @ P @ Hk.T + R
+        nu = y[k] - h(x)
+        ll += -0.5 * (np.log(np.linalg.det(2 * np.pi * S)) + nu @ np.linalg.solve(S, nu))
+        K = P @ Hk.T @ np.linalg.inv(S)
+        x = x + K @ nu
+        IKH = np.eye(2) - K @ Hk
+        P = IKH @ P @ IKH.T + K @ R @ K.T
+    return ll
+
+
+def test_the_likelihood_of_a_map_and_learning_its_parameter():
+    t, u, x, y = _data()
+    ll, grad = nlobs.log_likelihood(nlobs.design_ekf(PEND, Q=Q, R=R, P0=P0, xhat0=X0), _recording(t, u, y))
+    assert ll == pytest.approx(numpy_ekf_loglik(u, y), rel=1e-11)
+    # the damping of the pendulum map, learnt from 400 steps of its data (true 0.3)
+    damped = nlobs.System(states=["x1", "x2"], f=[f"x1 + {T}*x2", f"x2 + {T}*(-sin(x1) - c*x2 + u)"], inputs=["u"],
+                          outputs=["y1", "y2"], h=["x1", "x1*x2"], params={"c": 0.6}, time="discrete", sample_time=T)
+    t, u, x, y = _data(N=400, seed=5)
+    fit = nlobs.fit_likelihood(nlobs.design_ekf(damped, Q=Q, R=R, P0=P0, xhat0=X0),
+                               nlobs.Recording.from_arrays(damped, t, y=y, u=u[:, None]), ["c"])
+    c = fit.parameters["c"]
+    assert abs(c["estimate"] - 0.3) < 3 * c["std"] and c["std"] < 0.1
+    t, u, x, y = _data()
+    uk = nlobs.log_likelihood(nlobs.design_ukf(PEND, Q=Q, R=R, P0=P0, xhat0=X0, alpha=0.5, beta=2.0), _recording(t, u, y))
+    assert uk[0] == pytest.approx(numpy_ukf_loglik(u, y), rel=1e-11)
+
+
+def numpy_ukf_loglik(u, y, alpha=0.5, beta=2.0, kappa=0.0):
+    """The same sum for numpy_ukf (its update reuses the propagated sigma points)."""
+    n = 2
+    lam = alpha ** 2 * (n + kappa) - n
+    Wm = np.full(2 * n + 1, 0.5 / (n + lam))
+    Wc = Wm.copy()
+    Wm[0], Wc[0] = lam / (n + lam), lam / (n + lam) + 1 - alpha ** 2 + beta
+    x, P, ll = X0.copy(), P0.copy(), 0.0
+    for k in range(len(y)):
+        U = np.linalg.cholesky((n + lam) * P)
+        sig = np.array([x] + [x + U[:, i] for i in range(n)] + [x - U[:, i] for i in range(n)])
+        if k:
+            sig = np.array([f(s, u[k - 1]) for s in sig])
+            x = Wm @ sig
+            P = sum(w * np.outer(s - x, s - x) for w, s in zip(Wc, sig)) + Q
+        ys = np.array([h(s) for s in sig])
+        yh = Wm @ ys
+        S = sum(w * np.outer(v - yh, v - yh) for w, v in zip(Wc, ys)) + R
+        nu = y[k] - yh
+        ll += -0.5 * (np.log(np.linalg.det(2 * np.pi * S)) + nu @ np.linalg.solve(S, nu))
+        Pxy = sum(w * np.outer(s - x, v - yh) for w, s, v in zip(Wc, sig, ys))
+        K = Pxy @ np.linalg.inv(S)
+        x, P = x + K @ nu, P - K @ S @ K.T
+    return ll

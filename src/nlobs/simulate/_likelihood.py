@@ -10,6 +10,9 @@ The filter's innovations ν_k = y_k − ŷ_k⁻ with covariances S_k give the pr
 likelihood for a nonlinear one. θ holds model parameters and, optionally, log-scalings of Q and R
 (Q = e^{ρ_Q} Q₀, R = e^{ρ_R} R₀). Outputs missing at a sample are left out of its term.
 
+For a discrete-time model (a map) the prediction is one step of the map, as in the map's EKF and UKF
+(the UKF's update reusing its propagated sigma points).
+
 The filter recursion is a CasADi function of (state, sample, θ): between samples RK4 of the same mean
 and covariance flows as :func:`nlobs.design_ekf` / :func:`nlobs.design_ukf` (a fixed number of
 sub-steps per interval, from the filter's own rule at the initial guess, so the likelihood is a smooth
@@ -117,11 +120,27 @@ class _Recursion:
             cross = sum((float(wc[i]) * (X[i] - x) @ (Fs[i] - fbar).T for i in range(2 * n + 1)), ca.SX.zeros(n, n))
             return ca.vertcat(fbar, ca.vec(sym(cross + cross.T + Q)))
 
-        z = s
-        hh = dt / n_sub
-        for i in range(n_sub):
-            z, _ = rk4_step_rate(flow, t + i * hh, z, hh)
-        x, P = z[:n], sym(ca.reshape(z[n:], n, n))
+        pts = None   # a map's UKF updates with its propagated sigma points (as design_ukf's discrete form)
+        if system.is_discrete:   # one step of the map from t_k with u_k (none before the first sample: dt = 0)
+            x0_, P0_ = s[:n], sym(ca.reshape(s[n:], n, n))
+            if not ukf:
+                fx, F = fF(t, x0_, u0, p)
+                x = ca.if_else(dt > 0, fx, x0_)
+                P = ca.if_else(dt > 0, sym(F @ P0_ @ F.T + Q), P0_)
+            else:
+                X0 = sigma(x0_, P0_)
+                Fs = [f(t, xi, u0, p) for xi in X0]
+                fbar = sum((float(wm[i]) * Fs[i] for i in range(2 * n + 1)), ca.SX.zeros(n))
+                Pf = sum((float(wc[i]) * (Fs[i] - fbar) @ (Fs[i] - fbar).T for i in range(2 * n + 1)), ca.SX.zeros(n, n))
+                x = ca.if_else(dt > 0, fbar, x0_)
+                P = ca.if_else(dt > 0, sym(Pf + Q), P0_)
+                pts = [ca.if_else(dt > 0, a_, b_) for a_, b_ in zip(Fs, X0)]
+        else:
+            z = s
+            hh = dt / n_sub
+            for i in range(n_sub):
+                z, _ = rk4_step_rate(flow, t + i * hh, z, hh)
+            x, P = z[:n], sym(ca.reshape(z[n:], n, n))
         tk = t + dt
         Md = ca.diag(m1)
         if not ukf:  # Joseph form, as design_ekf
@@ -133,7 +152,7 @@ class _Recursion:
             IKH = ca.DM.eye(n) - K @ Hm
             P_plus = sym(IKH @ P @ IKH.T + K @ Rm @ K.T)
         else:  # as design_ukf
-            X = sigma(x, P)
+            X = sigma(x, P) if pts is None else pts
             Y = [h(tk, xi, u1, p) for xi in X]
             yhat = sum((float(wm[i]) * Y[i] for i in range(2 * n + 1)), ca.SX.zeros(ny))
             Sf = sum((float(wc[i]) * (Y[i] - yhat) @ (Y[i] - yhat).T for i in range(2 * n + 1)), ca.SX.zeros(ny, ny)) + R
@@ -238,8 +257,15 @@ class _Problem:
         # sub-steps: the filter's own rule, run at the initial guess (the most it takes in one interval)
         from ..observer._compiled import compiled_observer
 
-        traj = compiled_observer(d).run(t, u=u, y=y, mask=mask, max_step=max_step, engine=engine, name=caller)
-        self.n_sub = max(1, int(traj.substeps.max()))
+        if system.is_discrete:   # a map: one step per sample, on the model's grid
+            from ._discrete import check_map_grid
+
+            check_map_grid(system, t, f"{caller}: recording ({recording.source})")
+            traj = None
+            self.n_sub = 1
+        else:
+            traj = compiled_observer(d).run(t, u=u, y=y, mask=mask, max_step=max_step, engine=engine, name=caller)
+            self.n_sub = max(1, int(traj.substeps.max()))
         if self.n_sub > MAX_SUBSTEPS:
             k = int(np.argmax(traj.substeps))
             raise DataError(f"{caller}: the filter takes {self.n_sub} RK4 sub-steps in the interval from t = {t[k]:g} to "
