@@ -136,3 +136,22 @@ def test_a_2d_table():
     assert tb(np.array(0.5), np.array(5.0)) == pytest.approx((3.0 + 3.1 + 4.0 + 4.3) / 4)
     with pytest.raises(ModelFileError, match="takes 2 positional argument"):
         nlobs.loads_model(text.replace("ocv(SOC, i)", "ocv(SOC)"))
+
+
+def test_the_model_report_plots_each_table_against_its_argument(tmp_path):
+    import base64
+    import io
+    import re
+
+    from PIL import Image
+
+    from nlobs.advise import advise
+    from nlobs.report import write_model_report
+
+    mf = nlobs.loads_model(CELL.replace("[simulation]", '[units]\nSOC = "1"\nv = "V"\n[simulation]'))
+    path = write_model_report(advise(mf, kinds=["ekf"], run=False), tmp_path / "r")
+    page = path.read_text(encoding="utf-8")
+    assert "<h3 id='tables'>Lookup tables</h3>" in page
+    assert "ocv: 1-D, 13 values on [0, 1], cubic" in page and "hold outside the breakpoints" in page
+    png = re.search(r'alt="lookup table ocv"[^>]*src="data:image/png;base64,([^"]+)"', page).group(1)
+    assert Image.open(io.BytesIO(base64.b64decode(png))).size[0] > 300

@@ -42,6 +42,55 @@ def parameter_estimates(adv: Advice) -> list[dict[str, Any]]:
     return rows
 
 
+def _tables_of(system: Any) -> list[Any]:
+    """The lookup tables the model's equations call (each once, in the order met)."""
+    from ..model._tables import table_calls
+
+    seen: dict[str, Any] = {}
+    for c in table_calls([*system.f, *system.h]):
+        seen.setdefault(c.table.name, (c.table, tuple(str(a) for a in c.args)))
+    return list(seen.values())
+
+
+def _table_section(tb: Any, args: Sequence[str], adv: Advice) -> str:
+    """A table's breakpoints and its interpolation (1-D: the curve; 2-D: filled contours), and how it is used."""
+    fig = Figure(figsize=(6.4, 3.2), layout="constrained")
+    ax = fig.subplots()
+    units = dict(adv.text.units) if adv.text is not None else {}
+
+    def label(i: int) -> str:
+        name = args[i] if i < len(args) else ("first", "second")[i] + " argument"
+        return f"{name} [{units[name]}]" if name in units else name
+
+    if tb.dims == 1:
+        x = np.asarray(tb.x, dtype=float)
+        lo, hi = x[0], x[-1]
+        pad = 0.05 * (hi - lo)
+        xs = np.linspace(lo - pad, hi + pad, 600)
+        ax.plot(xs, tb(xs), color="C0", lw=1.3, label=f"{tb.method} interpolation ({tb.outside} outside)")
+        ax.plot(x, tb.values, "o", ms=2.5, color="k", label=f"{x.size} breakpoints")
+        ax.axvspan(lo - pad, lo, color="0.9", lw=0)
+        ax.axvspan(hi, hi + pad, color="0.9", lw=0)
+        ax.set_xlabel(label(0))
+        ax.legend(fontsize="small")
+    else:
+        x, z = np.asarray(tb.x, dtype=float), np.asarray(tb.z, dtype=float)
+        X, Z = np.meshgrid(np.linspace(x[0], x[-1], 120), np.linspace(z[0], z[-1], 120), indexing="ij")
+        V = tb(X.ravel(), Z.ravel()).reshape(X.shape)
+        cs = ax.contourf(X, Z, V, levels=20, cmap="viridis")
+        fig.colorbar(cs, ax=ax)
+        ax.plot(*np.meshgrid(x, z, indexing="ij"), "k.", ms=1.5)
+        ax.set_xlabel(label(0))
+        ax.set_ylabel(label(1))
+    ax.set_title(f"{tb.name}", fontsize="medium")
+    ax.grid(alpha=0.3)
+    where = ", ".join(f"[{a:g}, {b:g}]" for a, b in tb.ranges)
+    note = (f"<p class='note'>{_esc(tb.name)}: {tb.dims}-D, {tb.values.size} values on {_esc(where)}, {_esc(tb.method)} "
+            f"(CasADi interpolant: exact derivatives in the filters and the C code), {_esc(tb.outside)} outside the "
+            "breakpoints (shaded); the analysis treats it as a generic smooth function.</p>")
+    return img(fig, f"lookup table {tb.name}") + note
+
+
 def _errors_figure(adv: Advice, kinds: Sequence[str]) -> Figure:
     """‖x̂ − x‖ of every candidate on a log scale; on recorded data (no true state), ‖y − h(x̂)‖."""
     from ..advise._rank import residuals
@@ -147,6 +196,9 @@ def model_report(adv: Advice, *, source: str = "") -> str:
                     + table(written, [("row", "equation / definition"), ("as written", "expression")]) + "</details>")
         if adv.text.units:
             body.append("<p class='note'>units: " + ", ".join(f"{_esc(k)} [{_esc(v)}]" for k, v in adv.text.units) + "</p>")
+    tables = _tables_of(adv.system)
+    if tables:
+        body.append("<h3 id='tables'>Lookup tables</h3>" + "".join(_table_section(tb, args, adv) for tb, args in tables))
     if source:
         body.append(f"<p class='ref'>source: {_esc(source)}</p>")
     refs = bibliography(*cited_text)
