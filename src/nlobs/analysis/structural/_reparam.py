@@ -207,12 +207,15 @@ def _by_substitution(target: sp.Expr, gens: Sequence[sp.Expr], new: Sequence[sp.
         if g.is_Symbol:
             continue
         for v in sorted(g.free_symbols - set(plain) - set(sub), key=str):
-            if v not in old or sp.degree(sp.numer(sp.together(g)), v) != 1 or sp.denom(sp.together(g)).has(v):
+            num, den = sp.fraction(sp.together(g))
+            if v not in old or sp.degree(num, v) != 1 or den.has(v):
                 continue
-            sol = sp.solve(sp.Eq(n, g), v, dict=True)
-            if len(sol) == 1:
-                sub[v] = sol[0][v]
-                break
+            # n = (a v + b) / den, linear in v: v = (n den - b) / a (SymPy's solve gave the same, through simplify)
+            a, b = (sp.Poly(num, v).coeff_monomial(m) for m in (v, 1))
+            if a == 0:
+                continue
+            sub[v] = sp.cancel((n * den - b) / a)
+            break
     e = target.xreplace(plain)
     for _ in range(len(sub) + 1):
         e = sp.cancel(sp.together(e.xreplace(sub)))
