@@ -1189,8 +1189,12 @@ def _decide_rewritten(prep: _Rewritten, eng: GroebnerEngine, max_solutions: int)
 _EARLY_POWERS = 4
 
 
-def _decide(prep: _Prepared, eng: GroebnerEngine, max_solutions: int) -> dict[str, Any]:
-    """Step 4: normal forms of the unknowns; minimal polynomials of those not globally identifiable."""
+def _decide(prep: _Prepared, eng: GroebnerEngine, max_solutions: int, also: Sequence[Poly] = ()) -> dict[str, Any]:
+    """Step 4: normal forms of the unknowns; minimal polynomials of those not globally identifiable.
+
+    `also`: more polynomials whose normal forms modulo the same basis the caller needs (returned under
+    ``"also_nfs"``, computed in the same engine run).
+    """
     hs, p, checks = prep.hs, prep.p, prep.checks
     zero = tuple([0] * len(hs.names))
     w = hs.weight
@@ -1199,7 +1203,8 @@ def _decide(prep: _Prepared, eng: GroebnerEngine, max_solutions: int) -> dict[st
     early = min(max_solutions, _EARLY_POWERS)
     G: list[Poly] = [{zero: 1}] + [_var_power(hs.names, var, w.get(var, 1)) for _, var in checks]
     G += [_var_power(hs.names, var, k * w.get(var, 1)) for _, var in checks for k in range(2, early + 1)]
-    nfs = eng.normal_forms(hs.names, p, hs.F, G)
+    nfs = eng.normal_forms(hs.names, p, hs.F, [*G, *also])
+    also_nfs, nfs = nfs[len(G):], nfs[:len(G)]
     first = {var: nfs[1 + len(checks) + i * (early - 1):1 + len(checks) + (i + 1) * (early - 1)]
              for i, (_, var) in enumerate(checks)}
     nfs = nfs[:1 + len(checks)]
@@ -1245,11 +1250,14 @@ def _decide(prep: _Prepared, eng: GroebnerEngine, max_solutions: int) -> dict[st
             fn_out.append((text, "globally", 1))
         else:
             fn_out.append((text, "locally", counts.get(text)))
-    return dict(
+    out = dict(
         globally=tuple(u for u in prep.unknown_names if u in glob),
         locally_only=tuple(LocallyOnly(n, counts[n]) for n, _, _ in unresolved if n in counts and n in unknown_set),
         non_identifiable=tuple(u for u in prep.unknown_names if u not in prep.local_ok),
         functions=tuple(fn_out), notes=tuple(notes))
+    if also:
+        out["also_nfs"] = also_nfs
+    return out
 
 
 def _function_polys(sian: _Sian, funcs: Sequence[tuple[str, sp.Expr]], params_unknown: Sequence[str],

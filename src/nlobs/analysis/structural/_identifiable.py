@@ -174,12 +174,15 @@ class _Search:
         self.mono_index = {e: i for i, e in enumerate(self.monos)}
         self.E = np.array(self.monos, dtype=np.int64).reshape(len(self.monos), len(U))
         self.var = {u: prep.hs.unknown_var[u] for u in U}
-        self._local: list[tuple[RowEchelon, list[int], list[int], int]] = []
+        self._local: list[tuple[RowEchelon, list[int], list[int], int, np.ndarray, np.ndarray]] = []
         self._global: list[list[Poly]] = []
+        #: exact numerator and denominator terms of every candidate returned by :meth:`functions` (as _qq_terms)
+        self.exact: dict[sp.Expr, tuple] = {}
 
     # -- local rows -----------------------------------------------------------------------------
-    def _local_point(self, i: int) -> tuple[RowEchelon, list[int], list[int], int]:
-        """The i-th local point: echelon form of the jet Jacobian there, values and columns of the unknowns."""
+    def _local_point(self, i: int) -> tuple[RowEchelon, list[int], list[int], int, np.ndarray, np.ndarray]:
+        """The i-th local point: echelon form of the jet Jacobian there, values and columns of the unknowns, values
+        and gradients of the candidate monomials."""
         while len(self._local) <= i:
             from ...algebra._modular import sparse_gradient as _gradient
 
@@ -196,38 +199,47 @@ class _Search:
                                   dtype=np.int64).reshape(-1, n))
             uvals = [pt.vals[J.index[self.var[u]]] for u in self.U]
             ucol = [cols[J.index[self.var[u]]] for u in self.U]
-            self._local.append((ech, uvals, ucol, n))
+            self._local.append((ech, uvals, ucol, n, *_mono_values(self.E, uvals, p)))
         return self._local[i]
 
     def local_rows(self, Q: tuple[int, ...], i: int) -> list[np.ndarray]:
         """Constraints on the coefficients of P at local point `i`: the gradient of P/Q reduced modulo the rows of
         the jet Jacobian (zero iff P/Q is locally identifiable to first order there)."""
         p = self.p
-        ech, uvals, ucol, n = self._local_point(i)
-        mv, mg = _mono_values(self.E, uvals, p)
+        ech, uvals, ucol, n, mv, mg = self._local_point(i)
         qv = _mono_value(Q, uvals, p)
         qg = np.array(_mono_grad(Q, uvals, p), dtype=np.int64)
         G = np.zeros((len(self.monos), n), dtype=np.int64)
         G[:, ucol] = (qv * mg % p - (mv[:, None] * qg[None, :]) % p) % p  # quotient rule, numerator
         R = ech.reduce_many(G).T  # rows: coordinates, columns: candidates
-        return [r for r in R if np.any(r)]
+        return list(R[R.any(axis=1)])
 
     # -- global rows ----------------------------------------------------------------------------
+    def mono_polys(self, hs: _System) -> list[Poly]:
+        """The candidate monomials as polynomials of the system `hs` (weighted variables: u = V^w)."""
+        names = hs.names
+        idx = [names.index(self.var[u]) for u in self.U]
+        ws = [hs.weight.get(self.var[u], 1) for u in self.U]
+        G = []
+        for e in self.monos:
+            m = [0] * len(names)
+            for i, k, w in zip(idx, e, ws):
+                if k:
+                    m[i] += k * w
+            G.append({tuple(m): 1})
+        return G
+
+    def known_point(self, nfs: list[Poly]) -> None:
+        """Normal forms of :meth:`mono_polys` modulo the system of `prep` (point 0), computed by the caller."""
+        if self._global:
+            raise ValueError("the first global point is already known")
+        self._global.append(nfs)
+
     def nf_monos(self, j: int) -> list[Poly]:
         """Normal forms of every candidate monomial at global point `j` (0: the system of `prep`, then fresh ones)."""
         while len(self._global) <= j:
             hs = self.prep.hs if not self._global else self.prep.point()
-            names = hs.names
-            idx = [names.index(self.var[u]) for u in self.U]
-            ws = [hs.weight.get(self.var[u], 1) for u in self.U]
-            G = []
-            for e in self.monos:
-                m = [0] * len(names)
-                for i, k, w in zip(idx, e, ws):
-                    if k:
-                        m[i] += k * w
-                G.append({tuple(m): 1})
-            self._global.append(self.eng.normal_forms(names, self.p, hs.F, G))
+            self._global.append(self.eng.normal_forms(hs.names, self.p, hs.F, self.mono_polys(hs)))
         return self._global[j]
 
     def solve(self, Q: tuple[int, ...], max_points: int = 12) -> np.ndarray:
@@ -307,14 +319,20 @@ class _Search:
             f = P.as_expr() / sp.Mul(*[s**k for s, k in zip(syms, q)])
             if f.is_number:
                 continue
+            num = []
+            for eg, c in P.terms():
+                e = [0] * len(syms)
+                for i, k in zip(order, eg):
+                    e[i] = k
+                num.append((tuple(e), int(sp.Rational(c).p), int(sp.Rational(c).q)))
+            self.exact.setdefault(f, (tuple(num), ((q, 1, 1),)))
             out.append(f)
         return out
 
 
 def _row_space(K: np.ndarray, p: int) -> np.ndarray:
     ech = RowEchelon(K.shape[1], p)
-    for r in K:
-        ech.add(r)
+    ech.add_many(K)
     return np.array(ech.basis, dtype=np.int64).reshape(len(ech.basis), K.shape[1])
 
 
@@ -322,8 +340,7 @@ def _rref(K: np.ndarray, p: int) -> list[np.ndarray]:
     if K.shape[0] == 0:
         return []
     ech = RowEchelon(K.shape[1], p)
-    for r in K:
-        ech.add(r)
+    ech.add_many(K)
     return [b for _, b in sorted(zip(ech.pivots, ech.basis), key=lambda t: t[0])]
 
 
@@ -419,9 +436,13 @@ def _fibre_system(funcs: Sequence[sp.Expr], X: list[str], p: int, rng: np.random
     return names, F, xhat
 
 
-def _relation(f: sp.Expr, X: list[str], xhat: dict[str, int], p: int) -> Poly:
-    """num(x) den(x̂) - num(x̂) den(x): zero on the fibre iff f is constant there."""
-    tn, td = _qq_terms(f, tuple(X), False)  # candidates are already P/Q in lowest terms
+def _relation(f: sp.Expr, X: list[str], xhat: dict[str, int], p: int, exact: dict | None = None) -> Poly:
+    """num(x) den(x̂) - num(x̂) den(x): zero on the fibre iff f is constant there.
+
+    `exact`: numerator and denominator terms over `X` already known (``_Search.exact``), by candidate.
+    """
+    known = exact.get(f) if exact else None
+    tn, td = known if known else _qq_terms(f, tuple(X), False)  # candidates are already P/Q in lowest terms
     vals = [xhat[u] for u in X]
     num, den = _terms_mod(tn, p), _terms_mod(td, p)
     nv = sum(c * _mono_value(mono, vals, p) for mono, c in num) % p
@@ -434,13 +455,14 @@ def _relation(f: sp.Expr, X: list[str], xhat: dict[str, int], p: int) -> Poly:
     return {k: v for k, v in out.items() if v}
 
 
-def _select(cands: list[sp.Expr], X: list[str], eng: GroebnerEngine, p: int, rng: np.random.Generator) -> list[sp.Expr]:
+def _select(cands: list[sp.Expr], X: list[str], eng: GroebnerEngine, p: int, rng: np.random.Generator,
+            exact: dict | None = None) -> list[sp.Expr]:
     """Greedy, simplest first: keep a candidate unless it is a function of those kept (constant on their fibre)."""
     chosen: list[sp.Expr] = []
     rest = list(cands)
     while rest:
         names, F, xhat = _fibre_system(chosen, X, p, rng)
-        rels = [_relation(g, X, xhat, p) for g in rest]
+        rels = [_relation(g, X, xhat, p, exact) for g in rest]
         nfs = eng.normal_forms(names, p, F, rels)
         new = [g for g, nf in zip(rest, nfs) if nf]
         if not new:
@@ -501,7 +523,8 @@ def _complete(prep: Any, eng: GroebnerEngine, chosen: list[sp.Expr], U: list[str
     return n_sian == n_fun
 
 
-def _verified(prep: Any, eng: GroebnerEngine, cands: list[sp.Expr], U: list[str], rounds: int = 2) -> list[sp.Expr]:
+def _verified(prep: Any, eng: GroebnerEngine, cands: list[sp.Expr], U: list[str], rounds: int = 2,
+              exact: dict | None = None) -> list[sp.Expr]:
     """Keep the candidates that are constant on the solutions at fresh random points (normal forms)."""
     for _ in range(rounds):
         if not cands:
@@ -514,7 +537,7 @@ def _verified(prep: Any, eng: GroebnerEngine, cands: list[sp.Expr], U: list[str]
         ws = [hs.weight.get(v, 1) for v in var]
         rels = []
         for g in cands:
-            rel = _relation(g, U, xhat, p)
+            rel = _relation(g, U, xhat, p, exact)
             out: Poly = {}
             for m, c in rel.items():
                 mm = [0] * len(hs.names)
@@ -590,9 +613,10 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
     if max_degree < 1:
         raise ModelError(f"`max_degree` must be >= 1, got {max_degree}")
     notes: list[str] = []
-    dec = _decide(prep, eng, 8)
-    single = [u for u in U if u in dec["globally"]]
     search = _Search(prep, eng, U, max_degree)
+    dec = _decide(prep, eng, 8, also=search.mono_polys(prep.hs))  # the search's first point: the same basis
+    search.known_point(dec.pop("also_nfs"))
+    single = [u for u in U if u in dec["globally"]]
     cands: list[sp.Expr] = []
     denominators = [tuple(0 for _ in U)] + [tuple(int(i == j) for j in range(len(U)))
                                             for i, u in enumerate(U) if u not in single]
@@ -601,8 +625,8 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
         cands += search.functions(Kc, Q)
     singles = [symbol(u) for u in single]
     pool = list(dict.fromkeys(c for c in cands if c not in singles))
-    pool = sorted(_verified(prep, eng, pool, U), key=_complexity)  # sort the survivors only (the key prints)
-    chosen = _select([*singles, *pool], U, eng, prep.p, rng)
+    pool = sorted(_verified(prep, eng, pool, U, exact=search.exact), key=_complexity)  # sort the survivors only
+    chosen = _select([*singles, *pool], U, eng, prep.p, rng, search.exact)
     texts = tuple(_text(f) for f in chosen)
     checks = tuple(observable_function(system, t, unknown_params=prep.local.unknown_params, inputs=inputs,
                                        seed=seed).observable for t in texts)
