@@ -397,7 +397,6 @@ def _fibre_system(funcs: Sequence[sp.Expr], X: list[str], p: int, rng: np.random
                   point: dict[str, int] | None = None) -> tuple[list[str], list[Poly], dict[str, int]]:
     """Ideal of {x : f(x) = f(x̂)} at a random x̂ (saturated by the denominators), over GF(p)."""
     names = list(X) + ["z_sat"]
-    syms = [symbol(u) for u in X]
     xhat = point or {u: int(rng.integers(1, p)) for u in X}
     nv = len(names)
     F: list[Poly] = []
