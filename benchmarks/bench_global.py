@@ -364,7 +364,8 @@ def write_report() -> None:
         if checks and ok != len(checks):
             status += " — differs: " + "; ".join(c["what"] for c in checks if not c["agree"])
             bad.append(r)
-        L.append(f"| {r['model']} | {src} | {case} | {r.get('size', '-')} | {gtxt} | {ftxt} | {rtxt} | {status} |")
+        name = r["model"] + (f" (rerun {r['rerun']})" if "rerun" in r else "")
+        L.append(f"| {name} | {src} | {case} | {r.get('size', '-')} | {gtxt} | {ftxt} | {rtxt} | {status} |")
     L += ["", f"**Summary:** {n_models} models; {n_ok} agree with every published fact checked ({with_funcs_ok} of them "
           f"including the published identifiable functions); {n_agree} of {n_checks} checks agree."]
     if bad:
@@ -375,7 +376,16 @@ def write_report() -> None:
                     L.append(f"- {r['model']}: {c['what']}: published {c['published']}, nlobs {c['ours']}")
     L += ["", "Wall times in this run are inflated several-fold: the load average was about 10 on 2 cores (two "
           "halves of this benchmark, the test suite, other engineers' jobs and, until 00:45, three orphaned msolve "
-          "processes of an earlier interrupted run). Compare CPU seconds; the 90 s limits are wall time.",
+          "processes of an earlier interrupted run). Compare CPU seconds; the 90 s limits are wall time."]
+    reruns = sorted({r["rerun"] for r in ver["rows"] if "rerun" in r})
+    if reruns:
+        loads = ver["meta"].get("rerun_load")
+        L += ["", f"Rows marked *rerun* were measured again ({', '.join(reruns)} UTC; `bench_global.py verdicts --merge`, "
+              "one model at a time) with the code of that date (issue 23: shared random points and one Gröbner basis per "
+              "point in the identifiable-function search, one engine run per decision)"
+              + (f"; load average {loads[0]:.1f} before and {loads[1]:.1f} after the run" if loads else "")
+              + ". The other rows are from the first run."]
+    L += [
           "", "## 3. Models above 30 s", ""]
     if slow:
         for name, what, size in slow:
@@ -402,6 +412,7 @@ def main() -> None:
         write_report()
         return
     models = [m for m in ALL if not args.models or m.name in args.models.split(",")]
+    load0 = os.getloadavg()[0]
     meta = {"python": sys.version.split()[0], "machine": platform.machine(), "cpus": os.cpu_count(),
             "engines": {n: GroebnerEngine(n, p).version() for n, p in available_engines().items()},
             "date": time.strftime("%Y-%m-%d %H:%M"), "args": " ".join(sys.argv[1:2] + [
@@ -428,7 +439,7 @@ def main() -> None:
             r["rerun"] = meta["date"]
         out["rows"] = [fresh.get(r["model"], r) for r in old["rows"]]
         out["rows"] += [r for n, r in fresh.items() if n not in {x["model"] for x in old["rows"]}]
-        out["meta"] = {**old["meta"], "rerun": meta["date"]}
+        out["meta"] = {**old["meta"], "rerun": meta["date"], "rerun_load": [load0, os.getloadavg()[0]]}
         if "agree" in old:
             out["total"] = sum(len(r.get("checks", [])) for r in out["rows"])
             out["agree"] = sum(sum(c["agree"] for c in r.get("checks", [])) for r in out["rows"])

@@ -47,6 +47,30 @@ def test_row_echelon_rank_and_kernel_match_an_independent_gf_p_computation(seed)
     assert not ech.contains(np.eye(n, dtype=np.int64)[free])  # zero on every pivot column, so not in the row space
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_row_echelon_add_many_is_add_row_by_row(seed):
+    # the identifiable-function search adds its constraints in blocks (issue 23): same pivots, same basis, same
+    # kernel as one row at a time, with rows already in the space, zero rows, and a full rank reached midway
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(3, 14))
+    r = int(rng.integers(1, n + 1))
+    rows = (rng.integers(0, 4, size=(int(rng.integers(1, 30)), r)) @ rng.integers(0, 4, size=(r, n))) % P
+    rows[rng.random(rows.shape[0]) < 0.2] = 0
+    start = rng.integers(0, P, size=(int(rng.integers(0, 3)), n))
+    one, many = RowEchelon(n, P), RowEchelon(n, P)
+    for row in start:
+        one.add(row)
+        many.add(row)
+    for row in rows:
+        one.add(row)
+    before = many.rank
+    assert many.add_many(rows) == many.rank - before
+    assert many.pivots == one.pivots
+    assert np.array_equal(many.basis, one.basis) and np.array_equal(many.kernel(), one.kernel())
+    probe = rng.integers(0, P, size=(5, n))
+    assert np.array_equal(many.reduce_many(probe), np.array([one.reduce(v) for v in probe]))
+
+
 def _jets_by_lie_derivatives(system: System, unknown: list[str], point: dict, K: int, p: int) -> np.ndarray:
     """Rows ∂y_k/∂(x0, θ) with y_k = L_f^k h / k!, by SymPy, evaluated modulo p (no power series)."""
     x = list(system.x)

@@ -110,6 +110,14 @@ def _matvec_mod(c: np.ndarray, B: np.ndarray, p: int) -> np.ndarray:
     return out
 
 
+def _matmul_mod(C: np.ndarray, B: np.ndarray, p: int) -> np.ndarray:
+    """(C @ B) mod p for reduced C (m x r) and B (r x n), in chunks of the inner dimension that cannot overflow int64."""
+    out = np.zeros((C.shape[0], B.shape[1]), dtype=np.int64)
+    for i in range(0, C.shape[1], MAX_TERMS):
+        out = (out + (C[:, i:i + MAX_TERMS] @ B[i:i + MAX_TERMS]) % p) % p
+    return out
+
+
 class RowEchelon:
     """Incremental row reduction over GF(p): add rows one at a time, keep a fully reduced basis.
 
@@ -152,14 +160,56 @@ class RowEchelon:
     def contains(self, row: np.ndarray) -> bool:
         return not np.any(self.reduce(row))
 
+    def reduce_many(self, rows: np.ndarray) -> np.ndarray:
+        """Every row of `rows` (m x ncols) minus its projection on the basis: :meth:`reduce` row by row, as one product."""
+        p = self.p
+        V = np.asarray(rows, dtype=np.int64).reshape(-1, self.ncols) % p
+        if not self.pivots or V.shape[0] == 0:
+            return V
+        C = V[:, self.pivots]
+        if not C.any():
+            return V
+        return (V - _matmul_mod(C, self.basis, p)) % p
+
     def add(self, row: np.ndarray) -> bool:
         """Add `row`; return True if it increased the rank."""
-        p = self.p
         v = self.reduce(row)
         nz = np.flatnonzero(v)
         if nz.size == 0:
             return False
-        j = int(nz[0])
+        self._push(v, int(nz[0]))
+        return True
+
+    def add_many(self, rows: np.ndarray) -> int:
+        """Add the rows of `rows` in order, stopping at full rank; return how many increased the rank.
+
+        The basis and pivots are exactly those of :meth:`add` called row by row: every later row is
+        kept reduced against each new basis row as it comes (one vectorised update per new pivot,
+        none per dependent row), so each row meets the same basis it would have met alone.
+        """
+        p = self.p
+        V = self.reduce_many(rows)
+        added, i = 0, 0
+        while i < V.shape[0] and self.rank < self.ncols:
+            nzr = np.flatnonzero(V[i:].any(axis=1))
+            if nzr.size == 0:
+                break
+            i += int(nzr[0])
+            v = V[i]
+            j = int(np.flatnonzero(v)[0])
+            v = self._push(v, j)
+            added += 1
+            i += 1
+            rest = V[i:]
+            col = rest[:, j].copy()
+            rr = np.flatnonzero(col)
+            if rr.size:
+                rest[rr] = (rest[rr] - (col[rr, None] * v[None, :]) % p) % p
+        return added
+
+    def _push(self, v: np.ndarray, j: int) -> np.ndarray:
+        """Append the reduced row `v` with pivot `j` (normalised to a leading 1); clear column j in the other rows."""
+        p = self.p
         v = v * inv(int(v[j]), p) % p
         r = self.rank
         if r:  # keep the basis fully reduced: clear column j in the other rows
@@ -174,7 +224,7 @@ class RowEchelon:
             self._B = grown
         self._B[r] = v
         self.pivots.append(j)
-        return True
+        return v
 
     def kernel(self) -> np.ndarray:
         """A basis of the right kernel {z : row·z = 0 for every row}, one vector per free column."""
@@ -230,10 +280,8 @@ def ratrec(a: int, p: int, bound: int = COEFF_BOUND) -> tuple[int, int] | None:
 def kernel_mod_p(rows: list[np.ndarray], ncols: int, p: int) -> np.ndarray:
     """A basis of the kernel over GF(p) of the matrix whose rows are `rows` (stops once the rank is full)."""
     ech = RowEchelon(ncols, p)
-    for r in rows:
-        if ech.rank == ncols:
-            break
-        ech.add(r)
+    if len(rows):
+        ech.add_many(np.asarray(rows, dtype=np.int64).reshape(-1, ncols))
     return ech.kernel()
 
 

@@ -1184,13 +1184,30 @@ def _decide_rewritten(prep: _Rewritten, eng: GroebnerEngine, max_solutions: int)
                 n_equations=len(hs.F), n_variables=len(hs.names))
 
 
-def _decide(prep: _Prepared, eng: GroebnerEngine, max_solutions: int) -> dict[str, Any]:
-    """Step 4: normal forms of the unknowns; minimal polynomials of those not globally identifiable."""
+#: Powers v^2..v^k of every unknown asked for with the first normal forms (most locally-only unknowns of the
+#: published models have 2 or 3 solutions); higher powers only when the first ones show no relation.
+_EARLY_POWERS = 4
+
+
+def _decide(prep: _Prepared, eng: GroebnerEngine, max_solutions: int, also: Sequence[Poly] = ()) -> dict[str, Any]:
+    """Step 4: normal forms of the unknowns; minimal polynomials of those not globally identifiable.
+
+    `also`: more polynomials whose normal forms modulo the same basis the caller needs (returned under
+    ``"also_nfs"``, computed in the same engine run).
+    """
     hs, p, checks = prep.hs, prep.p, prep.checks
     zero = tuple([0] * len(hs.names))
     w = hs.weight
+    # the first powers of every unknown come with the same basis (one engine run, not two, whenever some unknown
+    # has few solutions; the minimal polynomial is the first relation, so asking for more powers changes nothing)
+    early = min(max_solutions, _EARLY_POWERS)
     G: list[Poly] = [{zero: 1}] + [_var_power(hs.names, var, w.get(var, 1)) for _, var in checks]
-    nfs = eng.normal_forms(hs.names, p, hs.F, G)
+    G += [_var_power(hs.names, var, k * w.get(var, 1)) for _, var in checks for k in range(2, early + 1)]
+    nfs = eng.normal_forms(hs.names, p, hs.F, [*G, *also])
+    also_nfs, nfs = nfs[len(G):], nfs[:len(G)]
+    first = {var: nfs[1 + len(checks) + i * (early - 1):1 + len(checks) + (i + 1) * (early - 1)]
+             for i, (_, var) in enumerate(checks)}
+    nfs = nfs[:1 + len(checks)]
     if not nfs[0]:
         raise EngineError(f"{prep.system.name!r}: the polynomial system at the random point has no solution (1 is in "
                           "the ideal); this should not happen for a consistent model: please report it")
@@ -1205,12 +1222,16 @@ def _decide(prep: _Prepared, eng: GroebnerEngine, max_solutions: int) -> dict[st
             unresolved.append((name, var, nf))
     counts: dict[str, int | None] = {}
     if unresolved:
-        step = max_solutions - 1
-        powers = [_var_power(hs.names, var, k * w.get(var, 1)) for _, var, _ in unresolved
-                  for k in range(2, max_solutions + 1)]
-        more = eng.normal_forms(hs.names, p, hs.F, powers)
-        for idx, (name, var, nf1) in enumerate(unresolved):
-            mp = _minimal_polynomial([{zero: 1}, nf1, *more[idx * step:(idx + 1) * step]], p)
+        mps = {var: _minimal_polynomial([{zero: 1}, nf1, *first[var]], p) for _, var, nf1 in unresolved}
+        late = [(var, nf1) for _, var, nf1 in unresolved if mps[var] is None and max_solutions > early]
+        if late:
+            step = max_solutions - 1
+            powers = [_var_power(hs.names, var, k * w.get(var, 1)) for var, _ in late for k in range(2, max_solutions + 1)]
+            more = eng.normal_forms(hs.names, p, hs.F, powers)
+            for idx, (var, nf1) in enumerate(late):
+                mps[var] = _minimal_polynomial([{zero: 1}, nf1, *more[idx * step:(idx + 1) * step]], p)
+        for name, var, nf1 in unresolved:
+            mp = mps[var]
             if mp is None:
                 counts[name] = None
                 notes.append(f"{name}: more than {max_solutions} solutions (not counted)")
@@ -1229,11 +1250,14 @@ def _decide(prep: _Prepared, eng: GroebnerEngine, max_solutions: int) -> dict[st
             fn_out.append((text, "globally", 1))
         else:
             fn_out.append((text, "locally", counts.get(text)))
-    return dict(
+    out = dict(
         globally=tuple(u for u in prep.unknown_names if u in glob),
         locally_only=tuple(LocallyOnly(n, counts[n]) for n, _, _ in unresolved if n in counts and n in unknown_set),
         non_identifiable=tuple(u for u in prep.unknown_names if u not in prep.local_ok),
         functions=tuple(fn_out), notes=tuple(notes))
+    if also:
+        out["also_nfs"] = also_nfs
+    return out
 
 
 def _function_polys(sian: _Sian, funcs: Sequence[tuple[str, sp.Expr]], params_unknown: Sequence[str],

@@ -28,6 +28,7 @@ Method (everything over GF(p), on the SIAN systems of ``_global.py``):
 
 from __future__ import annotations
 
+import functools
 import itertools
 import time
 from collections.abc import Sequence
@@ -40,7 +41,6 @@ import sympy as sp
 from ...errors import ModelError
 from ...model import System, symbol
 from ...algebra._modular import COEFF_BOUND, monomial_exponents
-from ...algebra._modular import kernel_mod_p as _kernel
 from ...algebra._modular import monomial_value as _mono_value
 from ...algebra._modular import ratrec as _ratrec
 from ._global import NO_ENGINE, NotRational, _decide, _prepare, _System
@@ -134,94 +134,150 @@ def _mono_grad(e: Sequence[int], vals: Sequence[int], p: int) -> list[int]:
     return out
 
 
+def _mono_values(E: np.ndarray, vals: Sequence[int], p: int) -> tuple[np.ndarray, np.ndarray]:
+    """Values (k,) and gradients (k x n) mod p at `vals` of the monomials with exponent rows `E` (k x n)."""
+    k, n = E.shape
+    top = int(E.max()) if E.size else 0
+    # table[i, d] = vals[i]^d mod p
+    table = np.ones((n, top + 1), dtype=np.int64)
+    for d in range(1, top + 1):
+        table[:, d] = table[:, d - 1] * (np.asarray(vals, dtype=np.int64) % p) % p
+    cols = table[np.arange(n)[None, :], E]  # (k x n): vals[i]^E[m, i]
+    lower = table[np.arange(n)[None, :], np.maximum(E - 1, 0)]  # vals[i]^(E[m, i] - 1)
+    mv = np.ones(k, dtype=np.int64)
+    for i in range(n):
+        mv = mv * cols[:, i] % p
+    mg = np.zeros((k, n), dtype=np.int64)
+    for i in range(n):
+        g = E[:, i] * lower[:, i] % p
+        for i2 in range(n):
+            if i2 != i:
+                g = g * cols[:, i2] % p
+        mg[:, i] = g
+    return mv, mg
+
+
 class _Search:
+    """Steps 2-3 of the module docstring for every denominator Q, on points shared by all of them.
+
+    The random points are drawn once and cached: at a local point, the row echelon form of the jet Jacobian and
+    the values of the unknowns; at a global point, the normal forms of every candidate monomial (one Gröbner
+    basis per point, whatever the number of denominators: each Q is itself a candidate monomial).
+    """
+
     def __init__(self, prep: Any, eng: GroebnerEngine, U: list[str], max_degree: int):
         self.prep, self.eng, self.U = prep, eng, U
         self.p = prep.p
         self.monos = monomial_exponents(len(U), max_degree)
         # most complex first: pivots of the reduced echelon form fall on the complex monomials
         self.monos.sort(key=lambda e: (-sum(e), tuple(-x for x in e)))
+        self.mono_index = {e: i for i, e in enumerate(self.monos)}
+        self.E = np.array(self.monos, dtype=np.int64).reshape(len(self.monos), len(U))
         self.var = {u: prep.hs.unknown_var[u] for u in U}
+        self._local: list[tuple[RowEchelon, list[int], list[int], int, np.ndarray, np.ndarray]] = []
+        self._global: list[list[Poly]] = []
+        #: exact numerator and denominator terms of every candidate returned by :meth:`functions` (as _qq_terms)
+        self.exact: dict[sp.Expr, tuple] = {}
 
     # -- local rows -----------------------------------------------------------------------------
-    def local_rows(self, Q: tuple[int, ...]) -> list[np.ndarray]:
-        prep, p = self.prep, self.p
-        sian = prep.sian
-        J = sian.J
-        pt = sian.point()
-        from ...algebra._modular import sparse_gradient as _gradient
+    def _local_point(self, i: int) -> tuple[RowEchelon, list[int], list[int], int, np.ndarray, np.ndarray]:
+        """The i-th local point: echelon form of the jet Jacobian there, values and columns of the unknowns, values
+        and gradients of the candidate monomials."""
+        while len(self._local) <= i:
+            from ...algebra._modular import sparse_gradient as _gradient
 
-        unknown_cols = [J.index[v] for v in sian.rm.params] + [J.index[f"{x}_{k}"] for x in sian.rm.states
-                                                                  for k in range(J.K + 2)]
-        cols = {c: i for i, c in enumerate(unknown_cols)}
-        ech = RowEchelon(len(unknown_cols), p)
-        for kind, i, k in prep.eqs:
-            ech.add(_gradient(sian.sp(kind, i, k), pt.vals, p, cols, len(unknown_cols)))
-        uvals = [pt.vals[J.index[self.var[u]]] for u in self.U]
-        ucol = [cols[J.index[self.var[u]]] for u in self.U]
+            prep, p = self.prep, self.p
+            sian = prep.sian
+            J = sian.J
+            pt = sian.point()
+            unknown_cols = [J.index[v] for v in sian.rm.params] + [J.index[f"{x}_{k}"] for x in sian.rm.states
+                                                                      for k in range(J.K + 2)]
+            cols = {c: i for i, c in enumerate(unknown_cols)}
+            n = len(unknown_cols)
+            ech = RowEchelon(n, p)
+            ech.add_many(np.array([_gradient(sian.sp(kind, i_, k), pt.vals, p, cols, n) for kind, i_, k in prep.eqs],
+                                  dtype=np.int64).reshape(-1, n))
+            uvals = [pt.vals[J.index[self.var[u]]] for u in self.U]
+            ucol = [cols[J.index[self.var[u]]] for u in self.U]
+            self._local.append((ech, uvals, ucol, n, *_mono_values(self.E, uvals, p)))
+        return self._local[i]
+
+    def local_rows(self, Q: tuple[int, ...], i: int) -> list[np.ndarray]:
+        """Constraints on the coefficients of P at local point `i`: the gradient of P/Q reduced modulo the rows of
+        the jet Jacobian (zero iff P/Q is locally identifiable to first order there)."""
+        p = self.p
+        ech, uvals, ucol, n, mv, mg = self._local_point(i)
         qv = _mono_value(Q, uvals, p)
-        qg = _mono_grad(Q, uvals, p)
-        resid = []
-        for e in self.monos:
-            mv, mg = _mono_value(e, uvals, p), _mono_grad(e, uvals, p)
-            g = np.zeros(len(unknown_cols), dtype=np.int64)
-            for c, a, b in zip(ucol, mg, qg):
-                g[c] = (qv * a - mv * b) % p
-            resid.append(ech.reduce(g))
-        R = np.array(resid, dtype=np.int64).T  # rows: coordinates, columns: candidates
-        return [r for r in R if np.any(r)]
+        qg = np.array(_mono_grad(Q, uvals, p), dtype=np.int64)
+        G = np.zeros((len(self.monos), n), dtype=np.int64)
+        G[:, ucol] = (qv * mg % p - (mv[:, None] * qg[None, :]) % p) % p  # quotient rule, numerator
+        R = ech.reduce_many(G).T  # rows: coordinates, columns: candidates
+        return list(R[R.any(axis=1)])
 
     # -- global rows ----------------------------------------------------------------------------
-    def nf_monos(self, hs: _System, Q: tuple[int, ...]) -> tuple[list[Poly], Poly]:
+    def mono_polys(self, hs: _System) -> list[Poly]:
+        """The candidate monomials as polynomials of the system `hs` (weighted variables: u = V^w)."""
         names = hs.names
-        idx = {u: names.index(self.var[u]) for u in self.U}
-        w = hs.weight
-
-        def poly(e: Sequence[int]) -> Poly:
+        idx = [names.index(self.var[u]) for u in self.U]
+        ws = [hs.weight.get(self.var[u], 1) for u in self.U]
+        G = []
+        for e in self.monos:
             m = [0] * len(names)
-            for u, k in zip(self.U, e):
+            for i, k, w in zip(idx, e, ws):
                 if k:
-                    m[idx[u]] += k * w.get(self.var[u], 1)
-            return {tuple(m): 1}
+                    m[i] += k * w
+            G.append({tuple(m): 1})
+        return G
 
-        G = [poly(e) for e in self.monos] + [poly(Q)]
-        nfs = self.eng.normal_forms(names, self.p, hs.F, G)
-        return nfs[:-1], nfs[-1]
+    def known_point(self, nfs: list[Poly]) -> None:
+        """Normal forms of :meth:`mono_polys` modulo the system of `prep` (point 0), computed by the caller."""
+        if self._global:
+            raise ValueError("the first global point is already known")
+        self._global.append(nfs)
+
+    def nf_monos(self, j: int) -> list[Poly]:
+        """Normal forms of every candidate monomial at global point `j` (0: the system of `prep`, then fresh ones)."""
+        while len(self._global) <= j:
+            hs = self.prep.hs if not self._global else self.prep.point()
+            self._global.append(self.eng.normal_forms(hs.names, self.p, hs.F, self.mono_polys(hs)))
+        return self._global[j]
 
     def solve(self, Q: tuple[int, ...], max_points: int = 12) -> np.ndarray:
-        """Basis of the coefficient vectors c with (sum c_m m)/Q identifiable (rows)."""
+        """Basis of the coefficient vectors c with (sum c_m m)/Q identifiable (rows).
+
+        The constraints are kept in one row echelon form over the coefficients of P and one unknown
+        value λ_j per global point (columns k + j), grown as points are added.
+        """
         p, k = self.p, len(self.monos)
-        rows: list[np.ndarray] = []
+        width = k + max_points
+        ech = RowEchelon(width, p)
         dims = []
-        for _ in range(k + 3):  # local constraints until the space stops shrinking (twice in a row)
-            rows += self.local_rows(Q)
-            K = _kernel(rows, k, p)
-            dims.append(K.shape[0])
+        for i in range(k + 3):  # local constraints until the space stops shrinking (twice in a row)
+            rows = self.local_rows(Q, i)
+            if rows:
+                ech.add_many(np.concatenate([np.array(rows, dtype=np.int64),
+                                             np.zeros((len(rows), max_points), dtype=np.int64)], axis=1))
+            dims.append(k - ech.rank)
             if len(dims) >= 3 and dims[-1] == dims[-2] == dims[-3]:
                 break
-        base = list(rows)
-        gpoints: list[tuple[list[Poly], Poly]] = []
         prev: list[int] = []
-        Kc = K
+        Kc = np.zeros((0, k), dtype=np.int64)
+        qi = self.mono_index[Q]
         for j in range(max_points):
-            hs = self.prep.hs if j == 0 else self.prep.point()
-            gpoints.append(self.nf_monos(hs, Q))
-            b = len(gpoints)
-            width = k + b
-            allrows = [np.concatenate([r, np.zeros(b, dtype=np.int64)]) for r in base]
-            for jj, (nfm, nfq) in enumerate(gpoints):
-                support: dict[tuple[int, ...], int] = {}
-                for g in (*nfm, nfq):
-                    for m in g:
-                        support.setdefault(m, len(support))
-                M = np.zeros((len(support), width), dtype=np.int64)
-                for ci, g in enumerate(nfm):
-                    for m, c in g.items():
-                        M[support[m], ci] = c % p
-                for m, c in nfq.items():
-                    M[support[m], k + jj] = (-c) % p
-                allrows += [r for r in M if np.any(r)]
-            K = _kernel(allrows, width, p)
+            nfm = self.nf_monos(j)
+            nfq = nfm[qi]
+            support: dict[tuple[int, ...], int] = {}
+            for g in nfm:
+                for m in g:
+                    support.setdefault(m, len(support))
+            M = np.zeros((len(support), width), dtype=np.int64)
+            for ci, g in enumerate(nfm):
+                for m, c in g.items():
+                    M[support[m], ci] = c % p
+            for m, c in nfq.items():
+                M[support[m], k + j] = (-c) % p
+            ech.add_many(M[M.any(axis=1)])
+            K = ech.kernel()
             Kc = _row_space(K[:, :k], p)
             if len(prev) >= 2 and Kc.shape[0] == prev[-1] == prev[-2]:
                 break
@@ -263,14 +319,20 @@ class _Search:
             f = P.as_expr() / sp.Mul(*[s**k for s, k in zip(syms, q)])
             if f.is_number:
                 continue
+            num = []
+            for eg, c in P.terms():
+                e = [0] * len(syms)
+                for i, k in zip(order, eg):
+                    e[i] = k
+                num.append((tuple(e), int(sp.Rational(c).p), int(sp.Rational(c).q)))
+            self.exact.setdefault(f, (tuple(num), ((q, 1, 1),)))
             out.append(f)
         return out
 
 
 def _row_space(K: np.ndarray, p: int) -> np.ndarray:
     ech = RowEchelon(K.shape[1], p)
-    for r in K:
-        ech.add(r)
+    ech.add_many(K)
     return np.array(ech.basis, dtype=np.int64).reshape(len(ech.basis), K.shape[1])
 
 
@@ -278,8 +340,7 @@ def _rref(K: np.ndarray, p: int) -> list[np.ndarray]:
     if K.shape[0] == 0:
         return []
     ech = RowEchelon(K.shape[1], p)
-    for r in K:
-        ech.add(r)
+    ech.add_many(K)
     return [b for _, b in sorted(zip(ech.pivots, ech.basis), key=lambda t: t[0])]
 
 
@@ -303,22 +364,48 @@ def _complexity(f: sp.Expr) -> tuple:
     return (terms, deg + ddeg, len(str(f)), str(f))
 
 
+@functools.lru_cache(maxsize=4096)
+def _qq_terms(f: sp.Expr, X: tuple[str, ...], cancel: bool) -> tuple[tuple[tuple[tuple[int, ...], int, int], ...], ...]:
+    """Numerator and denominator of `f` as exact terms (exponents over `X`, numerator, denominator of the
+    coefficient); cached, since the same candidates are converted at every point and in every selection round."""
+    syms = [symbol(u) for u in X]
+
+    def exact(num: sp.Expr, den: sp.Expr) -> tuple[tuple[tuple[tuple[int, ...], int, int], ...], ...]:
+        out = []
+        for part in (num, den):
+            P = sp.Poly(sp.expand(part), *syms, domain="QQ")
+            out.append(tuple((tuple(mono), int(sp.Rational(c).p), int(sp.Rational(c).q)) for mono, c in P.terms()))
+        return tuple(out)
+
+    if not cancel:
+        # a candidate P/Q of the search is a polynomial over a monomial already: its numerator and denominator are
+        # those of `together` up to one constant factor, which changes no relation's zero set (SymPy's `together`
+        # on every candidate was most of the verification time)
+        try:
+            return exact(*sp.fraction(f))
+        except sp.PolynomialError:
+            pass
+    e = sp.together(f)
+    return exact(*sp.fraction(sp.cancel(e) if cancel else e))
+
+
+def _terms_mod(terms: Sequence[tuple[tuple[int, ...], int, int]], p: int) -> list[tuple[tuple[int, ...], int]]:
+    return [(mono, a % p * inv(b % p, p) % p) for mono, a, b in terms]
+
+
 def _fibre_system(funcs: Sequence[sp.Expr], X: list[str], p: int, rng: np.random.Generator,
                   point: dict[str, int] | None = None) -> tuple[list[str], list[Poly], dict[str, int]]:
     """Ideal of {x : f(x) = f(x̂)} at a random x̂ (saturated by the denominators), over GF(p)."""
     names = list(X) + ["z_sat"]
-    syms = [symbol(u) for u in X]
     xhat = point or {u: int(rng.integers(1, p)) for u in X}
     nv = len(names)
     F: list[Poly] = []
     den_all: Poly = {tuple([0] * nv): 1}
 
-    def to_poly(e: sp.Expr) -> Poly:
-        P = sp.Poly(e, *syms, domain="QQ")
+    def to_poly(terms: Sequence[tuple[tuple[int, ...], int, int]]) -> Poly:
         out: Poly = {}
-        for mono, c in P.terms():
-            c = sp.Rational(c)
-            out[tuple(mono) + (0,)] = int(c.p) % p * inv(int(c.q) % p, p) % p
+        for mono, c in _terms_mod(terms, p):
+            out[mono + (0,)] = c
         return {k: v for k, v in out.items() if v}
 
     def value(P: Poly) -> int:
@@ -330,8 +417,8 @@ def _fibre_system(funcs: Sequence[sp.Expr], X: list[str], p: int, rng: np.random
     from ...algebra._modular import poly_mul as _mul
 
     for f in funcs:
-        num, den = sp.fraction(sp.cancel(sp.together(f)))
-        N, D = to_poly(sp.expand(num)), to_poly(sp.expand(den))
+        tn, td = _qq_terms(f, tuple(X), True)
+        N, D = to_poly(tn), to_poly(td)
         dv = value(D)
         if dv == 0:
             raise ZeroDivisionError
@@ -348,38 +435,33 @@ def _fibre_system(funcs: Sequence[sp.Expr], X: list[str], p: int, rng: np.random
     return names, F, xhat
 
 
-def _relation(f: sp.Expr, X: list[str], xhat: dict[str, int], p: int) -> Poly:
-    """num(x) den(x̂) - num(x̂) den(x): zero on the fibre iff f is constant there."""
-    syms = [symbol(u) for u in X]
-    num, den = sp.fraction(sp.together(f))  # candidates are already P/Q in lowest terms
-    vals = {s: xhat[u] for s, u in zip(syms, X)}
+def _relation(f: sp.Expr, X: list[str], xhat: dict[str, int], p: int, exact: dict | None = None) -> Poly:
+    """num(x) den(x̂) - num(x̂) den(x): zero on the fibre iff f is constant there.
 
-    def ev(e: sp.Expr) -> int:
-        P = sp.Poly(e, *syms, domain="QQ")
-        acc = 0
-        for mono, c in P.terms():
-            c = sp.Rational(c)
-            acc += int(c.p) % p * inv(int(c.q) % p, p) * _mono_value(mono, [vals[s] for s in syms], p)
-        return acc % p
-
-    nv, dv = ev(sp.expand(num)), ev(sp.expand(den))
+    `exact`: numerator and denominator terms over `X` already known (``_Search.exact``), by candidate.
+    """
+    known = exact.get(f) if exact else None
+    tn, td = known if known else _qq_terms(f, tuple(X), False)  # candidates are already P/Q in lowest terms
+    vals = [xhat[u] for u in X]
+    num, den = _terms_mod(tn, p), _terms_mod(td, p)
+    nv = sum(c * _mono_value(mono, vals, p) for mono, c in num) % p
+    dv = sum(c * _mono_value(mono, vals, p) for mono, c in den) % p
     out: Poly = {}
-    for e, scale in ((sp.expand(num), dv), (sp.expand(den), (-nv) % p)):
-        P = sp.Poly(e, *syms, domain="QQ")
-        for mono, c in P.terms():
-            c = sp.Rational(c)
-            key = tuple(mono) + (0,)
-            out[key] = (out.get(key, 0) + int(c.p) % p * inv(int(c.q) % p, p) * scale) % p
+    for terms, scale in ((num, dv), (den, (-nv) % p)):
+        for mono, c in terms:
+            key = mono + (0,)
+            out[key] = (out.get(key, 0) + c * scale) % p
     return {k: v for k, v in out.items() if v}
 
 
-def _select(cands: list[sp.Expr], X: list[str], eng: GroebnerEngine, p: int, rng: np.random.Generator) -> list[sp.Expr]:
+def _select(cands: list[sp.Expr], X: list[str], eng: GroebnerEngine, p: int, rng: np.random.Generator,
+            exact: dict | None = None) -> list[sp.Expr]:
     """Greedy, simplest first: keep a candidate unless it is a function of those kept (constant on their fibre)."""
     chosen: list[sp.Expr] = []
     rest = list(cands)
     while rest:
         names, F, xhat = _fibre_system(chosen, X, p, rng)
-        rels = [_relation(g, X, xhat, p) for g in rest]
+        rels = [_relation(g, X, xhat, p, exact) for g in rest]
         nfs = eng.normal_forms(names, p, F, rels)
         new = [g for g, nf in zip(rest, nfs) if nf]
         if not new:
@@ -440,7 +522,8 @@ def _complete(prep: Any, eng: GroebnerEngine, chosen: list[sp.Expr], U: list[str
     return n_sian == n_fun
 
 
-def _verified(prep: Any, eng: GroebnerEngine, cands: list[sp.Expr], U: list[str], rounds: int = 2) -> list[sp.Expr]:
+def _verified(prep: Any, eng: GroebnerEngine, cands: list[sp.Expr], U: list[str], rounds: int = 2,
+              exact: dict | None = None) -> list[sp.Expr]:
     """Keep the candidates that are constant on the solutions at fresh random points (normal forms)."""
     for _ in range(rounds):
         if not cands:
@@ -453,7 +536,7 @@ def _verified(prep: Any, eng: GroebnerEngine, cands: list[sp.Expr], U: list[str]
         ws = [hs.weight.get(v, 1) for v in var]
         rels = []
         for g in cands:
-            rel = _relation(g, U, xhat, p)
+            rel = _relation(g, U, xhat, p, exact)
             out: Poly = {}
             for m, c in rel.items():
                 mm = [0] * len(hs.names)
@@ -529,9 +612,10 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
     if max_degree < 1:
         raise ModelError(f"`max_degree` must be >= 1, got {max_degree}")
     notes: list[str] = []
-    dec = _decide(prep, eng, 8)
-    single = [u for u in U if u in dec["globally"]]
     search = _Search(prep, eng, U, max_degree)
+    dec = _decide(prep, eng, 8, also=search.mono_polys(prep.hs))  # the search's first point: the same basis
+    search.known_point(dec.pop("also_nfs"))
+    single = [u for u in U if u in dec["globally"]]
     cands: list[sp.Expr] = []
     denominators = [tuple(0 for _ in U)] + [tuple(int(i == j) for j in range(len(U)))
                                             for i, u in enumerate(U) if u not in single]
@@ -540,8 +624,8 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
         cands += search.functions(Kc, Q)
     singles = [symbol(u) for u in single]
     pool = list(dict.fromkeys(c for c in cands if c not in singles))
-    pool = sorted(_verified(prep, eng, pool, U), key=_complexity)  # sort the survivors only (the key prints)
-    chosen = _select([*singles, *pool], U, eng, prep.p, rng)
+    pool = sorted(_verified(prep, eng, pool, U, exact=search.exact), key=_complexity)  # sort the survivors only
+    chosen = _select([*singles, *pool], U, eng, prep.p, rng, search.exact)
     texts = tuple(_text(f) for f in chosen)
     checks = tuple(observable_function(system, t, unknown_params=prep.local.unknown_params, inputs=inputs,
                                        seed=seed).observable for t in texts)

@@ -18,7 +18,7 @@ no candidate is found within the degree bounds, the reparametrisation is reporte
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -207,16 +207,39 @@ def _by_substitution(target: sp.Expr, gens: Sequence[sp.Expr], new: Sequence[sp.
         if g.is_Symbol:
             continue
         for v in sorted(g.free_symbols - set(plain) - set(sub), key=str):
-            if v not in old or sp.degree(sp.numer(sp.together(g)), v) != 1 or sp.denom(sp.together(g)).has(v):
+            num, den = sp.fraction(sp.together(g))
+            if v not in old or sp.degree(num, v) != 1 or den.has(v):
                 continue
-            sol = sp.solve(sp.Eq(n, g), v, dict=True)
-            if len(sol) == 1:
-                sub[v] = sol[0][v]
-                break
+            # n = (a v + b) / den, linear in v: v = (n den - b) / a (SymPy's solve gave the same, through simplify)
+            a, b = (sp.Poly(num, v).coeff_monomial(m) for m in (v, 1))
+            if a == 0:
+                continue
+            sub[v] = sp.cancel((n * den - b) / a)
+            break
+    if _cyclic(sub):
+        # v1 = f(v2), v2 = g(v1): substituting again and again never removes the old variables and the expressions
+        # double at every pass (llw1987 spent minutes in SymPy's cancel); the sampling search does the job
+        return None
     e = target.xreplace(plain)
     for _ in range(len(sub) + 1):
         e = sp.cancel(sp.together(e.xreplace(sub)))
     return e if e.free_symbols <= set(new) else None
+
+
+def _cyclic(sub: Mapping[sp.Symbol, sp.Expr]) -> bool:
+    """Whether the substitutions `sub` refer to each other in a cycle (v -> the substituted variables in sub[v])."""
+    edges = {v: e.free_symbols & set(sub) for v, e in sub.items()}
+    state: dict[sp.Symbol, int] = {}  # 1: on the current path, 2: done
+
+    def visit(v: sp.Symbol) -> bool:
+        state[v] = 1
+        for w in edges[v]:
+            if state.get(w) == 1 or (w not in state and visit(w)):
+                return True
+        state[v] = 2
+        return False
+
+    return any(v not in state and visit(v) for v in sub)
 
 
 def reparametrize(system: System, functions: Sequence[str], *, unknown_params: Sequence[str] = (),
