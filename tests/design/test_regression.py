@@ -227,3 +227,22 @@ def test_drem_error_law():
     expected = np.array(THETA) * (1 - np.exp(-g * sol.y[4]))[:, None]        # θ̂(0) = 0
     assert np.max(np.abs(run.observers["drem"].xhat[::100] - expected)) < 1e-9
     assert np.max(np.abs(expected - np.array(THETA))) > 0.1
+
+
+@pytest.mark.parametrize("n", [4, 7, 10])
+def test_det_and_adjugate_of_a_large_matrix_by_faddeev_leverrier(n):
+    # CasADi's det expands cofactors (n! terms: a 10-parameter DREM or G+D never finished building); the recursion
+    # must give NumPy's det and det·inv, and stay exact at a singular matrix (the estimators start at D = 0)
+    import casadi as ca
+
+    from nlobs.design._regression import det_adj
+
+    M = ca.SX.sym("M", n, n)
+    f = ca.Function("f", [M], list(det_adj(M)))
+    A = np.random.default_rng(n).standard_normal((n, n))
+    d, adj = (np.array(v) for v in f(A))
+    assert d.item() == pytest.approx(np.linalg.det(A), rel=1e-12)
+    np.testing.assert_allclose(adj, np.linalg.det(A) * np.linalg.inv(A), rtol=0, atol=1e-10 * np.abs(adj).max())
+    d0, adj0 = (np.array(v) for v in f(np.zeros((n, n))))
+    assert d0.item() == 0 and np.all(adj0 == 0)
+    assert f.n_nodes() < 20 * n ** 4                 # polynomial size (cofactors: n! terms)

@@ -62,11 +62,15 @@ class Scenario:
     noise: Noise | None
     noise_std: np.ndarray | None          # per output, the declared σ (uniform b -> b/√3); None: no noise declared
     process_std: np.ndarray | None
-    sample_period: float | None
+    sample_period: float | None           # the fastest clock (per-output periods: the shortest)
     seed: int | None
+    periods: Mapping[str, float] | None = None   # one period per output (multi-rate sensors), or None
+    delay: Mapping[str, float] | None = None     # known measurement delays by output, or None
 
     @property
     def sampling(self) -> Sampling | None:
+        if self.periods:
+            return Sampling(dict(self.periods))
         return Sampling(self.sample_period) if self.sample_period else None
 
     @property
@@ -234,8 +238,10 @@ def _scenario(mf: ModelFile | None, simulation: Any, system: System) -> Scenario
     pstd = None
     if cfg.process_noise:
         pstd = np.array([float(cfg.process_noise.get(k, 0.0)) for k in system.states])
-    return Scenario(t_final, dt, np.asarray(cfg.x0, dtype=float), dict(cfg.inputs), noise, std, pstd,
-                    float(cfg.sample_period) if cfg.sample_period else None, cfg.seed)
+    periods = dict(cfg.sample_period) if isinstance(cfg.sample_period, Mapping) else None
+    fastest = min(periods.values()) if periods else (float(cfg.sample_period) if cfg.sample_period else None)
+    return Scenario(t_final, dt, np.asarray(cfg.x0, dtype=float), dict(cfg.inputs), noise, std, pstd, fastest, cfg.seed,
+                    periods, dict(getattr(cfg, "delay", None) or {}) or None)
 
 
 def _jacobians(system: System, s: Mapping[str, np.ndarray]) -> np.ndarray:
@@ -398,7 +404,7 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
         x0_plant = np.concatenate([scen.x0, [truth[k] for k in unknown]])
         scen = Scenario(scen.t_final, scen.dt, x0_plant, scen.inputs, scen.noise, scen.noise_std,
                         None if scen.process_std is None else np.concatenate([scen.process_std, np.zeros(len(unknown))]),
-                        scen.sample_period, scen.seed)
+                        scen.sample_period, scen.seed, scen.periods, scen.delay)
         try:
             nominal = simulate(system, None, t_final=scen.t_final, dt=scen.dt, x0=scen.x0, inputs=scen.inputs)
         except FiniteEscapeError as e:

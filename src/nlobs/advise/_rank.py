@@ -182,9 +182,10 @@ def _without_diverging(ctx: Context, designs: dict[str, Any], t_final: float | N
             else:
                 run = simulate(ctx.system, designs, t_final=sc.t_final if t_final is None else t_final, dt=sc.dt, x0=sc.x0,
                                inputs=sc.inputs, noise=sc.noise, process_noise=sc.process_noise, sampling=sc.sampling,
-                               seed=sc.seed, engine=engine, progress=progress)
+                               seed=sc.seed, engine=engine, progress=progress, delay=sc.delay)
             # observers that failed while the others ran (see Run.failures): dropped with their measured reason
-            failed += [Score(name, "diverged", detail=f.reason) for name, f in run.failures.items()]
+            failed += [Score(name, "diverged" if f.error == "FiniteEscapeError" else "failed", detail=f.reason)
+                       for name, f in run.failures.items()]
             return run, {k: v for k, v in designs.items() if k not in run.failures}, failed
         except FiniteEscapeError as e:
             name = _culprit(e, designs)

@@ -228,10 +228,39 @@ def sx_matrix(M: sp.Matrix, leaves: Mapping[sp.Symbol, Any]) -> ca.SX:
     return ca.reshape(to_casadi(list(M.T), leaves), M.shape[0], M.shape[1])  # list(M.T): column-major, as reshape
 
 
+#: Above this size the determinant and the adjugate come from the Faddeev–LeVerrier recursion (O(n⁴) operations)
+#: instead of cofactors (CasADi's det expands them: n! terms, which at n = 10 does not finish).
+COFACTOR_MAX = 3
+
+
+def det_adj(M: ca.SX) -> tuple[ca.SX, ca.SX]:
+    r"""det(M) and adj(M) of a square SX matrix, both defined also when M is singular.
+
+    Up to :data:`COFACTOR_MAX` by cofactors; beyond, by the Faddeev–LeVerrier recursion on the characteristic
+    polynomial :math:`\det(\lambda I - M) = \sum_k c_k \lambda^k`: :math:`N_1 = I`,
+    :math:`c_{n-k} = -\operatorname{tr}(M N_k)/k`, :math:`N_{k+1} = M N_k + c_{n-k} I`; then
+    :math:`\det M = (-1)^n c_0` and :math:`\operatorname{adj} M = (-1)^{n+1} N_n` (Cayley–Hamilton). Division-free but
+    for the integers k, so it stays exact at a singular M (the estimators start there: Ω(0) = I)."""
+    n = M.shape[0]
+    if n <= COFACTOR_MAX:
+        return ca.det(M), adjugate(M)
+    I = ca.SX.eye(n)
+    N = I
+    for k in range(1, n + 1):
+        MN = M @ N
+        c = -ca.trace(MN) / k
+        if k == n:
+            return (-1) ** n * c, (-1) ** (n + 1) * N
+        N = MN + c * I
+    raise AssertionError("unreachable")
+
+
 def adjugate(M: ca.SX) -> ca.SX:
     r"""The adjugate (transposed cofactor matrix) of a small square SX matrix:
-    :math:`\operatorname{adj}(M) M = \det(M) I`, defined also when M is singular."""
+    :math:`\operatorname{adj}(M) M = \det(M) I`, defined also when M is singular (see :func:`det_adj` for larger)."""
     n = M.shape[0]
+    if n > COFACTOR_MAX:
+        return det_adj(M)[1]
     if n == 1:
         return ca.SX(1)
     out = ca.SX(n, n)
@@ -526,8 +555,8 @@ class DREM(AbstractEstimator):
             Ye = stack.add("drem_Y", n)
             stack.set_flow(Pe, -a * Pe + reg.psi @ reg.psi.T)
             stack.set_flow(Ye, -a * Ye + reg.psi @ reg.Y)
-        delta = ca.det(Pe)
-        Ym = adjugate(Pe) @ Ye
+        delta, adj = det_adj(Pe)
+        Ym = adj @ Ye
         g = np.broadcast_to(np.asarray(self.gamma, dtype=float).ravel() if np.ndim(self.gamma) else float(self.gamma), (n,))
         th = stack.add(f"{prefix}_hat", n, init=theta0)
         stack.set_flow(th, ca.DM(g) * delta * (Ym - delta * th))
@@ -588,8 +617,8 @@ class GD(AbstractEstimator):
         stack.set_flow(th_g, gg * reg.psi @ (reg.Y - reg.psi.T @ th_g))       # (16a)
         stack.set_flow(Om, -gg * reg.psi @ reg.psi.T @ Om)                   # (16b), (17a)
         D = ca.DM.eye(n) - Om                                                # (17b)
-        delta = ca.det(D)                                                    # (17c)
-        Ymix = adjugate(D) @ th_g                                            # (17d) with θ_g0 = 0
+        delta, adj = det_adj(D)                                              # (17c)
+        Ymix = adj @ th_g                                                    # (17d) with θ_g0 = 0
         stack.set_flow(th, float(self.gamma) * delta * (Ymix - delta * th))  # (16c)
         return Estimate(th, reg.psi, delta)
 

@@ -186,27 +186,55 @@ MAX_ONLINE_SUBSTEPS = 10**6
 _CHUNK = 64
 
 
+def _stepper(obs: AbstractObserver, k: int) -> ca.Function:
+    """``(z, t, dt, u, y) -> [z(t + dt); ρ]``: `k` RK4 steps of the flow with u, y held, and the fastest rate the
+    stages measured (the difference-quotient stiffness detector of :func:`nlobs.engine._integrate.rk4_step_rate`, as
+    the interval runner of :func:`nlobs.estimate` uses: no Jacobian, no eigenvalues)."""
+    cache = obs.__dict__.setdefault("_rate_steps", {})
+    fn = cache.get(k)
+    if fn is None:
+        from ..engine._integrate import rk4_step_rate
+
+        d, s = obs.design, obs.system
+        X = ca.MX if d.needs_mx else ca.SX
+        z, t, dt = X.sym("z", d.n_z), X.sym("t"), X.sym("dt")
+        u, y = X.sym("u", s.n_inputs), X.sym("y", s.n_outputs)
+        h = dt / k
+        zk, rmax = z, 0
+        for i in range(k):
+            zk, r = rk4_step_rate(lambda tt, zz, _k: d.flow(tt, zz, u, y), t + i * h, zk, h, rate=True)
+            rmax = ca.fmax(rmax, r)
+        fn = cache[k] = ca.Function(f"{d.method}_step_rate", [z, t, dt, u, y], [ca.densify(ca.vertcat(zk, rmax))])
+    return fn
+
+
 def _rk4_chunks(obs: AbstractObserver, t: float, z: np.ndarray, dt: float, u: np.ndarray, y: np.ndarray,
-                n: int) -> np.ndarray:
-    """`n` equal RK4 steps from t to t + dt, in calls of at most 64 steps (a few compiled functions, not one per n)."""
+                n: int) -> tuple[np.ndarray, float]:
+    """`n` equal RK4 steps from t to t + dt, in calls of at most 64 steps (a few compiled functions, not one per n);
+    the state and the fastest rate the stages met."""
     h = dt / n
-    done = 0
+    done, rmax = 0, 0.0
+    s = obs.system
+    uu, yy = _vec(u, s.n_inputs, "u"), _vec(y, s.n_outputs, "y")
     while done < n:
         k = min(_CHUNK, n - done)
         if k != _CHUNK and k > 8:
             k = 8 * (k // 8)
-        z = obs.step(t + done * h, z, k * h, u, y, substeps=k)
+        out = evaluate_one(_stepper(obs, k), np.asarray(z, dtype=float), np.array([t + done * h]), np.array([k * h]),
+                           uu, yy)
+        z, rmax = out[:-1], max(rmax, float(out[-1]))
         done += k
         if not np.all(np.isfinite(z)):
             break
-    return z
+    return z, rmax
 
 
 def integrate(obs: AbstractObserver, t0: float, z: np.ndarray, t1: float, u: np.ndarray, y: np.ndarray, *,
               max_step: float | None = None, where: str = "the observer", rate: list[float] | None = None) -> np.ndarray:
     """The observer's flow from (t0, z) to t1 with u and y held: RK4 steps h with h·ρ <= 1 for the flow's fastest
-    rate ρ (measured at both ends of the interval, as the interval runner of :func:`nlobs.estimate` does) and
-    h <= `max_step`. An interval that needs more than :data:`MAX_ONLINE_SUBSTEPS` steps is refused, never stepped
+    rate ρ (at the start the spectral radius of ∂F/∂z, or the rate carried from the previous interval; inside, the
+    rate the RK4 stages measure, as the interval runner of :func:`nlobs.estimate` does: an interval whose steps were
+    too long for it is integrated again with shorter ones) and h <= `max_step`. An interval that needs more than :data:`MAX_ONLINE_SUBSTEPS` steps is refused, never stepped
     over (one RK4 step across a long gap returns a number, not the estimate).
 
     `rate`, a one-element list, carries the rate at t0 in (when the caller knows it: the end of its previous
@@ -224,9 +252,9 @@ def integrate(obs: AbstractObserver, t0: float, z: np.ndarray, t1: float, u: np.
                 f"{MAX_ONLINE_SUBSTEPS:.0e} RK4 steps at the observer's fastest rate {rho:.3g} per time unit; the "
                 "estimate across it would not be worth the time. Start the observer again at the new sample "
                 "(Observer(design).start(xhat0=...)), or feed the samples in between")
-        zn = _rk4_chunks(obs, t0, z, dt, u, y, n)
+        zn, met = _rk4_chunks(obs, t0, z, dt, u, y, n)
         h = dt / n
-        end = obs.rate(t1, zn, u, y) if np.all(np.isfinite(zn)) else np.inf
+        end = met if np.all(np.isfinite(zn)) and np.isfinite(met) else np.inf
         if np.isfinite(end) and h * end <= 2.0:   # RK4 is stable up to h·|λ| ≈ 2.8 on the axes
             if rate is not None:
                 rate[:] = [end]

@@ -107,6 +107,11 @@ def run_delayed(obs: AbstractObserver, t: np.ndarray, u: np.ndarray, events: Eve
                 max_step: float | None = None, name: str = "observer") -> tuple[np.ndarray, np.ndarray]:
     """The observer's state and estimate at each time of `t`, from the samples that have arrived by then (see the
     module docstring). `u` is held (zero-order) between the times of `t`; returns ``(Z, X)``."""
+    from ..observer import ParticleObserver
+
+    if isinstance(obs, ParticleObserver):
+        raise ModelError(f"observer {name!r} is a particle filter, which runs on a whole recording at once; measurement "
+                         "delays are handled by the continuous-discrete observers (ekf, ukf, srekf, srukf, iekf, ...)")
     if not obs.sampled:
         raise ModelError(f"observer {name!r} ({obs.design.method}) takes the output continuously; measurement delays are "
                          "handled by the continuous-discrete observers (a flow between samples and an update at each: "

@@ -48,8 +48,8 @@ def failure_of(name: str, method: str, e: BaseException, partial: Run | None = N
         reason = f"its optimisation failed on the data up to t = {t:.6g} ({e.status})"
     elif isinstance(e, FiniteEscapeError):
         t, reason = e.t, e.reason
-    else:  # pragma: no cover - observer_fault admits only the two above
-        t, reason = None, f"{type(e).__name__}: {e}"
+    else:   # a refusal that concerns this observer only (e.g. a delay it cannot handle)
+        t, reason = None, str(e).split(";")[0]
     trace = None
     if partial is not None and name in partial.observers:
         trace = partial.observers[name]

@@ -248,8 +248,8 @@ def _simulate_delayed(plant: System, observers: Any, delay: Mapping[str, float],
                 r = max(int(bad[0]) - 1, 0)
                 raise FiniteEscapeError(f"observer {name!r}", float(base.t[r]), Z[r], o.design.z_names, np.inf,
                                         hint=f"after t = {base.t[r]:g}")
-        except (FiniteEscapeError, SolverError) as e:   # the others still run; when all fail, the first error
-            failures[name] = failure_of(name, o.design.method, e)
+        except (FiniteEscapeError, SolverError, ModelError) as e:   # the others still run; all failed: the first error
+            failures[name] = failure_of(name, o.design.method, e)   # (ModelError: takes the output continuously)
             errors.append(e)
             continue
         traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, Z, X,
