@@ -123,3 +123,15 @@ def test_the_model_file_and_the_command_line(tmp_path, capsys):
     model.write_text(MODEL.replace("delay = { gps = 0.15, wheel = 0.15 }", "delay = { gps = -1 }"), encoding="utf-8")
     assert main(["simulate", str(model)]) == 1
     assert "simulation.delay.gps" in capsys.readouterr().err
+
+
+def test_a_delayed_run_written_to_csv_is_stamped_at_arrival_and_estimated_back(tmp_path):
+    delay = {"gps": 0.15, "wheel": 0.15}
+    run = nlobs.simulate(CART, {"ekf": _ekf()}, t_final=6.0, delay=delay, **KW)
+    path = tmp_path / "late.csv"
+    run.to_csv(path)
+    rec = nlobs.Recording.from_csv(path, CART)
+    k_gps = np.flatnonzero(np.isfinite(rec.y[:, 0]))
+    np.testing.assert_allclose(rec.t[k_gps[:3]], [0.15, 0.4, 0.65], atol=1e-12)   # taken at 0, 0.25, 0.5; 0.15 s late
+    back = nlobs.estimate({"ekf": _ekf()}, rec, delay=delay, on_missing="skip")
+    np.testing.assert_allclose(back.observers["ekf"].xhat, run.observers["ekf"].xhat, rtol=0, atol=1e-9)

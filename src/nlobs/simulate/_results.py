@@ -407,7 +407,9 @@ class Run:
         that reads back to the same double (Python's ``repr``); missing values as empty cells.
         `every` keeps rows 0, k, 2k, ... (e.g. only the sample instants of a sampled run); with per-output sample
         periods every output is written in the rows where it was sampled and left empty (NaN: not measured) in the
-        others, and `every` > 1 keeps the rows where any output was sampled.
+        others, and `every` > 1 keeps the rows where any output was sampled. With measurement delays
+        (``simulate(..., delay=...)``) a delayed output is written in the row where its sample arrived, as a logger
+        records it: ``estimate`` with the same `delay` reads it back.
         """
         every = int(every)
         if every < 1:
@@ -418,6 +420,7 @@ class Run:
         measured = self.info.get("measured")
         if measured is not None:   # per-output clocks: each output in the rows where it was sampled, empty elsewhere
             y = np.where(measured, y, np.nan)
+            y, measured = self._stamped_at_arrival(y, measured)
             if every > 1:
                 keep = np.flatnonzero(measured.any(axis=1))
         blocks = [self.t[:, None], self.u, y]
@@ -429,6 +432,25 @@ class Run:
             blocks.append(tr.xhat)
         data = np.hstack([np.asarray(b, dtype=float).reshape(self.t.size, -1) for b in blocks])[keep]
         write_csv(path, header, data)
+
+    def _stamped_at_arrival(self, y: np.ndarray, measured: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """With measurement delays, each delayed output moved to the row where its sample arrived (a recording is
+        stamped at arrival; :func:`nlobs.estimate` with the same `delay` takes it back to when it was taken)."""
+        delay = self.info.get("delay") or {}
+        if not any(v > 0 for v in delay.values()):
+            return y, measured
+        dt = float(self.info.get("dt") or np.median(np.diff(self.t)))
+        y, measured = y.copy(), measured.copy()
+        for name, d in delay.items():
+            j = self.output_names.index(name)
+            k = int(round(d / dt))
+            if abs(k * dt - d) > 1e-9 * max(1.0, d):
+                raise ValueError(f"to_csv: the delay of {name!r} ({d:g} s) is not a whole number of steps of dt = {dt:g}; "
+                                 "a recording stamped at arrival needs it on the grid (choose dt dividing the delay)")
+            if k:
+                y[k:, j], y[:k, j] = y[:-k, j].copy(), np.nan
+                measured[k:, j], measured[:k, j] = measured[:-k, j].copy(), False
+        return y, measured
 
     def plot(self, path: str | None = None, *, observers: Sequence[str] | None = None, width: float = 6.4,
              title: str | None = None) -> Any:
