@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from ..errors import FormError, ModelError, ShapeError
+from ..errors import FormError, ShapeError
 from ._expr import as_written
 from ._system import TIME, System, exact, symbol, to_expr
 

@@ -403,7 +403,6 @@ def _montecarlo_map(plant: System, observers: Any, *, x0: Any, runs: int | None,
     """Monte Carlo runs of a discrete-time plant and its observers: each run is :func:`nlobs.simulate`'s map
     iteration (one compiled mapaccum for the plant, the compiled observer loop), with the seeds, initial states and
     parameter draws of the continuous-time runner; a run that leaves the bound counts as failed."""
-    from ._discrete import simulate_map
     from ._run import augmented_plant, named_observers
 
     obs = named_observers(observers)

@@ -24,7 +24,6 @@ from ..._deprecate import renamed
 from ...errors import FormError, ModelError, ShapeError
 from ...model import OutputInjectionForm, System
 from ._conditions import LipschitzEstimate, check_box, lipschitz_bound
-from .._reports import fmt_vec
 from ...references import cite
 
 __all__ = ["FormCheck", "FormsReport", "with_params_as_states", "state_affine_form", "lipschitz_constant",

@@ -29,7 +29,6 @@ Method (everything over GF(p), on the SIAN systems of ``_global.py``):
 from __future__ import annotations
 
 import functools
-import itertools
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -40,7 +39,7 @@ import sympy as sp
 
 from ...errors import ModelError
 from ...model import System, symbol
-from ...algebra._modular import COEFF_BOUND, monomial_exponents
+from ...algebra._modular import monomial_exponents
 from ...algebra._modular import monomial_value as _mono_value
 from ...algebra._modular import ratrec as _ratrec
 from ._global import NO_ENGINE, NotRational, _decide, _prepare, _System
