@@ -87,26 +87,25 @@ def _auto_designs(model_file: Any, kinds: Sequence[str]) -> dict[str, Any]:
     return out
 
 
-def positive_int(text: str) -> int:
-    """argparse type: a whole number > 0."""
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive whole number, got {text!r}") from None
-    if v <= 0:
-        raise argparse.ArgumentTypeError(f"expected a positive whole number (> 0), got {text!r}")
-    return v
+def _positive(convert: Any, what: str) -> Any:
+    """An argparse type: `text` converted by `convert`, finite and > 0, or one line saying what was expected."""
+
+    def parse(text: str) -> Any:
+        try:
+            v = convert(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a positive {what}, got {text!r}") from None
+        if not (math.isfinite(v) and v > 0):
+            raise argparse.ArgumentTypeError(f"expected a positive {what} (finite and > 0), got {text!r}")
+        return v
+
+    return parse
 
 
-def positive_float(text: str) -> float:
-    """argparse type: a finite number > 0."""
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
-    if not (math.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"expected a positive number (finite and > 0), got {text!r}")
-    return v
+#: argparse type: a whole number > 0.
+positive_int = _positive(int, "whole number")
+#: argparse type: a finite number > 0.
+positive_float = _positive(float, "number")
 
 
 def _number(text: str, what: str) -> float:

@@ -15,7 +15,7 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from ..analysis.forms._conditions import box_sup
+from ..analysis.forms._conditions import box_sup, region_pairs
 from ..engine import to_casadi
 from ..errors import ModelError, PreconditionError, ShapeError
 from ..model import TIME, System
@@ -79,12 +79,7 @@ def box_of(system: System, region: Mapping[str, Sequence[float]] | None, names: 
     """Lower and upper bounds for `names` from a mapping ``{name: (lo, hi)}`` (every name required)."""
     if region is None:
         raise PreconditionError(f"{caller}: `{what}` is required here: give a box {{name: (lo, hi)}} for {', '.join(names)}")
-    unknown = [k for k in region if k not in names]
-    if unknown:
-        raise ShapeError(f"{caller}: `{what}` names {unknown[0]!r}, which is not one of {', '.join(names)}")
-    missing = [k for k in names if k not in region]
-    if missing:
-        raise ShapeError(f"{caller}: `{what}` has no bounds for {', '.join(missing)}; give (lo, hi) for each of {', '.join(names)}")
+    region_pairs(region, names, what, caller)   # every name once, no other
     lo, hi = [], []
     for k in names:
         try:

@@ -29,7 +29,7 @@ from ...model._system import to_expr
 from .._reports import fmt_point, fmt_vec
 from ...references import cite
 
-__all__ = ["check_box", "matrix_measure", "box_sup", "SlopeResult", "max_slope", "BanksCheck", "banks_condition", "LipschitzEstimate",
+__all__ = ["check_box", "region_pairs", "matrix_measure", "box_sup", "SlopeResult", "max_slope", "BanksCheck", "banks_condition", "LipschitzEstimate",
            "lipschitz_bound"]
 
 REF = f"{cite('003')}"
@@ -60,7 +60,7 @@ def check_box(box: Any, n: int, name: str, caller: str, names: Sequence[str] | N
         Wrong shape; NaN or infinite bounds; low > high.
     """
     if isinstance(box, Mapping):
-        box = _mapping_box(box, names, name, caller)
+        box = region_pairs(box, names, name, caller)
     try:
         b = np.array(box, dtype=float)
     except (TypeError, ValueError) as e:
@@ -78,8 +78,9 @@ def check_box(box: Any, n: int, name: str, caller: str, names: Sequence[str] | N
     return b
 
 
-def _mapping_box(box: Mapping[str, Any], names: Sequence[str] | None, name: str, caller: str) -> list[Any]:
-    """The [low, high] pairs of a region given as ``{name: (low, high)}``, in the order of `names`."""
+def region_pairs(box: Mapping[str, Any], names: Sequence[str] | None, name: str, caller: str) -> list[Any]:
+    """The [low, high] pairs of a region given as ``{name: (low, high)}``, in the order of `names` (every name once,
+    no other; the design functions' ``box_of`` checks its regions with it too)."""
     if names is None:
         raise ShapeError(f"{caller}: `{name}` must be a list of [low, high] pairs here (no names to key a mapping by)")
     unknown = [k for k in box if k not in names]
@@ -87,7 +88,7 @@ def _mapping_box(box: Mapping[str, Any], names: Sequence[str] | None, name: str,
         raise ShapeError(f"{caller}: `{name}` names {unknown[0]!r}, which is not one of {', '.join(names)}")
     missing = [k for k in names if k not in box]
     if missing:
-        raise ShapeError(f"{caller}: `{name}` has no bounds for {', '.join(missing)}; give (low, high) for each of "
+        raise ShapeError(f"{caller}: `{name}` has no bounds for {', '.join(missing)}; give (lo, hi) for each of "
                          f"{', '.join(names)}")
     return [box[k] for k in names]
 
