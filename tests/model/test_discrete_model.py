@@ -66,10 +66,11 @@ def test_python_api_and_pickling_keep_the_time_base():
 
 def test_continuous_only_kinds_refuse_a_map_and_name_the_ones_that_run():
     s = nlobs.loads_model(RICKER).observer_system
-    with pytest.raises(PreconditionError, match=r"continuous-time only.*discrete-time model.*ekf, .*ukf"):
+    with pytest.raises(PreconditionError, match=r"continuous-time only.*discrete-time model.*ekf, .*ukf.*mhe"):
         nlobs.design_high_gain(s, theta=2.0)
     with pytest.raises(PreconditionError, match="continuous-time only"):
-        nlobs.design_mhe(s)
+        nlobs.design_kalman_bucy(s)
+    assert nlobs.design_mhe(s, horizon=5).system.is_discrete      # MHE runs on maps (issue 21)
 
 
 def test_simulate_refuses_a_continuous_observer_on_a_map_and_a_dt():
