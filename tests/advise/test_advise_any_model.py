@@ -201,3 +201,18 @@ def test_progress_names_a_kind_that_takes_long(monkeypatch):
     import time as _t
     _t.sleep(0.05)
     assert any("still trying ekf" in m for m in said) or any("still trying luenberger" in m for m in said)
+
+
+def test_an_output_with_feedthrough_is_not_augmented_and_says_why():
+    # a battery: v = ocv(soc) − v1 − R0·i feeds the current through; the span of its derivatives holds i, so no
+    # T(x) of the states alone exists (was: "the automatic design failed: ... the symbol `R0` has no value here")
+    cell = nlobs.System(states=["soc", "v1"], inputs=["i"], outputs=["v"], params={"Q": 9000.0, "R0": 0.02, "R1": 0.015,
+                                                                               "C1": 2000.0},
+                        f=["-i/Q", "-v1/(R1*C1) + i/C1"], h=["3.2 + 0.9*soc - 0.4*soc**2 - v1 - R0*i"])
+    adv = advise(cell, simulation=_sim([0.9, 0.0], {"i": "2.5 + 2*sin(0.01*t)"}, t_final=100.0, dt=0.5,
+                                       sample_period=1.0), kinds=["augmented"])
+    c = adv.candidate("augmented")
+    assert c.status == "fails" and "needs the input (i) inside T" in c.why and "direct feedthrough" in c.why
+    with pytest.raises(PreconditionError, match="T depends on the input i; w = T"):
+        nlobs.design_augmented(cell, T=["soc", "v1", "v1 + i"], A=[["0", "0", "0"]] * 3, C=[["0", "0", "1"]],
+                               left_inverse=["w1", "w2"], poles=[-1, -2, -3])

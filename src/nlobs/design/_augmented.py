@@ -40,6 +40,11 @@ def tune_augmented(ctx: Any) -> Tuning:
         return Tuning.needs(f"T(x), A(u, y, t), C and a left inverse such that the augmented system mimics the model "
                        f"({cite('001', 'Def. 3')}); nlobs could not close the span automatically: {clean_message(e)}",
                        T="...", A="...", C="...", left_inverse="...")
+    through = sorted({v.name for e in aug.T for v in e.free_symbols & set(ctx.system.u)})
+    if through:   # w = T(x) must be a function of the states: its initial value and the mimicking rest on it
+        return Tuning.fails(f"the span of the outputs' derivatives needs the input ({', '.join(through)}) inside T: an output "
+                            "with direct feedthrough is not a function of the states, and T(x) must be one "
+                            f"({cite('001', 'Def. 3')})")
     if aug.n_w == ctx.n:
         return Tuning.fails("not needed: the model is already state-affine in its own coordinates (the span of the outputs' "
                       "derivatives closes on x itself); this would be the filter of `kalman_bucy`")
@@ -132,6 +137,11 @@ def design_augmented(system: System, *, T: Sequence[ExprLike], A: Any, C: Any, l
     base["t"] = TIME
     with_y = {**base, **{k: symbol(k) for k in system.outputs}}
     Tm = matrix_of(list(T), len(T), 1, base, name="T").xreplace(params)
+    through = sorted({v.name for v in Tm.free_symbols & set(system.u)})
+    if through:
+        raise PreconditionError(f"{caller}: T depends on the input {', '.join(through)}; w = T(x) must be a function of the "
+                                f"states (its initial value is T(x̂0), and the mimicking of {cite('001', 'Def. 3')} holds for "
+                                "every input): write T in the states only")
     nw = Tm.shape[0]
     Am = matrix_of(A, nw, nw, with_y, name="A").xreplace(params)
     Cm = matrix_of(C, system.n_outputs, nw, base, name="C").xreplace(params)

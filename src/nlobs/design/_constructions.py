@@ -432,6 +432,7 @@ def evaluate(exprs: Sequence[sp.Expr], system: System, points: Mapping[str, np.n
     leaves.update({s: x[i] for i, s in enumerate(system.x)})
     leaves.update({s: u[i] for i, s in enumerate(system.u)})
     leaves.update({s: y[i] for i, s in enumerate(system.y)})
+    leaves.update({symbol(k): ca.SX(float(v)) for k, v in system.params.items()})   # the model's parameter values
     fn = ca.Function("e", [tt, x, u, y], [to_casadi(list(exprs), leaves)])
     out = fn.map(N)(ca.DM(points["t"]).T, ca.DM(points["x"].T), ca.DM(points["u"].T) if system.n_inputs else ca.DM(0, N),
                     ca.DM(points["y"].T))
