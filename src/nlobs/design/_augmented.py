@@ -30,6 +30,16 @@ REF = (f"{cite('001')}: mimicking systems (2), Def. 3, Theorem 1 (observable iff
        "Lemma 1 (observer through a left inverse); §IV-A eqs. (15)-(16), §IV-B (17)-(18), §IV-C (20)-(22)")
 
 
+def _states_only(Tm: sp.Matrix, system: System, caller: str) -> sp.Matrix:
+    """T, refused by name when it depends on an input: w = T(x) must be a function of the states."""
+    through = sorted({v.name for v in Tm.free_symbols & set(system.u)})
+    if through:
+        raise PreconditionError(f"{caller}: T depends on the input {', '.join(through)}; w = T(x) must be a function of the "
+                                f"states (its initial value is T(x̂0), and the mimicking of {cite('001', 'Def. 3')} holds for "
+                                "every input): write T in the states only")
+    return Tm
+
+
 # -- automatic tuning for the advisor (the kinds' `tune`; see design/_kind.py) ------------------------------
 def tune_augmented(ctx: Any) -> Tuning:
     from ..analysis import propose_augmentation
@@ -136,12 +146,7 @@ def design_augmented(system: System, *, T: Sequence[ExprLike], A: Any, C: Any, l
     base = {k: symbol(k) for k in (*system.states, *system.inputs, *system.params)}
     base["t"] = TIME
     with_y = {**base, **{k: symbol(k) for k in system.outputs}}
-    Tm = matrix_of(list(T), len(T), 1, base, name="T").xreplace(params)
-    through = sorted({v.name for v in Tm.free_symbols & set(system.u)})
-    if through:
-        raise PreconditionError(f"{caller}: T depends on the input {', '.join(through)}; w = T(x) must be a function of the "
-                                f"states (its initial value is T(x̂0), and the mimicking of {cite('001', 'Def. 3')} holds for "
-                                "every input): write T in the states only")
+    Tm = _states_only(matrix_of(list(T), len(T), 1, base, name="T").xreplace(params), system, caller)
     nw = Tm.shape[0]
     Am = matrix_of(A, nw, nw, with_y, name="A").xreplace(params)
     Cm = matrix_of(C, system.n_outputs, nw, base, name="C").xreplace(params)

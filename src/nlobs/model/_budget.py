@@ -206,6 +206,8 @@ def _limited(entry: _Limit) -> Iterator[None]:
     def handler(signum: int, frame: Any) -> None:
         if not _inside_sympy(frame):
             return
+        if frame is not None and frame.f_code.co_filename.endswith(("weakref.py", "_weakrefset.py")):
+            return   # inside a weakref callback the garbage collector runs: an error there is only printed; next tick
         for e in stack:
             e.spent += _TICK
         for e in stack:
