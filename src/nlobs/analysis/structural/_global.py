@@ -934,25 +934,10 @@ def _prepare(system: System, *, unknown_params: Any = (), inputs: Any = "generic
                                      seed=seed).observable for text, _ in funcs]
     orders = list(local.orders) if local.orders else [0] * system.n_outputs
     max_orders = [max(o, 0) + 1 for o in orders]
-    K = max(max_orders) + 2
-    for _ in range(8):
-        p = random_prime(rng, interval=_PRIME_RANGE, three_mod_four=False)
-        try:
-            sian = _Sian(rm, K, p, rng)
-            pt = sian.point()
-            try:
-                eqs, have, beta = sian.truncate(pt, max_orders)
-            except _OrderOverflow:
-                K += 2
-                continue
-            pt2 = sian.point()  # a fresh point for the decision (SIAN draws two)
-            hs = _hat_system(sian, pt2, eqs, have, _function_polys(sian, funcs, params_unknown, system))
-            break
-        except ZeroDivisionError:
-            continue
-    else:
-        raise ModelError(f"{system.name!r}: the global check hit a zero denominator at 8 random points; the model's "
-                         "expressions may be undefined almost everywhere (check the divisions)")
+    sian, pt2, eqs, have, beta, p, hs = _sian_at_a_random_point(
+        rm, max(max_orders) + 2, max_orders, rng, lambda: random_prime(rng, interval=_PRIME_RANGE, three_mod_four=False),
+        f"{system.name!r}: the global check",
+        lambda sian, pt2, eqs, have: _hat_system(sian, pt2, eqs, have, _function_polys(sian, funcs, params_unknown, system)))
     free = [u for u in unknown_names if u not in local_ok]
     d = len(unknown_names) - local.rank
     hs.slices = _slice(hs, [hs.unknown_var[u] for u in free], d, rng)
@@ -1033,10 +1018,21 @@ def _prepare_rewritten(system: System, rw: Rewriting, params_unknown: Sequence[s
     orders = list(local.orders) if local.orders else [0] * n_out
     # an unpinned tie adds at most one unknown: one more derivative per added state, at most
     max_orders = [max(o, 0) + 1 + len(rw.ties) for o in orders] + [1] * len(rw.tie_outputs)
-    K = max(max_orders) + 2
     rng = np.random.default_rng([seed, 12])
+    sian, pt2, eqs, have, beta, p, _ = _sian_at_a_random_point(rm, max(max_orders) + 2, max_orders, rng,
+                                                               lambda: _rewritten_prime(rng, rm),
+                                                               f"{system.name!r}: the global check of the rewritten model")
+    return _Rewritten(system, rw, rm, sian, pt2, eqs, have, p, tuple(b - 1 for b in beta[:n_out]), original,
+                      local_ok, funcs, fn_locals, list(params_unknown), rng)
+
+
+def _sian_at_a_random_point(rm: _Rational, K: int, max_orders: list[int], rng: np.random.Generator,
+                            next_prime: Any, where: str, then: Any = None) -> tuple:
+    """SIAN's truncated system at a random point of GF(p), and a fresh point for the decision (SIAN draws two):
+    (sian, point, equations, have, beta, p, then(...)). A zero denominator draws another prime (8 tries); an order
+    that overflows the jets lengthens them. `then(sian, point, eqs, have)` runs under the same retry."""
     for _ in range(8):
-        p = _rewritten_prime(rng, rm)
+        p = next_prime()
         try:
             sian = _Sian(rm, K, p, rng)
             pt = sian.point()
@@ -1046,14 +1042,12 @@ def _prepare_rewritten(system: System, rw: Rewriting, params_unknown: Sequence[s
                 K += 2
                 continue
             pt2 = sian.point()
-            break
+            extra = then(sian, pt2, eqs, have) if then is not None else None
+            return sian, pt2, eqs, have, beta, p, extra
         except ZeroDivisionError:
             continue
-    else:
-        raise ModelError(f"{system.name!r}: the global check of the rewritten model hit a zero denominator at 8 random "
-                         "points; the model's expressions may be undefined almost everywhere (check the divisions)")
-    return _Rewritten(system, rw, rm, sian, pt2, eqs, have, p, tuple(b - 1 for b in beta[:n_out]), original,
-                      local_ok, funcs, fn_locals, list(params_unknown), rng)
+    raise ModelError(f"{where} hit a zero denominator at 8 random points; the model's expressions may be undefined "
+                     "almost everywhere (check the divisions)")
 
 
 def _grad_rational(sian: _Sian, num: list, den: list, vals: list[int], cols: Mapping[int, int], n: int) -> np.ndarray:
