@@ -46,40 +46,39 @@ def _data(N=200, seed=3):
 Q, R, P0, X0 = np.diag([1e-4, 1e-4]), np.diag([0.0025, 0.0025]), np.diag([0.5, 0.5]), np.array([0.5, 0.3])
 
 
-def numpy_ekf(u, y):
-    x, P, out = X0.copy(), P0.copy(), []
+def _numpy_ekf_pass(u, y):
+    """The EKF by hand: per step the prediction (x⁻, P⁻), the innovation ν and its covariance S, the filtered (x, P)."""
+    x, P, out = X0.copy(), P0.copy(), {"xp": [], "nu": [], "S": [], "xf": [], "Pf": []}
     for k in range(len(y)):
         if k:
             Fk = F(x, u[k - 1])
             x, P = f(x, u[k - 1]), Fk @ P @ Fk.T + Q
         Hk = H(x)
         S = Hk @ P @ Hk.T + R
+        nu = y[k] - h(x)
         K = P @ Hk.T @ np.linalg.inv(S)
-        x = x + K @ (y[k] - h(x))
+        out["xp"].append(x)
+        out["nu"].append(nu)
+        out["S"].append(S)
+        x = x + K @ nu
         IKH = np.eye(2) - K @ Hk
         P = IKH @ P @ IKH.T + K @ R @ K.T
-        out.append(x)
-    return np.array(out)
+        out["xf"].append(x)
+        out["Pf"].append(P)
+    return {k: np.array(v) for k, v in out.items()}
+
+
+def numpy_ekf(u, y):
+    return _numpy_ekf_pass(u, y)["xf"]
 
 
 def numpy_ekf_innovations(u, y):
     """y[k] − h(x[k|k−1]) of the same EKF (x[0|−1] = X0)."""
-    x, P, out = X0.copy(), P0.copy(), []
-    for k in range(len(y)):
-        if k:
-            Fk = F(x, u[k - 1])
-            x, P = f(x, u[k - 1]), Fk @ P @ Fk.T + Q
-        out.append(y[k] - h(x))
-        Hk = H(x)
-        K = P @ Hk.T @ np.linalg.inv(Hk @ P @ Hk.T + R)
-        x = x + K @ (y[k] - h(x))
-        IKH = np.eye(2) - K @ Hk
-        P = IKH @ P @ IKH.T + K @ R @ K.T
-    return np.array(out)
+    return _numpy_ekf_pass(u, y)["nu"]
 
 
-def numpy_ukf(u, y, alpha=0.5, beta=2.0, kappa=0.0):
-    n = 2
+def _sigma(alpha, beta, kappa, n=2):
+    """filterpy's MerweScaledSigmaPoints: the weights and a function of (x, P) giving the 2n + 1 points."""
     lam = alpha ** 2 * (n + kappa) - n
     Wm = np.full(2 * n + 1, 0.5 / (n + lam))
     Wc = Wm.copy()
@@ -89,7 +88,14 @@ def numpy_ukf(u, y, alpha=0.5, beta=2.0, kappa=0.0):
         U = np.linalg.cholesky((n + lam) * P)
         return np.array([x] + [x + U[:, i] for i in range(n)] + [x - U[:, i] for i in range(n)])
 
-    x, P, out = X0.copy(), P0.copy(), []
+    return Wm, Wc, points
+
+
+def _numpy_ukf_pass(u, y, alpha=0.5, beta=2.0, kappa=0.0):
+    """The UKF by hand (its update reuses the propagated points): the innovation ν and its covariance S per step, and
+    the filtered (x, P)."""
+    Wm, Wc, points = _sigma(alpha, beta, kappa)
+    x, P, out = X0.copy(), P0.copy(), {"nu": [], "S": [], "xf": [], "Pf": []}
     for k in range(len(y)):
         sig = points(x, P)
         if k:
@@ -101,10 +107,17 @@ def numpy_ukf(u, y, alpha=0.5, beta=2.0, kappa=0.0):
         S = sum(w * np.outer(v - yh, v - yh) for w, v in zip(Wc, ys)) + R
         Pxy = sum(w * np.outer(s - x, v - yh) for w, s, v in zip(Wc, sig, ys))
         K = Pxy @ np.linalg.inv(S)
+        out["nu"].append(y[k] - yh)
+        out["S"].append(S)
         x = x + K @ (y[k] - yh)
         P = P - K @ S @ K.T
-        out.append(x)
-    return np.array(out)
+        out["xf"].append(x)
+        out["Pf"].append(P)
+    return {k_: np.array(v) for k_, v in out.items()}
+
+
+def numpy_ukf(u, y, alpha=0.5, beta=2.0, kappa=0.0):
+    return _numpy_ukf_pass(u, y, alpha, beta, kappa)["xf"]
 
 
 def _recording(t, u, y):
@@ -242,18 +255,8 @@ def test_mhe_on_a_nonlinear_map_converges():
 
 def numpy_eks(u, y):
     """The extended RTS smoother (Simon (2006) §9.4.2) after numpy_ekf: x_s[k] = x[k] + G (x_s[k+1] − f(x[k]))."""
-    x, P, xf, Pf = X0.copy(), P0.copy(), [], []
-    for k in range(len(y)):
-        if k:
-            Fk = F(x, u[k - 1])
-            x, P = f(x, u[k - 1]), Fk @ P @ Fk.T + Q
-        Hk = H(x)
-        K = P @ Hk.T @ np.linalg.inv(Hk @ P @ Hk.T + R)
-        x = x + K @ (y[k] - h(x))
-        IKH = np.eye(2) - K @ Hk
-        P = IKH @ P @ IKH.T + K @ R @ K.T
-        xf.append(x)
-        Pf.append(P)
+    run = _numpy_ekf_pass(u, y)
+    xf, Pf = run["xf"], run["Pf"]
     xs = [xf[-1]]
     for k in range(len(y) - 2, -1, -1):
         Fk = F(xf[k], u[k])
@@ -282,42 +285,16 @@ def test_the_map_smoother_is_the_extended_rts_smoother():
 
 def numpy_urts(u, y, alpha=0.5, beta=2.0, kappa=0.0):
     """numpy_ukf's filter, then the unscented RTS smoother of Särkkä (2008) with the same sigma points."""
-    n = 2
-    lam = alpha ** 2 * (n + kappa) - n
-    Wm = np.full(2 * n + 1, 0.5 / (n + lam))
-    Wc = Wm.copy()
-    Wm[0], Wc[0] = lam / (n + lam), lam / (n + lam) + 1 - alpha ** 2 + beta
-
-    def points(x, P):
-        U = np.linalg.cholesky((n + lam) * P)
-        return np.array([x] + [x + U[:, i] for i in range(n)] + [x - U[:, i] for i in range(n)])
-
-    def predict(x, P, uk):
-        sig = points(x, P)
-        fs = np.array([f(s, uk) for s in sig])
-        xp = Wm @ fs
-        Pp = sum(w * np.outer(v - xp, v - xp) for w, v in zip(Wc, fs)) + Q
-        C = sum(w * np.outer(s - x, v - xp) for w, s, v in zip(Wc, sig, fs))
-        return xp, Pp, C
-
-    x, P, xf, Pf = X0.copy(), P0.copy(), [], []
-    for k in range(len(y)):
-        sig = points(x, P)
-        if k:   # the update reuses the propagated points (as the filter does)
-            sig = np.array([f(s, u[k - 1]) for s in sig])
-            x = Wm @ sig
-            P = sum(w * np.outer(s - x, s - x) for w, s in zip(Wc, sig)) + Q
-        ys = np.array([h(s) for s in sig])
-        yh = Wm @ ys
-        S = sum(w * np.outer(v - yh, v - yh) for w, v in zip(Wc, ys)) + R
-        Pxy = sum(w * np.outer(s - x, v - yh) for w, s, v in zip(Wc, sig, ys))
-        K = Pxy @ np.linalg.inv(S)
-        x, P = x + K @ (y[k] - yh), P - K @ S @ K.T
-        xf.append(x)
-        Pf.append(P)
+    Wm, Wc, points = _sigma(alpha, beta, kappa)
+    run = _numpy_ukf_pass(u, y, alpha, beta, kappa)
+    xf, Pf = run["xf"], run["Pf"]
     xs = [xf[-1]]
     for k in range(len(y) - 2, -1, -1):
-        xp, Pp, C = predict(xf[k], Pf[k], u[k])
+        sig = points(xf[k], Pf[k])
+        fs = np.array([f(s, u[k]) for s in sig])
+        xp = Wm @ fs
+        Pp = sum(w * np.outer(v - xp, v - xp) for w, v in zip(Wc, fs)) + Q
+        C = sum(w * np.outer(s - xf[k], v - xp) for w, s, v in zip(Wc, sig, fs))
         xs.insert(0, xf[k] + C @ np.linalg.inv(Pp) @ (xs[0] - xp))
     return np.array(xs)
 
@@ -331,20 +308,8 @@ def test_the_unscented_map_smoother_is_sarkkas():
 
 def numpy_ekf_loglik(u, y):
     """Σ −½(log det(2π S_k) + ν_kᵀ S_k⁻¹ ν_k) of numpy_ekf (Schweppe's prediction-error decomposition)."""
-    x, P, ll = X0.copy(), P0.copy(), 0.0
-    for k in range(len(y)):
-        if k:
-            Fk = F(x, u[k - 1])
-            x, P = f(x, u[k - 1]), Fk @ P @ Fk.T + Q
-        Hk = H(x)
-        S = Hk @ P @ Hk.T + R
-        nu = y[k] - h(x)
-        ll += -0.5 * (np.log(np.linalg.det(2 * np.pi * S)) + nu @ np.linalg.solve(S, nu))
-        K = P @ Hk.T @ np.linalg.inv(S)
-        x = x + K @ nu
-        IKH = np.eye(2) - K @ Hk
-        P = IKH @ P @ IKH.T + K @ R @ K.T
-    return ll
+    run = _numpy_ekf_pass(u, y)
+    return sum(-0.5 * (np.log(np.linalg.det(2 * np.pi * S)) + nu @ np.linalg.solve(S, nu)) for nu, S in zip(run["nu"], run["S"]))
 
 
 def test_the_likelihood_of_a_map_and_learning_its_parameter():
@@ -366,25 +331,5 @@ def test_the_likelihood_of_a_map_and_learning_its_parameter():
 
 def numpy_ukf_loglik(u, y, alpha=0.5, beta=2.0, kappa=0.0):
     """The same sum for numpy_ukf (its update reuses the propagated sigma points)."""
-    n = 2
-    lam = alpha ** 2 * (n + kappa) - n
-    Wm = np.full(2 * n + 1, 0.5 / (n + lam))
-    Wc = Wm.copy()
-    Wm[0], Wc[0] = lam / (n + lam), lam / (n + lam) + 1 - alpha ** 2 + beta
-    x, P, ll = X0.copy(), P0.copy(), 0.0
-    for k in range(len(y)):
-        U = np.linalg.cholesky((n + lam) * P)
-        sig = np.array([x] + [x + U[:, i] for i in range(n)] + [x - U[:, i] for i in range(n)])
-        if k:
-            sig = np.array([f(s, u[k - 1]) for s in sig])
-            x = Wm @ sig
-            P = sum(w * np.outer(s - x, s - x) for w, s in zip(Wc, sig)) + Q
-        ys = np.array([h(s) for s in sig])
-        yh = Wm @ ys
-        S = sum(w * np.outer(v - yh, v - yh) for w, v in zip(Wc, ys)) + R
-        nu = y[k] - yh
-        ll += -0.5 * (np.log(np.linalg.det(2 * np.pi * S)) + nu @ np.linalg.solve(S, nu))
-        Pxy = sum(w * np.outer(s - x, v - yh) for w, s, v in zip(Wc, sig, ys))
-        K = Pxy @ np.linalg.inv(S)
-        x, P = x + K @ nu, P - K @ S @ K.T
-    return ll
+    run = _numpy_ukf_pass(u, y, alpha, beta, kappa)
+    return sum(-0.5 * (np.log(np.linalg.det(2 * np.pi * S)) + nu @ np.linalg.solve(S, nu)) for nu, S in zip(run["nu"], run["S"]))
