@@ -111,6 +111,9 @@ _ALL = (
               "Differential elimination for dynamical models via projections with applications to structural "
               "identifiability", "SIAM Journal on Applied Algebra and Geometry 7(1):194–235", 2023,
               doi="10.1137/22M1469067"),
+    Reference("ovchinnikov2023", "A. Ovchinnikov, G. Pogudin, P. Thompson", "Ovchinnikov, Pogudin & Thompson",
+              "Input-output equations and identifiability of ODE models",
+              "IEEE Transactions on Automatic Control 68(2):812–824", 2023, doi="10.1109/TAC.2022.3145571"),
     Reference("ovchinnikov2021", "A. Ovchinnikov, A. Pillay, G. Pogudin, T. Scanlon", "Ovchinnikov, Pillay, Pogudin & Scanlon",
               "Multi-experiment parameter identifiability of ODEs and model theory",
               "SIAM Journal on Applied Algebra and Geometry 6(3):339–367", 2022, doi="10.1137/21M1389845"),

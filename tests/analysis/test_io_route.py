@@ -1,0 +1,120 @@
+"""The input-output route of the global check (analysis/structural/_io.py) against independent results.
+
+References: the equation of the linear two-compartment model is derived by hand below (its characteristic
+polynomial); verdicts are the published ones of tests/analysis/published_models.py and, for every model, those
+of the SIAN route (a different algorithm on a different polynomial system).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import sympy as sp
+from published_models import MODELS
+from test_global import ENGINE, SLOW, needs_engine
+
+from nlobs import System
+from nlobs.analysis.structural._global import _to_rational, global_identifiability
+from nlobs.analysis.structural._inputs import _input_classes
+from nlobs.analysis.structural._io import io_equations
+
+BY_NAME = {m.name: m for m in MODELS}
+
+
+def _io(system: System, params):
+    rm = _to_rational(system, list(params), _input_classes(system, "generic", {}), {})
+    return rm, io_equations(rm.params, rm.states, [u for u, _ in rm.inputs], rm.f, rm.h, np.random.default_rng(3))
+
+
+def test_two_compartment_equation_by_hand():
+    # x0' = -(a01 + a21) x0 + a12 x1, x1' = a21 x0 - a12 x1, y = x0: with A the system matrix, y satisfies its
+    # characteristic polynomial s^2 - tr(A) s + det(A): y'' + (a01 + a21 + a12) y' + a01 a12 y = 0
+    two = BY_NAME["two_compartment"].system()
+    _, io = _io(two, ("a01", "a21", "a12"))
+    assert io.orders == [2]
+    R = io.ring
+    a01, a21, a12 = (sp.Symbol(f"p{j}") for j in range(3))  # internal names, in the order given
+    y0, y1, y2 = (sp.Symbol(f"y0_{k}") for k in range(3))
+    hand = sp.Poly(y2 + (a01 + a21 + a12) * y1 + a01 * a12 * y0, *[sp.Symbol(n) for n in R.names])
+    got = sp.Poly(sp.sympify(str(io.eqs[0]).replace("^", "**")), *[sp.Symbol(n) for n in R.names])
+    ratio = sp.cancel(got.as_expr() / hand.as_expr())
+    assert ratio.is_number and ratio != 0
+
+
+def test_equation_vanishes_on_a_solution():
+    # Goodwin's oscillator (a rational right-hand side): the equation holds along a power-series solution at a
+    # random point of GF(P), computed independently of the elimination (a fresh point, 12 orders)
+    from nlobs.analysis.structural._io import _big_prime, _Points
+
+    m = BY_NAME["goodwin"]
+    _, io = _io(m.system(), m.params)
+    assert io.orders == [4]
+    rng = np.random.default_rng(11)
+    P = _big_prime(rng)
+    pts = _Points(io.ring, io.f, io.h, rng, P)
+    for i in range(3):
+        assert pts.vanishes(io.eqs[0], i)
+    # and a perturbed equation does not (the test can fail)
+    assert not pts.vanishes(io.eqs[0] + io.ring.var("y0_4"), 0)
+
+
+SINGLE = [m.name for m in MODELS if len(m.outputs) == 1 and m.name not in SLOW and (m.verdicts or m.ident is not None)]
+
+
+@needs_engine
+@pytest.mark.parametrize("name", SINGLE)
+def test_io_route_equals_sian(name):
+    # the two routes: same verdicts, same numbers of solutions, same function verdicts
+    m = BY_NAME[name]
+    s = m.system()
+    fn = [k for k in m.verdicts if k not in m.states and k not in m.params]
+    a = global_identifiability(s, unknown_params="all", functions=fn, engine=ENGINE, route="io")
+    b = global_identifiability(s, unknown_params="all", functions=fn, engine=ENGINE, route="sian")
+    if a.refused:  # only the multi-experiment example: its Wronskian has corank 2
+        assert name == "me_example_7_7" and "corank" in a.refused
+        return
+    key = lambda r: (r.globally, tuple((lo.name, lo.solutions) for lo in r.locally_only), r.non_identifiable,
+                     r.functions)
+    assert key(a) == key(b)
+
+
+@needs_engine
+@pytest.mark.parametrize("name", ["goodwin", "sliqr", "seuir", "siwr"])
+def test_io_route_published_slow_for_sian(name):
+    # models whose SIAN system takes from seconds to minutes (benchmarks/results/global.md); published verdicts
+    m = BY_NAME[name]
+    fn = [k for k in m.verdicts if k not in m.states and k not in m.params]
+    res = global_identifiability(m.system(), unknown_params="all", functions=fn, engine=ENGINE, route="io")
+    assert res.ok, res.refused
+    want = {"globally": "globally", "locally": "locally", "non": "non-identifiable"}
+    assert {k: res.verdict(k) for k in m.verdicts} == {k: want[v] for k, v in m.verdicts.items()}
+    assert res.method.startswith("input-output equations")
+
+
+@needs_engine
+def test_goodwin_counts():
+    # beta and delta swap (SI.jl: "locally"): exactly two solutions each, as SIAN counts them
+    res = global_identifiability(BY_NAME["goodwin"].system(), unknown_params="all", engine=ENGINE)
+    assert {lo.name: lo.solutions for lo in res.locally_only} == {"beta": 2, "delta": 2}
+
+
+@needs_engine
+def test_auto_falls_back_with_the_reason():
+    # several outputs: SIAN decides, and the result says why the IO route was not taken
+    res = global_identifiability(BY_NAME["seir_n"].system(), unknown_params="all", engine=ENGINE)
+    assert res.method.startswith("SIAN")
+    assert any("2 outputs" in n for n in res.notes)
+    # the multi-experiment example: the Wronskian has corank 2, so the coefficients need not be identifiable from
+    # one experiment; the route refuses and SIAN gives the single-experiment verdict
+    me = BY_NAME["me_example_7_7"].system()
+    r = global_identifiability(me, unknown_params="all", engine=ENGINE, route="io")
+    assert not r.ok and "corank 2" in r.refused
+    r2 = global_identifiability(me, unknown_params="all", engine=ENGINE)
+    assert r2.ok and r2.method.startswith("SIAN") and any("corank" in n for n in r2.notes)
+
+
+def test_bad_route_is_named():
+    from nlobs.errors import ModelError
+
+    with pytest.raises(ModelError, match="route"):
+        global_identifiability(BY_NAME["two_compartment"].system(), route="fast")
