@@ -118,3 +118,30 @@ def test_bad_route_is_named():
 
     with pytest.raises(ModelError, match="route"):
         global_identifiability(BY_NAME["two_compartment"].system(), route="fast")
+
+
+@needs_engine
+def test_constant_denominators_and_my_own_model():
+    # a model of ours (not from the papers): a halved decay rate and a third of an input (constant denominators
+    # that the rational form keeps), a Hill-type uptake and a scaled output; the routes agree
+    s = System(states=["x", "z"], f=["-a*x/2 + u/3 - k*x*z/(1 + x)", "k*x*z/(1 + x) - b*z"], outputs=["y"],
+               h=["c*z"], inputs=["u"], params={"a": 1.0, "k": 1.0, "b": 1.0, "c": 1.0})
+    a = global_identifiability(s, unknown_params="all", engine=ENGINE, route="io")
+    b = global_identifiability(s, unknown_params="all", engine=ENGINE, route="sian")
+    assert a.ok, a.refused
+    key = lambda r: (r.globally, tuple((lo.name, lo.solutions) for lo in r.locally_only), r.non_identifiable)
+    assert key(a) == key(b)
+
+
+def test_growth_is_bounded():
+    # a 10-state chain of ours with one saturating loss: the equation of order 10 would need tens of gigabytes;
+    # the route stops at a named bound (the caller then takes SIAN) instead of exhausting the memory
+    n = 10
+    f = []
+    for i in range(n):
+        prev = f"k{i}*x{i - 1}" if i else "u"
+        f.append(f"{prev} - k{i + 1}*x{i}" + (f" - v*x{i}/(1 + x{i})" if i == 4 else ""))
+    s = System(states=[f"x{i}" for i in range(n)], f=f, outputs=["y"], h=[f"x{n - 1}"], inputs=["u"],
+               params={**{f"k{i}": 1.0 for i in range(1, n + 1)}, "v": 1.0})
+    r = global_identifiability(s, unknown_params="all", route="io")
+    assert not r.ok and "too large" in r.refused

@@ -41,6 +41,10 @@ from flint.utils.flint_exceptions import DomainError as _NotExact
 __all__ = ["IOEquations", "NotApplicable", "io_equations"]
 
 _BIG_PRIME_BITS = 62
+#: Bounds that keep the elimination within memory (the caller then takes SIAN): SIWR, the largest model of the
+#: benchmarks, needs a 3x3 Bezout matrix of 6,700 terms and a resultant of 621,277 terms (about 1 GB at its peak).
+MAX_MATRIX_TERMS = 30_000
+MAX_RESULTANT_TERMS = 3_000_000
 
 
 class NotApplicable(Exception):
@@ -395,9 +399,16 @@ def _eliminate(f, g, name: str, R: _Ring, pts: _Points):
     else:
         M = _bezout(f, g, name, R) if max(_deg(f, i), _deg(g, i)) > 1 else _sylvester(f, g, name, R)
         extra = _strip_gcds(M)
+        size = sum(len(e) for row in M for e in row)
+        if size > MAX_MATRIX_TERMS:
+            raise NotApplicable(f"eliminating {name} needs a resultant of a {len(M)}x{len(M)} matrix with {size} terms "
+                                f"(more than {MAX_MATRIX_TERMS}): the input-output equation would be too large")
         res = _det(M)
     if res.is_zero():
         raise NotApplicable(f"a resultant in {name} vanished (a common factor)")
+    if len(res) > MAX_RESULTANT_TERMS:
+        raise NotApplicable(f"eliminating {name} gave a resultant of {len(res)} terms (more than "
+                            f"{MAX_RESULTANT_TERMS}): the input-output equation would be too large")
     cands = []
     for q in (res, *extra):
         for fac, _ in q.factor()[1]:
@@ -625,7 +636,7 @@ def _lie(num, den, io: IOEquations):
     R = io.ring
     Qs: list[Any] = []
     for _, Q in io.f:
-        if not Q.is_constant() and Q not in Qs:
+        if Q not in Qs:  # constants too (a cleared denominator such as 2): Qall / Q must be exact
             Qs.append(Q)
     Qall = R.ctx.from_dict({tuple([0] * len(R.names)): 1})
     for Q in Qs:
