@@ -928,14 +928,10 @@ class _Prepared:
         return hs
 
 
-def _prepare(system: System, *, unknown_params: Any = (), inputs: Any = "generic",
-             unknown_inputs: Mapping[str, int] | None = None, functions: Sequence[ExprLike] = (), local: Any = None,
-             seed: int = 0, weighted: bool = True, rewrite: bool = False) -> Any:
-    """Steps 1-3 for :func:`global_identifiability` (a :class:`_Prepared`); with `rewrite`, a non-rational model
-    that :func:`._rationalise.rationalise` can rewrite gives a :class:`_Rewritten` instead of NotRational."""
+def _question(system: System, unknown_params: Any, inputs: Any, unknown_inputs: Mapping[str, int] | None,
+              functions: Sequence[ExprLike]) -> tuple[list[str], dict[str, int], Mapping[str, Any], list]:
+    """The question both routes answer, checked: unknown parameters, unknown inputs, input classes, functions."""
     from ._inputs import _input_classes, _parse_functions, _unknown_params
-    from ._lie import observable_function
-    from ._lie import local_analysis as analyze
 
     if not isinstance(system, System):
         raise ModelError(f"global_identifiability: `system` must be an nlobs.System, got {type(system).__name__}")
@@ -946,6 +942,18 @@ def _prepare(system: System, *, unknown_params: Any = (), inputs: Any = "generic
         raise ModelError(f"`unknown_inputs` names {', '.join(map(repr, bad))}, not an input of {system.name!r}")
     classes = _input_classes(system, inputs, ui)
     funcs = _parse_functions(system, functions)
+    return params_unknown, ui, classes, funcs
+
+
+def _prepare(system: System, *, unknown_params: Any = (), inputs: Any = "generic",
+             unknown_inputs: Mapping[str, int] | None = None, functions: Sequence[ExprLike] = (), local: Any = None,
+             seed: int = 0, weighted: bool = True, rewrite: bool = False) -> Any:
+    """Steps 1-3 for :func:`global_identifiability` (a :class:`_Prepared`); with `rewrite`, a non-rational model
+    that :func:`._rationalise.rationalise` can rewrite gives a :class:`_Rewritten` instead of NotRational."""
+    from ._lie import observable_function
+    from ._lie import local_analysis as analyze
+
+    params_unknown, ui, classes, funcs = _question(system, unknown_params, inputs, unknown_inputs, functions)
     try:
         rm = _to_rational(system, params_unknown, classes, ui)
     except NotRational:
@@ -997,20 +1005,11 @@ def _prepare_io(system: System, *, unknown_params: Any = (), inputs: Any = "gene
     """As :func:`_prepare`, with the system of the input-output route (:mod:`._io`): the fibre of the identifiable
     coefficients and Lie derivatives at a random point. Raises ``_io.NotApplicable`` (with the reason) or
     NotRational where the route does not apply."""
-    from ._inputs import _input_classes, _parse_functions, _unknown_params
     from ._io import NotApplicable, _poly, fibre, generators
     from ._lie import observable_function
     from ._lie import local_analysis as analyze
 
-    if not isinstance(system, System):
-        raise ModelError(f"global_identifiability: `system` must be an nlobs.System, got {type(system).__name__}")
-    params_unknown = _unknown_params(system, unknown_params)
-    ui = dict(unknown_inputs or {})
-    bad = [k for k in ui if k not in system.inputs]
-    if bad:
-        raise ModelError(f"`unknown_inputs` names {', '.join(map(repr, bad))}, not an input of {system.name!r}")
-    classes = _input_classes(system, inputs, ui)
-    funcs = _parse_functions(system, functions)
+    params_unknown, ui, classes, funcs = _question(system, unknown_params, inputs, unknown_inputs, functions)
     rm = _to_rational(system, params_unknown, classes, ui)
     if len(rm.h) != 1:
         raise NotApplicable(f"{len(rm.h)} outputs (the route takes one output: with several, the equations' "
