@@ -1025,17 +1025,8 @@ def _prepare_io(system: System, *, unknown_params: Any = (), inputs: Any = "gene
     gens = generators(rm.params, rm.states, [u for u, _ in rm.inputs], rm.f, rm.h, rng)
     p = random_prime(rng, interval=_PRIME_RANGE, three_mod_four=False)
     R = gens.io.ring
-    known = {symbol(k): exact(v) for k, v in system.params.items() if k not in params_unknown}
-    sub = {symbol(x): sp.Symbol(i) for i, x in zip(rm.states, rm.state_names)}
-    sub.update({symbol(rm.names[v]): sp.Symbol(v) for v in rm.params})
-    extra = []
-    for k, (text, e) in enumerate(funcs):
-        e = _ratify(e.xreplace(known).xreplace(sub))
-        if any(isinstance(a, sp.Function) or (isinstance(a, sp.Pow) and not a.exp.is_Integer)
-               for a in e.atoms(sp.Function, sp.Pow)):
-            raise NotRational(f"function {text!r} is not rational; the global check takes rational functions")
-        num, den = sp.fraction(sp.cancel(sp.together(e)))
-        extra.append((f"phi{k}", _poly(num, R, {}), _poly(den, R, {})))
+    extra = [(nm, _poly(num, R, {}), _poly(den, R, {}))
+             for nm, num, den in _function_fractions(funcs, params_unknown, system, "x{}")]
     names = [*rm.states, "z_sat", *[nm for nm, _, _ in extra], *rm.params[::-1]]
     F, values = fibre(gens, names, extra, p, rng)
     unknown_var = {rm.names[x]: x for x in rm.states} | {rm.names[v]: v for v in rm.params}
@@ -1363,9 +1354,17 @@ def _function_polys(sian: _Sian, funcs: Sequence[tuple[str, sp.Expr]], params_un
     """Each function as (variable name, numerator, denominator) in the jet ring (states at order 0)."""
     if not funcs:
         return []
-    J, rm = sian.J, sian.rm
+    J = sian.J
+    return [(nm, J._poly(num), J._poly(den)) for nm, num, den in _function_fractions(funcs, params_unknown, system,
+                                                                                   "x{}_0")]
+
+
+def _function_fractions(funcs: Sequence[tuple[str, sp.Expr]], params_unknown: Sequence[str], system: System,
+                        state: str) -> list[tuple[str, sp.Expr, sp.Expr]]:
+    """Each function as (variable name phi_k, numerator, denominator) in the internal names (state i named
+    ``state.format(i)``, unknown parameter j ``p{j}``, known parameters substituted); NotRational otherwise."""
     known = {symbol(k): exact(v) for k, v in system.params.items() if k not in params_unknown}
-    sub = {symbol(s): sp.Symbol(f"x{i}_0") for i, s in enumerate(system.states)}
+    sub = {symbol(s): sp.Symbol(state.format(i)) for i, s in enumerate(system.states)}
     sub.update({symbol(k): sp.Symbol(f"p{j}") for j, k in enumerate(params_unknown)})
     out = []
     for k, (text, e) in enumerate(funcs):
@@ -1374,7 +1373,7 @@ def _function_polys(sian: _Sian, funcs: Sequence[tuple[str, sp.Expr]], params_un
                for a in e.atoms(sp.Function, sp.Pow)):
             raise NotRational(f"function {text!r} is not rational; the global check takes rational functions")
         num, den = sp.fraction(sp.cancel(sp.together(e)))
-        out.append((f"phi{k}", J._poly(sp.expand(num)), J._poly(sp.expand(den))))
+        out.append((f"phi{k}", sp.expand(num), sp.expand(den)))
     return out
 
 
