@@ -506,12 +506,6 @@ def _split(eq, R: _Ring, pctx) -> dict[tuple[int, ...], Any]:
     return {k: pctx.from_dict(v) for k, v in groups.items()}
 
 
-def _rank_mod(rows: list[list[int]], p: int) -> int:
-    if not rows or not rows[0]:
-        return 0
-    return flint.nmod_mat(rows, p).rank()
-
-
 def _jet_series(R: _Ring, sol: _Solution, n: int) -> dict[int, Any]:
     """Series (length n) of every jet variable y_j_k, u_l_k along the solution."""
     out = {}
