@@ -205,3 +205,36 @@ def test_affine_shortcut_with_an_additive_parameter_matches_the_lie_derivatives(
         assert list(jets.row(st.prog.h[0], k)[1:]) == list(ref[k] * fact % P)
     rep = analyze(s, unknown_params=["th"])
     assert rep.observable and rep.identifiable_params == ("th",)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_kernel_mod_p_by_flint_equals_row_echelon_kernel(seed):
+    # the reparametrisation's kernels come from FLINT's rref (issue 23); the same basis as RowEchelon's, vector
+    # for vector, and annihilated by the rows in exact integer arithmetic
+    from nlobs.algebra._modular import kernel_mod_p
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(2, 16))
+    r = int(rng.integers(0, n + 1))
+    rows = (rng.integers(0, P, size=(int(rng.integers(1, 24)), max(r, 1))) @ rng.integers(0, 3, size=(max(r, 1), n))) % P
+    rows[:, rng.random(n) < 0.2] = 0  # zero columns: free, with a unit kernel vector
+    ech = RowEchelon(n, P)
+    ech.add_many(rows.astype(np.int64))
+    K = kernel_mod_p(list(rows), n, P)
+    assert np.array_equal(K, ech.kernel())
+    assert not np.any((rows.astype(object) @ K.T.astype(object)) % P)
+    assert K.shape[0] == n - _rank_gf(rows, P)
+
+
+def test_monomial_values_and_gradients_against_sympy():
+    from nlobs.algebra._modular import monomial_values
+
+    E = np.array([[0, 0, 0], [2, 1, 0], [0, 3, 1], [1, 1, 1]], dtype=np.int64)
+    x = sp.symbols("a b c")
+    for vals in ([5, 7, 11], [0, 3, 2], [4, 0, 9]):  # a zero value takes the other branch of the gradient
+        mv, mg = monomial_values(E, vals, P)
+        for k, e in enumerate(E):
+            m = sp.Mul(*[xi**int(ei) for xi, ei in zip(x, e)])
+            at = dict(zip(x, vals))
+            assert int(m.subs(at)) % P == mv[k]
+            assert [int(sp.diff(m, xi).subs(at)) % P for xi in x] == list(mg[k])

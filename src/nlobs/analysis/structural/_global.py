@@ -226,6 +226,8 @@ class GlobalResult:
             extra = f" ({k} solutions)" if v == "locally" and k else ""
             lines.append(f"{e}: {v}{extra}")
         lines += [f"note: {t}" for t in self.notes if self.rewriting]
+        if self.method:
+            lines.append(f"decided by {self.method} ({self.seconds:.2f} s)")
         return lines
 
 
@@ -831,8 +833,7 @@ def global_identifiability(system: System, *, unknown_params: Any = (), inputs: 
     (('x1',), [('x2', 2)])
     """
     t_start = time.perf_counter()
-    method = (f"SIAN ({cite('hong2019')}; {cite('hong2020', 'Algorithm 1')}): truncated output jets at a random point "
-              "of GF(p), Gröbner basis and normal forms")
+    method = SIAN_METHOD
     if route not in ("auto", "io", "sian"):
         raise ModelError(f"`route` must be 'auto', 'io' or 'sian', got {route!r}")
     io_note = ""
@@ -876,6 +877,9 @@ def global_identifiability(system: System, *, unknown_params: Any = (), inputs: 
                         seconds=time.perf_counter() - t_start, engine_seconds=eng.seconds)
 
 
+#: SIAN's method, as the result states it.
+SIAN_METHOD = (f"SIAN ({cite('hong2019')}; {cite('hong2020', 'Algorithm 1')}): truncated output jets at a random point "
+               "of GF(p), Gröbner basis and normal forms")
 #: The method of the input-output route, as the result states it.
 IO_METHOD = (f"input-output equations ({cite('dong2023')}) with identifiable coefficients (Wronskian of corank one, "
              f"{cite('ovchinnikov2023')}); the fibre of the coefficients and of the outputs' Lie derivatives at a "
@@ -910,9 +914,18 @@ class _Prepared:
     weights: dict[str, int] = field(default_factory=dict)
     rng: Any = None
     local: Any = None
+    io: Any = None  # the input-output route: (generators, checked functions as ring fractions)
 
     def point(self, weighted: bool = True) -> _System:
         """The system at a fresh random point (same prime, same truncation), sliced and weighted like `hs`."""
+        if self.io is not None:
+            from ._io import fibre
+
+            gens, extra = self.io
+            F, values = fibre(gens, self.hs.names, extra, self.p, self.rng)
+            hs = _System(self.hs.names, F, values, self.hs.unknown_var, self.p)
+            hs.slices = _slice(hs, [hs.unknown_var[u] for u in self.free], self.d, self.rng)
+            return hs
         for _ in range(8):
             try:
                 pt = self.sian.point()
@@ -926,6 +939,35 @@ class _Prepared:
         if weighted:
             _apply_weights(hs, self.weights)
         return hs
+
+    def tangent(self) -> tuple[RowEchelon, dict[str, int], dict[str, int], int]:
+        """At a fresh random point: the row echelon form of the rows whose span holds the gradient of every locally
+        identifiable function of the unknowns (the jet Jacobian on SIAN's route, the generators' differentials on
+        the input-output route), the values of the unknowns and their columns, and the number of columns."""
+        if self.io is not None:
+            from ._io import tangent_rows
+
+            variables = [self.hs.unknown_var[u] for u in self.unknown_names]
+            rows, vhat = tangent_rows(self.io[0], variables, self.p, self.rng)
+            ech = RowEchelon(len(variables), self.p)
+            ech.add_many(rows)
+            return (ech, {u: vhat[v] for u, v in zip(self.unknown_names, variables)},
+                    {u: i for i, u in enumerate(self.unknown_names)}, len(variables))
+        from ...algebra._modular import sparse_gradient
+
+        sian, p = self.sian, self.p
+        J = sian.J
+        pt = sian.point()
+        unknown_cols = [J.index[v] for v in sian.rm.params] + [J.index[f"{x}_{k}"] for x in sian.rm.states
+                                                                  for k in range(J.K + 2)]
+        cols = {c: i for i, c in enumerate(unknown_cols)}
+        n = len(unknown_cols)
+        ech = RowEchelon(n, p)
+        ech.add_many(np.array([sparse_gradient(sian.sp(kind, i_, k), pt.vals, p, cols, n) for kind, i_, k in self.eqs],
+                              dtype=np.int64).reshape(-1, n))
+        var = self.hs.unknown_var
+        return (ech, {u: pt.vals[J.index[var[u]]] for u in self.unknown_names},
+                {u: cols[J.index[var[u]]] for u in self.unknown_names}, n)
 
 
 def _question(system: System, unknown_params: Any, inputs: Any, unknown_inputs: Mapping[str, int] | None,
@@ -1046,7 +1088,7 @@ def _prepare_io(system: System, *, unknown_params: Any = (), inputs: Any = "gene
     if rm.chain_scale:
         notes.append("unknown-input coefficients w_k are the k-th derivatives at t = 0 divided by k! (Taylor coefficients)")
     return _Prepared(system, hs, p, checks, unknown_names, local_ok, funcs, fn_locals, tuple(gens.io.orders), notes,
-                     free=free, d=d, rng=rng, local=local)
+                     free=free, d=d, rng=rng, local=local, io=(gens, extra))
 
 
 # ----------------------------------------------------------------------------------------------

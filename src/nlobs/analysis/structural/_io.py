@@ -681,6 +681,7 @@ class Generators:
     params: list[tuple[Any, Any]]  # from the coefficients (parameters only)
     states: list[tuple[Any, Any]]  # Lie derivatives of the outputs (states and parameters)
     seconds: float = 0.0
+    cache: dict[str, Any] = field(default_factory=dict)
 
 
 def generators(params: list[str], states: list[str], inputs: list[str], f, h, rng: np.random.Generator) -> Generators:
@@ -791,4 +792,39 @@ def fibre(gens: Generators, names: list[str], extra: Sequence[tuple[str, Any, An
             F.append({k: v for k, v in eq.items() if v})
         if ok:
             return F, values
+    raise NotApplicable("denominators of the identifiable functions vanish at 16 random points")
+
+
+def tangent_rows(gens: Generators, variables: Sequence[str], p: int,
+                 rng: np.random.Generator) -> tuple[np.ndarray, dict[str, int]]:
+    """The differentials of every generator at a random point of GF(p), in the columns `variables` (ring names),
+    and the point: their row space is the cotangent space of the identifiable functions there (a function of
+    the unknowns is locally identifiable iff its gradient lies in it). Quotient rule on each a/b, mod p; the
+    terms of all generators are evaluated at once (:func:`monomial_values`), the exponents kept between calls."""
+    from ...algebra._modular import monomial_values
+
+    R = gens.io.ring
+    key = (tuple(variables), p)
+    if gens.cache.get("tangent_key") != key:
+        idx = [R.index[v] for v in variables]
+        exps, coeffs, starts = [], [], []
+        for q in (q for pair in (*gens.params, *gens.states) for q in pair):
+            starts.append(len(coeffs))
+            for m, c in zip(q.monoms(), q.coeffs()):
+                exps.append([m[i] for i in idx])
+                coeffs.append(int(c) % p)
+        gens.cache.update(tangent_key=key, tangent=(np.array(exps, dtype=np.int64).reshape(len(exps), len(idx)),
+                                                    np.array(coeffs, dtype=np.int64), np.array(starts)))
+    E, c, starts = gens.cache["tangent"]
+    for _ in range(16):
+        vhat = {v: int(rng.integers(1, p)) for v in variables}
+        mv, mg = monomial_values(E, [vhat[v] for v in variables], p)
+        val = np.add.reduceat(c * mv % p, starts) % p
+        grad = np.add.reduceat(c[:, None] * mg % p, starts, axis=0) % p
+        av, bv, ga, gb = val[0::2], val[1::2], grad[0::2], grad[1::2]
+        if not bv.all():
+            continue
+        ib2 = np.array([pow(int(x) * int(x) % p, -1, p) for x in bv], dtype=np.int64)
+        rows = (bv[:, None] * ga % p - av[:, None] * gb % p) % p * ib2[:, None] % p
+        return rows, vhat
     raise NotApplicable("denominators of the identifiable functions vanish at 16 random points")

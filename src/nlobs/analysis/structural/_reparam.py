@@ -122,7 +122,6 @@ def _express(target: sp.Expr, gens: Sequence[sp.Expr], new: Sequence[sp.Symbol],
     """`target` (in the old symbols) as a rational function of `gens` (named `new`), verified exactly; or None."""
     from ...algebra._modular import poly_value as _eval_poly
     from ...algebra._modular import kernel_mod_p as _kernel
-    from ...algebra._modular import monomial_value as _mono_value
     from ...algebra._modular import monomial_exponents
     from ...algebra._modular import ratrec as _ratrec
 
@@ -168,14 +167,11 @@ def _express(target: sp.Expr, gens: Sequence[sp.Expr], new: Sequence[sp.Symbol],
             if len(samples) >= width + 12:
                 break
             sample()
-        rows: list[np.ndarray] = []
-        for gv, tv in samples[: width + 12]:
-            row = np.zeros(width, dtype=np.int64)
-            for c, e in enumerate(mn):  # N(g) - target * D(g) = 0
-                row[c] = _mono_value(e, gv, p)
-            for c, e in enumerate(md):
-                row[len(mn) + c] = (-tv * _mono_value(e, gv, p)) % p
-            rows.append(row)
+        use = samples[: width + 12]
+        G = np.array([gv for gv, _ in use], dtype=np.int64).reshape(len(use), n)
+        tv = np.array([t for _, t in use], dtype=np.int64)
+        # N(g) - target * D(g) = 0, one row per sample: the monomials' values, all samples at once
+        rows = list(np.concatenate([_values(G, mn, p), (-tv[:, None] % p) * _values(G, md, p) % p], axis=1))
         K = _kernel(rows, width, p)
         for vec in K:
             if not np.any(vec[len(mn):]):
@@ -193,6 +189,19 @@ def _express(target: sp.Expr, gens: Sequence[sp.Expr], new: Sequence[sp.Symbol],
             if sp.cancel(sp.together(back - target)) == 0:  # exact check in the original variables
                 return cand
     return None
+
+
+def _values(G: np.ndarray, monos: Sequence[Sequence[int]], p: int) -> np.ndarray:
+    """Values mod p of the monomials `monos` (exponent tuples) at every row of `G` (samples x variables)."""
+    E = np.array(monos, dtype=np.int64).reshape(len(monos), G.shape[1])
+    top = int(E.max()) if E.size else 0
+    table = np.ones((G.shape[0], G.shape[1], top + 1), dtype=np.int64)  # table[s, i, d] = G[s, i]^d
+    for d in range(1, top + 1):
+        table[:, :, d] = table[:, :, d - 1] * G % p
+    out = np.ones((G.shape[0], len(monos)), dtype=np.int64)
+    for i in range(G.shape[1]):
+        out = out * table[:, i, E[:, i]] % p
+    return out
 
 
 def _by_substitution(target: sp.Expr, gens: Sequence[sp.Expr], new: Sequence[sp.Symbol],
