@@ -46,14 +46,20 @@ ENGINES = ("msolve", "singular", "sympy")
 _TERM = re.compile(r"([+-]?)\s*([^+-]+)")
 
 
-def _format(poly: Mapping[tuple[int, ...], int], names: Sequence[str], p: int) -> str:
+def _format(poly: Mapping[tuple[int, ...], int], names: Sequence[str], p: int,
+            cache: dict[tuple[int, ...], str] | None = None) -> str:
+    """``3*x^2*y+...``; `cache`: monomial strings already written (the systems of the input-output route repeat the
+    same few thousand parameter monomials across hundreds of thousands of terms)."""
     terms = []
+    cache = {} if cache is None else cache
     for mono, c in poly.items():
         c %= p
         if not c:
             continue
-        factors = [str(c)] + [f"{names[i]}^{e}" for i, e in enumerate(mono) if e]
-        terms.append("*".join(factors))
+        m = cache.get(mono)
+        if m is None:
+            m = cache[mono] = "".join(f"*{names[i]}^{e}" for i, e in enumerate(mono) if e)
+        terms.append(f"{c}{m}")
     return "+".join(terms) if terms else "0"
 
 
@@ -157,7 +163,8 @@ class GroebnerEngine:
             pass
         with tempfile.TemporaryDirectory(prefix="nlobs-msolve-") as d:
             src, dst = Path(d, "in.ms"), Path(d, "out.ms")
-            body = ",\n".join(_format(f, names, p) for f in (*F, *G))
+            cache: dict[tuple[int, ...], str] = {}
+            body = ",\n".join(_format(f, names, p, cache) for f in (*F, *G))
             src.write_text(",".join(names) + f"\n{p}\n" + body + "\n")
             cmd = [self.path, "-f", str(src), "-o", str(dst), "-n", str(len(G)), "-t", str(self.threads)]
             res = self._run(cmd, f"{len(F)} equations in {len(names)} variables")

@@ -557,13 +557,17 @@ def _taylor_matrix(io: IOEquations, monos: list[tuple[int, ...]], n: int, P: int
         raise NotApplicable("the model's denominators vanish at 16 random points")
     jets = _jet_series(R, sol, n)
     one = flint.nmod_poly([1], P)
+    powers: dict[tuple[int, int], Any] = {}
     S = []
     for m in monos:
         term = one
         for i, k in enumerate(m):
             if k:
-                term = term.mul_low(jets[npar + i].pow_trunc(k, n), n)
-        cs = [int(v) for v in term.coeffs()[:n]]
+                pw = powers.get((i, k))
+                if pw is None:
+                    pw = powers[(i, k)] = jets[npar + i].pow_trunc(k, n)
+                term = term.mul_low(pw, n)
+        cs = term.coeffs()[:n]  # nmod values: FLINT reads them without a conversion to int
         S.append(cs + [0] * (n - len(cs)))
     return flint.nmod_mat(S, P).transpose()
 
@@ -678,8 +682,8 @@ class Generators:
     """Generators of the identifiable functions: fractions (numerator, denominator) of ring polynomials."""
 
     io: IOEquations
-    params: list[tuple[Any, Any]]  # from the coefficients (parameters only)
-    states: list[tuple[Any, Any]]  # Lie derivatives of the outputs (states and parameters)
+    params: list[tuple[Any, Any]]  # from the coefficients: polynomials of the parameters' own ring
+    states: list[tuple[Any, Any]]  # Lie derivatives of the outputs (states and parameters), in the IO ring
     seconds: float = 0.0
     cache: dict[str, Any] = field(default_factory=dict)
 
@@ -699,17 +703,9 @@ def generators(params: list[str], states: list[str], inputs: list[str], f, h, rn
         raise NotApplicable(f"the Wronskian of the input-output equation of output {', '.join(bad)} has corank "
                             f"{max(corank)} > 1: its coefficients are identifiable from several experiments, not "
                             "necessarily from one")
-    nv = len(R.names)
-    npar = len(params)
-
-    def lift(c):
-        if not params:
-            return R.ctx.from_dict({tuple([0] * nv): int(c.coeffs()[0])} if len(c) else {})
-        return R.ctx.from_dict({tuple(m) + tuple([0] * (nv - npar)): int(a) for m, a in zip(c.monoms(), c.coeffs())})
-
-    pg: list[tuple[Any, Any]] = []
+    pg: list[tuple[Any, Any]] = []  # in the parameters' ring (pctx): a third of the variables, cheaper to read
     for part, basis in zip(parts, bases):
-        cs = [lift(part[m]) for m in basis]
+        cs = [part[m] for m in basis]
         if len(cs) < 2:
             continue
         base = min(cs, key=lambda q: (q.total_degree(), len(q)))
@@ -724,37 +720,61 @@ def generators(params: list[str], states: list[str], inputs: list[str], f, h, rn
     return Generators(io, pg, sg, time.perf_counter() - t0)
 
 
+def _common_denominator(gens: Generators):
+    """The lcm of the generators' denominators, in the IO ring (None when all are constant); computed once."""
+    if "den" not in gens.cache:
+        R = gens.io.ring
+        den = None
+        for _, b in (*gens.params, *gens.states):
+            if b.is_constant():
+                continue
+            if b.context() is not R.ctx:
+                b = b.compose(*[R.var(v) for v in b.context().names()], ctx=R.ctx)
+            den = b if den is None else den * (b / den.gcd(b))
+        gens.cache["den"] = den
+    return gens.cache["den"]
+
+
 def fibre(gens: Generators, names: list[str], extra: Sequence[tuple[str, Any, Any]], p: int,
           rng: np.random.Generator) -> tuple[list[dict], dict[str, int]]:
     """The ideal of {v : g(v) = g(v̂) for every generator g} at a random v̂ of GF(p), saturated by the
     denominators (variable z_sat), in the variables `names` (parameters and states of the ring, z_sat, and one
     variable per extra function phi = num/den: den*phi - num). Returns the polynomials and the values at v̂."""
     R = gens.io.ring
-    col = {R.index[v]: names.index(v) for v in names if v in R.index}
     zi = names.index("z_sat")
     nv = len(names)
     zero = tuple([0] * nv)
+    where = {v: names.index(v) for v in names if v in R.index}
+    maps: dict[Any, tuple[list[int], dict]] = {}  # per polynomial ring: columns of its variables, monomials seen
+
+    def ring(q) -> tuple[list[int], dict]:
+        ctx = q.context()
+        if ctx not in maps:
+            maps[ctx] = ([where.get(v, -1) for v in ctx.names()], {})
+        return maps[ctx]
 
     def conv(q) -> dict:
+        cols, seen = ring(q)
         out: dict = {}
         for m, c in zip(q.monoms(), q.coeffs()):
-            mm = [0] * nv
-            for i, e in enumerate(m):
-                if e:
-                    mm[col[i]] += e
-            key = tuple(mm)
+            key = seen.get(m)
+            if key is None:
+                mm = [0] * nv
+                for i, e in enumerate(m):
+                    if e:
+                        mm[cols[i]] += e
+                seen[m] = key = tuple(mm)
             out[key] = (out.get(key, 0) + int(c)) % p
         return {k: v for k, v in out.items() if v}
 
+    den = _common_denominator(gens)
     for _ in range(16):
         vhat = {v: int(rng.integers(1, p)) for v in names if v in R.index}
-        point = [vhat.get(n, 0) for n in R.names]
 
-        def val(q, point=point) -> int:
-            return int(q(*point)) % p
+        def val(q, vhat=vhat) -> int:
+            return int(q(*[vhat.get(v, 0) for v in q.context().names()])) % p
 
         F: list[dict] = []
-        den = None
         ok = True
         for a, b in (*gens.params, *gens.states):
             bv = val(b)
@@ -764,8 +784,6 @@ def fibre(gens: Generators, names: list[str], extra: Sequence[tuple[str, Any, An
             eq = conv(a * bv - b * val(a))
             if eq:
                 F.append(eq)
-            if not b.is_constant():
-                den = b if den is None else den * (b / den.gcd(b))
         dv = val(den) if den is not None else 1
         if not ok or dv == 0:
             continue
@@ -803,17 +821,17 @@ def tangent_rows(gens: Generators, variables: Sequence[str], p: int,
     terms of all generators are evaluated at once (:func:`monomial_values`), the exponents kept between calls."""
     from ...algebra._modular import monomial_values
 
-    R = gens.io.ring
     key = (tuple(variables), p)
     if gens.cache.get("tangent_key") != key:
-        idx = [R.index[v] for v in variables]
         exps, coeffs, starts = [], [], []
         for q in (q for pair in (*gens.params, *gens.states) for q in pair):
             starts.append(len(coeffs))
+            own = q.context().names()
+            idx = [own.index(v) if v in own else -1 for v in variables]
             for m, c in zip(q.monoms(), q.coeffs()):
-                exps.append([m[i] for i in idx])
+                exps.append([m[i] if i >= 0 else 0 for i in idx])
                 coeffs.append(int(c) % p)
-        gens.cache.update(tangent_key=key, tangent=(np.array(exps, dtype=np.int64).reshape(len(exps), len(idx)),
+        gens.cache.update(tangent_key=key, tangent=(np.array(exps, dtype=np.int64).reshape(len(exps), len(variables)),
                                                     np.array(coeffs, dtype=np.int64), np.array(starts)))
     E, c, starts = gens.cache["tangent"]
     for _ in range(16):
