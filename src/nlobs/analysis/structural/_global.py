@@ -853,9 +853,17 @@ def global_identifiability(system: System, *, unknown_params: Any = (), inputs: 
             io_note = f"SIAN, not the input-output route: {e}"
         else:
             res = _decide(prep, eng, max_solutions)
-            return GlobalResult(**res, method=IO_METHOD, engine=eng.version() or eng.name, prime=prep.p,
-                                orders=prep.orders, n_equations=len(prep.hs.F), n_variables=len(prep.hs.names),
-                                seconds=time.perf_counter() - t_start, engine_seconds=eng.seconds)
+            open_ = [lo.name for lo in res["locally_only"]] + [t for t, v, _ in res["functions"] if v == "locally"]
+            if not (prep.partial and open_):
+                return GlobalResult(**res, method=IO_METHOD, engine=eng.version() or eng.name, prime=prep.p,
+                                    orders=prep.orders, n_equations=len(prep.hs.F), n_variables=len(prep.hs.names),
+                                    seconds=time.perf_counter() - t_start, engine_seconds=eng.seconds)
+            why = (f"with {system.n_outputs} outputs the input-output projections prove global identifiability only, "
+                   f"and did not for {', '.join(open_)}")
+            if route == "io":
+                return GlobalResult(refused=f"the input-output route does not decide: {why}", method=IO_METHOD,
+                                    seconds=time.perf_counter() - t_start)
+            io_note = f"SIAN, not the input-output route: {why}"
     try:
         prep = _prepare(system, unknown_params=unknown_params, inputs=inputs, unknown_inputs=unknown_inputs,
                         functions=functions, local=local, seed=seed, rewrite=True)
@@ -915,6 +923,9 @@ class _Prepared:
     rng: Any = None
     local: Any = None
     io: Any = None  # the input-output route: (generators, checked functions as ring fractions)
+    #: the generators may generate a subfield of the identifiable functions (several outputs): their fibre may be
+    #: larger than the true one, so a unique solution proves "globally", and nothing else is proven
+    partial: bool = False
 
     def point(self, weighted: bool = True) -> _System:
         """The system at a fresh random point (same prime, same truncation), sliced and weighted like `hs`."""
@@ -1053,9 +1064,6 @@ def _prepare_io(system: System, *, unknown_params: Any = (), inputs: Any = "gene
 
     params_unknown, ui, classes, funcs = _question(system, unknown_params, inputs, unknown_inputs, functions)
     rm = _to_rational(system, params_unknown, classes, ui)
-    if len(rm.h) != 1:
-        raise NotApplicable(f"{len(rm.h)} outputs (the route takes one output: with several, the equations' "
-                            "ideal must be checked for primality, not done here)")
     if "tt" in rm.names or rm.generic_consts:
         raise NotApplicable("the model depends on t, pi or e")
     if any(deg is not None for _, deg in rm.inputs):
@@ -1087,8 +1095,12 @@ def _prepare_io(system: System, *, unknown_params: Any = (), inputs: Any = "gene
              f"{len(gens.states)} Lie-derivative generators ({gens.seconds:.2f} s)"]
     if rm.chain_scale:
         notes.append("unknown-input coefficients w_k are the k-th derivatives at t = 0 divided by k! (Taylor coefficients)")
+    if len(rm.h) > 1:
+        notes.append(f"{len(rm.h)} outputs: one input-output projection per output; their coefficients and the outputs' "
+                     "Lie derivatives are identifiable, but need not generate every identifiable function (no primality "
+                     "check of the projections), so only 'globally' verdicts are taken from them")
     return _Prepared(system, hs, p, checks, unknown_names, local_ok, funcs, fn_locals, tuple(gens.io.orders), notes,
-                     free=free, d=d, rng=rng, local=local, io=(gens, extra))
+                     free=free, d=d, rng=rng, local=local, io=(gens, extra), partial=len(rm.h) > 1)
 
 
 # ----------------------------------------------------------------------------------------------

@@ -602,6 +602,15 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
         raise ModelError(f"`max_degree` must be >= 1, got {max_degree}")
     search = _Search(prep, eng, U, max_degree)
     dec = _decide(prep, eng, 8, also=search.mono_polys(prep.hs))  # the search's first point: the same basis
+    if prep.partial and (dec["locally_only"] or dec["non_identifiable"]):
+        # several outputs: the projections' generators may generate only part of the identifiable functions; they
+        # settle the question only when every unknown is globally identifiable (then the unknowns generate it all)
+        notes.append(f"on SIAN's system, not the input-output route: with {system.n_outputs} outputs the projections "
+                     "decide only when every unknown is globally identifiable")
+        prep = _prepare(system, unknown_params=unknown_params, inputs=inputs, local=prep.local, seed=seed)
+        method = SIAN_METHOD
+        search = _Search(prep, eng, U, max_degree)
+        dec = _decide(prep, eng, 8, also=search.mono_polys(prep.hs))
     search.known_point(dec.pop("also_nfs"))
     single = [u for u in U if u in dec["globally"]]
     cands: list[sp.Expr] = []
