@@ -105,12 +105,21 @@ def test_goodwin_counts():
 
 
 @needs_engine
-def test_auto_falls_back_with_the_reason():
-    # several outputs, and some unknown only locally identifiable (seir_n: published "locally"): the projections
-    # cannot prove it, SIAN decides, and the result says why the IO route was not taken
+def test_auto_falls_back_with_the_reason(monkeypatch):
+    # several outputs whose projections are not shown prime (forced here: seir_n's are prime), and an unknown only
+    # locally identifiable (published "locally"): the projections cannot prove it, SIAN decides, and says why
+    import nlobs.analysis.structural._io as io_mod
+
+    monkeypatch.setattr(io_mod, "projections_prime", lambda *a, **k: False)
     res = global_identifiability(BY_NAME["seir_n"].system(), unknown_params="all", engine=ENGINE)
     assert res.method.startswith("SIAN") and res.locally_only
     assert any("2 outputs the input-output projections prove global identifiability only" in n for n in res.notes)
+    r = global_identifiability(BY_NAME["seir_n"].system(), unknown_params="all", engine=ENGINE, route="io")
+    assert not r.ok and "prove global identifiability only" in r.refused
+    monkeypatch.undo()
+    # proven prime: the projections decide, with the same verdicts as SIAN (test_io_route_equals_sian)
+    res2 = global_identifiability(BY_NAME["seir_n"].system(), unknown_params="all", engine=ENGINE)
+    assert res2.method.startswith("input-output") and any("prime ideal" in n for n in res2.notes)
     # the multi-experiment example: the Wronskian has corank 2, so the coefficients need not be identifiable from
     # one experiment; the route refuses and SIAN gives the single-experiment verdict
     me = BY_NAME["me_example_7_7"].system()
@@ -202,7 +211,14 @@ def test_identifiable_functions_route_io_refuses_with_the_reason():
 
     r = find_identifiable_functions(BY_NAME["me_example_7_7"].system(), engine=ENGINE, route="io")
     assert r.refused.startswith("the input-output route does not apply") and "corank 2" in r.refused
-    r2 = find_identifiable_functions(BY_NAME["seir_n"].system(), engine=ENGINE)
+    import nlobs.analysis.structural._io as io_mod
+
+    mp = pytest.MonkeyPatch()
+    mp.setattr(io_mod, "projections_prime", lambda *a, **k: False)  # several outputs, projections not shown prime
+    try:
+        r2 = find_identifiable_functions(BY_NAME["seir_n"].system(), engine=ENGINE)
+    finally:
+        mp.undo()
     assert not r2.refused and r2.method.startswith("SIAN") and any("2 outputs" in n for n in r2.notes)
 
 
@@ -231,3 +247,45 @@ def test_tangent_rows_are_the_identifiable_differentials():
     assert all(not ech.reduce(g).any() for g in inside)
     assert ech.reduce(grad({"a01": 1})).any()
     assert ech.reduce(grad({"x1": 1})).any()
+
+
+# ----------------------------------------------------------------------------------------------
+# several outputs: the primality check of the projections (SI.jl's check_primality)
+# ----------------------------------------------------------------------------------------------
+@needs_engine
+@pytest.mark.parametrize("polys, prime", [
+    # SI.jl test/bodies/check_primality_zerodim.jl, in x = v0, y = v1 (its expected answers)
+    (({(2, 0): 1, (0, 0): -1}, {(0, 2): 1, (0, 0): -4}), False),
+    (({(4, 0): 1, (3, 0): 5, (1, 0): -7, (0, 0): -35}, {(0, 1): 1, (0, 0): -3}), False),  # (x + 5)(x^3 - 7), y - 3
+    (({(3, 0): 1, (0, 0): -5}, {(0, 1): 1, (0, 0): -1}), True),
+    (({(2, 0): 1, (0, 0): 1}, {(0, 3): 1, (1, 0): -2, (0, 0): 5}), True),  # x^2 + 1, y^3 - 3x + x + 5
+])
+def test_zerodim_primality_published_cases(polys, prime):
+    from nlobs.algebra._groebner import get_engine
+    from nlobs.analysis.structural._io import zerodim_prime
+
+    assert zerodim_prime(list(polys), 2, get_engine(ENGINE), np.random.default_rng(0)) is prime
+
+
+@needs_engine
+def test_zerodim_prime_over_q_never_mod_p_is_not_claimed():
+    # [x, y^4 + 1]: prime over Q, but y^4 + 1 splits mod every prime: SI.jl then works over Q; here the check says
+    # "not proven", and the caller keeps the weaker conclusion (projections decide "globally" only)
+    from nlobs.algebra._groebner import get_engine
+    from nlobs.analysis.structural._io import zerodim_prime
+
+    assert zerodim_prime([{(1, 0): 1}, {(0, 4): 1, (0, 0): 1}], 2, get_engine(ENGINE), np.random.default_rng(0)) is False
+
+
+@needs_engine
+def test_projections_not_prime_on_the_published_remark_3_example():
+    # Dong, Goodbrake, Harrington & Pogudin, remark 3 (SI.jl test/bodies/io_projections.jl asserts
+    # !check_primality): our rational_outputs model; the IO route then proves only "globally" verdicts
+    from nlobs.algebra._groebner import get_engine
+    from nlobs.analysis.structural._io import projections_prime
+
+    m = BY_NAME["rational_outputs"]
+    _, io = _io(m.system(), m.params)
+    assert projections_prime(io, get_engine(ENGINE), np.random.default_rng(0)) is False
+    _, io2 = _io(BY_NAME["bruno2016"].system(), BY_NAME["bruno2016"].params)
+    assert projections_prime(io2, get_engine(ENGINE), np.random.default_rng(0)) is True

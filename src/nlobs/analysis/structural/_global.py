@@ -845,7 +845,7 @@ def global_identifiability(system: System, *, unknown_params: Any = (), inputs: 
             return GlobalResult(refused=NO_ENGINE, method=method, seconds=time.perf_counter() - t_start)
         try:
             prep = _prepare_io(system, unknown_params=unknown_params, inputs=inputs, unknown_inputs=unknown_inputs,
-                               functions=functions, local=local, seed=seed)
+                               functions=functions, local=local, seed=seed, eng=eng)
         except (NotApplicable, NotRational) as e:
             if route == "io":
                 return GlobalResult(refused=f"the input-output route does not apply: {e}", method=IO_METHOD,
@@ -1054,7 +1054,7 @@ def _prepare(system: System, *, unknown_params: Any = (), inputs: Any = "generic
 
 def _prepare_io(system: System, *, unknown_params: Any = (), inputs: Any = "generic",
                 unknown_inputs: Mapping[str, int] | None = None, functions: Sequence[ExprLike] = (), local: Any = None,
-                seed: int = 0) -> _Prepared:
+                seed: int = 0, eng: Any = None) -> _Prepared:
     """As :func:`_prepare`, with the system of the input-output route (:mod:`._io`): the fibre of the identifiable
     coefficients and Lie derivatives at a random point. Raises ``_io.NotApplicable`` (with the reason) or
     NotRational where the route does not apply."""
@@ -1072,7 +1072,7 @@ def _prepare_io(system: System, *, unknown_params: Any = (), inputs: Any = "gene
         local = analyze(system, unknown_params=params_unknown, inputs=inputs, unknown_inputs=ui, symmetries=False,
                         seed=seed)
     rng = np.random.default_rng([seed, 23])
-    gens = generators(rm.params, rm.states, [u for u, _ in rm.inputs], rm.f, rm.h, rng)
+    gens = generators(rm.params, rm.states, [u for u, _ in rm.inputs], rm.f, rm.h, rng, eng)
     p = random_prime(rng, interval=_PRIME_RANGE, three_mod_four=False)
     R = gens.io.ring
     extra = [(nm, _poly(num, R, {}), _poly(den, R, {}))
@@ -1095,12 +1095,15 @@ def _prepare_io(system: System, *, unknown_params: Any = (), inputs: Any = "gene
              f"{len(gens.states)} Lie-derivative generators ({gens.seconds:.2f} s)"]
     if rm.chain_scale:
         notes.append("unknown-input coefficients w_k are the k-th derivatives at t = 0 divided by k! (Taylor coefficients)")
-    if len(rm.h) > 1:
+    if len(rm.h) > 1 and gens.complete:
+        notes.append(f"{len(rm.h)} outputs: one input-output projection per output; they generate a prime ideal (checked "
+                     "at a random specialisation), so their coefficients give every identifiable function")
+    elif len(rm.h) > 1:
         notes.append(f"{len(rm.h)} outputs: one input-output projection per output; their coefficients and the outputs' "
-                     "Lie derivatives are identifiable, but need not generate every identifiable function (no primality "
-                     "check of the projections), so only 'globally' verdicts are taken from them")
+                     "Lie derivatives are identifiable, but the projections were not shown to generate a prime ideal, so "
+                     "they may give only part of the identifiable functions: only 'globally' verdicts are taken from them")
     return _Prepared(system, hs, p, checks, unknown_names, local_ok, funcs, fn_locals, tuple(gens.io.orders), notes,
-                     free=free, d=d, rng=rng, local=local, io=(gens, extra), partial=len(rm.h) > 1)
+                     free=free, d=d, rng=rng, local=local, io=(gens, extra), partial=not gens.complete)
 
 
 # ----------------------------------------------------------------------------------------------

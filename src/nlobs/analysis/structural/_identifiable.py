@@ -41,6 +41,7 @@ from ...errors import ModelError
 from ...model import System, symbol
 from ...algebra._modular import monomial_exponents
 from ...algebra._modular import monomial_value as _mono_value
+from ...algebra._modular import monomial_exponents
 from ...algebra._modular import monomial_values as _mono_values
 from ...algebra._modular import ratrec as _ratrec
 from ._global import IO_METHOD, NO_ENGINE, SIAN_METHOD, NotRational, _decide, _prepare, _prepare_io, _System
@@ -148,10 +149,13 @@ class _Search:
     basis per point, whatever the number of denominators: each Q is itself a candidate monomial).
     """
 
-    def __init__(self, prep: Any, eng: GroebnerEngine, U: list[str], max_degree: int):
+    def __init__(self, prep: Any, eng: GroebnerEngine, U: list[str], max_degree: int, top: Sequence[str] | None = None):
         self.prep, self.eng, self.U = prep, eng, U
         self.p = prep.p
         self.monos = monomial_exponents(len(U), max_degree)
+        if top is not None:  # monomials of the top degree only in the unknowns `top`
+            keep = [i for i, u in enumerate(U) if u in top]
+            self.monos = [e for e in self.monos if sum(e) < max_degree or sum(e[i] for i in keep) == max_degree]
         # most complex first: pivots of the reduced echelon form fall on the complex monomials
         self.monos.sort(key=lambda e: (-sum(e), tuple(-x for x in e)))
         self.mono_index = {e: i for i, e in enumerate(self.monos)}
@@ -520,6 +524,54 @@ def _verified(prep: Any, eng: GroebnerEngine, cands: list[sp.Expr], U: list[str]
     return cands
 
 
+#: Largest number of new degree-3 monomials the automatic degree raise accepts (in 15 unknowns: 680).
+_MAX_MONOMIALS = 1000
+
+
+def _search_and_select(search: _Search, prep: Any, eng: GroebnerEngine, U: list[str], single: list[str],
+                       rng: np.random.Generator) -> list[sp.Expr]:
+    """Steps 1-4 of the module docstring: candidates per denominator, verified, then the simplest generators."""
+    cands: list[sp.Expr] = []
+    denominators = [tuple(0 for _ in U)] + [tuple(int(i == j) for j in range(len(U)))
+                                            for i, u in enumerate(U) if u not in single]
+    for Q in denominators:
+        Kc = search.solve(Q)
+        cands += search.functions(Kc, Q)
+    singles = [symbol(u) for u in single]
+    pool = list(dict.fromkeys(c for c in cands if c not in singles))
+    pool = sorted(_verified(prep, eng, pool, U, exact=search.exact), key=_complexity)  # sort the survivors only
+    return _select([*singles, *pool], U, eng, prep.p, rng, search.exact)
+
+
+def _complete_io(prep: Any, eng: GroebnerEngine, chosen: list[sp.Expr], U: list[str],
+                 rng: np.random.Generator) -> bool:
+    """On the input-output route (states included): every generator of the route (which together give every
+    identifiable function) is constant on the fibre of `chosen` at a random point, i.e. lies in their field
+    (normal forms of its relation num(v) den(v̂) - num(v̂) den(v) modulo their fibre ideal)."""
+    gens, _ = prep.io
+    p = prep.p
+    names, F, xhat = _fibre_system(chosen, U, p, rng)
+    model = {v: u for u, v in prep.hs.unknown_var.items()}  # ring name -> model name
+    nv = len(names)
+    rels: list[Poly] = []
+    for a, b in (*gens.params, *gens.states):
+        own = a.context().names()
+        col = [names.index(model[v]) if v in model else -1 for v in own]
+        at = [xhat.get(model.get(v, ""), 0) for v in own]
+        av, bv = int(a(*at)) % p, int(b(*at)) % p
+        rel: Poly = {}
+        for q, scale in ((a, bv), (b, (-av) % p)):
+            for mono, c in zip(q.monoms(), q.coeffs()):
+                key = [0] * nv
+                for i, e in enumerate(mono):
+                    if e:
+                        key[col[i]] += e
+                k = tuple(key)
+                rel[k] = (rel.get(k, 0) + int(c) * scale) % p
+        rels.append({k: v for k, v in rel.items() if v})
+    return not any(eng.normal_forms(names, p, F, rels))
+
+
 def find_identifiable_functions(system: System, *, unknown_params: Any = "all", inputs: Any = "generic",
                                 with_states: bool = True, max_degree: int | None = None, local: Any = None,
                                 engine: str | GroebnerEngine = "auto", seed: int = 0,
@@ -581,7 +633,8 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
     try:
         if route != "sian":
             try:
-                prep = _prepare_io(system, unknown_params=unknown_params, inputs=inputs, local=local, seed=seed)
+                prep = _prepare_io(system, unknown_params=unknown_params, inputs=inputs, local=local, seed=seed,
+                                   eng=eng)
             except NotApplicable as e:
                 if route == "io":
                     return IdentifiableFunctions(with_states=with_states,
@@ -596,6 +649,7 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
     rng = np.random.default_rng([seed, 99])
     params = [u for u in prep.unknown_names if u not in system.states]
     U = list(prep.unknown_names) if with_states else params
+    auto_degree = max_degree is None
     if max_degree is None:
         max_degree = 3 if len(U) <= 8 else 2
     if max_degree < 1:
@@ -613,24 +667,26 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
         dec = _decide(prep, eng, 8, also=search.mono_polys(prep.hs))
     search.known_point(dec.pop("also_nfs"))
     single = [u for u in U if u in dec["globally"]]
-    cands: list[sp.Expr] = []
-    denominators = [tuple(0 for _ in U)] + [tuple(int(i == j) for j in range(len(U)))
-                                            for i, u in enumerate(U) if u not in single]
-    for Q in denominators:
-        Kc = search.solve(Q)
-        cands += search.functions(Kc, Q)
-    singles = [symbol(u) for u in single]
-    pool = list(dict.fromkeys(c for c in cands if c not in singles))
-    pool = sorted(_verified(prep, eng, pool, U, exact=search.exact), key=_complexity)  # sort the survivors only
-    chosen = _select([*singles, *pool], U, eng, prep.p, rng, search.exact)
+    chosen = _search_and_select(search, prep, eng, U, single, rng)
+    io_complete = prep.io is not None and with_states
+    complete: bool | None = _complete_io(prep, eng, chosen, U, rng) if io_complete else None
+    rest = [u for u in U if u not in single]
+    if complete is False and auto_degree and max_degree < 3 and len(monomial_exponents(len(rest), 3)) <= _MAX_MONOMIALS:
+        # a generator of the field needs a numerator of degree 3 (HIV: c*q*x): search again one degree higher, the
+        # new monomials only in the unknowns not globally identifiable (the completeness check below says whether
+        # that was enough)
+        max_degree = 3
+        search = _Search(prep, eng, U, max_degree, top=rest)
+        chosen = _search_and_select(search, prep, eng, U, single, rng)
+        complete = _complete_io(prep, eng, chosen, U, rng)
     texts = tuple(_text(f) for f in chosen)
     checks = tuple(observable_function(system, t, unknown_params=prep.local.unknown_params, inputs=inputs,
                                        seed=seed).observable for t in texts)
     if not all(checks):
         notes.append("a returned function failed the local check: " + ", ".join(t for t, c in zip(texts, checks) if not c))
-    complete: bool | None = None
     if with_states:
-        complete = _complete(prep, eng, chosen, U, rng)
+        if not io_complete:
+            complete = _complete(prep, eng, chosen, U, rng)
         if complete is False:
             notes.append(f"the generators found with numerators of degree <= {max_degree} and monomial denominators "
                          "do not give every identifiable function")

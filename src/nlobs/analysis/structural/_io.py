@@ -686,10 +686,15 @@ class Generators:
     states: list[tuple[Any, Any]]  # Lie derivatives of the outputs (states and parameters), in the IO ring
     seconds: float = 0.0
     cache: dict[str, Any] = field(default_factory=dict)
+    #: the generators give every identifiable function: one output, or several whose projections are proven to
+    #: generate a prime ideal (:func:`projections_prime`); otherwise possibly only part of them
+    complete: bool = True
 
 
-def generators(params: list[str], states: list[str], inputs: list[str], f, h, rng: np.random.Generator) -> Generators:
-    """Steps 1-3 of the module docstring; NotApplicable when a Wronskian has corank above one."""
+def generators(params: list[str], states: list[str], inputs: list[str], f, h, rng: np.random.Generator,
+               eng: Any = None) -> Generators:
+    """Steps 1-3 of the module docstring; NotApplicable when a Wronskian has corank above one. With several
+    outputs, `eng` (a Gröbner engine) checks whether the projections suffice (``complete``)."""
     import time
 
     t0 = time.perf_counter()
@@ -717,7 +722,8 @@ def generators(params: list[str], states: list[str], inputs: list[str], f, h, rn
             if not (a.is_constant() and b.is_constant()):
                 pg.append((a, b))
     sg = state_generators(io)
-    return Generators(io, pg, sg, time.perf_counter() - t0)
+    complete = len(io.eqs) == 1 or (eng is not None and projections_prime(io, eng, rng))
+    return Generators(io, pg, sg, time.perf_counter() - t0, complete=complete)
 
 
 def _common_denominator(gens: Generators):
@@ -846,3 +852,89 @@ def tangent_rows(gens: Generators, variables: Sequence[str], p: int,
         rows = (bv[:, None] * ga % p - av[:, None] * gb % p) % p * ib2[:, None] % p
         return rows, vhat
     raise NotApplicable("denominators of the identifiable functions vanish at 16 random points")
+
+
+# ----------------------------------------------------------------------------------------------
+# several outputs: are the projections enough? (SI.jl's check_primality)
+# ----------------------------------------------------------------------------------------------
+#: Largest quotient dimension the primality check explores (the minimal polynomial's degree).
+MAX_PRIMALITY_DEGREE = 64
+
+
+def projections_prime(io: IOEquations, eng: Any, rng: np.random.Generator) -> bool:
+    """Whether the projections (one per output, leader y_j_{order_j}) generate a prime ideal once every other
+    variable is specialised: then they form a characteristic set and their coefficients generate every function
+    identifiable from several experiments (Dong, Goodbrake, Harrington & Pogudin (2023); SI.jl's
+    ``check_primality``): every non-leader variable at random integers (leader degrees kept), then
+    :func:`zerodim_prime`. True only when proven."""
+    R = io.ring
+    leaders = [f"{y}_{k}" for y, k in zip(R.outputs, io.orders)]
+    li = [R.index[v] for v in leaders]
+    degs = [eq.degrees()[i] for eq, i in zip(io.eqs, li)]
+    if not all(degs):
+        return False
+    for attempt in range(1, 9):
+        vals = {v: int(rng.integers(1, 100 * attempt + 1)) for v in R.names if v not in leaders}
+        spec = [eq.subs(vals) for eq in io.eqs]
+        if any(q.degrees()[i] != d for q, i, d in zip(spec, li, degs)):
+            continue
+        F = []
+        for q in spec:
+            poly: dict = {}
+            for mono, c in zip(q.monoms(), q.coeffs()):
+                key = tuple(mono[i] for i in li)
+                poly[key] = poly.get(key, 0) + int(c)
+            F.append({k: v for k, v in poly.items() if v})
+        return zerodim_prime(F, len(leaders), eng, rng)
+    return False
+
+
+def zerodim_prime(F: Sequence[dict], m: int, eng: Any, rng: np.random.Generator, tries: int = 6) -> bool:
+    """Whether the zero-dimensional ideal of the integer polynomials `F` (exponent tuples of length m) is prime
+    over Q; True only when proven. Modulo a random prime p (up to `tries` of them): a random linear form l
+    generates the quotient as an algebra (each variable's normal form lies in the span of those of 1, l, ...,
+    l^(d-1), d the degree of l's minimal polynomial) and that minimal polynomial is irreducible over GF(p): the
+    quotient mod p is a field, and a decomposition over Q would survive the reduction mod every prime outside a
+    finite set. False for a decomposable ideal, and for one irreducible over Q but never mod p (x^4 + 1), or with a
+    quotient larger than MAX_PRIMALITY_DEGREE: the caller then keeps the weaker conclusion."""
+    from ...algebra._modular import PRIME_BITS, RowEchelon, random_prime
+    from ...algebra._modular import minimal_polynomial as _minpoly
+
+    names = [f"v{i}" for i in range(m)] + ["ell_sep"]
+    top = MAX_PRIMALITY_DEGREE
+    for _ in range(tries):
+        p = random_prime(rng, interval=(1 << (PRIME_BITS - 1), 1 << PRIME_BITS), three_mod_four=False)
+        Fp = [{k + (0,): c % p for k, c in f.items() if c % p} for f in F]
+        ell = {tuple([0] * m) + (1,): 1}  # ell_sep - sum r_i v_i: the powers of ell_sep are those of l
+        for i in range(m):
+            ell[tuple(int(j == i) for j in range(m)) + (0,)] = int(rng.integers(1, p))
+        powers = [{tuple([0] * m) + (k,): 1} for k in range(top + 1)]
+        own = [{tuple(int(j == i) for j in range(m)) + (0,): 1} for i in range(m)]
+        nfs = eng.normal_forms(names, p, [*Fp, ell], [*powers, *own])
+        if not nfs[0]:
+            return False  # the unit ideal
+        mp = _minpoly(nfs[:top + 1], p)
+        if mp is None:
+            return False
+        d = len(mp) - 1
+        monos: dict = {}
+        for g in (*nfs[:d], *nfs[top + 1:]):
+            for mono in g:
+                monos.setdefault(mono, len(monos))
+        width = max(len(monos), 1)
+
+        def row(g: dict) -> np.ndarray:
+            r = np.zeros(width, dtype=np.int64)
+            for mono, c in g.items():
+                r[monos[mono]] = c % p
+            return r
+
+        ech = RowEchelon(width, p)
+        for g in nfs[:d]:
+            ech.add(row(g))
+        if any(ech.reduce(row(g)).any() for g in nfs[top + 1:]):
+            continue  # l does not generate the quotient mod this p: another prime and form
+        fac = flint.nmod_poly([c % p for c in mp], p).factor()[1]
+        if len(fac) == 1 and fac[0][1] == 1:
+            return True
+    return False
