@@ -289,3 +289,41 @@ def test_projections_not_prime_on_the_published_remark_3_example():
     assert projections_prime(io, get_engine(ENGINE), np.random.default_rng(0)) is False
     _, io2 = _io(BY_NAME["bruno2016"].system(), BY_NAME["bruno2016"].params)
     assert projections_prime(io2, get_engine(ENGINE), np.random.default_rng(0)) is True
+
+
+def test_budget_stops_a_long_computation_and_its_subprocesses():
+    import subprocess
+    import time
+
+    from nlobs.analysis.structural._budget import run_with_budget
+    from nlobs.errors import ModelError
+
+    assert run_with_budget(lambda: 6 * 7, 10) == (True, 42)
+
+    def slow():
+        subprocess.run(["sleep", "30"])  # a grandchild, as msolve is
+        return 1
+
+    t = time.perf_counter()
+    done, why = run_with_budget(slow, 0.5)
+    assert not done and "more than 0.5 s" in why and time.perf_counter() - t < 5
+    out = subprocess.run(["pgrep", "-f", "^sleep 30$"], capture_output=True, text=True).stdout
+    assert not out.strip()  # the grandchild went with the group
+
+    def bad():
+        raise ModelError("named condition")
+
+    with pytest.raises(ModelError, match="named condition"):
+        run_with_budget(bad, 10)
+
+
+@needs_engine
+def test_auto_takes_sian_when_the_io_budget_runs_out(monkeypatch):
+    import nlobs.analysis.structural._global as g
+
+    monkeypatch.setattr(g, "IO_BUDGET", 0.0)
+    s = BY_NAME["two_compartment"].system()
+    res = global_identifiability(s, unknown_params="all", engine=ENGINE)
+    assert res.method.startswith("SIAN") and any("budget" in n for n in res.notes)
+    ref = global_identifiability(s, unknown_params="all", engine=ENGINE, route="io")
+    assert (res.globally, res.non_identifiable) == (ref.globally, ref.non_identifiable)

@@ -837,7 +837,19 @@ def global_identifiability(system: System, *, unknown_params: Any = (), inputs: 
     if route not in ("auto", "io", "sian"):
         raise ModelError(f"`route` must be 'auto', 'io' or 'sian', got {route!r}")
     io_note = ""
-    if route != "sian":
+    if route == "auto":
+        # the input-output route under a time budget (module _budget): SIAN decides when it runs out
+        from ._budget import run_with_budget
+
+        done, res = run_with_budget(lambda: global_identifiability(
+            system, unknown_params=unknown_params, inputs=inputs, unknown_inputs=unknown_inputs, functions=functions,
+            local=local, engine=engine, seed=seed, max_solutions=max_solutions, route="io"), IO_BUDGET)
+        if done and res.ok:
+            return res
+        io_note = ("SIAN, not the input-output route: "
+                   + (res.refused.replace("the input-output route ", "it ", 1) if done else
+                      f"{res} (the route's budget, nlobs.analysis.structural._global.IO_BUDGET)"))
+    elif route == "io":
         from ._io import NotApplicable
 
         eng = engine if isinstance(engine, GroebnerEngine) else get_engine(engine)
@@ -847,23 +859,18 @@ def global_identifiability(system: System, *, unknown_params: Any = (), inputs: 
             prep = _prepare_io(system, unknown_params=unknown_params, inputs=inputs, unknown_inputs=unknown_inputs,
                                functions=functions, local=local, seed=seed, eng=eng)
         except (NotApplicable, NotRational) as e:
-            if route == "io":
-                return GlobalResult(refused=f"the input-output route does not apply: {e}", method=IO_METHOD,
-                                    seconds=time.perf_counter() - t_start)
-            io_note = f"SIAN, not the input-output route: {e}"
-        else:
-            res = _decide(prep, eng, max_solutions)
-            open_ = [lo.name for lo in res["locally_only"]] + [t for t, v, _ in res["functions"] if v == "locally"]
-            if not (prep.partial and open_):
-                return GlobalResult(**res, method=IO_METHOD, engine=eng.version() or eng.name, prime=prep.p,
-                                    orders=prep.orders, n_equations=len(prep.hs.F), n_variables=len(prep.hs.names),
-                                    seconds=time.perf_counter() - t_start, engine_seconds=eng.seconds)
+            return GlobalResult(refused=f"the input-output route does not apply: {e}", method=IO_METHOD,
+                                seconds=time.perf_counter() - t_start)
+        res = _decide(prep, eng, max_solutions)
+        open_ = [lo.name for lo in res["locally_only"]] + [t for t, v, _ in res["functions"] if v == "locally"]
+        if prep.partial and open_:
             why = (f"with {system.n_outputs} outputs the input-output projections prove global identifiability only, "
                    f"and did not for {', '.join(open_)}")
-            if route == "io":
-                return GlobalResult(refused=f"the input-output route does not decide: {why}", method=IO_METHOD,
-                                    seconds=time.perf_counter() - t_start)
-            io_note = f"SIAN, not the input-output route: {why}"
+            return GlobalResult(refused=f"the input-output route does not decide: {why}", method=IO_METHOD,
+                                seconds=time.perf_counter() - t_start)
+        return GlobalResult(**res, method=IO_METHOD, engine=eng.version() or eng.name, prime=prep.p,
+                            orders=prep.orders, n_equations=len(prep.hs.F), n_variables=len(prep.hs.names),
+                            seconds=time.perf_counter() - t_start, engine_seconds=eng.seconds)
     try:
         prep = _prepare(system, unknown_params=unknown_params, inputs=inputs, unknown_inputs=unknown_inputs,
                         functions=functions, local=local, seed=seed, rewrite=True)
@@ -885,6 +892,8 @@ def global_identifiability(system: System, *, unknown_params: Any = (), inputs: 
                         seconds=time.perf_counter() - t_start, engine_seconds=eng.seconds)
 
 
+#: Seconds the input-output route may take under route="auto" before SIAN decides instead (SIWR needs about 10).
+IO_BUDGET = 30.0
 #: SIAN's method, as the result states it.
 SIAN_METHOD = (f"SIAN ({cite('hong2019')}; {cite('hong2020', 'Algorithm 1')}): truncated output jets at a random point "
                "of GF(p), Gröbner basis and normal forms")

@@ -630,16 +630,28 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
         raise ModelError(f"`route` must be 'auto', 'io' or 'sian', got {route!r}")
     prep = None
     notes: list[str] = []
+    if route == "auto":
+        # the input-output route under a time budget (module _budget); SIAN's system when it runs out or refuses
+        from ._budget import run_with_budget
+        from ._global import IO_BUDGET
+
+        done, res = run_with_budget(lambda: find_identifiable_functions(
+            system, unknown_params=unknown_params, inputs=inputs, with_states=with_states, max_degree=max_degree,
+            local=local, engine=engine, seed=seed, reparametrize_model=reparametrize_model, route="io"), IO_BUDGET)
+        if done and not res.refused:
+            return res
+        notes.append("on SIAN's system, not the input-output route: "
+                     + (res.refused.replace("the input-output route ", "it ", 1) if done else
+                        f"{res} (the route's budget, nlobs.analysis.structural._global.IO_BUDGET)"))
+        route = "sian"
     try:
         if route != "sian":
             try:
                 prep = _prepare_io(system, unknown_params=unknown_params, inputs=inputs, local=local, seed=seed,
                                    eng=eng)
             except NotApplicable as e:
-                if route == "io":
-                    return IdentifiableFunctions(with_states=with_states,
-                                                 refused=f"the input-output route does not apply: {e}")
-                notes.append(f"on SIAN's system, not the input-output route: {e}")
+                return IdentifiableFunctions(with_states=with_states,
+                                             refused=f"the input-output route does not apply: {e}")
         if prep is None:
             prep = _prepare(system, unknown_params=unknown_params, inputs=inputs, local=local, seed=seed)
     except NotRational as e:

@@ -1,0 +1,322 @@
+"""Benchmark (not a test): nlobs on StructuralIdentifiability.jl's benchmark models, against SI.jl's published times.
+
+Usage::
+
+    python benchmarks/bench_si_models.py [--models k1,k2] [--timeout 120] [--what global,functions]
+                                         [--json benchmarks/results/si_models.json] [--fresh]
+    python benchmarks/bench_si_models.py report [--json benchmarks/results/si_models.json]
+
+The models are ``benchmarks/si_models.py`` (transcribed from SI.jl's ``benchmarking/benchmarks.jl``; keys as
+there). For every model and every part of ``--what``, one child process (its own session, so that on the
+time limit the whole process group goes, msolve/Singular included) runs, one at a time:
+
+- ``global``: ``nlobs.analysis.global_identifiability(system, unknown_params="all")``;
+- ``functions``: ``nlobs.analysis.find_identifiable_functions(system, with_states=True, reparametrize_model=False)``
+  (SI.jl's published benchmark is ``find_identifiable_functions`` with states).
+
+Measured in the child around the call only (not the imports): wall seconds, CPU seconds of the process and its
+finished children (``getrusage`` RUSAGE_SELF + RUSAGE_CHILDREN, user + system: the Gröbner engines run as
+subprocesses), and peak RSS (``ru_maxrss`` of the process and of its largest child, MB; of the whole process,
+imports included; a child's figure includes the Python pages it had when forked, before exec). Also the verdicts, the route (``method``), notes and refusals. The parent records "timeout"
+when the wall-clock limit is hit and "error: <message>" (with the traceback's last lines) when the child fails.
+
+Records go to the JSON (``{"machine": ..., "rows": [...]}``, via ``_common.write`` when the file is in
+``benchmarks/results``), one row per (model, part), rewritten after every row; rows of models not run this time
+are kept unless ``--fresh``. ``report`` writes ``si_models.md`` next to the JSON. SI.jl's times are the published
+ones (not rerun here). The machine is shared: compare CPU seconds; start the run under ``nice``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import json
+import os
+import platform
+import signal
+import subprocess
+import sys
+import time
+import traceback
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+HERE = ROOT / "benchmarks"
+sys.path.insert(0, str(ROOT / "src"))
+sys.path.insert(0, str(HERE))
+
+import si_models
+from _common import RESULTS, machine, write
+
+PARTS = ("global", "functions")
+HEADER = ("| model | size | SI.jl functions s | nlobs global wall s (CPU s) | nlobs functions wall s (CPU s) "
+          "| ratio functions CPU / SI.jl | route | status |")
+DEFAULT_JSON = RESULTS / "si_models.json"
+#: From SI.jl's benchmarking/IdentifiableFunctions/benchmark_result.md (quoted, not measured here).
+SI_RUN = ("2023-09-15 (`benchmark_result.md` of SciML/StructuralIdentifiability.jl, "
+          "`find_identifiable_functions` with states, `(:normalforms, 2)`, column \"Runtime\"), Intel Xeon "
+          "Processor (Icelake), 15 GiB RAM, Julia 1.9.3, Groebner 0.4.3, 7 workers, 600 s timeout")
+
+
+# ---------------------------------------------------------------------------------------------- child
+def _usage() -> tuple[float, float, float]:
+    """(CPU seconds of this process and its waited-for children, peak RSS MB of this process, of its largest child)."""
+    import resource
+
+    s, c = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return s.ru_utime + s.ru_stime + c.ru_utime + c.ru_stime, s.ru_maxrss / 1024, c.ru_maxrss / 1024
+
+
+def _route(method: str) -> str:
+    if method.startswith("input-output"):
+        return "io"
+    if method.startswith("SIAN"):
+        return "sian"
+    return method[:40]
+
+
+def child(key: str, part: str) -> dict[str, Any]:
+    t_import = time.perf_counter()
+    from nlobs.analysis import find_identifiable_functions, global_identifiability
+
+    sys_ = si_models.system(key)
+    out: dict[str, Any] = {"import_seconds": time.perf_counter() - t_import}
+    c0, _, _ = _usage()
+    t0 = time.perf_counter()
+    if part == "global":
+        res = global_identifiability(sys_, unknown_params="all")
+    else:
+        res = find_identifiable_functions(sys_, with_states=True, reparametrize_model=False)
+    wall = time.perf_counter() - t0
+    c1, rss_self, rss_child = _usage()
+    out.update(wall=wall, cpu=c1 - c0, rss_mb=rss_self, rss_child_mb=rss_child,
+               engine_seconds=getattr(res, "engine_seconds", None), refused=res.refused, notes=list(res.notes))
+    if part == "global":
+        out.update(method=res.method, route=_route(res.method), engine=res.engine, globally=list(res.globally),
+                   locally_only=[(lo.name, lo.solutions) for lo in res.locally_only],
+                   non_identifiable=list(res.non_identifiable), undecided=[list(u) for u in res.undecided],
+                   rewriting=list(res.rewriting), n_equations=res.n_equations, n_variables=res.n_variables)
+    else:
+        out.update(method=getattr(res, "method", ""), functions=list(res.functions), complete=res.complete,
+                   local_checks=list(res.local_checks))
+    return out
+
+
+# ---------------------------------------------------------------------------------------------- parent
+def run_one(key: str, part: str, timeout: float) -> dict[str, Any]:
+    m = si_models.MODELS[key]
+    row: dict[str, Any] = {"model": key, "name": m["name"], "what": part, "size": _size(m),
+                           "si_functions_seconds": m["si_functions_seconds"], "timeout_s": timeout,
+                           "date": time.strftime("%Y-%m-%d %H:%M:%S"), "load_1min": os.getloadavg()[0]}
+    t0 = time.perf_counter()
+    proc = subprocess.Popen([sys.executable, __file__, "child", "--models", key, "--what", part],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        stdout, stderr = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)   # the whole group: the Python child and its engine processes
+        except ProcessLookupError:
+            pass
+        proc.communicate()
+        row.update(status="timeout", process_wall=time.perf_counter() - t0)
+        return row
+    row["process_wall"] = time.perf_counter() - t0
+    lines = [x for x in stdout.splitlines() if x.startswith("RESULT ")]
+    if lines:
+        row.update(json.loads(lines[-1][len("RESULT "):]))
+        row.setdefault("status", "ok")
+    else:
+        tail = [x for x in stderr.strip().splitlines() if x.strip()]
+        row["status"] = "error: " + (tail[-1] if tail else f"exit code {proc.returncode}, no output")
+        row["traceback_tail"] = tail[-12:]
+    return row
+
+
+def _size(m: dict[str, Any]) -> str:
+    return f'{len(m["states"])}x{len(m["params"])}x{len(m["outputs"])}x{len(m["inputs"])}'
+
+
+@functools.lru_cache(maxsize=1)
+def _host() -> dict[str, Any]:
+    """What _common.machine() leaves out: platform, CPU count, niceness, the Gröbner engines found."""
+    info: dict[str, Any] = {"platform": platform.platform(), "cpus": os.cpu_count(), "python": sys.version.split()[0],
+                            "nice": os.nice(0)}
+    try:
+        from nlobs.algebra._groebner import GroebnerEngine, available_engines
+
+        info["engines"] = {n: GroebnerEngine(n, p).version() for n, p in available_engines().items()}
+    except Exception as e:  # noqa: BLE001 - informational only
+        info["engines"] = f"unknown ({e})"
+    return info
+
+
+def _save(path: Path, rows: list[dict[str, Any]], extra: dict[str, Any]) -> None:
+    if path.parent.resolve() == RESULTS.resolve() and path.suffix == ".json":
+        write(path.stem, rows, extra)
+    else:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps({"machine": machine(), "rows": rows, **extra}, indent=2, default=str))
+
+
+def run(keys: list[str], parts: list[str], timeout: float, path: Path, fresh: bool) -> None:
+    old: list[dict[str, Any]] = []
+    if path.exists() and not fresh:
+        old = json.loads(path.read_text()).get("rows", [])
+    todo = {(k, p) for k in keys for p in parts}
+    rows = [r for r in old if (r.get("model"), r.get("what")) not in todo]
+    extra = {"source": si_models.SOURCE, "si_run": SI_RUN, "args": " ".join(sys.argv[1:]), "host": _host()}
+    for k in keys:
+        for p in parts:
+            r = run_one(k, p, timeout)
+            rows.append(r)
+            _save(path, rows, extra)
+            shown = (f'{r["wall"]:.2f} s wall, {r["cpu"]:.2f} s CPU, {r.get("rss_mb", 0):.0f} MB'
+                     if r["status"] == "ok" else r["status"][:150])
+            print(f'{k:22s} {p:9s} {shown}  {r.get("route", "")} {("REFUSED: " + r["refused"][:80]) if r.get("refused") else ""}',
+                  flush=True)
+    print(f"written {path}")
+
+
+# ---------------------------------------------------------------------------------------------- report
+def _cell(r: dict[str, Any] | None) -> str:
+    if r is None:
+        return "-"
+    if r["status"] == "ok":
+        return f'{r["wall"]:.2f} ({r["cpu"]:.2f})' + (" refused" if r.get("refused") else "")
+    if r["status"] == "timeout":
+        return f'> {r["timeout_s"]:g} (timeout)'
+    return "error"
+
+
+def report(path: Path) -> Path:
+    data = json.loads(path.read_text())
+    rows = data["rows"]
+    by = {(r["model"], r["what"]): r for r in rows}
+    mach = {**data.get("machine", {}), **data.get("host", {})}
+    dates = sorted(r.get("date", "") for r in rows) or [""]
+    intro = (f"Models: `benchmarks/si_models.py`, transcribed from {data.get('source', si_models.SOURCE)} "
+             f"`{si_models.FILE}`. **SI.jl's times are the published ones, not rerun here**: "
+             f"{data.get('si_run', SI_RUN)}. SI.jl's runtime is the wall time of one call after a warm-up (Julia "
+             "compilation excluded).")
+    how = (f"nlobs: run {dates[0]} to {dates[-1]} on a shared {mach.get('cpus', '?')}-CPU machine "
+           f"({mach.get('platform', mach.get('machine', '?'))}, Python {mach.get('python', '?')}, engines: "
+           f"{mach.get('engines', '?')}), one model at a time, each part in its own process, args "
+           f"`{data.get('args', '')}`. Wall s (CPU s): CPU is the process plus its Gröbner-engine subprocesses, user + "
+           "system, the fair measure on a shared machine. Global: `global_identifiability(system, "
+           "unknown_params=\"all\")`; functions: `find_identifiable_functions(system, with_states=True, "
+           "reparametrize_model=False)`. Size: states x params x outputs x inputs. Ratio: nlobs functions CPU s / "
+           "SI.jl's published runtime; above 3 in bold. Route: the global check's (io = input-output equations, "
+           "sian = SIAN).")
+    L = ["# nlobs on StructuralIdentifiability.jl's benchmark models", "",
+         f"Written by `python benchmarks/bench_si_models.py report` from `{path.name}`; do not edit by hand.", "",
+         intro, "", how, "",
+         HEADER,
+         "|---|---|---|---|---|---|---|---|"]
+    keys = [k for k in si_models.MODELS if any((k, p) in by for p in PARTS)]
+    errors, timeouts, suspicious, refusals = [], [], [], []
+    for k in keys:
+        m = si_models.MODELS[k]
+        g, f = by.get((k, "global")), by.get((k, "functions"))
+        si = m["si_functions_seconds"]
+        ratio = "-"
+        if si and f and f["status"] == "ok" and not f.get("refused"):
+            x = f["cpu"] / si
+            ratio = f"**{x:.2f}**" if x > 3 else f"{x:.2f}"
+        elif si and f and f["status"] == "timeout":
+            x = f["timeout_s"] / si
+            ratio = f"> {x:.2f}" if x <= 3 else f"**> {x:.2f}**"
+        status = []
+        for part, r in (("global", g), ("functions", f)):
+            if r is None:
+                continue
+            s = r["status"]
+            if s.startswith("error"):
+                errors.append((k, part, r))
+                s = "error"
+            elif s == "timeout":
+                timeouts.append((k, part, r))
+            elif r.get("refused"):
+                refusals.append((k, part, r))
+                s = "refused"
+            elif part == "functions" and r.get("complete") is not True:
+                suspicious.append((k, r))
+                s = f"complete={r.get('complete')}"
+            elif part == "functions" and not all(r.get("local_checks", [])):
+                suspicious.append((k, r))
+                s = "local check failed"
+            status.append(f"{part}: {s}")
+        route = g.get("route", "") if g and g["status"] == "ok" else ""
+        L.append(f'| {k} ({m["name"]}) | {_size(m)} | {"-" if si is None else f"{si:g}"} | {_cell(g)} | {_cell(f)} | '
+                 f'{ratio} | {route} | {"; ".join(status)} |')
+    ok_f = [(k, by[(k, "functions")]) for k in keys if (k, "functions") in by and by[(k, "functions")]["status"] == "ok"
+            and not by[(k, "functions")].get("refused") and si_models.MODELS[k]["si_functions_seconds"]]
+    L += ["", "## Summary", ""]
+    n = {p: sum(1 for k in keys if (k, p) in by) for p in PARTS}
+    n_ok = {p: sum(1 for k in keys if (k, p) in by and by[(k, p)]["status"] == "ok" and not by[(k, p)].get("refused"))
+            for p in PARTS}
+    L.append(f"- global: {n_ok['global']} of {n['global']} finished with verdicts; functions: {n_ok['functions']} of "
+             f"{n['functions']} finished with generators.")
+    if ok_f:
+        rat = sorted(r["cpu"] / si_models.MODELS[k]["si_functions_seconds"] for k, r in ok_f)
+        L.append(f"- functions CPU / SI.jl published runtime on the {len(rat)} models both have: median "
+                 f"{rat[len(rat) // 2]:.2f}, range {rat[0]:.2f}-{rat[-1]:.2f}; above 3 on "
+                 f"{sum(x > 3 for x in rat)}.")
+    L += ["", "## Errors (inside nlobs)", ""]
+    L += [f"- {k} {p}: `{r['status'][7:][:300]}`" + ("\n  ```\n  " + "\n  ".join(r.get("traceback_tail", [])[-6:]) + "\n  ```"
+                                                   if r.get("traceback_tail") else "") for k, p, r in errors] or ["None."]
+    L += ["", "## Timeouts", ""]
+    L += [f"- {k} {p}: stopped after {r['timeout_s']:g} s" for k, p, r in timeouts] or ["None."]
+    L += ["", "## Refused", ""]
+    L += [f"- {k} {p}: {r['refused']}" for k, p, r in refusals] or ["None."]
+    L += ["", "## Identifiable functions to look at (complete not True, or a local check failed)", ""]
+    L += [f"- {k}: complete={r.get('complete')}, local checks {r.get('local_checks')}, functions {r.get('functions')}"
+          + (f"; notes: {'; '.join(r.get('notes', []))}" if r.get("notes") else "") for k, r in suspicious] or ["None."]
+    diff = [(k, m["note"]) for k, m in si_models.MODELS.items() if "2023 model file" in m["note"] and k in keys]
+    if diff:
+        L += ["", "## Models whose published time was measured on a different 2023 version (see `si_models.py`)", ""]
+        L += [f"- {k}: {note}" for k, note in diff]
+    out = path.with_suffix(".md")
+    out.write_text("\n".join(L) + "\n")
+    print(f"written {out}")
+    return out
+
+
+# ---------------------------------------------------------------------------------------------- main
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("mode", nargs="?", default="run", choices=["run", "report", "child"])
+    ap.add_argument("--models", default="", help="comma-separated keys of si_models.MODELS (default: all)")
+    ap.add_argument("--timeout", type=float, default=120.0, help="wall-clock seconds per model and part")
+    ap.add_argument("--what", default="global,functions", help="global, functions or both, comma-separated")
+    ap.add_argument("--json", default=str(DEFAULT_JSON), help="results file")
+    ap.add_argument("--fresh", action="store_true", help="drop the rows of models not run this time")
+    args = ap.parse_args()
+    path = Path(args.json)
+    if not path.is_absolute():
+        path = Path.cwd() / path
+    if args.mode == "report":
+        report(path)
+        return 0
+    keys = [k for k in args.models.split(",") if k] or list(si_models.MODELS)
+    unknown = [k for k in keys if k not in si_models.MODELS]
+    if unknown:
+        ap.error(f"unknown models {unknown}; known: {', '.join(si_models.MODELS)}")
+    parts = [p for p in args.what.split(",") if p]
+    if any(p not in PARTS for p in parts):
+        ap.error(f"--what takes {', '.join(PARTS)}")
+    if args.mode == "child":
+        try:
+            out = child(keys[0], parts[0])
+        except Exception as e:  # noqa: BLE001 - an error inside nlobs is a result
+            tb = traceback.format_exc().strip().splitlines()
+            out = {"status": f"error: {type(e).__name__}: {e}"[:2000], "traceback_tail": tb[-12:]}
+        print("RESULT " + json.dumps(out, default=str), flush=True)
+        return 0
+    run(keys, parts, args.timeout, path, args.fresh)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
