@@ -75,6 +75,9 @@ def test_io_route_equals_sian(name):
         if "corank" in a.refused:  # a projection's coefficients may need several experiments: SIAN decides
             assert len(m.outputs) > 1 or name == "me_example_7_7"
             return
+        if "jet monomials" in a.refused:  # several outputs, a projection too large for the Wronskian (SIRS forced)
+            assert len(m.outputs) > 1 and name == "sirs_forced"
+            return
         # several outputs: refused only where SIAN finds some unknown or function locally, not globally
         assert len(m.outputs) > 1 and "prove global identifiability only" in a.refused
         assert b.locally_only or any(v == "locally" for _, v, _ in b.functions)
