@@ -457,8 +457,7 @@ def write_report() -> None:
     if reruns:
         loads = ver["meta"].get("rerun_load")
         L += ["", f"Rows marked *rerun* were measured again ({', '.join(reruns)} UTC; `bench_global.py verdicts --merge`, "
-              "one model at a time) with the code of that date (issue 23: shared random points and one Gröbner basis per "
-              "point in the identifiable-function search, one engine run per decision)"
+              "one model at a time) with the code of that date"
               + (f"; load average {loads[0]:.1f} before and {loads[1]:.1f} after the run" if loads else "")
               + ". The other rows are from the first run."]
     L += [
