@@ -330,3 +330,25 @@ def test_auto_takes_sian_when_the_io_budget_runs_out(monkeypatch):
     assert res.method.startswith("SIAN") and any("budget" in n for n in res.notes)
     ref = global_identifiability(s, unknown_params="all", engine=ENGINE, route="io")
     assert (res.globally, res.non_identifiable) == (ref.globally, ref.non_identifiable)
+
+
+@needs_engine
+def test_my_ten_state_chain_with_three_sampled_compartments():
+    # a model of ours: ten compartments in a chain, dose u into x1, a saturating loss in x5, x1, x5 and x10 sampled.
+    # By hand: between the sampled x1 and x5 the chain x2 -> x3 -> x4 passes x1 to x5 through the transfer function
+    # k1 k2 k3 k4 / ((s + k2)(s + k3)(s + k4)) (x1 known, k1 from x1' = u - k1 x1): k2, k3, k4 are its poles, known
+    # only as a set (3 values each); from x5 to x10 the poles are k6..k10 and the gain k5 k6 k7 k8 k9 gives
+    # k6 k7 k8 k9, so k10 (the product of all five over it) is unique and k6..k9 are a set (4 values each)
+    n = 10
+    f = ["u - k1*x1"] + [f"k{i - 1}*x{i - 1} - k{i}*x{i}" for i in range(2, n + 1)]
+    f[4] += " - vm*x5/(1 + x5)"
+    s = System(states=[f"x{i}" for i in range(1, n + 1)], f=f, outputs=["y1", "y5", "y10"], h=["x1", "x5", "x10"],
+               inputs=["u"], params={**{f"k{i}": 1.0 for i in range(1, n + 1)}, "vm": 1.0})
+    a = global_identifiability(s, unknown_params="all", engine=ENGINE, route="io")
+    assert a.ok, a.refused
+    sols = {lo.name: lo.solutions for lo in a.locally_only}
+    assert set(a.globally) == {"x1", "x5", "x10", "k1", "k5", "k10", "vm"}
+    assert {k: sols[k] for k in ("k2", "k3", "k4", "k6", "k7", "k8", "k9")} == {
+        "k2": 3, "k3": 3, "k4": 3, "k6": 4, "k7": 4, "k8": 4, "k9": 4}
+    b = global_identifiability(s, unknown_params="all", engine=ENGINE, route="sian")
+    assert (a.globally, a.locally_only, a.non_identifiable) == (b.globally, b.locally_only, b.non_identifiable)
