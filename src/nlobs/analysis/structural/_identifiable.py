@@ -634,16 +634,17 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
     if route == "auto":
         # the input-output route under a time budget (module _budget); SIAN's system when it runs out or refuses
         from ._budget import run_with_budget
-        from ._global import IO_BUDGET
+        from ._global import _io_budget
 
         done, res = run_with_budget(lambda: find_identifiable_functions(
             system, unknown_params=unknown_params, inputs=inputs, with_states=with_states, max_degree=max_degree,
-            local=local, engine=engine, seed=seed, reparametrize_model=reparametrize_model, route="io"), IO_BUDGET)
+            local=local, engine=engine, seed=seed, reparametrize_model=reparametrize_model, route="io"),
+            _io_budget(system))
         if done and not res.refused:
             return res
         notes.append("on SIAN's system, not the input-output route: "
                      + (res.refused.replace("the input-output route ", "it ", 1) if done else
-                        f"{res} (the route's budget, nlobs.analysis.structural._global.IO_BUDGET)"))
+                        f"{res} (the route's time budget, IO_BUDGET in nlobs.analysis.structural._global)"))
         route = "sian"
     try:
         if route != "sian":
