@@ -6,7 +6,9 @@ that the output determines form a field E; this module returns a small generatin
 simplest functions first (the role of StructuralIdentifiability.jl's
 ``find_identifiable_functions``).
 
-Method (everything over GF(p), on the SIAN systems of ``_global.py``):
+Method (everything over GF(p), on the system of the global check: the fibre of the input-output route's generators
+where that route applies (``_io.py``; its tangent rows are the generators' differentials, and completeness is
+checked exactly: every generator lies in the field of the chosen functions), else SIAN's systems of ``_global.py``):
 
 1. *Candidates.* Functions P/Q with P a polynomial of degree <= ``max_degree`` in the unknowns
    and Q = 1 or a single unknown.
@@ -41,7 +43,6 @@ from ...errors import ModelError
 from ...model import System, symbol
 from ...algebra._modular import monomial_exponents
 from ...algebra._modular import monomial_value as _mono_value
-from ...algebra._modular import monomial_exponents
 from ...algebra._modular import monomial_values as _mono_values
 from ...algebra._modular import ratrec as _ratrec
 from ._global import IO_METHOD, NO_ENGINE, SIAN_METHOD, NotRational, _decide, _prepare, _prepare_io, _System
