@@ -309,7 +309,6 @@ def monomial_value(e: Sequence[int], vals: Sequence[int], p: int) -> int:
     return t
 
 
-
 def monomial_values(E: np.ndarray, vals: Sequence[int], p: int) -> tuple[np.ndarray, np.ndarray]:
     """Values (k,) and gradients (k x n) mod p at `vals` of the monomials with exponent rows `E` (k x n)."""
     k, n = E.shape
@@ -333,6 +332,7 @@ def monomial_values(E: np.ndarray, vals: Sequence[int], p: int) -> tuple[np.ndar
                     g = g * cols[:, i2] % p
             mg[:, i] = g
     return mv, mg
+
 
 # polynomials mod p: sparse [(coefficient, ((var, exp), ...)), ...] and dense {exponent tuple: coefficient}
 def sparse_mod_p(P: Any, p: int) -> list[tuple[int, tuple[tuple[int, int], ...]]]:

@@ -838,9 +838,11 @@ def global_identifiability(system: System, *, unknown_params: Any = (), inputs: 
         raise ModelError(f"`route` must be 'auto', 'io' or 'sian', got {route!r}")
     io_note = ""
     if route == "auto":
-        # the input-output route under a time budget (module _budget): SIAN decides when it runs out
+        # the input-output route under a time budget (module _budget): SIAN decides when it runs out, with the
+        # local analysis done here once for both
         from ._budget import run_with_budget
 
+        local = local if local is not None else _local_of(system, unknown_params, inputs, unknown_inputs, functions, seed)
         done, res = run_with_budget(lambda: global_identifiability(
             system, unknown_params=unknown_params, inputs=inputs, unknown_inputs=unknown_inputs, functions=functions,
             local=local, engine=engine, seed=seed, max_solutions=max_solutions, route="io"), _io_budget(system))
@@ -902,6 +904,8 @@ IO_BUDGET_SEVERAL_OUTPUTS = 5.0
 
 def _io_budget(system: System) -> float:
     return IO_BUDGET if system.n_outputs == 1 else IO_BUDGET_SEVERAL_OUTPUTS
+
+
 #: SIAN's method, as the result states it.
 SIAN_METHOD = (f"SIAN ({cite('hong2019')}; {cite('hong2020', 'Algorithm 1')}): truncated output jets at a random point "
                "of GF(p), Gröbner basis and normal forms")
@@ -996,6 +1000,15 @@ class _Prepared:
         var = self.hs.unknown_var
         return (ech, {u: pt.vals[J.index[var[u]]] for u in self.unknown_names},
                 {u: cols[J.index[var[u]]] for u in self.unknown_names}, n)
+
+
+def _local_of(system: System, unknown_params: Any, inputs: Any, unknown_inputs: Mapping[str, int] | None,
+              functions: Sequence[ExprLike], seed: int) -> Any:
+    """The local analysis both routes start from (as :func:`_prepare` computes it)."""
+    from ._lie import local_analysis as analyze
+
+    params_unknown, ui, _, _ = _question(system, unknown_params, inputs, unknown_inputs, functions)
+    return analyze(system, unknown_params=params_unknown, inputs=inputs, unknown_inputs=ui, symmetries=False, seed=seed)
 
 
 def _question(system: System, unknown_params: Any, inputs: Any, unknown_inputs: Mapping[str, int] | None,

@@ -550,27 +550,17 @@ def _complete_io(prep: Any, eng: GroebnerEngine, chosen: list[sp.Expr], U: list[
     """On the input-output route (states included): every generator of the route (which together give every
     identifiable function) is constant on the fibre of `chosen` at a random point, i.e. lies in their field
     (normal forms of its relation num(v) den(v̂) - num(v̂) den(v) modulo their fibre ideal)."""
+    from ._io import Columns
+
     gens, _ = prep.io
     p = prep.p
     names, F, xhat = _fibre_system(chosen, U, p, rng)
     model = {v: u for u, v in prep.hs.unknown_var.items()}  # ring name -> model name
-    nv = len(names)
+    conv = Columns({v: names.index(u) for v, u in model.items()}, len(names), p)
     rels: list[Poly] = []
     for a, b in (*gens.params, *gens.states):
-        own = a.context().names()
-        col = [names.index(model[v]) if v in model else -1 for v in own]
-        at = [xhat.get(model.get(v, ""), 0) for v in own]
-        av, bv = int(a(*at)) % p, int(b(*at)) % p
-        rel: Poly = {}
-        for q, scale in ((a, bv), (b, (-av) % p)):
-            for mono, c in zip(q.monoms(), q.coeffs()):
-                key = [0] * nv
-                for i, e in enumerate(mono):
-                    if e:
-                        key[col[i]] += e
-                k = tuple(key)
-                rel[k] = (rel.get(k, 0) + int(c) * scale) % p
-        rels.append({k: v for k, v in rel.items() if v})
+        at = [xhat.get(model.get(v, ""), 0) for v in a.context().names()]
+        rels.append(conv(a * (int(b(*at)) % p) - b * (int(a(*at)) % p)))
     return not any(eng.normal_forms(names, p, F, rels))
 
 
@@ -635,8 +625,9 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
     if route == "auto":
         # the input-output route under a time budget (module _budget); SIAN's system when it runs out or refuses
         from ._budget import run_with_budget
-        from ._global import _io_budget
+        from ._global import _io_budget, _local_of
 
+        local = local if local is not None else _local_of(system, unknown_params, inputs, None, (), seed)
         done, res = run_with_budget(lambda: find_identifiable_functions(
             system, unknown_params=unknown_params, inputs=inputs, with_states=with_states, max_degree=max_degree,
             local=local, engine=engine, seed=seed, reparametrize_model=reparametrize_model, route="io"),

@@ -29,7 +29,7 @@ point and the Wronskian are over GF(p) for a random 62-bit prime.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -734,6 +734,33 @@ def generators(params: list[str], states: list[str], inputs: list[str], f, h, rn
     return Generators(io, pg, sg, time.perf_counter() - t0, complete=complete)
 
 
+class Columns:
+    """FLINT polynomials (of any of the route's rings) as dictionaries {exponents over `nv` columns: coefficient
+    mod p}, `column` giving each variable's column; each ring's monomials are converted once (the generators of
+    a model share a few thousand monomials across hundreds of thousands of terms)."""
+
+    def __init__(self, column: Mapping[str, int], nv: int, p: int):
+        self.column, self.nv, self.p = column, nv, p
+        self._rings: dict[Any, tuple[list[int], dict]] = {}
+
+    def __call__(self, q) -> dict:
+        ctx = q.context()
+        if ctx not in self._rings:
+            self._rings[ctx] = ([self.column.get(v, -1) for v in ctx.names()], {})
+        cols, seen = self._rings[ctx]
+        out: dict = {}
+        for m, c in zip(q.monoms(), q.coeffs()):
+            key = seen.get(m)
+            if key is None:
+                mm = [0] * self.nv
+                for i, e in enumerate(m):
+                    if e:
+                        mm[cols[i]] += e
+                seen[m] = key = tuple(mm)
+            out[key] = (out.get(key, 0) + int(c)) % self.p
+        return {k: v for k, v in out.items() if v}
+
+
 def _common_denominator(gens: Generators):
     """The lcm of the generators' denominators, in the IO ring (None when all are constant); computed once."""
     if "den" not in gens.cache:
@@ -758,28 +785,7 @@ def fibre(gens: Generators, names: list[str], extra: Sequence[tuple[str, Any, An
     zi = names.index("z_sat")
     nv = len(names)
     zero = tuple([0] * nv)
-    where = {v: names.index(v) for v in names if v in R.index}
-    maps: dict[Any, tuple[list[int], dict]] = {}  # per polynomial ring: columns of its variables, monomials seen
-
-    def ring(q) -> tuple[list[int], dict]:
-        ctx = q.context()
-        if ctx not in maps:
-            maps[ctx] = ([where.get(v, -1) for v in ctx.names()], {})
-        return maps[ctx]
-
-    def conv(q) -> dict:
-        cols, seen = ring(q)
-        out: dict = {}
-        for m, c in zip(q.monoms(), q.coeffs()):
-            key = seen.get(m)
-            if key is None:
-                mm = [0] * nv
-                for i, e in enumerate(m):
-                    if e:
-                        mm[cols[i]] += e
-                seen[m] = key = tuple(mm)
-            out[key] = (out.get(key, 0) + int(c)) % p
-        return {k: v for k, v in out.items() if v}
+    conv = Columns({v: names.index(v) for v in names if v in R.index}, nv, p)
 
     den = _common_denominator(gens)
     for _ in range(16):
