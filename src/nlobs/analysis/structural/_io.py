@@ -218,23 +218,45 @@ def _point_values(R: _Ring, sol: _Solution) -> list[int]:
 
 
 class _Points:
-    """Generic points of the model's solution set, drawn on demand (at least two are used for a choice)."""
+    """Generic points of the model's solution set, drawn on demand (at least two are used for a choice).
+
+    After a change of variables (:meth:`change`) a point gives the new variables' values; a point where the
+    change's denominator vanishes is dropped, as StructuralIdentifiability.jl's ``generator_var_change`` does.
+    """
 
     def __init__(self, R: _Ring, f, h, rng: np.random.Generator, P: int):
         self.R, self.f, self.h, self.rng, self.P = R, f, h, rng, P
         self.points: list[list[int]] = []
+        self.changes: list[tuple[int, Any, Any]] = []
+
+    def change(self, name: str, num, den) -> None:
+        """From now on, the variable `name` takes the value num/den evaluated at the point before the change."""
+        self.changes.append((self.R.index[name], num, den))
+        self.points = [v for v in (self._apply(p, self.changes[-1:]) for p in self.points) if v is not None]
+
+    def _apply(self, v: list[int], changes) -> list[int] | None:
+        for i, num, den in changes:
+            d = int(den(*v)) % self.P
+            if d == 0:
+                return None
+            v = list(v)
+            v[i] = int(num(*v)) % self.P * pow(d, -1, self.P) % self.P
+        return v
 
     def get(self, i: int) -> list[int]:
+        misses = 0
         while len(self.points) <= i:
-            for _ in range(16):
-                try:
-                    sol = _solve_series(self.R, self.f, self.h, self.R.order + 2, self.rng, self.P)
-                    break
-                except ZeroDivisionError:
-                    continue
-            else:
-                raise NotApplicable("the model's denominators vanish at 16 random points")
-            self.points.append(_point_values(self.R, sol))
+            try:
+                sol = _solve_series(self.R, self.f, self.h, self.R.order + 2, self.rng, self.P)
+                v = self._apply(_point_values(self.R, sol), self.changes)
+            except ZeroDivisionError:
+                v = None
+            if v is None:
+                misses += 1
+                if misses >= 16:
+                    raise NotApplicable("the model's denominators vanish at 16 random points")
+                continue
+            self.points.append(v)
         return self.points[i]
 
     def vanishes(self, g, i: int) -> bool:
@@ -429,6 +451,53 @@ def _eliminate(f, g, name: str, R: _Ring, pts: _Points):
     return _primitive(cands[0])
 
 
+def _substitute(g, name: str, num, den, R: _Ring):
+    """g with `name` replaced by num/den, times den^deg (a polynomial again)."""
+    i = R.index[name]
+    d = _deg(g, i)
+    if d <= 0:
+        return g
+    acc = R.ctx.from_dict({})
+    for k in range(d + 1):
+        c = _coeff(g, name, k, R)
+        if not c.is_zero():
+            acc += c * num ** k * den ** (d - k)
+    return acc
+
+
+def _lowest_terms(a, b):
+    g = a.gcd(b)
+    return (a / g, b / g) if not g.is_constant() else (a, b)
+
+
+def _shift_state(x: str, v: str, x_eq: dict, y_eq: dict, nxt, yp: str, R: _Ring, pts: _Points):
+    """StructuralIdentifiability.jl's change of variables (``find_ioprojections``, io_equation.jl): when the
+    prolonged output equation is linear in the state v to eliminate, with coefficient A*x + B (A free of the
+    states, B not zero), take x + B/A as the new x; the coefficient becomes A*x and the resultants stay small.
+    Returns the new prolonged equation, or None when x does not qualify."""
+    coef = _coeff(y_eq[yp], v, 1, R)
+    if _deg(coef, R.index[x]) != 1:
+        return None
+    A, B = _lowest_terms(_coeff(coef, x, 1, R), _coeff(coef, x, 0, R))
+    if B.is_zero() or any(_deg(A, R.index[s]) > 0 for s in x_eq):
+        return None
+    xd = R.var(f"{x}_dot")
+    num_d, den_d = _lowest_terms(A * _diff(B, R) - _diff(A, R) * B, A * A)  # (B/A)'
+    pts.change(f"{x}_dot", xd * den_d + num_d, den_d)
+    pts.change(x, A * R.var(x) + B, A)
+    x_eq[x] = _primitive(_substitute(x_eq[x], f"{x}_dot", den_d * xd - num_d, den_d, R))
+    back = (A * R.var(x) - B, A)  # the old x in the new one
+    for s in x_eq:
+        x_eq[s] = _primitive(_substitute(x_eq[s], x, *back, R))
+    for y in y_eq:
+        y_eq[y] = _primitive(_substitute(y_eq[y], x, *back, R))
+    nxt = _primitive(_substitute(nxt, x, *back, R))
+    for s in x_eq:  # (B/A)' brought other states' derivatives into x's equation
+        if s != x:
+            x_eq[x] = _eliminate(x_eq[x], x_eq[s], f"{s}_dot", R, pts)
+    return nxt
+
+
 @dataclass
 class IOEquations:
     """Input-output equations of a rational model: one per output, in the output and input jets.
@@ -444,12 +513,15 @@ class IOEquations:
     h: list[tuple[Any, Any]]
     seconds: float = 0.0
     notes: list[str] = field(default_factory=list)
+    shifted: list[str] = field(default_factory=list)  # states shifted by _shift_state during the elimination
 
 
 def io_equations(params: list[str], states: list[str], inputs: list[str], f: Sequence[tuple[sp.Expr, sp.Expr]],
-                 h: Sequence[tuple[sp.Expr, sp.Expr]], rng: np.random.Generator) -> IOEquations:
+                 h: Sequence[tuple[sp.Expr, sp.Expr]], rng: np.random.Generator,
+                 var_change: bool | None = None) -> IOEquations:
     """The input-output equations (module docstring, step 1) of x' = F/Q, y = G/S (SymPy numerators and
-    denominators in the names of `params`, `states`, `inputs`)."""
+    denominators in the names of `params`, `states`, `inputs`). `var_change`: the change of variables of
+    :func:`_shift_state` (None: with fewer than three outputs, as StructuralIdentifiability.jl's default)."""
     import time
 
     t0 = time.perf_counter()
@@ -464,6 +536,9 @@ def io_equations(params: list[str], states: list[str], inputs: list[str], f: Seq
     y_eq = {y: _primitive(S * R.var(f"{y}_0") - G) for y, (G, S) in zip(R.outputs, H)}
     orders = {y: 0 for y in R.outputs}
     xi = {s: R.index[s] for s in states}
+    if var_change is None:
+        var_change = len(h) < 3
+    changes: list[str] = []
     while True:
         var_degs = []
         for y, eq in y_eq.items():
@@ -487,6 +562,14 @@ def io_equations(params: list[str], states: list[str], inputs: list[str], f: Seq
                 nxt = _eliminate(nxt, eq, f"{y}_{orders[y]}", R, pts)
         choice = min((_deg(y_eq[yp], xi[s]), _deg(nxt, xi[s]), s) for s in x_eq if _deg(y_eq[yp], xi[s]) > 0)
         v = choice[2]
+        if var_change and choice[0] == 1:
+            for x in x_eq:
+                if x != v:
+                    got = _shift_state(x, v, x_eq, y_eq, nxt, yp, R, pts)
+                    if got is not None:
+                        nxt = got
+                        changes.append(x)
+                        break
         del x_eq[v]
         for s in list(x_eq):
             x_eq[s] = _eliminate(x_eq[s], y_eq[yp], v, R, pts)
@@ -495,7 +578,7 @@ def io_equations(params: list[str], states: list[str], inputs: list[str], f: Seq
                 y_eq[y] = _eliminate(y_eq[y], y_eq[yp], v, R, pts)
         y_eq[yp] = _eliminate(y_eq[yp], nxt, v, R, pts)
     return IOEquations(R, [y_eq[y] for y in R.outputs], [orders[y] for y in R.outputs], F, H,
-                       seconds=time.perf_counter() - t0)
+                       seconds=time.perf_counter() - t0, shifted=changes)
 
 
 # ----------------------------------------------------------------------------------------------
