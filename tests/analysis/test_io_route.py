@@ -319,40 +319,85 @@ def test_projections_not_prime_on_the_published_remark_3_example():
     assert projections_prime(io2, get_engine(ENGINE), np.random.default_rng(0)) is True
 
 
-def test_budget_stops_a_long_computation_and_its_subprocesses():
+def _pgrep(pattern: str) -> str:
+    import subprocess
+
+    return subprocess.run(["pgrep", "-f", pattern], capture_output=True, text=True).stdout.strip()
+
+
+def test_race_of_two_routes_under_a_budget():
     import subprocess
     import time
 
-    from nlobs.analysis.structural._budget import run_with_budget
+    from nlobs.analysis.structural._budget import committed, race
     from nlobs.errors import ModelError
 
-    assert run_with_budget(lambda: 6 * 7, 10) == (True, 42)
+    def ok(v):
+        return True
 
+    # the first route answers within its budget: the second never starts
+    out = race(lambda: 6 * 7, 10, lambda: 1 / 0, ok)
+    assert (out.winner, out.value, out.first_lost) == ("first", 42, None)
+
+    # the first route sits in a grandchild (as in msolve) past its budget: the second answers, the first goes with
+    # its whole process group
     def slow():
-        subprocess.run(["sleep", "30"])  # a grandchild, as msolve is
-        return 1
+        subprocess.run(["sleep", "31"])
+        return "slow"
 
     t = time.perf_counter()
-    done, why = run_with_budget(slow, 0.5)
-    assert not done and "more than 0.5 s" in why and time.perf_counter() - t < 5
-    out = subprocess.run(["pgrep", "-f", "^sleep 30$"], capture_output=True, text=True).stdout
-    assert not out.strip()  # the grandchild went with the group
+    out = race(slow, 0.5, lambda: "quick", ok)
+    assert (out.winner, out.value) == ("second", "quick") and "more than 0.5 s" in out.first_lost
+    assert time.perf_counter() - t < 5 and not _pgrep("^sleep 31$")
 
+    # an unusable answer hands over to the second route, and says why
+    out = race(lambda: "refused", 10, lambda: "sian", lambda r: r != "refused")
+    assert (out.winner, out.value, out.first_lost) == ("second", "sian", "refused")
+
+    # once committed, the first route is no longer timed: a second route already started is stopped
+    def committing():
+        time.sleep(0.6)
+        committed()
+        time.sleep(0.6)
+        return "io"
+
+    def stalled():
+        subprocess.run(["sleep", "32"])
+        return "sian"
+
+    out = race(committing, 0.2, stalled, ok)
+    assert (out.winner, out.value, out.first_lost) == ("first", "io", None) and not _pgrep("^sleep 32$")
+
+    # errors of either route reach the caller
     def bad():
         raise ModelError("named condition")
 
     with pytest.raises(ModelError, match="named condition"):
-        run_with_budget(bad, 10)
+        race(bad, 10, lambda: 1, ok)
+    with pytest.raises(ModelError, match="named condition"):
+        race(lambda: "refused", 10, bad, lambda r: False)
 
 
 @needs_engine
 def test_auto_takes_sian_when_the_io_budget_runs_out(monkeypatch):
     import nlobs.analysis.structural._global as g
 
-    monkeypatch.setattr(g, "IO_BUDGET", 0.0)
+    import time
+
+    slow_prepare = g._prepare_io
+
+    def stalled(*a, **k):  # the equations take longer than the budget (the child inherits the patch)
+        time.sleep(20)
+        return slow_prepare(*a, **k)
+
+    monkeypatch.setattr(g, "IO_BUDGET", 0.2)
+    monkeypatch.setattr(g, "_prepare_io", stalled)
     s = BY_NAME["two_compartment"].system()
+    t = time.perf_counter()
     res = global_identifiability(s, unknown_params="all", engine=ENGINE)
     assert res.method.startswith("SIAN") and any("budget" in n for n in res.notes)
+    assert time.perf_counter() - t < 15
+    monkeypatch.setattr(g, "_prepare_io", slow_prepare)
     ref = global_identifiability(s, unknown_params="all", engine=ENGINE, route="io")
     assert (res.globally, res.non_identifiable) == (ref.globally, ref.non_identifiable)
 

@@ -118,6 +118,10 @@ def _matmul_mod(C: np.ndarray, B: np.ndarray, p: int) -> np.ndarray:
     return out
 
 
+#: Rows added at once from which :meth:`RowEchelon.add_many` hands the elimination to FLINT.
+FLINT_BATCH = 24
+
+
 class RowEchelon:
     """Incremental row reduction over GF(p): add rows one at a time, keep a fully reduced basis.
 
@@ -185,10 +189,14 @@ class RowEchelon:
 
         The basis and pivots are exactly those of :meth:`add` called row by row: every later row is
         kept reduced against each new basis row as it comes (one vectorised update per new pivot,
-        none per dependent row), so each row meets the same basis it would have met alone.
+        none per dependent row), so each row meets the same basis it would have met alone. From
+        FLINT_BATCH rows on, FLINT eliminates them (:meth:`_add_rref`): the same basis rows, the new ones
+        in the order of their pivots.
         """
         p = self.p
         V = self.reduce_many(rows)
+        if V.shape[0] >= FLINT_BATCH:
+            return self._add_rref(V[V.any(axis=1)])
         added, i = 0, 0
         while i < V.shape[0] and self.rank < self.ncols:
             nzr = np.flatnonzero(V[i:].any(axis=1))
@@ -206,6 +214,35 @@ class RowEchelon:
             if rr.size:
                 rest[rr] = (rest[rr] - (col[rr, None] * v[None, :]) % p) % p
         return added
+
+    def _add_rref(self, V: np.ndarray) -> int:
+        """Add rows already reduced against the basis, all at once: FLINT's ``nmod_mat.rref`` of them, then the new
+        pivot columns cleared in the old basis (one product). The basis ends as the same reduced row echelon
+        form (it is unique) as row-by-row addition gives, its rows in another order."""
+        import flint
+
+        p, n = self.p, self.ncols
+        m = V.shape[0]
+        if m == 0:
+            return 0
+        E, rank = flint.nmod_mat(m, n, V.ravel().tolist(), p).rref()
+        if rank == 0:
+            return 0
+        W = np.fromiter(map(int, E.entries()), dtype=np.int64, count=m * n).reshape(m, n)[:rank]
+        piv = np.argmax(W != 0, axis=1)
+        r = self.rank
+        if r:
+            B = self._B[:r]
+            C = B[:, piv]
+            if C.any():
+                B[:] = (B - _matmul_mod(C, W, p)) % p
+        if r + rank > self._B.shape[0]:
+            grown = np.zeros((min(n, max(2 * self._B.shape[0], r + rank)), n), dtype=np.int64)
+            grown[:r] = self._B[:r]
+            self._B = grown
+        self._B[r:r + rank] = W
+        self.pivots.extend(int(j) for j in piv)
+        return rank
 
     def _push(self, v: np.ndarray, j: int) -> np.ndarray:
         """Append the reduced row `v` with pivot `j` (normalised to a leading 1); clear column j in the other rows."""

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping, Sequence
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -53,6 +54,7 @@ from ...algebra._modular import sparse_mod_p as _sparse
 from ...algebra._modular import sparse_value as _value
 from ...algebra._modular import var_power as _var_power
 from ...algebra._modular import root as _root
+from ._budget import committed
 from ._rationalise import NotRational, Rewriting, rationalise
 
 __all__ = ["GlobalResult", "LocallyOnly", "global_identifiability", "NotRational"]
@@ -836,21 +838,19 @@ def global_identifiability(system: System, *, unknown_params: Any = (), inputs: 
     method = SIAN_METHOD
     if route not in ("auto", "io", "sian"):
         raise ModelError(f"`route` must be 'auto', 'io' or 'sian', got {route!r}")
-    io_note = ""
     if route == "auto":
-        # the input-output route under a time budget (module _budget): SIAN decides when it runs out, with the
-        # local analysis done here once for both
-        from ._budget import run_with_budget
+        # the input-output route under a time budget, SIAN beside it when the budget runs out (module _budget);
+        # the local analysis is done here once for both
+        from ._budget import race
 
         local = local if local is not None else _local_of(system, unknown_params, inputs, unknown_inputs, functions, seed)
-        done, res = run_with_budget(lambda: global_identifiability(
-            system, unknown_params=unknown_params, inputs=inputs, unknown_inputs=unknown_inputs, functions=functions,
-            local=local, engine=engine, seed=seed, max_solutions=max_solutions, route="io"), _io_budget(system))
-        if done and res.ok:
-            return res
-        io_note = ("SIAN, not the input-output route: "
-                   + (res.refused.replace("the input-output route ", "it ", 1) if done else
-                      f"{res} (the route's time budget, IO_BUDGET in nlobs.analysis.structural._global)"))
+        kw = dict(unknown_params=unknown_params, inputs=inputs, unknown_inputs=unknown_inputs, functions=functions,
+                  local=local, engine=engine, seed=seed, max_solutions=max_solutions)
+        out = race(lambda: global_identifiability(system, route="io", **kw), _io_budget(system),
+                   lambda: global_identifiability(system, route="sian", **kw), lambda r: r.ok)
+        if out.winner == "first":
+            return out.value
+        return dataclasses.replace(out.value, notes=(*out.value.notes, _sian_note(out.first_lost)))
     elif route == "io":
         from ._io import NotApplicable
 
@@ -863,6 +863,7 @@ def global_identifiability(system: System, *, unknown_params: Any = (), inputs: 
         except (NotApplicable, NotRational) as e:
             return GlobalResult(refused=f"the input-output route does not apply: {e}", method=IO_METHOD,
                                 seconds=time.perf_counter() - t_start)
+        committed()  # under route="auto": the equations are known, the route finishes
         res = _decide(prep, eng, max_solutions)
         open_ = [lo.name for lo in res["locally_only"]] + [t for t, v, _ in res["functions"] if v == "locally"]
         if prep.partial and open_:
@@ -887,8 +888,6 @@ def global_identifiability(system: System, *, unknown_params: Any = (), inputs: 
                             engine=eng.version() or eng.name, prime=prep.p, orders=prep.orders,
                             seconds=time.perf_counter() - t_start, engine_seconds=eng.seconds)
     res = _decide(prep, eng, max_solutions)
-    if io_note and route == "auto":
-        res["notes"] = (*res["notes"], io_note)
     return GlobalResult(**res, method=method, engine=eng.version() or eng.name, prime=prep.p, orders=prep.orders,
                         n_equations=len(prep.hs.F), n_variables=len(prep.hs.names),
                         seconds=time.perf_counter() - t_start, engine_seconds=eng.seconds)
@@ -904,6 +903,14 @@ IO_BUDGET_SEVERAL_OUTPUTS = 5.0
 
 def _io_budget(system: System) -> float:
     return IO_BUDGET if system.n_outputs == 1 else IO_BUDGET_SEVERAL_OUTPUTS
+
+
+def _sian_note(first_lost: Any, what: str = "SIAN") -> str:
+    """Why SIAN answered under route="auto": the input-output route's refusal, or its budget."""
+    if isinstance(first_lost, str):
+        return (f"{what}, not the input-output route: {first_lost} before its equations were known, and SIAN "
+                "answered first (the route's time budget, IO_BUDGET in nlobs.analysis.structural._global)")
+    return f"{what}, not the input-output route: " + first_lost.refused.replace("the input-output route ", "it ", 1)
 
 
 #: SIAN's method, as the result states it.

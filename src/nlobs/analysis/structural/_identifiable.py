@@ -30,6 +30,7 @@ checked exactly: every generator lies in the field of the chosen functions), els
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import time
 from collections.abc import Sequence
@@ -46,6 +47,7 @@ from ...algebra._modular import monomial_value as _mono_value
 from ...algebra._modular import monomial_values as _mono_values
 from ...algebra._modular import ratrec as _ratrec
 from ._global import IO_METHOD, NO_ENGINE, SIAN_METHOD, NotRational, _decide, _prepare, _prepare_io, _System
+from ._budget import committed
 from ._io import NotApplicable
 from ._reparam import reparametrize
 from ...algebra._groebner import GroebnerEngine, Poly, get_engine
@@ -623,21 +625,20 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
     prep = None
     notes: list[str] = []
     if route == "auto":
-        # the input-output route under a time budget (module _budget); SIAN's system when it runs out or refuses
-        from ._budget import run_with_budget
-        from ._global import _io_budget, _local_of
+        # the input-output route under a time budget, SIAN's system beside it when the budget runs out or after a
+        # refusal (module _budget)
+        from ._budget import race
+        from ._global import _io_budget, _local_of, _sian_note
 
         local = local if local is not None else _local_of(system, unknown_params, inputs, None, (), seed)
-        done, res = run_with_budget(lambda: find_identifiable_functions(
-            system, unknown_params=unknown_params, inputs=inputs, with_states=with_states, max_degree=max_degree,
-            local=local, engine=engine, seed=seed, reparametrize_model=reparametrize_model, route="io"),
-            _io_budget(system))
-        if done and not res.refused:
-            return res
-        notes.append("on SIAN's system, not the input-output route: "
-                     + (res.refused.replace("the input-output route ", "it ", 1) if done else
-                        f"{res} (the route's time budget, IO_BUDGET in nlobs.analysis.structural._global)"))
-        route = "sian"
+        kw = dict(unknown_params=unknown_params, inputs=inputs, with_states=with_states, max_degree=max_degree,
+                  local=local, engine=engine, seed=seed, reparametrize_model=reparametrize_model)
+        out = race(lambda: find_identifiable_functions(system, route="io", **kw), _io_budget(system),
+                   lambda: find_identifiable_functions(system, route="sian", **kw), lambda r: not r.refused)
+        if out.winner == "first":
+            return out.value
+        return dataclasses.replace(out.value, notes=(*out.value.notes,
+                                                     _sian_note(out.first_lost, "on SIAN's system")))
     try:
         if route != "sian":
             try:
@@ -646,6 +647,7 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
             except NotApplicable as e:
                 return IdentifiableFunctions(with_states=with_states,
                                              refused=f"the input-output route does not apply: {e}")
+            committed()  # under route="auto": the equations are known, the search runs to its end
         if prep is None:
             prep = _prepare(system, unknown_params=unknown_params, inputs=inputs, local=local, seed=seed)
     except NotRational as e:
