@@ -15,6 +15,7 @@ from test_global import ENGINE, SLOW, needs_engine
 
 from nlobs import System
 from nlobs.analysis.structural._global import _to_rational, global_identifiability
+from nlobs.analysis.structural._identifiable import find_identifiable_functions
 from nlobs.analysis.structural._inputs import _input_classes
 from nlobs.analysis.structural._io import io_equations
 
@@ -317,6 +318,18 @@ def test_projections_not_prime_on_the_published_remark_3_example():
     assert projections_prime(io, get_engine(ENGINE), np.random.default_rng(0)) is False
     _, io2 = _io(BY_NAME["bruno2016"].system(), BY_NAME["bruno2016"].params)
     assert projections_prime(io2, get_engine(ENGINE), np.random.default_rng(0)) is True
+
+
+@needs_engine
+def test_a_power_beyond_the_search_degree():
+    # a model of ours: y' = -a^4 y + b u (by hand, from x' = -a^4 x + b u, y = x): a^4 and b are the coefficients,
+    # a has four complex solutions (a times the fourth roots of unity) and no identifiable function of a has degree
+    # below 4; the search adds the powers of an unknown up to its number of solutions (as SI.jl's p22^4 in p53)
+    s = System(states=["x"], f=["-a**4*x + b*u"], outputs=["y"], h=["x"], inputs=["u"], params={"a": 1.0, "b": 1.0})
+    g = global_identifiability(s, unknown_params="all", engine=ENGINE, route="io")
+    assert [(lo.name, lo.solutions) for lo in g.locally_only] == [("a", 4)]
+    res = find_identifiable_functions(s, with_states=True, reparametrize_model=False, engine=ENGINE, route="io")
+    assert set(res.functions) == {"x", "b", "a**4"} and res.complete is True
 
 
 def _pgrep(pattern: str) -> str:

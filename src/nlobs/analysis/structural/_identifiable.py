@@ -33,7 +33,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -153,13 +153,17 @@ class _Search:
     basis per point, whatever the number of denominators: each Q is itself a candidate monomial).
     """
 
-    def __init__(self, prep: Any, eng: GroebnerEngine, U: list[str], max_degree: int, top: Sequence[str] | None = None):
+    def __init__(self, prep: Any, eng: GroebnerEngine, U: list[str], max_degree: int, top: Sequence[str] | None = None,
+                 powers: Mapping[str, int] | None = None):
         self.prep, self.eng, self.U = prep, eng, U
         self.p = prep.p
         self.monos = monomial_exponents(len(U), max_degree)
         if top is not None:  # monomials of the top degree only in the unknowns `top`
             keep = [i for i, u in enumerate(U) if u in top]
             self.monos = [e for e in self.monos if sum(e) < max_degree or sum(e[i] for i in keep) == max_degree]
+        for u, top_power in (powers or {}).items():  # pure powers u^d above max_degree (p53's p22^4)
+            for d in range(max_degree + 1, top_power + 1):
+                self.monos.append(tuple(d if v == u else 0 for v in U))
         # most complex first: pivots of the reduced echelon form fall on the complex monomials
         self.monos.sort(key=lambda e: (-sum(e), tuple(-x for x in e)))
         self.mono_index = {e: i for i, e in enumerate(self.monos)}
@@ -255,12 +259,14 @@ class _Search:
             for m, c in nfq.items():
                 M[support[m], k + j] = (-c) % p
             ech.add_many(M[M.any(axis=1)])
-            K = ech.kernel()
-            Kc = _row_space(K[:, :k], p)
-            if len(prev) >= 2 and Kc.shape[0] == prev[-1] == prev[-2]:
+            # the dimension of the candidates' space, the projection of the kernel on the first k coordinates: the
+            # kernel's dimension minus that of its part with P = 0 (the λ with A[:, k:] λ = 0, A the constraints;
+            # its rank is that of the basis' last columns); the basis itself only once the dimension is stable
+            r = k - ech.rank + _rank(ech.basis[:, k:], p)
+            if len(prev) >= 2 and r == prev[-1] == prev[-2]:
                 break
-            prev.append(Kc.shape[0])
-        return Kc
+            prev.append(r)
+        return _row_space(ech.kernel()[:, :k], p)
 
     def functions(self, Kc: np.ndarray, Q: tuple[int, ...]) -> list[sp.Expr]:
         """The candidates P/Q of the rows of `Kc`, normalised as :func:`_normalise` does (on exponent dictionaries:
@@ -268,7 +274,6 @@ class _Search:
         p = self.p
         syms = [symbol(u) for u in self.U]
         order = sorted(range(len(syms)), key=lambda i: str(syms[i]))
-        gens = [syms[i] for i in order]
         out = []
         for row in _rref(Kc, p):
             terms: dict[tuple[int, ...], sp.Rational] = {}
@@ -292,20 +297,27 @@ class _Search:
                 terms.pop(zero, None)
             if not terms or (list(terms) == [zero] and not any(q)):
                 continue
-            P = sp.Poly.from_dict({tuple(e[i] for i in order): c for e, c in terms.items()}, *gens, domain="QQ")
-            P = P.quo_ground(P.LC())
-            f = P.as_expr() / sp.Mul(*[s**k for s, k in zip(syms, q)])
+            # monic in the lexicographic order of the names (SymPy's Poly(...).LC() over the sorted names), built
+            # term by term: a dense SymPy Poly in some 30 unknowns cost most of the search's time (p53)
+            lead = terms[max(terms, key=lambda e: tuple(e[i] for i in order))]
+            monic = {e: c / lead for e, c in terms.items()}
+            f = sp.Add(*[c * sp.Mul(*[syms[i]**k for i, k in enumerate(e) if k]) for e, c in monic.items()])
+            f = f / sp.Mul(*[s**k for s, k in zip(syms, q)])
             if f.is_number:
                 continue
-            num = []
-            for eg, c in P.terms():
-                e = [0] * len(syms)
-                for i, k in zip(order, eg):
-                    e[i] = k
-                num.append((tuple(e), int(sp.Rational(c).p), int(sp.Rational(c).q)))
-            self.exact.setdefault(f, (tuple(num), ((q, 1, 1),)))
+            num = tuple((e, int(c.p), int(c.q)) for e, c in sorted(monic.items(), reverse=True,
+                                                                   key=lambda t: tuple(t[0][i] for i in order)))
+            self.exact.setdefault(f, (num, ((q, 1, 1),)))
             out.append(f)
         return out
+
+
+def _rank(K: np.ndarray, p: int) -> int:
+    import flint
+
+    if K.size == 0:
+        return 0
+    return flint.nmod_mat(K.shape[0], K.shape[1], (K % p).ravel().tolist(), p).rank()
 
 
 def _row_space(K: np.ndarray, p: int) -> np.ndarray:
@@ -530,6 +542,8 @@ def _verified(prep: Any, eng: GroebnerEngine, cands: list[sp.Expr], U: list[str]
 
 #: Largest number of new degree-3 monomials the automatic degree raise accepts (in 15 unknowns: 680).
 _MAX_MONOMIALS = 1000
+#: Highest power u^s searched for an unknown with s solutions.
+_MAX_POWER = 8
 
 
 def _search_and_select(search: _Search, prep: Any, eng: GroebnerEngine, U: list[str], single: list[str],
@@ -679,12 +693,17 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
     io_complete = prep.io is not None and with_states
     complete: bool | None = _complete_io(prep, eng, chosen, U, rng) if io_complete else None
     rest = [u for u in U if u not in single]
-    if complete is False and auto_degree and max_degree < 3 and len(monomial_exponents(len(rest), 3)) <= _MAX_MONOMIALS:
-        # a generator of the field needs a numerator of degree 3 (HIV: c*q*x): search again one degree higher, the
-        # new monomials only in the unknowns not globally identifiable (the completeness check below says whether
-        # that was enough)
+    # an unknown with s solutions is a root of a polynomial of degree s with identifiable coefficients; when the
+    # solutions differ by roots of unity its s-th power is identifiable (p53 in SI.jl's benchmarks: p22^4)
+    powers = {lo.name: lo.solutions for lo in dec["locally_only"]
+              if lo.name in U and lo.solutions is not None and 3 < lo.solutions <= _MAX_POWER}
+    if (complete is False and auto_degree and (max_degree < 3 or powers)
+            and len(monomial_exponents(len(rest), 3)) <= _MAX_MONOMIALS):
+        # a generator of the field needs a numerator of degree 3 (HIV: c*q*x) or a power: search again one degree
+        # higher, the new monomials only in the unknowns not globally identifiable, with the powers (the
+        # completeness check below says whether that was enough)
         max_degree = 3
-        search = _Search(prep, eng, U, max_degree, top=rest)
+        search = _Search(prep, eng, U, max_degree, top=rest, powers=powers)
         chosen = _search_and_select(search, prep, eng, U, single, rng)
         complete = _complete_io(prep, eng, chosen, U, rng)
     texts = tuple(_text(f) for f in chosen)
