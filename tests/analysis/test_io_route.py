@@ -59,6 +59,50 @@ def test_equation_vanishes_on_a_solution():
     assert not pts.vanishes(io.eqs[0] + io.ring.var("y0_4"), 0)
 
 
+def _picard(R, f, h, n, params, x0, u, P):
+    """The series solution by Picard's iteration, one correct order per pass (an independent reference)."""
+    import flint
+
+    from nlobs.analysis.structural._io import _series_eval
+
+    one = flint.nmod_poly([1], P)
+    base = {R.index[q]: one * v for q, v in params.items()}
+    for w in R.inputs:
+        base[R.index[f"{w}_0"]] = u[w]
+    x = {s: one * x0[s] for s in R.states}
+    for m in range(1, n):
+        vals = {**base, **{R.index[s]: x[s] for s in R.states}}
+        x = {s: one * x0[s] + _series_eval(F, vals, one, m).mul_low(_series_eval(Q, vals, one, m).inverse_series_trunc(m),
+                                                                     m).integral()
+             for s, (F, Q) in zip(R.states, f)}
+    vals = {**base, **{R.index[s]: x[s] for s in R.states}}
+    return x, [_series_eval(G, vals, one, n).mul_low(_series_eval(S, vals, one, n).inverse_series_trunc(n), n)
+               for G, S in h]
+
+
+@pytest.mark.parametrize("name", ["goodwin", "sliqr", "enzyme"])
+def test_newton_series_equal_picard(name):
+    # the generic points and the Wronskians use power-series solutions by Newton's iteration (_solve_series): exactly
+    # the series of Picard's iteration, to 40 orders, on a rational model (Goodwin), one with an input (SLIQR) and
+    # one of ours
+    from nlobs.analysis.structural._io import _big_prime, _solve_series
+
+    if name == "enzyme":
+        rm = _to_rational(ENZYME, list(ENZYME.params), _input_classes(ENZYME, "generic", {}), {})
+        io = io_equations(rm.params, rm.states, [], rm.f, rm.h, np.random.default_rng(3))
+    else:
+        _, io = _io(BY_NAME[name].system(), BY_NAME[name].params)
+    rng = np.random.default_rng(5)
+    P = _big_prime(rng)
+    sol = _solve_series(io.ring, io.f, io.h, 40, rng, P)
+    x0 = {s: int(sol.x[s].coeffs()[0]) for s in io.ring.states}
+    x, y = _picard(io.ring, io.f, io.h, 40, sol.params, x0, sol.u, P)
+    for s in io.ring.states:
+        assert sol.x[s].coeffs()[:40] == x[s].coeffs()[:40]
+    assert [q.coeffs() for q in sol.y] == [q.coeffs() for q in y]
+    assert len(sol.y[0].coeffs()) > 30  # the comparison covers the orders Newton's doublings produce
+
+
 # an enzyme-binding model of ours, observed through the sum of two states (as Pivastatin in SI.jl's benchmarks):
 # the prolonged output equation is linear in x1 with coefficient a*k*(T - x2) - ..., which the change of variables
 # of _shift_state straightens

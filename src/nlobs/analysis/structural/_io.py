@@ -167,37 +167,82 @@ class _Solution:
 
 def _solve_series(R: _Ring, f: Sequence[tuple[Any, Any]], h: Sequence[tuple[Any, Any]], n: int,
                   rng: np.random.Generator, P: int) -> _Solution:
-    """x' = F/Q, y = G/S as series of length n at random parameters, initial states and input jets."""
+    """x' = F/Q, y = G/S as series of length n at random parameters, initial states and input jets.
+
+    Newton's iteration for systems of Bostan, Chyzak, Ollivier, Salvy, Schost & Sedoglavic (2007), as
+    StructuralIdentifiability.jl's ``ps_ode_solution``: with x correct mod t^m, Y a fundamental matrix of
+    Y' = J(x) Y (J the Jacobian of F/Q) and Z its inverse, both mod t^m,
+
+        x <- x - Y ∫ Z (x' - F(x)/Q(x))  mod t^2m,    Y <- Y - Y ∫ Z (Y' - J(x) Y)  mod t^2m,
+
+    then Z <- Z + Z (I - Y Z) mod t^2m: the linearised equation solved by variation of constants; each step doubles
+    the correct orders. (Re-derived: x' - F/Q = O(t^(m-1)), so the first update needs Y and Z only mod t^m.)
+    """
     one = flint.nmod_poly([1], P)
+    zero = one * 0
     params = {q: int(rng.integers(1, P)) for q in R.params}
-    x = {s: flint.nmod_poly([int(rng.integers(1, P))], P) for s in R.states}
+    x0 = {s: int(rng.integers(1, P)) for s in R.states}
     u = {w: flint.nmod_poly([int(rng.integers(1, P)) for _ in range(n)], P) for w in R.inputs}
     base: dict[int, Any] = {R.index[q]: one * v for q, v in params.items()}
     for w in R.inputs:
         base[R.index[f"{w}_0"]] = u[w]
-    for m in range(1, n):
+    states = list(R.states)
+    k = len(states)
+    cols = [R.index[s] for s in states]
+    dF = [[Fi.derivative(c) for c in cols] for Fi, _ in f]
+    dQ = [[Qi.derivative(c) for c in cols] for _, Qi in f]
+
+    def matmul(A, B, m):
+        return [[sum((A[i][l].mul_low(B[l][j], m) for l in range(k)), zero) for j in range(k)] for i in range(k)]
+
+    def inverse_of(q, m):
+        if int(q.coeffs()[0] if q.coeffs() else 0) == 0:
+            raise ZeroDivisionError
+        return q.inverse_series_trunc(m)
+
+    x = [one * x0[s] for s in states]
+    eye = [[one if i == j else zero for j in range(k)] for i in range(k)]
+    Y, Z = [row[:] for row in eye], [row[:] for row in eye]
+    m = 1
+    while m < n:
+        m2 = min(2 * m, n)
         vals = dict(base)
-        for s in R.states:
-            vals[R.index[s]] = x[s]
-        new = {}
-        for s, (F, Q) in zip(R.states, f):
-            num = _series_eval(F, vals, one, m)
-            den = _series_eval(Q, vals, one, m)
-            if int(den.coeffs()[0] if den.coeffs() else 0) == 0:
-                raise ZeroDivisionError
-            rate = num.mul_low(den.inverse_series_trunc(m), m)
-            new[s] = flint.nmod_poly([int(x[s].coeffs()[0])], P) + rate.integral()
-        x = new
+        vals.update(zip(cols, x))
+        Fv = [_series_eval(Fi, vals, one, m2) for Fi, _ in f]
+        Qv = [_series_eval(Qi, vals, one, m2) for _, Qi in f]
+        Qinv = [inverse_of(q, m2) for q in Qv]
+        # residual x' - F/Q (mod t^(2m-1)), then the correction Y ∫ Z r
+        r = [x[i].derivative() - Fv[i].mul_low(Qinv[i], m2) for i in range(k)]
+        Zr = [sum((Z[i][l].mul_low(r[l], m2) for l in range(k)), zero).truncate(m2 - 1).integral() for i in range(k)]
+        x = [(x[i] - sum((Y[i][l].mul_low(Zr[l], m2) for l in range(k)), zero)).truncate(m2) for i in range(k)]
+        if m2 >= n:
+            break
+        # the Jacobian at the new x, then Y and Z to 2m orders
+        vals.update(zip(cols, x))
+        Fv = [_series_eval(Fi, vals, one, m2) for Fi, _ in f]
+        Qv = [_series_eval(Qi, vals, one, m2) for _, Qi in f]
+        Qinv2 = [inverse_of(q, m2).pow_trunc(2, m2) for q in Qv]
+        J = [[(_series_eval(dF[i][j], vals, one, m2).mul_low(Qv[i], m2)
+               - Fv[i].mul_low(_series_eval(dQ[i][j], vals, one, m2), m2)).mul_low(Qinv2[i], m2)
+              for j in range(k)] for i in range(k)]
+        JY = matmul(J, Y, m2)
+        D = [[(Y[i][j].derivative() - JY[i][j]).truncate(m2 - 1) for j in range(k)] for i in range(k)]
+        ZD = [[c.integral() for c in row] for row in matmul(Z, D, m2 - 1)]
+        YZD = matmul(Y, ZD, m2)
+        Y = [[(Y[i][j] - YZD[i][j]).truncate(m2) for j in range(k)] for i in range(k)]
+        YZ = matmul(Y, Z, m2)
+        E = [[(eye[i][j] - YZ[i][j]) for j in range(k)] for i in range(k)]
+        ZE = matmul(Z, E, m2)
+        Z = [[(Z[i][j] + ZE[i][j]).truncate(m2) for j in range(k)] for i in range(k)]
+        m = m2
+    xs = dict(zip(states, x))
     vals = dict(base)
-    for s in R.states:
-        vals[R.index[s]] = x[s]
+    vals.update(zip(cols, x))
     y = []
     for G, S in h:
         num, den = _series_eval(G, vals, one, n), _series_eval(S, vals, one, n)
-        if int(den.coeffs()[0] if den.coeffs() else 0) == 0:
-            raise ZeroDivisionError
-        y.append(num.mul_low(den.inverse_series_trunc(n), n))
-    return _Solution(P, n, params, x, y, u)
+        y.append(num.mul_low(inverse_of(den, n), n))
+    return _Solution(P, n, params, xs, y, u)
 
 
 def _point_values(R: _Ring, sol: _Solution) -> list[int]:
