@@ -689,17 +689,22 @@ def _taylor_matrix(io: IOEquations, monos: list[tuple[int, ...]], n: int, P: int
         raise NotApplicable("the model's denominators vanish at 16 random points")
     jets = _jet_series(R, sol, n)
     one = flint.nmod_poly([1], P)
-    powers: dict[tuple[int, int], Any] = {}
+    # every monomial is a smaller one times one jet (its last variable): one product per monomial and per
+    # intermediate monomial, shared (the monomials of an equation share most of their divisors)
+    memo: dict[tuple[int, ...], Any] = {tuple([0] * len(monos[0])) if monos else (): one}
+
+    def series(m: tuple[int, ...]):
+        got = memo.get(m)
+        if got is None:
+            i = max(j for j, k in enumerate(m) if k)
+            got = memo[m] = series(m[:i] + (m[i] - 1,) + m[i + 1:]).mul_low(jets[npar + i], n)
+        return got
+
     S = []
+    for m in sorted(monos, key=sum):  # smaller monomials first: the recursion stays shallow
+        series(m)
     for m in monos:
-        term = one
-        for i, k in enumerate(m):
-            if k:
-                pw = powers.get((i, k))
-                if pw is None:
-                    pw = powers[(i, k)] = jets[npar + i].pow_trunc(k, n)
-                term = term.mul_low(pw, n)
-        cs = term.coeffs()[:n]  # nmod values: FLINT reads them without a conversion to int
+        cs = memo[m].coeffs()[:n]  # nmod values: FLINT reads them without a conversion to int
         S.append(cs + [0] * (n - len(cs)))
     return flint.nmod_mat(S, P).transpose()
 
