@@ -145,9 +145,6 @@ def test_io_route_equals_sian(name):
         if "corank" in a.refused:  # a projection's coefficients may need several experiments: SIAN decides
             assert len(m.outputs) > 1 or name == "me_example_7_7"
             return
-        if "jet monomials" in a.refused:  # several outputs, a projection too large for the Wronskian (SIRS forced)
-            assert len(m.outputs) > 1 and name == "sirs_forced"
-            return
         # several outputs: refused only where SIAN finds some unknown or function locally, not globally
         assert len(m.outputs) > 1 and "prove global identifiability only" in a.refused
         assert b.locally_only or any(v == "locally" for _, v, _ in b.functions)
@@ -362,6 +359,20 @@ def test_projections_not_prime_on_the_published_remark_3_example():
     assert projections_prime(io, get_engine(ENGINE), np.random.default_rng(0)) is False
     _, io2 = _io(BY_NAME["bruno2016"].system(), BY_NAME["bruno2016"].params)
     assert projections_prime(io2, get_engine(ENGINE), np.random.default_rng(0)) is True
+
+
+@needs_engine
+def test_a_projection_too_large_for_the_wronskian_goes_to_sian(monkeypatch):
+    # several outputs, a projection with more jet monomials than the bound: the route refuses and says so, and
+    # route="auto" takes SIAN with that reason (Biohydrogenation's projections have more than 10 monomials)
+    import nlobs.analysis.structural._io as io_mod
+
+    monkeypatch.setattr(io_mod, "MAX_MONOMIALS_SEVERAL_OUTPUTS", 10)
+    s = BY_NAME["biohydrogenation"].system()
+    a = global_identifiability(s, unknown_params="all", engine=ENGINE, route="io")
+    assert "jet monomials (more than 10 with several outputs)" in a.refused
+    b = global_identifiability(s, unknown_params="all", engine=ENGINE)
+    assert b.ok and b.method.startswith("SIAN") and any("jet monomials" in n for n in b.notes)
 
 
 @needs_engine

@@ -45,10 +45,12 @@ _BIG_PRIME_BITS = 62
 #: benchmarks, needs a 3x3 Bezout matrix of 6,700 terms and a resultant of 621,277 terms (about 1 GB at its peak).
 MAX_MATRIX_TERMS = 30_000
 MAX_RESULTANT_TERMS = 3_000_000
-#: With several outputs, SIAN's system is usually small; a projection with more jet monomials than this (SIRS
-#: forced: 2,585, a 70 s Wronskian check against SIAN's 0.4 s) leaves the model to SIAN. One output: no bound
-#: (SIWR: 771 monomials, 2 s, where SIAN does not finish).
-MAX_MONOMIALS_SEVERAL_OUTPUTS = 1000
+#: With several outputs, a projection with more jet monomials than this leaves the model to SIAN (the Wronskian is a
+#: square matrix of that size: 4,000 is 128 MB). Under route="auto" SIAN runs beside the route once its budget is
+#: out, so a large Wronskian costs time only where SIAN cannot answer: SEAIJRC, 1,465 monomials, 33 s where SIAN
+#: does not finish in minutes; SIRS forced, 2,585, 27 s, where SIAN answers in 0.4 s. One output: no bound (SIWR:
+#: 771 monomials; Pharm: 3,536, where SIAN does not finish).
+MAX_MONOMIALS_SEVERAL_OUTPUTS = 4000
 
 
 class NotApplicable(Exception):
