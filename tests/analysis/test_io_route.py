@@ -447,6 +447,37 @@ def test_race_of_two_routes_under_a_budget():
 
 
 @needs_engine
+def test_killing_the_caller_takes_the_routes_and_their_engine_runs_along():
+    # a caller with its own time limit kills the process that runs route="auto": the racing children (their own
+    # process groups) and the engine subprocesses they started must not outlive it (nlobs._process)
+    import signal
+    import subprocess
+    import sys
+    import textwrap
+    import time
+
+    code = textwrap.dedent(f"""
+        from nlobs.algebra._groebner import get_engine
+        from nlobs.analysis.structural._budget import race
+        eng = get_engine({ENGINE!r})
+        def stuck(n):
+            return lambda: eng._run(["sleep", str(n)], "a test")
+        race(stuck(34), 0.1, stuck(35), lambda r: True)
+    """)
+    caller = subprocess.Popen([sys.executable, "-c", code])
+    deadline = time.monotonic() + 20
+    while not (_pgrep("^sleep 34$") and _pgrep("^sleep 35$")) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert _pgrep("^sleep 34$") and _pgrep("^sleep 35$"), "the race did not start both routes"
+    caller.send_signal(signal.SIGKILL)
+    caller.wait()
+    deadline = time.monotonic() + 5
+    while (_pgrep("^sleep 34$") or _pgrep("^sleep 35$")) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not _pgrep("^sleep 34$") and not _pgrep("^sleep 35$")
+
+
+@needs_engine
 def test_auto_takes_sian_when_the_io_budget_runs_out(monkeypatch):
     import nlobs.analysis.structural._global as g
 

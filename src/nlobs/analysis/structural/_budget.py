@@ -22,6 +22,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from ..._process import die_with_parent
+
 __all__ = ["Outcome", "committed", "race"]
 
 _CHANNEL: Any = None  # in a child of race(): the pipe to the parent
@@ -46,10 +48,12 @@ class Outcome:
 
 def _start(ctx: Any, fn: Callable[[], Any]) -> tuple[Any, Any]:
     recv, send = ctx.Pipe(duplex=False)
+    parent = os.getpid()
 
     def child() -> None:
         global _CHANNEL
         os.setsid()  # its own group: killing it takes msolve along
+        die_with_parent(parent)  # and out of the caller's group: killed when the caller dies (nlobs._process)
         _CHANNEL = send
         try:
             send.send(("ok", fn()))
