@@ -687,16 +687,21 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
         method = SIAN_METHOD
         search = _Search(prep, eng, U, max_degree)
         dec = _decide(prep, eng, 8, also=search.mono_polys(prep.hs))
-    search.known_point(dec.pop("also_nfs"))
+    nfs = dec.pop("also_nfs")
+    # an unknown with s solutions is a root of a polynomial of degree s with identifiable coefficients; when the
+    # solutions differ by roots of unity its s-th power is identifiable (p53 in SI.jl's benchmarks: p22^4): the
+    # search includes those powers from the start (its first point's normal forms are then computed anew)
+    powers = {lo.name: lo.solutions for lo in dec["locally_only"]
+              if lo.name in U and lo.solutions is not None and max(3, max_degree) < lo.solutions <= _MAX_POWER}
+    if powers:
+        search = _Search(prep, eng, U, max_degree, powers=powers)
+    else:
+        search.known_point(nfs)
     single = [u for u in U if u in dec["globally"]]
     chosen = _search_and_select(search, prep, eng, U, single, rng)
     io_complete = prep.io is not None and with_states
     complete: bool | None = _complete_io(prep, eng, chosen, U, rng) if io_complete else None
     rest = [u for u in U if u not in single]
-    # an unknown with s solutions is a root of a polynomial of degree s with identifiable coefficients; when the
-    # solutions differ by roots of unity its s-th power is identifiable (p53 in SI.jl's benchmarks: p22^4)
-    powers = {lo.name: lo.solutions for lo in dec["locally_only"]
-              if lo.name in U and lo.solutions is not None and 3 < lo.solutions <= _MAX_POWER}
     if (complete is False and auto_degree and (max_degree < 3 or powers)
             and len(monomial_exponents(len(rest), 3)) <= _MAX_MONOMIALS):
         # a generator of the field needs a numerator of degree 3 (HIV: c*q*x) or a power: search again one degree
