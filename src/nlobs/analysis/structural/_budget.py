@@ -22,7 +22,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from ..._process import die_with_parent
+from ..._process import die_with_parent, guard_group
 
 __all__ = ["Outcome", "committed", "race"]
 
@@ -53,7 +53,8 @@ def _start(ctx: Any, fn: Callable[[], Any]) -> tuple[Any, Any]:
     def child() -> None:
         global _CHANNEL
         os.setsid()  # its own group: killing it takes msolve along
-        die_with_parent(parent)  # and out of the caller's group: killed when the caller dies (nlobs._process)
+        die_with_parent(parent)  # out of the caller's group: killed when the caller dies, msolve too (nlobs._process)
+        guard_group(parent)
         _CHANNEL = send
         try:
             send.send(("ok", fn()))
