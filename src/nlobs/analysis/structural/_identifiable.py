@@ -639,20 +639,9 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
     prep = None
     notes: list[str] = []
     if route == "auto":
-        # the input-output route under a time budget, SIAN's system beside it when the budget runs out or after a
-        # refusal (module _budget)
-        from ._budget import race
-        from ._global import _io_budget, _local_of, _sian_note
-
-        local = local if local is not None else _local_of(system, unknown_params, inputs, None, (), seed)
-        kw = dict(unknown_params=unknown_params, inputs=inputs, with_states=with_states, max_degree=max_degree,
-                  local=local, engine=engine, seed=seed, reparametrize_model=reparametrize_model)
-        out = race(lambda: find_identifiable_functions(system, route="io", **kw), _io_budget(system),
-                   lambda: find_identifiable_functions(system, route="sian", **kw), lambda r: not r.refused)
-        if out.winner == "first":
-            return out.value
-        return dataclasses.replace(out.value, notes=(*out.value.notes,
-                                                     _sian_note(out.first_lost, "on SIAN's system")))
+        return _race(system, dict(unknown_params=unknown_params, inputs=inputs, with_states=with_states,
+                                  max_degree=max_degree, local=local, engine=engine, seed=seed,
+                                  reparametrize_model=reparametrize_model))
     try:
         if route != "sian":
             try:
@@ -735,6 +724,21 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
     return IdentifiableFunctions(functions=texts, with_states=with_states, complete=complete, local_checks=checks,
                                  notes=tuple(notes), seconds=time.perf_counter() - t0, engine_seconds=eng.seconds,
                                  reparametrization=rep, method=method)
+
+
+def _race(system: System, kw: dict[str, Any]) -> IdentifiableFunctions:
+    """route="auto": the input-output route with a head start, SIAN's system beside it when the head start runs out
+    or after a refusal (module _budget); the local analysis is done here once for both."""
+    from ._budget import race
+    from ._global import _io_budget, _local_of, _sian_note
+
+    if kw["local"] is None:
+        kw["local"] = _local_of(system, kw["unknown_params"], kw["inputs"], None, (), kw["seed"])
+    out = race(lambda: find_identifiable_functions(system, route="io", **kw), _io_budget(system),
+               lambda: find_identifiable_functions(system, route="sian", **kw), lambda r: not r.refused)
+    if out.winner == "first":
+        return out.value
+    return dataclasses.replace(out.value, notes=(*out.value.notes, _sian_note(out.first_lost, "on SIAN's system")))
 
 
 def _text(f: sp.Expr) -> str:
