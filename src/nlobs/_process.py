@@ -58,7 +58,12 @@ def guard_group(caller: int) -> None:
     me = os.getpid()
     if os.fork() != 0:
         return
-    try:  # the watcher
+    try:  # the watcher: holds no inherited descriptor (a pipe's reader would otherwise wait for it to end)
+        for fd in os.listdir("/proc/self/fd"):
+            try:
+                os.close(int(fd))
+            except OSError:
+                pass
         while os.getppid() == me and not _gone(caller):
             time.sleep(0.2)
         # this process ended: normally, or killed because the caller is dying (the kernel signals it before the
