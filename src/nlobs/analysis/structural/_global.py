@@ -839,18 +839,11 @@ def global_identifiability(system: System, *, unknown_params: Any = (), inputs: 
     if route not in ("auto", "io", "sian"):
         raise ModelError(f"`route` must be 'auto', 'io' or 'sian', got {route!r}")
     if route == "auto":
-        # the input-output route under a time budget, SIAN beside it when the budget runs out (module _budget);
-        # the local analysis is done here once for both
-        from ._budget import race
-
+        # the local analysis is done here once for both routes
         local = local if local is not None else _local_of(system, unknown_params, inputs, unknown_inputs, functions, seed)
-        kw = dict(unknown_params=unknown_params, inputs=inputs, unknown_inputs=unknown_inputs, functions=functions,
-                  local=local, engine=engine, seed=seed, max_solutions=max_solutions)
-        out = race(lambda: global_identifiability(system, route="io", **kw), _io_budget(system),
-                   lambda: global_identifiability(system, route="sian", **kw), lambda r: r.ok)
-        if out.winner == "first":
-            return out.value
-        return dataclasses.replace(out.value, notes=(*out.value.notes, _sian_note(out.first_lost)))
+        return race_routes(global_identifiability, system, dict(
+            unknown_params=unknown_params, inputs=inputs, unknown_inputs=unknown_inputs, functions=functions,
+            local=local, engine=engine, seed=seed, max_solutions=max_solutions), lambda r: r.ok, "SIAN")
     elif route == "io":
         from ._io import NotApplicable
 
@@ -907,12 +900,21 @@ def _io_budget(system: System) -> float:
     return IO_BUDGET if system.n_outputs == 1 else IO_BUDGET_SEVERAL_OUTPUTS
 
 
-def _sian_note(first_lost: Any, what: str = "SIAN") -> str:
-    """Why SIAN answered under route="auto": the input-output route's refusal, or its budget."""
-    if isinstance(first_lost, str):
-        return (f"{what}, not the input-output route: {first_lost} before its equations were known, and SIAN "
-                "answered first (the route's time budget, IO_BUDGET in nlobs.analysis.structural._global)")
-    return f"{what}, not the input-output route: " + first_lost.refused.replace("the input-output route ", "it ", 1)
+def race_routes(call: Any, system: System, kw: dict[str, Any], usable: Any, what: str) -> Any:
+    """route="auto" of `call` (global_identifiability or find_identifiable_functions): the input-output route with a
+    head start of :func:`_io_budget`, SIAN beside it once that runs out or after a refusal (module _budget); when
+    SIAN answers, its result's notes say why (`what` names SIAN's side)."""
+    from ._budget import race
+
+    out = race(lambda: call(system, route="io", **kw), _io_budget(system),
+               lambda: call(system, route="sian", **kw), usable)
+    if out.winner == "first":
+        return out.value
+    lost = out.first_lost
+    why = (f"{lost} before its equations were known, and SIAN answered first (the route's time budget, IO_BUDGET in "
+           "nlobs.analysis.structural._global)" if isinstance(lost, str)
+           else lost.refused.replace("the input-output route ", "it ", 1))
+    return dataclasses.replace(out.value, notes=(*out.value.notes, f"{what}, not the input-output route: {why}"))
 
 
 #: SIAN's method, as the result states it.

@@ -30,7 +30,6 @@ checked exactly: every generator lies in the field of the chosen functions), els
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import time
 from collections.abc import Mapping, Sequence
@@ -729,16 +728,11 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
 def _race(system: System, kw: dict[str, Any]) -> IdentifiableFunctions:
     """route="auto": the input-output route with a head start, SIAN's system beside it when the head start runs out
     or after a refusal (module _budget); the local analysis is done here once for both."""
-    from ._budget import race
-    from ._global import _io_budget, _local_of, _sian_note
+    from ._global import _local_of, race_routes
 
     if kw["local"] is None:
         kw["local"] = _local_of(system, kw["unknown_params"], kw["inputs"], None, (), kw["seed"])
-    out = race(lambda: find_identifiable_functions(system, route="io", **kw), _io_budget(system),
-               lambda: find_identifiable_functions(system, route="sian", **kw), lambda r: not r.refused)
-    if out.winner == "first":
-        return out.value
-    return dataclasses.replace(out.value, notes=(*out.value.notes, _sian_note(out.first_lost, "on SIAN's system")))
+    return race_routes(find_identifiable_functions, system, kw, lambda r: not r.refused, "on SIAN's system")
 
 
 def _text(f: sp.Expr) -> str:
