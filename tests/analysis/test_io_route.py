@@ -521,3 +521,35 @@ def test_my_ten_state_chain_with_three_sampled_compartments():
         "k2": 3, "k3": 3, "k4": 3, "k6": 4, "k7": 4, "k8": 4, "k9": 4}
     b = global_identifiability(s, unknown_params="all", engine=ENGINE, route="sian")
     assert (a.globally, a.locally_only, a.non_identifiable) == (b.globally, b.locally_only, b.non_identifiable)
+
+
+def _random_poly(ctx, rng, terms, degree):
+    import flint
+
+    n = len(ctx.names())
+    out = {}
+    for _ in range(terms):
+        m = tuple(int(e) for e in rng.integers(0, degree + 1, size=n))
+        out[m] = int(rng.integers(-9, 10)) or 1
+    return ctx.from_dict(out) + ctx.gen(int(rng.integers(0, n)))  # never constant
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_fast_factoring_agrees_with_full_factoring(seed):
+    # _factors (StructuralIdentifiability.jl's fast_factor) against FLINT's complete factorisation, on products of
+    # random polynomials with a content in one variable, a repeated factor and a linear factor: the same set of
+    # irreducible factors up to sign
+    import flint
+
+    from nlobs.analysis.structural._io import _factors
+
+    rng = np.random.default_rng(seed)
+    ctx = flint.fmpz_mpoly_ctx.get(("a", "b", "c", "d"), "degrevlex")
+    a, b, c, d = ctx.gens()
+    p1, p2 = _random_poly(ctx, rng, 6, 2), _random_poly(ctx, rng, 5, 3)
+    q = 6 * p1 * p2 * (a * b + c) ** 2 * (d**2 + 3 * a)
+    want = [g for g, _ in q.factor()[1]]
+    got = _factors(q, rng)
+    assert len(got) == len(want)
+    assert all(g in want or -g in want for g in got)
+    assert _factors(a * b + c, rng) == [a * b + c]  # linear in c and primitive: irreducible without a test
