@@ -553,3 +553,37 @@ def test_fast_factoring_agrees_with_full_factoring(seed):
     assert len(got) == len(want)
     assert all(g in want or -g in want for g in got)
     assert _factors(a * b + c, rng) == [a * b + c]  # linear in c and primitive: irreducible without a test
+
+
+def test_parameter_factors_are_split_off():
+    # a resultant's factors in the parameters alone never vanish on the generic solution: _without_parameter_factor
+    # divides them out (here squares of binomials, as MAPK's resultants carry), leaving the factors in the jets
+    import flint
+
+    from nlobs.analysis.structural._io import _without_parameter_factor
+
+    ctx = flint.fmpz_mpoly_ctx.get(("a", "b", "c", "y0", "y1"), "degrevlex")
+    a, b, c, y0, y1 = ctx.gens()
+    jets = (a * y1 + b * y0**2 + c) * (y1 - a * y0)
+    q = (a - b) ** 2 * (a * c + 3 * b) * jets
+    assert _without_parameter_factor(q, 3) in (jets, -jets)
+    assert _without_parameter_factor(jets, 3) == jets
+
+
+@needs_engine
+def test_mapk_with_five_outputs_published():
+    # StructuralIdentifiability.jl's benchmark model "MAPK model (5 outputs)" (benchmarks/si_models.py, transcribed
+    # from its benchmarking/benchmarks.jl) and its published result (benchmarking/IdentifiableFunctions/results/
+    # MAPK model (5 outputs)/result_(normalforms, 2)_with_states): all 12 states and 22 parameters identifiable.
+    # The route's resultants here reach a million terms that are a 6,488-term factor times parameter binomials
+    import importlib.util
+    from pathlib import Path
+
+    spec = importlib.util.spec_from_file_location("si_models", Path(__file__).parents[2] / "benchmarks" / "si_models.py")
+    si = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(si)
+    s = si.system("mapk_5out")
+    r = global_identifiability(s, unknown_params="all", route="io")
+    assert "input-output" in r.method
+    assert set(r.globally) == set(s.states) | set(s.params) and len(r.globally) == 34
+    assert not r.locally_only and not r.non_identifiable
