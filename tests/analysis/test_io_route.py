@@ -576,14 +576,41 @@ def test_mapk_with_five_outputs_published():
     # from its benchmarking/benchmarks.jl) and its published result (benchmarking/IdentifiableFunctions/results/
     # MAPK model (5 outputs)/result_(normalforms, 2)_with_states): all 12 states and 22 parameters identifiable.
     # The route's resultants here reach a million terms that are a 6,488-term factor times parameter binomials
+    s = _si_benchmark_model("mapk_5out")
+    r = global_identifiability(s, unknown_params="all", route="io")
+    assert "input-output" in r.method
+    assert set(r.globally) == set(s.states) | set(s.params) and len(r.globally) == 34
+    assert not r.locally_only and not r.non_identifiable
+
+
+def _si_benchmark_model(key: str):
+    """A model of StructuralIdentifiability.jl's benchmark set, as benchmarks/si_models.py transcribes it."""
     import importlib.util
     from pathlib import Path
 
     spec = importlib.util.spec_from_file_location("si_models", Path(__file__).parents[2] / "benchmarks" / "si_models.py")
     si = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(si)
-    s = si.system("mapk_5out")
-    r = global_identifiability(s, unknown_params="all", route="io")
-    assert "input-output" in r.method
-    assert set(r.globally) == set(s.states) | set(s.params) and len(r.globally) == 34
-    assert not r.locally_only and not r.non_identifiable
+    return si.system(key)
+
+
+#: StructuralIdentifiability.jl's published generators for HIV2_io (benchmarking/IdentifiableFunctions/results/
+#: HIV2_io/result_(normalforms, 2)_with_states); two have a non-monomial denominator or degree 4, outside the search
+HIV2_PUBLISHED = ["x4", "x1", "s", "d", "b", "k2*q2", "c*w1*w2 + c*k1*w2", "c + w1 + k1 + w2",
+                  "w1*x4 + k2*x3 + k1*x4 + w2*x4", "c*w1 + c*k1 + c*w2 + w1*w2 + k1*w2",
+                  "(q1*k1*x4 - k2*x3*q2 - w2*q2*x4)/(q2*x4)", "(c*x3*x4 - k2*x3**2 - x3*w2*x4 + k1*x2*x4)/(q2*x4)"]
+
+
+@needs_engine
+def test_route_generators_complete_what_the_search_misses():
+    # HIV2_io: the simple forms searched miss part of the field; the route's own generators complete it, and the
+    # result generates the published field
+    from test_global import _same_field
+
+    from nlobs.analysis import find_identifiable_functions
+
+    s = _si_benchmark_model("hiv2")
+    r = find_identifiable_functions(s, with_states=True, route="io", reparametrize_model=False)
+    assert r.complete is True and all(r.local_checks)
+    assert any("input-output coefficients" in n for n in r.notes)
+    assert _same_field(list(r.functions), HIV2_PUBLISHED, [*s.states, *s.params]), r.functions

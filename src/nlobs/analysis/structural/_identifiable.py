@@ -26,11 +26,19 @@ checked exactly: every generator lies in the field of the chosen functions), els
 5. *Checks.* Every returned function is checked with :func:`nlobs.analysis.observable_function`
    (local) and by the global check; with states included the field is compared with the
    identifiable field itself (the numbers of points of the two fibres on the same random cut).
+6. *Completion* (input-output route, states included). Where the simple forms of step 1 miss part of the field
+   (generators with polynomial denominators, as StructuralIdentifiability.jl finds for its St and QY benchmarks),
+   the route's own generators (coefficient ratios of the input-output equations and the outputs' Lie derivatives,
+   which together generate the field) are added, smallest first, each kept unless it is a function of those kept
+   (step 4's test). The result is then complete but its last generators are not simplified: a note says so.
+   StructuralIdentifiability.jl simplifies further with Gröbner bases over the field of the coefficients (Demin,
+   Ovchinnikov & Pogudin); nlobs does not.
 """
 
 from __future__ import annotations
 
 import functools
+import math
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -579,6 +587,78 @@ def _complete_io(prep: Any, eng: GroebnerEngine, chosen: list[sp.Expr], U: list[
     return not any(eng.normal_forms(names, p, F, rels))
 
 
+def _route_generators(prep: Any, U: list[str], single: Sequence[str] = ()) -> list[tuple[int, sp.Expr, tuple]]:
+    """The input-output route's generators (coefficient ratios and the outputs' Lie derivatives, which together give
+    every identifiable function) over the unknowns U, as (number of terms, expression, exact terms as _qq_terms gives
+    them), smallest first; those involving other variables (inputs) are left out. Monomial factors in the globally
+    identifiable unknowns `single` are cancelled (they change no field the singles are in), and integer contents."""
+    gens, _ = prep.io
+    model = {v: u for u, v in prep.hs.unknown_var.items()}  # ring name -> model name
+    col = {u: i for i, u in enumerate(U)}
+    syms = [symbol(u) for u in U]
+    out = []
+    for a, b in (*gens.params, *gens.states):
+        g = a.gcd(b)
+        if not g.is_constant():
+            a, b = a / g, b / g
+        idx = [col.get(model.get(v, "")) for v in a.context().names()]
+        parts = []
+        for q in (a, b):
+            terms = []
+            for m, c in zip(q.monoms(), q.coeffs()):
+                if any(e and idx[k] is None for k, e in enumerate(m)):
+                    terms = None
+                    break
+                e = [0] * len(U)
+                for k, x in enumerate(m):
+                    if x:
+                        e[idx[k]] += x
+                terms.append((tuple(e), int(c), 1))
+            if terms is None:
+                break
+            parts.append(tuple(terms))
+        if len(parts) < 2:
+            continue
+        # f and f*m/k (m a monomial in the singles, k a rational) generate the same field with the singles: the
+        # numerator and the denominator each lose their own such factor, and both get positive leading coefficients
+        out_parts = []
+        for t in parts:
+            shift = [min(e[i] for e, _, _ in t) if U[i] in single else 0 for i in range(len(U))]
+            k = math.gcd(*[c for _, c, _ in t]) * (1 if t[0][1] > 0 else -1)
+            out_parts.append(tuple((tuple(x - y for x, y in zip(e, shift)), c // k, d) for e, c, d in t))
+        parts = out_parts
+        num, den = (sp.Add(*[sp.Rational(c, d) * sp.Mul(*[s**k for s, k in zip(syms, e) if k]) for e, c, d in t])
+                    for t in parts)
+        f = num / den
+        if f.is_number:
+            continue
+        out.append((len(a) + len(b), f, tuple(parts)))
+    out.sort(key=lambda t: (t[0], str(t[1])))
+    return out
+
+
+def _add_route_generators(prep: Any, eng: GroebnerEngine, chosen: list[sp.Expr], U: list[str],
+                          rng: np.random.Generator, exact: dict) -> list[sp.Expr]:
+    """`chosen` completed by the route's own generators, smallest first, each kept unless it is a function of those
+    kept (as :func:`_select`): where the search's simple forms (numerators of degree <= 3 over monomials) miss part
+    of the field (StructuralIdentifiability.jl's St, QY: generators with polynomial denominators), the result is
+    still a complete generating set, in the route's coefficients."""
+    rest = []
+    single = [u for u in U if symbol(u) in chosen]
+    for _, f, terms in _route_generators(prep, U, single):
+        exact.setdefault(f, terms)
+        rest.append(f)
+    chosen = list(chosen)
+    p = prep.p
+    while rest:
+        names, F, xhat = _fibre_system(chosen, U, p, rng)
+        nfs = eng.normal_forms(names, p, F, [_relation(g, U, xhat, p, exact) for g in rest])
+        rest = [g for g, nf in zip(rest, nfs) if nf]
+        if rest:
+            chosen.append(rest.pop(0))
+    return chosen
+
+
 def find_identifiable_functions(system: System, *, unknown_params: Any = "all", inputs: Any = "generic",
                                 with_states: bool = True, max_degree: int | None = None, local: Any = None,
                                 engine: str | GroebnerEngine = "auto", seed: int = 0,
@@ -699,6 +779,14 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
         search = _Search(prep, eng, U, max_degree, top=rest, powers=powers)
         chosen = _search_and_select(search, prep, eng, U, single, rng)
         complete = _complete_io(prep, eng, chosen, U, rng)
+    if complete is False:
+        found = len(chosen)
+        chosen = _add_route_generators(prep, eng, chosen, U, rng, search.exact)
+        complete = _complete_io(prep, eng, chosen, U, rng)
+        if complete:
+            notes.append(f"the last {len(chosen) - found} generator(s) are input-output coefficients (or the outputs' "
+                         f"Lie derivatives): the simple forms searched (numerators of degree <= {max_degree} over "
+                         "monomials) do not give every identifiable function")
     texts = tuple(_text(f) for f in chosen)
     # the local check of every generator in one local analysis (each is a gradient-in-row-space test)
     checks = tuple(c.observable for c in local_analysis(system, functions=list(texts), symmetries=False,
