@@ -659,6 +659,33 @@ def _add_route_generators(prep: Any, eng: GroebnerEngine, chosen: list[sp.Expr],
     return chosen
 
 
+def _completed_on_the_route(prep: Any, eng: GroebnerEngine, search: _Search, chosen: list[sp.Expr], U: list[str],
+                            single: list[str], rng: np.random.Generator, max_degree: int, auto_degree: bool,
+                            powers: dict, notes: list[str]) -> tuple[list[sp.Expr], bool, int]:
+    """On the input-output route with the states: the completeness check (exact), a search one degree higher when
+    it fails and the degree was automatic, then step 6 of the module docstring. Returns (chosen, complete, degree)."""
+    complete = _complete_io(prep, eng, chosen, U, rng)
+    rest = [u for u in U if u not in single]
+    if (complete is False and auto_degree and (max_degree < 3 or powers)
+            and len(monomial_exponents(len(rest), 3)) <= _MAX_MONOMIALS):
+        # a generator of the field needs a numerator of degree 3 (HIV: c*q*x) or a power: search again one degree
+        # higher, the new monomials only in the unknowns not globally identifiable, with the powers (the
+        # completeness check below says whether that was enough)
+        max_degree = 3
+        search = _Search(prep, eng, U, max_degree, top=rest, powers=powers)
+        chosen = _search_and_select(search, prep, eng, U, single, rng)
+        complete = _complete_io(prep, eng, chosen, U, rng)
+    if complete is False:
+        found = len(chosen)
+        chosen = _add_route_generators(prep, eng, chosen, U, rng, search.exact)
+        complete = _complete_io(prep, eng, chosen, U, rng)
+        if complete:
+            notes.append(f"the last {len(chosen) - found} generator(s) are input-output coefficients (or the outputs' "
+                         f"Lie derivatives): the simple forms searched (numerators of degree <= {max_degree} over "
+                         "monomials) do not give every identifiable function")
+    return chosen, complete, max_degree
+
+
 def find_identifiable_functions(system: System, *, unknown_params: Any = "all", inputs: Any = "generic",
                                 with_states: bool = True, max_degree: int | None = None, local: Any = None,
                                 engine: str | GroebnerEngine = "auto", seed: int = 0,
@@ -768,25 +795,10 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
     single = [u for u in U if u in dec["globally"]]
     chosen = _search_and_select(search, prep, eng, U, single, rng)
     io_complete = prep.io is not None and with_states
-    complete: bool | None = _complete_io(prep, eng, chosen, U, rng) if io_complete else None
-    rest = [u for u in U if u not in single]
-    if (complete is False and auto_degree and (max_degree < 3 or powers)
-            and len(monomial_exponents(len(rest), 3)) <= _MAX_MONOMIALS):
-        # a generator of the field needs a numerator of degree 3 (HIV: c*q*x) or a power: search again one degree
-        # higher, the new monomials only in the unknowns not globally identifiable, with the powers (the
-        # completeness check below says whether that was enough)
-        max_degree = 3
-        search = _Search(prep, eng, U, max_degree, top=rest, powers=powers)
-        chosen = _search_and_select(search, prep, eng, U, single, rng)
-        complete = _complete_io(prep, eng, chosen, U, rng)
-    if complete is False:
-        found = len(chosen)
-        chosen = _add_route_generators(prep, eng, chosen, U, rng, search.exact)
-        complete = _complete_io(prep, eng, chosen, U, rng)
-        if complete:
-            notes.append(f"the last {len(chosen) - found} generator(s) are input-output coefficients (or the outputs' "
-                         f"Lie derivatives): the simple forms searched (numerators of degree <= {max_degree} over "
-                         "monomials) do not give every identifiable function")
+    complete: bool | None = None
+    if io_complete:
+        chosen, complete, max_degree = _completed_on_the_route(prep, eng, search, chosen, U, single, rng, max_degree,
+                                                               auto_degree, powers, notes)
     texts = tuple(_text(f) for f in chosen)
     # the local check of every generator in one local analysis (each is a gradient-in-row-space test)
     checks = tuple(c.observable for c in local_analysis(system, functions=list(texts), symmetries=False,
