@@ -47,7 +47,7 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from ...errors import ModelError
+from ...errors import EngineError, ModelError
 from ...model import System, symbol
 from ...algebra._modular import monomial_exponents
 from ...algebra._modular import monomial_value as _mono_value
@@ -638,11 +638,12 @@ def _route_generators(prep: Any, U: list[str], single: Sequence[str] = ()) -> li
 
 
 def _add_route_generators(prep: Any, eng: GroebnerEngine, chosen: list[sp.Expr], U: list[str],
-                          rng: np.random.Generator, exact: dict) -> list[sp.Expr]:
+                          rng: np.random.Generator, exact: dict, deadline: float) -> list[sp.Expr] | None:
     """`chosen` completed by the route's own generators, smallest first, each kept unless it is a function of those
     kept (as :func:`_select`): where the search's simple forms (numerators of degree <= 3 over monomials) miss part
     of the field (StructuralIdentifiability.jl's St, QY: generators with polynomial denominators), the result is
-    still a complete generating set, in the route's coefficients."""
+    still a complete generating set, in the route's coefficients. None when the Gröbner bases of the growing
+    fibres do not finish before `deadline` (time.perf_counter()): each engine run is stopped there."""
     rest = []
     single = [u for u in U if symbol(u) in chosen]
     for _, f, terms in _route_generators(prep, U, single):
@@ -650,20 +651,33 @@ def _add_route_generators(prep: Any, eng: GroebnerEngine, chosen: list[sp.Expr],
         rest.append(f)
     chosen = list(chosen)
     p = prep.p
-    while rest:
-        names, F, xhat = _fibre_system(chosen, U, p, rng)
-        nfs = eng.normal_forms(names, p, F, [_relation(g, U, xhat, p, exact) for g in rest])
-        rest = [g for g, nf in zip(rest, nfs) if nf]
-        if rest:
-            chosen.append(rest.pop(0))
+    limit = eng.timeout
+    try:
+        while rest:
+            left = deadline - time.perf_counter()
+            if left <= 0:
+                return None
+            eng.timeout = min(left, limit) if limit else left
+            names, F, xhat = _fibre_system(chosen, U, p, rng)
+            try:
+                nfs = eng.normal_forms(names, p, F, [_relation(g, U, xhat, p, exact) for g in rest])
+            except EngineError:
+                return None
+            rest = [g for g, nf in zip(rest, nfs) if nf]
+            if rest:
+                chosen.append(rest.pop(0))
+    finally:
+        eng.timeout = limit
     return chosen
 
 
 def _completed_on_the_route(prep: Any, eng: GroebnerEngine, search: _Search, chosen: list[sp.Expr], U: list[str],
                             single: list[str], rng: np.random.Generator, max_degree: int, auto_degree: bool,
-                            powers: dict, notes: list[str]) -> tuple[list[sp.Expr], bool, int]:
+                            powers: dict, notes: list[str], t0: float) -> tuple[list[sp.Expr], bool, int]:
     """On the input-output route with the states: the completeness check (exact), a search one degree higher when
-    it fails and the degree was automatic, then step 6 of the module docstring. Returns (chosen, complete, degree)."""
+    it fails and the degree was automatic, then step 6 of the module docstring, given as long as the search took
+    (at least 10 s; Linear_compartment_hard: the growing fibres take minutes, the search 12 s). Returns (chosen,
+    complete, degree)."""
     complete = _complete_io(prep, eng, chosen, U, rng)
     rest = [u for u in U if u not in single]
     if (complete is False and auto_degree and (max_degree < 3 or powers)
@@ -676,13 +690,16 @@ def _completed_on_the_route(prep: Any, eng: GroebnerEngine, search: _Search, cho
         chosen = _search_and_select(search, prep, eng, U, single, rng)
         complete = _complete_io(prep, eng, chosen, U, rng)
     if complete is False:
-        found = len(chosen)
-        chosen = _add_route_generators(prep, eng, chosen, U, rng, search.exact)
-        complete = _complete_io(prep, eng, chosen, U, rng)
-        if complete:
-            notes.append(f"the last {len(chosen) - found} generator(s) are input-output coefficients (or the outputs' "
-                         f"Lie derivatives): the simple forms searched (numerators of degree <= {max_degree} over "
-                         "monomials) do not give every identifiable function")
+        spent = time.perf_counter() - t0
+        more = _add_route_generators(prep, eng, chosen, U, rng, search.exact, time.perf_counter() + max(10.0, spent))
+        if more is None:
+            notes.append(f"completing the generators with the input-output coefficients stopped after "
+                         f"{max(10.0, spent):.0f} s (as long as the search took)")
+        elif _complete_io(prep, eng, more, U, rng):
+            notes.append(f"the last {len(more) - len(chosen)} generator(s) are input-output coefficients (or the "
+                         f"outputs' Lie derivatives): the simple forms searched (numerators of degree <= {max_degree} "
+                         "over monomials) do not give every identifiable function")
+            chosen, complete = more, True
     return chosen, complete, max_degree
 
 
@@ -798,7 +815,7 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
     complete: bool | None = None
     if io_complete:
         chosen, complete, max_degree = _completed_on_the_route(prep, eng, search, chosen, U, single, rng, max_degree,
-                                                               auto_degree, powers, notes)
+                                                               auto_degree, powers, notes, t0)
     texts = tuple(_text(f) for f in chosen)
     # the local check of every generator in one local analysis (each is a gradient-in-row-space test)
     checks = tuple(c.observable for c in local_analysis(system, functions=list(texts), symmetries=False,
