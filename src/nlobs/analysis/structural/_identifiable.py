@@ -26,7 +26,7 @@ checked exactly: every generator lies in the field of the chosen functions), els
 5. *Checks.* Every returned function is checked with :func:`nlobs.analysis.observable_function`
    (local) and by the global check; with states included the field is compared with the
    identifiable field itself (the numbers of points of the two fibres on the same random cut).
-6. *Completion* (input-output route, states included). Where the simple forms of step 1 miss part of the field
+6. *Completion* (input-output route; without the states, from its coefficients alone). Where the simple forms of step 1 miss part of the field
    (generators with polynomial denominators, as StructuralIdentifiability.jl finds for its St and QY benchmarks),
    the route's own generators (coefficient ratios of the input-output equations and the outputs' Lie derivatives,
    which together generate the field) are added, smallest first, each kept unless it is a function of those kept
@@ -570,18 +570,20 @@ def _search_and_select(search: _Search, prep: Any, eng: GroebnerEngine, U: list[
 
 def _complete_io(prep: Any, eng: GroebnerEngine, chosen: list[sp.Expr], U: list[str],
                  rng: np.random.Generator) -> bool:
-    """On the input-output route (states included): every generator of the route (which together give every
-    identifiable function) is constant on the fibre of `chosen` at a random point, i.e. lies in their field
-    (normal forms of its relation num(v) den(v̂) - num(v̂) den(v) modulo their fibre ideal)."""
+    """On the input-output route: every generator of the route (which together give every identifiable function;
+    the coefficients alone every identifiable function of the parameters, Ovchinnikov, Pogudin & Thompson 2023) is
+    constant on the fibre of `chosen` at a random point, i.e. lies in their field (normal forms of its relation
+    num(v) den(v̂) - num(v̂) den(v) modulo their fibre ideal). U without states: the coefficients only."""
     from ._io import Columns
 
     gens, _ = prep.io
     p = prep.p
     names, F, xhat = _fibre_system(chosen, U, p, rng)
     model = {v: u for u, v in prep.hs.unknown_var.items()}  # ring name -> model name
-    conv = Columns({v: names.index(u) for v, u in model.items()}, len(names), p)
+    conv = Columns({v: names.index(u) for v, u in model.items() if u in U}, len(names), p)
+    with_states = any(u in prep.system.states for u in U)
     rels: list[Poly] = []
-    for a, b in (*gens.params, *gens.states):
+    for a, b in (*gens.params, *(gens.states if with_states else ())):
         at = [xhat.get(model.get(v, ""), 0) for v in a.context().names()]
         rels.append(conv(a * (int(b(*at)) % p) - b * (int(a(*at)) % p)))
     return not any(eng.normal_forms(names, p, F, rels))
@@ -811,7 +813,7 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
         search.known_point(nfs)
     single = [u for u in U if u in dec["globally"]]
     chosen = _search_and_select(search, prep, eng, U, single, rng)
-    io_complete = prep.io is not None and with_states
+    io_complete = prep.io is not None  # the route's generators decide completeness, with or without the states
     complete: bool | None = None
     if io_complete:
         chosen, complete, max_degree = _completed_on_the_route(prep, eng, search, chosen, U, single, rng, max_degree,
@@ -823,7 +825,7 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
                                                         seed=seed).functions) if texts else ()
     if not all(checks):
         notes.append("a returned function failed the local check: " + ", ".join(t for t, c in zip(texts, checks) if not c))
-    if with_states:
+    if with_states or io_complete:
         if not io_complete:
             complete = _complete(prep, eng, chosen, U, rng)
         if complete is False:
