@@ -41,8 +41,9 @@ from flint.utils.flint_exceptions import DomainError as _NotExact
 __all__ = ["IOEquations", "NotApplicable", "io_equations"]
 
 _BIG_PRIME_BITS = 62
-#: Bounds that keep the elimination within memory (the caller then takes SIAN): SIWR, the largest model of the
-#: benchmarks, needs a 3x3 Bezout matrix of 6,700 terms and a resultant of 621,277 terms (about 1 GB at its peak).
+#: Bounds that keep the elimination within memory (the caller then takes SIAN): SIWR needs a 3x3 Bezout matrix of
+#: 6,700 terms and a resultant of 621,277 terms (about 1 GB at its peak); MAPK with five outputs a 2x2 matrix of
+#: 155,154 terms and a resultant of 1,064,272 (0.75 GB). QWWC's resultant has 6.9 M terms: refused.
 MAX_MATRIX_TERMS = 200_000
 MAX_RESULTANT_TERMS = 3_000_000
 #: With several outputs, a projection with more jet monomials than this leaves the model to SIAN (the Wronskian is a
