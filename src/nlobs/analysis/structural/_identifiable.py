@@ -571,7 +571,7 @@ def _search_and_select(search: _Search, prep: Any, eng: GroebnerEngine, U: list[
 def _complete_io(prep: Any, eng: GroebnerEngine, chosen: list[sp.Expr], U: list[str],
                  rng: np.random.Generator) -> bool:
     """On the input-output route: every generator of the route (which together give every identifiable function;
-    the coefficients alone every identifiable function of the parameters, Ovchinnikov, Pogudin & Thompson 2023) is
+    the coefficients alone every identifiable function of the parameters, Ovchinnikov, Pogudin & Thompson (2023)) is
     constant on the fibre of `chosen` at a random point, i.e. lies in their field (normal forms of its relation
     num(v) den(v̂) - num(v̂) den(v) modulo their fibre ideal). U without states: the coefficients only."""
     from ._io import Columns
