@@ -452,19 +452,36 @@ def _relation(f: sp.Expr, X: list[str], xhat: dict[str, int], p: int, exact: dic
 
 
 def _select(cands: list[sp.Expr], X: list[str], eng: GroebnerEngine, p: int, rng: np.random.Generator,
-            exact: dict | None = None) -> list[sp.Expr]:
-    """Greedy, simplest first: keep a candidate unless it is a function of those kept (constant on their fibre)."""
-    chosen: list[sp.Expr] = []
+            exact: dict | None = None, kept: Sequence[sp.Expr] = (), deadline: float | None = None
+            ) -> list[sp.Expr] | None:
+    """Greedy, simplest first: keep a candidate unless it is a function of those kept (constant on their fibre),
+    starting from `kept`. With a `deadline` (time.perf_counter()) every engine run is stopped there, and None is
+    returned when one does not finish."""
+    chosen = list(kept)
     rest = list(cands)
-    while rest:
-        names, F, xhat = _fibre_system(chosen, X, p, rng)
-        rels = [_relation(g, X, xhat, p, exact) for g in rest]
-        nfs = eng.normal_forms(names, p, F, rels)
-        new = [g for g, nf in zip(rest, nfs) if nf]
-        if not new:
-            break
-        chosen.append(new[0])
-        rest = new[1:]
+    limit = eng.timeout
+    try:
+        while rest:
+            if deadline is not None:
+                left = deadline - time.perf_counter()
+                if left <= 0:
+                    return None
+                eng.timeout = min(left, limit) if limit else left
+            names, F, xhat = _fibre_system(chosen, X, p, rng)
+            rels = [_relation(g, X, xhat, p, exact) for g in rest]
+            try:
+                nfs = eng.normal_forms(names, p, F, rels)
+            except EngineError:
+                if deadline is None:
+                    raise
+                return None
+            new = [g for g, nf in zip(rest, nfs) if nf]
+            if not new:
+                break
+            chosen.append(new[0])
+            rest = new[1:]
+    finally:
+        eng.timeout = limit
     return chosen
 
 
@@ -642,41 +659,22 @@ def _route_generators(prep: Any, U: list[str], single: Sequence[str] = ()) -> li
 def _add_route_generators(prep: Any, eng: GroebnerEngine, chosen: list[sp.Expr], U: list[str],
                           rng: np.random.Generator, exact: dict, deadline: float) -> list[sp.Expr] | None:
     """`chosen` completed by the route's own generators, smallest first, each kept unless it is a function of those
-    kept (as :func:`_select`): where the search's simple forms (numerators of degree <= 3 over monomials) miss part
-    of the field (StructuralIdentifiability.jl's St, QY: generators with polynomial denominators), the result is
-    still a complete generating set, in the route's coefficients. None when the Gröbner bases of the growing
-    fibres do not finish before `deadline` (time.perf_counter()): each engine run is stopped there."""
-    rest = []
+    kept (:func:`_select` from `chosen`): where the search's simple forms (numerators of degree <= 3 over monomials)
+    miss part of the field (StructuralIdentifiability.jl's St, QY: generators with polynomial denominators), the
+    result is still a complete generating set, in the route's coefficients. None when the Gröbner bases of the
+    growing fibres do not finish before `deadline`."""
     single = [u for u in U if symbol(u) in chosen]
+    rest = []
     for _, f, terms in _route_generators(prep, U, single):
         exact.setdefault(f, terms)
         rest.append(f)
-    chosen = list(chosen)
-    p = prep.p
-    limit = eng.timeout
-    try:
-        while rest:
-            left = deadline - time.perf_counter()
-            if left <= 0:
-                return None
-            eng.timeout = min(left, limit) if limit else left
-            names, F, xhat = _fibre_system(chosen, U, p, rng)
-            try:
-                nfs = eng.normal_forms(names, p, F, [_relation(g, U, xhat, p, exact) for g in rest])
-            except EngineError:
-                return None
-            rest = [g for g, nf in zip(rest, nfs) if nf]
-            if rest:
-                chosen.append(rest.pop(0))
-    finally:
-        eng.timeout = limit
-    return chosen
+    return _select(rest, U, eng, prep.p, rng, exact, kept=chosen, deadline=deadline)
 
 
 def _completed_on_the_route(prep: Any, eng: GroebnerEngine, search: _Search, chosen: list[sp.Expr], U: list[str],
                             single: list[str], rng: np.random.Generator, max_degree: int, auto_degree: bool,
                             powers: dict, notes: list[str], t0: float) -> tuple[list[sp.Expr], bool, int]:
-    """On the input-output route with the states: the completeness check (exact), a search one degree higher when
+    """On the input-output route: the completeness check (exact), a search one degree higher when
     it fails and the degree was automatic, then step 6 of the module docstring, given as long as the search took
     (at least 10 s; Linear_compartment_hard: the growing fibres take minutes, the search 12 s). Returns (chosen,
     complete, degree)."""

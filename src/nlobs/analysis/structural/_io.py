@@ -320,11 +320,7 @@ def _deg(g, i: int) -> int:
 
 def _coeff(g, name: str, d: int, R: _Ring):
     """The coefficient of name^d in g (a polynomial without that variable)."""
-    i = R.index[name]
-    out = g
-    for _ in range(d):
-        out = out.derivative(i)
-    return out.subs({name: 0}) / math.factorial(d) if d else out.subs({name: 0})
+    return _coefficient_at(g, {R.index[name]: d})
 
 
 def _diff(g, R: _Ring):
@@ -500,16 +496,28 @@ def _eliminate(f, g, name: str, R: _Ring, pts: _Points):
     return _primitive(cands[0])
 
 
-def _coefficient_at(q, m: tuple[int, ...], over: Sequence[int]):
-    """The coefficient of the monomial m (in the variables `over`) of q, by differentiation and setting to 0."""
+def _coefficient_at(q, m: Mapping[int, int]):
+    """The coefficient in q of the monomial {variable index: exponent} m (a polynomial without those variables), by
+    differentiation and setting to 0: FLINT calls only, no pass over the terms in Python."""
     c = q
-    for k in over:
-        for _ in range(m[k]):
+    for k, e in m.items():
+        for _ in range(e):
             c = c.derivative(k)
         c = c.subs({k: 0})
-        if m[k] > 1:
-            c = c / math.factorial(m[k])
+        if e > 1:
+            c = c / math.factorial(e)
     return c
+
+
+def _divide_out(q, h):
+    """q divided by h as often as h divides it, and how often that was."""
+    times = 0
+    while True:
+        try:
+            q = q / h
+        except _NotExact:
+            return q, times
+        times += 1
 
 
 def _without_parameter_factor(q, npar: int):
@@ -524,16 +532,13 @@ def _without_parameter_factor(q, npar: int):
         return q
     g = None
     for j in (0, len(q) // 2, len(q) - 1):
-        c = _coefficient_at(q, q.monomial(j), over)
+        m = q.monomial(j)
+        c = _coefficient_at(q, {k: m[k] for k in over})
         g = c if g is None else g.gcd(c)
         if g.is_constant():
             return q
     for h, _ in g.factor()[1]:
-        while True:
-            try:
-                q = q / h
-            except _NotExact:
-                break
+        q, _ = _divide_out(q, h)
     return q
 
 
@@ -551,7 +556,7 @@ def _factors(q, rng: np.random.Generator, tries: int = 2) -> list[Any]:
     low = min(d for d in degs if d > 0)
     best = None
     for k in [k for k, d in enumerate(degs) if d == low][:8]:
-        lead = _coefficient_at(q, tuple(low if j == k else 0 for j in range(len(degs))), [k])
+        lead = _coefficient_at(q, {k: low})
         if best is None or len(lead) < len(best[1]):
             best = (k, lead)
         if lead.is_constant():
@@ -559,21 +564,15 @@ def _factors(q, rng: np.random.Generator, tries: int = 2) -> list[Any]:
     i, lead = best
     out: list[Any] = []
     for h in _factors(lead, rng, tries):
-        divided = False
-        while True:
-            try:
-                q = q / h
-                divided = True
-            except _NotExact:
-                break
-        if divided:
+        q, times = _divide_out(q, h)
+        if times:
             out.append(h)
     q = _primitive(q)
     if q.is_constant():
         return out
     if low == 1:
         return out + [q]
-    cs = [_coefficient_at(q, tuple(j if m == i else 0 for m in range(len(degs))), [i]) for j in range(low + 1)]
+    cs = [_coefficient_at(q, {i: j}) for j in range(low + 1)]
     nv = len(degs)
     for _ in range(tries):
         pt = [flint.fmpz(int(rng.integers(-1000, 1001))) for _ in range(nv)]
