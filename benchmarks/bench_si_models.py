@@ -4,6 +4,7 @@ Usage::
 
     python benchmarks/bench_si_models.py [--models k1,k2] [--timeout 120] [--what global,functions]
                                          [--json benchmarks/results/si_models.json] [--fresh]
+    python benchmarks/bench_si_models.py fields [--models k1,k2] [--timeout 300]
     python benchmarks/bench_si_models.py report [--json benchmarks/results/si_models.json]
 
 The models are ``benchmarks/si_models.py`` (transcribed from SI.jl's ``benchmarking/benchmarks.jl``; keys as
@@ -24,6 +25,12 @@ Records go to the JSON (``{"machine": ..., "rows": [...]}``, via ``_common.write
 ``benchmarks/results``), one row per (model, part), rewritten after every row; rows of models not run this time
 are kept unless ``--fresh``. ``report`` writes ``si_models.md`` next to the JSON. SI.jl's times are the published
 ones (not rerun here). The machine is shared: compare CPU seconds; start the run under ``nice``.
+
+``fields`` compares every finished ``functions`` row with SI.jl's published generators (``si_published.py``):
+do both generate the same field? The check is the tests' independent one (``_same_field`` of
+``tests/analysis/test_global.py``: SymPy over QQ, each generator constant on the fibre of the other set through
+a rational point), not nlobs's; ``--timeout`` bounds it per model. The answer goes into the row
+(``same_field``: True, False, or why it was not checked) and into the report's column.
 """
 
 from __future__ import annotations
@@ -47,11 +54,12 @@ sys.path.insert(0, str(ROOT / "src"))
 sys.path.insert(0, str(HERE))
 
 import si_models
+import si_published
 from _common import RESULTS, machine, write
 
 PARTS = ("global", "functions")
 HEADER = ("| model | size | SI.jl functions s | nlobs global wall s (CPU s) | nlobs functions wall s (CPU s) "
-          "| ratio functions CPU / SI.jl | route | status |")
+          "| ratio functions CPU / SI.jl | route | status | same field as SI.jl's |")
 DEFAULT_JSON = RESULTS / "si_models.json"
 #: From SI.jl's benchmarking/IdentifiableFunctions/benchmark_result.md (quoted, not measured here).
 SI_RUN = ("2023-09-15 (`benchmark_result.md` of SciML/StructuralIdentifiability.jl, "
@@ -160,6 +168,51 @@ def _save(path: Path, rows: list[dict[str, Any]], extra: dict[str, Any]) -> None
         path.write_text(json.dumps({"machine": machine(), "rows": rows, **extra}, indent=2, default=str))
 
 
+def _field_checker() -> Any:
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("nlobs_test_global", ROOT / "tests" / "analysis" / "test_global.py")
+    mod = importlib.util.module_from_spec(spec)
+    sys.path.insert(0, str(ROOT / "tests" / "analysis"))
+    spec.loader.exec_module(mod)
+    return mod._same_field
+
+
+def fields(keys: list[str], timeout: float, path: Path) -> None:
+    """The ``fields`` mode (module docstring): same field as SI.jl's published generators, per finished row."""
+    data = json.loads(path.read_text())
+    same_field = _field_checker()
+
+    def stop(*_: Any) -> None:
+        raise TimeoutError
+
+    signal.signal(signal.SIGALRM, stop)
+    for r in data["rows"]:
+        k = r["model"]
+        if r["what"] != "functions" or k not in keys:
+            continue
+        m = si_models.MODELS[k]
+        if r.get("status") != "ok" or r.get("refused") or r.get("complete") is not True:
+            r["same_field"] = "-"
+        elif k not in si_published.PUBLISHED:
+            r["same_field"] = "not published"
+        elif "2023 model file" in m["note"]:
+            r["same_field"] = "published for another model"
+        else:
+            names = [*m["states"], *m["params"], *m["inputs"]]
+            t0 = time.perf_counter()
+            signal.alarm(int(timeout))
+            try:
+                r["same_field"] = bool(same_field(r["functions"], si_published.PUBLISHED[k], names))
+            except TimeoutError:
+                r["same_field"] = f"not checked (SymPy took over {timeout:g} s)"
+            finally:
+                signal.alarm(0)
+            print(f"{k:22s} same field: {r['same_field']} ({time.perf_counter() - t0:.1f} s)", flush=True)
+    _save(path, data["rows"], {x: v for x, v in data.items() if x not in ("machine", "rows")})
+    print(f"written {path}")
+
+
 def run(keys: list[str], parts: list[str], timeout: float, path: Path, fresh: bool) -> None:
     old: list[dict[str, Any]] = []
     if path.exists() and not fresh:
@@ -213,7 +266,7 @@ def report(path: Path) -> Path:
          f"Written by `python benchmarks/bench_si_models.py report` from `{path.name}`; do not edit by hand.", "",
          intro, "", how, "",
          HEADER,
-         "|---|---|---|---|---|---|---|---|"]
+         "|---|---|---|---|---|---|---|---|---|"]
     keys = [k for k in si_models.MODELS if any((k, p) in by for p in PARTS)]
     errors, timeouts, suspicious, refusals = [], [], [], []
     for k in keys:
@@ -248,8 +301,10 @@ def report(path: Path) -> Path:
                 s = "local check failed"
             status.append(f"{part}: {s}")
         route = g.get("route", "") if g and g["status"] == "ok" else ""
+        same = f.get("same_field", "-") if f else "-"
+        same = {True: "yes", False: "**NO**"}.get(same, same) if isinstance(same, bool) else same
         L.append(f'| {k} ({m["name"]}) | {_size(m)} | {"-" if si is None else f"{si:g}"} | {_cell(g)} | {_cell(f)} | '
-                 f'{ratio} | {route} | {"; ".join(status)} |')
+                 f'{ratio} | {route} | {"; ".join(status)} | {same} |')
     ok_f = [(k, by[(k, "functions")]) for k in keys if (k, "functions") in by and by[(k, "functions")]["status"] == "ok"
             and not by[(k, "functions")].get("refused") and si_models.MODELS[k]["si_functions_seconds"]]
     L += ["", "## Summary", ""]
@@ -263,6 +318,10 @@ def report(path: Path) -> Path:
         L.append(f"- functions CPU / SI.jl published runtime on the {len(rat)} models both have: median "
                  f"{rat[len(rat) // 2]:.2f}, range {rat[0]:.2f}-{rat[-1]:.2f}; above 3 on "
                  f"{sum(x > 3 for x in rat)}.")
+    checked = [by[(k, "functions")].get("same_field") for k in keys if (k, "functions") in by]
+    L.append(f"- same field as SI.jl's published generators: {sum(c is True for c in checked)} of "
+             f"{sum(isinstance(c, bool) for c in checked)} compared; differ: "
+             f"{[k for k in keys if (k, 'functions') in by and by[(k, 'functions')].get('same_field') is False] or 'none'}.")
     L += ["", "## Errors (inside nlobs)", ""]
     L += [f"- {k} {p}: `{r['status'][7:][:300]}`" + ("\n  ```\n  " + "\n  ".join(r.get("traceback_tail", [])[-6:]) + "\n  ```"
                                                    if r.get("traceback_tail") else "") for k, p, r in errors] or ["None."]
@@ -286,7 +345,7 @@ def report(path: Path) -> Path:
 # ---------------------------------------------------------------------------------------------- main
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("mode", nargs="?", default="run", choices=["run", "report", "child"])
+    ap.add_argument("mode", nargs="?", default="run", choices=["run", "report", "child", "fields"])
     ap.add_argument("--models", default="", help="comma-separated keys of si_models.MODELS (default: all)")
     ap.add_argument("--timeout", type=float, default=120.0, help="wall-clock seconds per model and part")
     ap.add_argument("--what", default="global,functions", help="global, functions or both, comma-separated")
@@ -306,6 +365,9 @@ def main() -> int:
     parts = [p for p in args.what.split(",") if p]
     if any(p not in PARTS for p in parts):
         ap.error(f"--what takes {', '.join(PARTS)}")
+    if args.mode == "fields":
+        fields(keys, args.timeout, path)
+        return 0
     if args.mode == "child":
         try:
             out = child(keys[0], parts[0])
