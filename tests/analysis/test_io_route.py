@@ -587,41 +587,58 @@ def test_mapk_with_five_outputs_published():
     assert not r.locally_only and not r.non_identifiable
 
 
-def _si_benchmark_model(key: str):
-    """A model of StructuralIdentifiability.jl's benchmark set, as benchmarks/si_models.py transcribes it."""
+def _benchmark_module(name: str):
+    """A data module of benchmarks/ (si_models: the models; si_published: SI.jl's published generators)."""
     import importlib.util
     from pathlib import Path
 
-    spec = importlib.util.spec_from_file_location("si_models", Path(__file__).parents[2] / "benchmarks" / "si_models.py")
-    si = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(si)
-    return si.system(key)
+    spec = importlib.util.spec_from_file_location(name, Path(__file__).parents[2] / "benchmarks" / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
 
 
-#: StructuralIdentifiability.jl's published generators for HIV2_io (benchmarking/IdentifiableFunctions/results/
-#: HIV2_io/result_(normalforms, 2)_with_states); two have a non-monomial denominator or degree 4, outside the search
-HIV2_PUBLISHED = ["x4", "x1", "s", "d", "b", "k2*q2", "c*w1*w2 + c*k1*w2", "c + w1 + k1 + w2",
-                  "w1*x4 + k2*x3 + k1*x4 + w2*x4", "c*w1 + c*k1 + c*w2 + w1*w2 + k1*w2",
-                  "(q1*k1*x4 - k2*x3*q2 - w2*q2*x4)/(q2*x4)", "(c*x3*x4 - k2*x3**2 - x3*w2*x4 + k1*x2*x4)/(q2*x4)"]
+def _si_benchmark_model(key: str):
+    """A model of StructuralIdentifiability.jl's benchmark set, as benchmarks/si_models.py transcribes it."""
+    return _benchmark_module("si_models").system(key)
 
 
-#: the same for CGV1990 (results/CGV1990/result_(normalforms, 2)_with_states; Julia's // and ^ written / and **)
-CGV1990_PUBLISHED = ["q7", "q3", "q1", "k7", "k6", "k4", "k3", "q36*q35", "q36 + q35", "S*V3 + 25*V36*R",
-                     "S*V36 + R*V3", "(V36**2 + V3**2/25)/(V36*V3)", "(-S*V3 + 25*V36*R)/(q36 - q35)",
-                     "(-k5*V36 + k5*V3/5)/(q36*V3 - q35*V3)"]
+def _si_published(key: str) -> list[str]:
+    """SI.jl's published identifiable functions (with states) of that model (benchmarks/si_published.py, from
+    benchmarking/IdentifiableFunctions/results/<name>/result_(normalforms, 2)_with_states)."""
+    return _benchmark_module("si_published").PUBLISHED[key]
 
 
 @needs_engine
-@pytest.mark.parametrize("key, published", [("hiv2", HIV2_PUBLISHED), ("cgv1990", CGV1990_PUBLISHED)])
-def test_route_generators_complete_what_the_search_misses(key, published):
-    # the simple forms searched miss part of the field (generators with polynomial denominators); the route's own
-    # generators complete it, and the result generates the published field
+@pytest.mark.parametrize("key", ["hiv2", "cgv1990"])
+def test_route_generators_complete_what_the_search_misses(key):
+    # the simple forms searched miss part of the field (HIV2_io: two published generators have a non-monomial
+    # denominator or degree 4; CGV1990 likewise); the route's own generators complete it, and the result generates
+    # the published field
     from test_global import _same_field
 
     from nlobs.analysis import find_identifiable_functions
 
-    s = _si_benchmark_model(key)
+    s, published = _si_benchmark_model(key), _si_published(key)
     r = find_identifiable_functions(s, with_states=True, route="io", reparametrize_model=False)
     assert r.complete is True and all(r.local_checks)
     assert any("input-output coefficients" in n for n in r.notes)
     assert _same_field(list(r.functions), published, [*s.states, *s.params]), r.functions
+
+
+@needs_engine
+@pytest.mark.parametrize("key", ["pk1", "cd8", "cholera", "phos", "glv2"])
+def test_published_table_models_outside_benchmarks_jl(key):
+    # models of SI.jl's published identifiable-functions table that its benchmarks.jl lacks (transcribed from their
+    # 2023 files): PK1 has a published generator with a polynomial denominator, (k2*s2)/(k3*k2 + k3*k1); CD8 has
+    # P*rho_E, delta_NE*P, rho_P*P; the others are identifiable throughout
+    from test_global import _same_field
+
+    from nlobs.analysis import find_identifiable_functions
+
+    s, published = _si_benchmark_model(key), _si_published(key)
+    r = find_identifiable_functions(s, with_states=True, reparametrize_model=False)
+    assert r.complete is True and all(r.local_checks)
+    assert r.method.startswith("input-output")
+    assert _same_field(list(r.functions), published, [*s.states, *s.params, *s.inputs]), r.functions
+
