@@ -10,6 +10,8 @@ Method (everything over GF(p), on the system of the global check: the fibre of t
 where that route applies (``_io.py``; its tangent rows are the generators' differentials, and completeness is
 checked exactly: every generator lies in the field of the chosen functions), else SIAN's systems of ``_global.py``):
 
+0. *Every unknown globally identifiable* (the global check's verdict, computed first): the unknowns generate E
+   (each identifiable function is a function of them), and steps 1-6 are skipped.
 1. *Candidates.* Functions P/Q with P a polynomial of degree <= ``max_degree`` in the unknowns
    and Q = 1 or a single unknown.
 2. *Locally identifiable* candidates: the gradient of P/Q lies in the row space of the Jacobian of
@@ -810,10 +812,18 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
     else:
         search.known_point(nfs)
     single = [u for u in U if u in dec["globally"]]
-    chosen = _search_and_select(search, prep, eng, U, single, rng)
     io_complete = prep.io is not None  # the route's generators decide completeness, with or without the states
     complete: bool | None = None
-    if io_complete:
+    if U and len(single) == len(U):
+        # every unknown is globally identifiable: they generate every identifiable function (each is a function of
+        # them), so there is nothing to search (PK2: the search would double the time of the global check)
+        chosen: list[sp.Expr] = [symbol(u) for u in U]
+        complete, io_complete = True, True
+        notes.append("every unknown is globally identifiable: the unknowns themselves generate every identifiable "
+                     "function")
+    else:
+        chosen = _search_and_select(search, prep, eng, U, single, rng)
+    if io_complete and complete is None:
         chosen, complete, max_degree = _completed_on_the_route(prep, eng, search, chosen, U, single, rng, max_degree,
                                                                auto_degree, powers, notes, t0)
     texts = tuple(_text(f) for f in chosen)
