@@ -649,3 +649,28 @@ def test_published_table_models_outside_benchmarks_jl(key):
     assert any(n.startswith("every unknown is globally identifiable") for n in r.notes) is every
     assert (set(r.functions) == {*s.states, *s.params}) is every
 
+
+
+@needs_engine
+@pytest.mark.parametrize("route", ["io", "sian"])
+def test_unknowns_outside_the_output_are_set_aside_without_a_search(route):
+    # x2, x3, b and k never reach y: each is a local kernel direction of its own, so the globally identifiable x1, a, c
+    # generate everything (no search). With x2 feeding x1 through c the kernel direction mixes x2 and c, and the
+    # search must run: y'' + (a + b) y' + a b y = 0 with y(0) = x1, y'(0) = c x2 - a x1, so the field is
+    # Q(x1, a + b, a b, c x2 - a x1) (by hand; a and b only as a pair)
+    from test_global import _same_field
+
+    from nlobs import System
+    from nlobs.analysis import find_identifiable_functions
+
+    apart = System(states=["x1", "x2", "x3"], f=["-a*x1 + c*x1**2", "-b*x2 + x1", "k*x3"], outputs=["y"], h=["x1"],
+                   params={"a": 1.0, "b": 1.0, "c": 1.0, "k": 1.0})
+    r = find_identifiable_functions(apart, with_states=True, route=route, reparametrize_model=False)
+    assert r.complete is True and set(r.functions) == {"x1", "a", "c"}
+    assert any("(x2, x3, b, k) are not locally identifiable, each in a direction of its own" in n for n in r.notes)
+    fed = System(states=["x1", "x2"], f=["-a*x1 + c*x2", "-b*x2"], outputs=["y"], h=["x1"],
+                 params={"a": 1.0, "b": 1.0, "c": 1.0})
+    r = find_identifiable_functions(fed, with_states=True, route=route, reparametrize_model=False)
+    assert not any("direction of its own" in n for n in r.notes)
+    assert r.complete is True
+    assert _same_field(list(r.functions), ["x1", "a*b", "a + b", "c*x2 - a*x1"], ["x1", "x2", "a", "b", "c"]), r.functions

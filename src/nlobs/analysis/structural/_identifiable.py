@@ -10,8 +10,10 @@ Method (everything over GF(p), on the system of the global check: the fibre of t
 where that route applies (``_io.py``; its tangent rows are the generators' differentials, and completeness is
 checked exactly: every generator lies in the field of the chosen functions), else SIAN's systems of ``_global.py``):
 
-0. *Every unknown globally identifiable* (the global check's verdict, computed first): the unknowns generate E
-   (each identifiable function is a function of them), and steps 1-6 are skipped.
+0. *Nothing to search.* When every unknown is globally identifiable (the global check's verdict, computed first)
+   or not locally identifiable in a direction of its own (the local kernel is spanned by the axes of those
+   unknowns: its support has as many unknowns as its dimension, so the gradient of an identifiable function has no
+   component along them), the globally identifiable unknowns generate E, and steps 1-6 are skipped.
 1. *Candidates.* Functions P/Q with P a polynomial of degree <= ``max_degree`` in the unknowns
    and Q = 1 or a single unknown.
 2. *Locally identifiable* candidates: the gradient of P/Q lies in the row space of the Jacobian of
@@ -753,7 +755,7 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
     >>> find_identifiable_functions(two, with_states=False).functions   # doctest: +SKIP
     ('a01*a12', 'a01 + a12 + a21')
     """
-    from ._lie import local_analysis
+    from ._lie import function_checks
 
     t0 = time.perf_counter()
     eng = engine if isinstance(engine, GroebnerEngine) else get_engine(engine)
@@ -814,13 +816,19 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
     single = [u for u in U if u in dec["globally"]]
     io_complete = prep.io is not None  # the route's generators decide completeness, with or without the states
     complete: bool | None = None
-    if U and len(single) == len(U):
-        # every unknown is globally identifiable: they generate every identifiable function (each is a function of
-        # them), so there is nothing to search (PK2: the search would double the time of the global check)
-        chosen: list[sp.Expr] = [symbol(u) for u in U]
+    unseen = [u for u in U if u not in prep.local_ok]
+    if U and len(single) + len(unseen) == len(U) and len(prep.local_ok) == prep.local.rank:
+        # step 0 of the module docstring: the unknowns not locally identifiable each span a kernel direction of their
+        # own (the local kernel's support has as many unknowns as its dimension), so an identifiable function depends
+        # on none of them; every other unknown is globally identifiable, and they generate every identifiable
+        # function. Nothing to search (PK2: the search doubled the global check's time; NF-kB: 15 min of it)
+        chosen: list[sp.Expr] = [symbol(u) for u in single]
         complete, io_complete = True, True
         notes.append("every unknown is globally identifiable: the unknowns themselves generate every identifiable "
-                     "function")
+                     "function" if not unseen else
+                     f"the globally identifiable unknowns generate every identifiable function: the others "
+                     f"({', '.join(unseen)}) are not locally identifiable, each in a direction of its own (the local "
+                     "kernel is spanned by their axes), so no identifiable function depends on them")
     else:
         chosen = _search_and_select(search, prep, eng, U, single, rng)
     if io_complete and complete is None:
@@ -828,9 +836,8 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
                                                                auto_degree, powers, notes, t0)
     texts = tuple(_text(f) for f in chosen)
     # the local check of every generator in one local analysis (each is a gradient-in-row-space test)
-    checks = tuple(c.observable for c in local_analysis(system, functions=list(texts), symmetries=False,
-                                                        unknown_params=prep.local.unknown_params, inputs=inputs,
-                                                        seed=seed).functions) if texts else ()
+    checks = tuple(c.observable for c in function_checks(system, list(texts), unknown_params=prep.local.unknown_params,
+                                                         inputs=inputs, seed=seed)) if texts else ()
     if not all(checks):
         notes.append("a returned function failed the local check: " + ", ".join(t for t, c in zip(texts, checks) if not c))
     if with_states or io_complete:

@@ -390,9 +390,19 @@ def local_analysis(system: System, *, unknown_params: Any = (), inputs: Any = "g
         return _analyze(system, unknown_params, inputs, unknown_inputs, functions, at, symmetries, seed, regime)
 
 
+def function_checks(system: System, functions: Sequence[ExprLike], *, unknown_params: Any = (),
+                    inputs: Any = "generic", unknown_inputs: Mapping[str, int] | None = None,
+                    seed: int = 0) -> tuple[FunctionCheck, ...]:
+    """The local check of each of `functions` (as :func:`local_analysis` makes it), without the real-valued kernel
+    directions that only the report shows (most of the time of a small model's analysis)."""
+    with symbolic_budget(f"analyze {system.name!r}"):
+        return _analyze(system, unknown_params, inputs, unknown_inputs, functions, None, False, seed, None,
+                        directions=False).functions
+
+
 def _analyze(system: System, unknown_params: Any, inputs: Any, unknown_inputs: Mapping[str, int] | None,
              functions: Sequence[ExprLike], at: Mapping[str, float] | None, symmetries: bool, seed: int,
-             regime: Mapping[str, float] | None) -> ObservabilityReport:
+             regime: Mapping[str, float] | None, directions: bool = True) -> ObservabilityReport:
     t_start = time.perf_counter()
     rng = np.random.default_rng(seed)
     params_unknown = _unknown_params(system, unknown_params)
@@ -426,7 +436,10 @@ def _analyze(system: System, unknown_params: Any, inputs: Any, unknown_inputs: M
     kernel = res.ech.kernel()
     observable_unknowns = [name for j, name in enumerate(st.unknowns) if not np.any(kernel[:, j])]
     checks = tuple(FunctionCheck(text, res.ech.contains(row)) for (text, _), row in zip(funcs, res.function_rows))
-    directions, point, gap, notes = _float_kernel(st, system, res, rng, at)
+    if directions:
+        dirs, point, gap, notes = _float_kernel(st, system, res, rng, at)
+    else:
+        dirs, point, gap, notes = np.zeros((0, M)), np.zeros(0), float("inf"), []
     syms: tuple[Symmetry, ...] = ()
     searched = ""
     if symmetries:
@@ -449,7 +462,7 @@ def _analyze(system: System, unknown_params: Any, inputs: Any, unknown_inputs: M
         unknown_input_coefficients=st.unknowns[st.n + st.q:], inputs=input_desc, rank=res.rank, observable=res.rank == M,
         observable_states=tuple(s for s in system.states if s in observable_unknowns),
         identifiable_params=tuple(k for k in params_unknown if k in observable_unknowns),
-        unobservable_directions=directions, point=point, orders=tuple(orders), method=method, prime=res.prime,
+        unobservable_directions=dirs, point=point, orders=tuple(orders), method=method, prime=res.prime,
         error_probability=float(min(1.0, error)), symmetries=syms, symmetry_search=searched, functions=checks,
         notes=tuple(notes), seconds=time.perf_counter() - t_start, numerical_gap=gap,
         extra={"observable_unknowns": tuple(observable_unknowns), "degree_bound": _degree(res, M)},
@@ -484,5 +497,6 @@ def observable_function(system: System, expr: ExprLike, **options: Any) -> Funct
     -------
     FunctionCheck
     """
-    rep = local_analysis(system, functions=[expr], symmetries=False, **options)
-    return rep.functions[0]
+    if set(options) - {"unknown_params", "inputs", "unknown_inputs", "seed"}:
+        return local_analysis(system, functions=[expr], symmetries=False, **options).functions[0]
+    return function_checks(system, [expr], **options)[0]
