@@ -256,9 +256,10 @@ def test_identifiable_functions_io_equals_sian_and_published(name):
     if m.with_states:
         assert a.complete == b.complete
     else:  # without the states only the route checks completeness (its coefficients generate the parameters' field),
-        # except where every parameter is globally identifiable: the parameters themselves then generate it all
-        every = set(b.functions) == set(m.params)
-        assert b.complete is (True if every else None) and a.complete is True
+        # except where nothing is searched (step 0: the globally identifiable parameters generate it all)
+        step0 = any(n.startswith(("every unknown is globally identifiable", "the globally identifiable unknowns"))
+                    for n in b.notes)
+        assert b.complete is (True if step0 else None) and a.complete is True
     names = [*(m.states if m.with_states else ()), *m.params]
     assert _same_field(list(a.functions), list(b.functions), names), (a.functions, b.functions)
     assert _same_field(list(a.functions), list(m.ident), names), (a.functions, m.ident)
@@ -654,9 +655,9 @@ def test_published_table_models_outside_benchmarks_jl(key):
 @needs_engine
 @pytest.mark.parametrize("route", ["io", "sian"])
 def test_unknowns_outside_the_output_are_set_aside_without_a_search(route):
-    # x2, x3, b and k never reach y: each is a local kernel direction of its own, so the globally identifiable x1, a, c
-    # generate everything (no search). With x2 feeding x1 through c the kernel direction mixes x2 and c, and the
-    # search must run: y'' + (a + b) y' + a b y = 0 with y(0) = x1, y'(0) = c x2 - a x1, so the field is
+    # x2, x3, b and k never reach y: each axis is a local kernel direction by itself, so the globally identifiable
+    # x1, a, c generate everything (no search). With x2 feeding x1 through c the kernel direction mixes x2 and c,
+    # and the search must run: y'' + (a + b) y' + a b y = 0 with y(0) = x1, y'(0) = c x2 - a x1, so the field is
     # Q(x1, a + b, a b, c x2 - a x1) (by hand; a and b only as a pair)
     from test_global import _same_field
 
@@ -667,10 +668,29 @@ def test_unknowns_outside_the_output_are_set_aside_without_a_search(route):
                    params={"a": 1.0, "b": 1.0, "c": 1.0, "k": 1.0})
     r = find_identifiable_functions(apart, with_states=True, route=route, reparametrize_model=False)
     assert r.complete is True and set(r.functions) == {"x1", "a", "c"}
-    assert any("(x2, x3, b, k) are not locally identifiable, each in a direction of its own" in n for n in r.notes)
+    assert any("(x2, x3, b, k) are each a direction of the local kernel by themselves" in n for n in r.notes)
     fed = System(states=["x1", "x2"], f=["-a*x1 + c*x2", "-b*x2"], outputs=["y"], h=["x1"],
                  params={"a": 1.0, "b": 1.0, "c": 1.0})
     r = find_identifiable_functions(fed, with_states=True, route=route, reparametrize_model=False)
-    assert not any("direction of its own" in n for n in r.notes)
+    assert not any("direction of the local kernel" in n for n in r.notes)
     assert r.complete is True
     assert _same_field(list(r.functions), ["x1", "a*b", "a + b", "c*x2 - a*x1"], ["x1", "x2", "a", "b", "c"]), r.functions
+
+
+@needs_engine
+def test_unseen_unknowns_are_left_out_of_the_search():
+    # the fed model above plus a branch no output sees (z with its own rate e): z and e are set aside, the search runs
+    # on the rest and finds the same field Q(x1, a + b, a b, c x2 - a x1) (by hand, as above)
+    from test_global import _same_field
+
+    from nlobs import System
+    from nlobs.analysis import find_identifiable_functions
+
+    s = System(states=["x1", "x2", "z"], f=["-a*x1 + c*x2", "-b*x2", "x1 - e*z"], outputs=["y"], h=["x1"],
+               params={"a": 1.0, "b": 1.0, "c": 1.0, "e": 1.0})
+    for route in ("io", "sian"):
+        r = find_identifiable_functions(s, with_states=True, route=route, reparametrize_model=False)
+        assert any(n.startswith("z, e: each a direction of the local kernel by itself") for n in r.notes), r.notes
+        assert r.complete is True and all(r.local_checks)
+        assert _same_field(list(r.functions), ["x1", "a*b", "a + b", "c*x2 - a*x1"], ["x1", "x2", "z", "a", "b", "c", "e"])
+

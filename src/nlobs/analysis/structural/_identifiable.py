@@ -10,10 +10,10 @@ Method (everything over GF(p), on the system of the global check: the fibre of t
 where that route applies (``_io.py``; its tangent rows are the generators' differentials, and completeness is
 checked exactly: every generator lies in the field of the chosen functions), else SIAN's systems of ``_global.py``):
 
-0. *Nothing to search.* When every unknown is globally identifiable (the global check's verdict, computed first)
-   or not locally identifiable in a direction of its own (the local kernel is spanned by the axes of those
-   unknowns: its support has as many unknowns as its dimension, so the gradient of an identifiable function has no
-   component along them), the globally identifiable unknowns generate E, and steps 1-6 are skipped.
+0. *Unknowns set aside.* An unknown whose axis is itself a direction of the local kernel (no row of the output-jet
+   Jacobian involves it: a state no output sees, a parameter only such a state uses) is in no identifiable function
+   (its gradient would have to be orthogonal to that axis), and steps 1-6 leave it out. When every other unknown is
+   globally identifiable (the global check's verdict, computed first), those generate E and nothing is searched.
 1. *Candidates.* Functions P/Q with P a polynomial of degree <= ``max_degree`` in the unknowns
    and Q = 1 or a single unknown.
 2. *Locally identifiable* candidates: the gradient of P/Q lies in the row space of the Jacobian of
@@ -818,23 +818,31 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
     single = [u for u in U if u in dec["globally"]]
     io_complete = prep.io is not None  # the route's generators decide completeness, with or without the states
     complete: bool | None = None
-    unseen = [u for u in U if u not in prep.local_ok]
-    if U and len(single) + len(unseen) == len(U) and len(prep.local_ok) == prep.local.rank:
-        # step 0 of the module docstring: the unknowns not locally identifiable each span a kernel direction of their
-        # own (the local kernel's support has as many unknowns as its dimension), so an identifiable function depends
-        # on none of them; every other unknown is globally identifiable, and they generate every identifiable
-        # function. Nothing to search (PK2: the search doubled the global check's time; NF-kB: 15 min of it)
+    # unknowns whose axis is a direction of the local kernel: no identifiable function depends on them, and the search
+    # leaves them out (a state that no output sees, a parameter only it uses; NF-kB's x15)
+    unseen = [u for u in U if u in set(prep.local.extra.get("unseen_unknowns", ())) and u not in single]
+    rest = [u for u in U if u not in unseen]
+    if all(u in single for u in rest):
+        # step 0 of the module docstring: every other unknown is globally identifiable, and they generate every
+        # identifiable function. Nothing to search (PK2: the search doubled the global check's time; NF-kB: 15 min)
         chosen: list[sp.Expr] = [symbol(u) for u in single]
         complete, io_complete = True, True
         notes.append("every unknown is globally identifiable: the unknowns themselves generate every identifiable "
                      "function" if not unseen else
                      f"the globally identifiable unknowns generate every identifiable function: the others "
-                     f"({', '.join(unseen)}) are not locally identifiable, each in a direction of its own (the local "
-                     "kernel is spanned by their axes), so no identifiable function depends on them")
+                     f"({', '.join(unseen)}) are each a direction of the local kernel by themselves, so no "
+                     "identifiable function depends on them")
     else:
-        chosen = _search_and_select(search, prep, eng, U, single, rng)
+        if unseen:
+            notes.append(f"{', '.join(unseen)}: each a direction of the local kernel by itself, so in no identifiable "
+                         "function; the search leaves them out")
+            if auto_degree:
+                max_degree = 3 if len(rest) <= 8 else 2
+            powers = {u: k for u, k in powers.items() if u in rest}
+            search = _Search(prep, eng, rest, max_degree, powers=powers)
+        chosen = _search_and_select(search, prep, eng, rest, single, rng)
     if io_complete and complete is None:
-        chosen, complete, max_degree = _completed_on_the_route(prep, eng, search, chosen, U, single, rng, max_degree,
+        chosen, complete, max_degree = _completed_on_the_route(prep, eng, search, chosen, rest, single, rng, max_degree,
                                                                auto_degree, powers, notes, t0)
     texts = tuple(_text(f) for f in chosen)
     # the local check of every generator in one local analysis (each is a gradient-in-row-space test)

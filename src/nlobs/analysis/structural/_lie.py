@@ -435,6 +435,8 @@ def _analyze(system: System, unknown_params: Any, inputs: Any, unknown_inputs: M
             error = 0.0
     kernel = res.ech.kernel()
     observable_unknowns = [name for j, name in enumerate(st.unknowns) if not np.any(kernel[:, j])]
+    # unknowns whose axis is itself a kernel direction (no row involves them): no observable function depends on them
+    unseen_unknowns = [name for j, name in enumerate(st.unknowns) if not np.any(res.ech.basis[:, j])]
     checks = tuple(FunctionCheck(text, res.ech.contains(row)) for (text, _), row in zip(funcs, res.function_rows))
     if directions:
         dirs, point, gap, notes = _float_kernel(st, system, res, rng, at)
@@ -465,7 +467,8 @@ def _analyze(system: System, unknown_params: Any, inputs: Any, unknown_inputs: M
         unobservable_directions=dirs, point=point, orders=tuple(orders), method=method, prime=res.prime,
         error_probability=float(min(1.0, error)), symmetries=syms, symmetry_search=searched, functions=checks,
         notes=tuple(notes), seconds=time.perf_counter() - t_start, numerical_gap=gap,
-        extra={"observable_unknowns": tuple(observable_unknowns), "degree_bound": _degree(res, M)},
+        extra={"observable_unknowns": tuple(observable_unknowns), "unseen_unknowns": tuple(unseen_unknowns),
+               "degree_bound": _degree(res, M)},
     )
     return report
 
