@@ -836,8 +836,6 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
         if unseen:
             notes.append(f"{', '.join(unseen)}: each a direction of the local kernel by itself, so in no identifiable "
                          "function; the search leaves them out")
-            if auto_degree:
-                max_degree = 3 if len(rest) <= 8 else 2
             powers = {u: k for u, k in powers.items() if u in rest}
             search = _Search(prep, eng, rest, max_degree, powers=powers)
         chosen = _search_and_select(search, prep, eng, rest, single, rng)
