@@ -709,6 +709,29 @@ def _completed_on_the_route(prep: Any, eng: GroebnerEngine, search: _Search, cho
     return chosen, complete, max_degree
 
 
+def _set_aside(prep: Any, eng: GroebnerEngine, search: _Search, U: list[str], single: list[str], max_degree: int,
+               powers: dict, notes: list[str]) -> tuple[list[str], _Search, dict, list[sp.Expr] | None]:
+    """Step 0 of the module docstring. Unknowns whose axis is a direction of the local kernel (a state that no output
+    sees, a parameter only it uses; NF-kB's x15): no identifiable function depends on them, and the search leaves them
+    out. Returns (the unknowns searched, the search, the powers, the generators when nothing is left to search: every
+    other unknown globally identifiable; PK2: the search doubled the global check's time, NF-kB: 15 min of it)."""
+    unseen = [u for u in U if u in set(prep.local.extra.get("unseen_unknowns", ())) and u not in single]
+    rest = [u for u in U if u not in unseen]
+    if all(u in single for u in rest):
+        notes.append("every unknown is globally identifiable: the unknowns themselves generate every identifiable "
+                     "function" if not unseen else
+                     f"the globally identifiable unknowns generate every identifiable function: the others "
+                     f"({', '.join(unseen)}) are each a direction of the local kernel by themselves, so no "
+                     "identifiable function depends on them")
+        return rest, search, powers, [symbol(u) for u in single]
+    if unseen:
+        notes.append(f"{', '.join(unseen)}: each a direction of the local kernel by itself, so in no identifiable "
+                     "function; the search leaves them out")
+        powers = {u: k for u, k in powers.items() if u in rest}
+        search = _Search(prep, eng, rest, max_degree, powers=powers)
+    return rest, search, powers, None
+
+
 def find_identifiable_functions(system: System, *, unknown_params: Any = "all", inputs: Any = "generic",
                                 with_states: bool = True, max_degree: int | None = None, local: Any = None,
                                 engine: str | GroebnerEngine = "auto", seed: int = 0,
@@ -818,26 +841,10 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
     single = [u for u in U if u in dec["globally"]]
     io_complete = prep.io is not None  # the route's generators decide completeness, with or without the states
     complete: bool | None = None
-    # unknowns whose axis is a direction of the local kernel: no identifiable function depends on them, and the search
-    # leaves them out (a state that no output sees, a parameter only it uses; NF-kB's x15)
-    unseen = [u for u in U if u in set(prep.local.extra.get("unseen_unknowns", ())) and u not in single]
-    rest = [u for u in U if u not in unseen]
-    if all(u in single for u in rest):
-        # step 0 of the module docstring: every other unknown is globally identifiable, and they generate every
-        # identifiable function. Nothing to search (PK2: the search doubled the global check's time; NF-kB: 15 min)
-        chosen: list[sp.Expr] = [symbol(u) for u in single]
+    rest, search, powers, chosen = _set_aside(prep, eng, search, U, single, max_degree, powers, notes)
+    if chosen is not None:
         complete, io_complete = True, True
-        notes.append("every unknown is globally identifiable: the unknowns themselves generate every identifiable "
-                     "function" if not unseen else
-                     f"the globally identifiable unknowns generate every identifiable function: the others "
-                     f"({', '.join(unseen)}) are each a direction of the local kernel by themselves, so no "
-                     "identifiable function depends on them")
     else:
-        if unseen:
-            notes.append(f"{', '.join(unseen)}: each a direction of the local kernel by itself, so in no identifiable "
-                         "function; the search leaves them out")
-            powers = {u: k for u, k in powers.items() if u in rest}
-            search = _Search(prep, eng, rest, max_degree, powers=powers)
         chosen = _search_and_select(search, prep, eng, rest, single, rng)
     if io_complete and complete is None:
         chosen, complete, max_degree = _completed_on_the_route(prep, eng, search, chosen, rest, single, rng, max_degree,
