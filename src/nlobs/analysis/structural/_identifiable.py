@@ -715,7 +715,8 @@ def _set_aside(prep: Any, eng: GroebnerEngine, search: _Search, U: list[str], si
     sees, a parameter only it uses; NF-kB's x15): no identifiable function depends on them, and the search leaves them
     out. Returns (the unknowns searched, the search, the powers, the generators when nothing is left to search: every
     other unknown globally identifiable; PK2: the search doubled the global check's time, NF-kB: 15 min of it)."""
-    unseen = [u for u in U if u in set(prep.local.extra.get("unseen_unknowns", ())) and u not in single]
+    axes = set(prep.local.extra.get("unseen_unknowns", ()))
+    unseen = [u for u in U if u in axes and u not in single]
     rest = [u for u in U if u not in unseen]
     if all(u in single for u in rest):
         notes.append("every unknown is globally identifiable: the unknowns themselves generate every identifiable "

@@ -392,11 +392,13 @@ def local_analysis(system: System, *, unknown_params: Any = (), inputs: Any = "g
 
 def function_checks(system: System, functions: Sequence[ExprLike], *, unknown_params: Any = (),
                     inputs: Any = "generic", unknown_inputs: Mapping[str, int] | None = None,
-                    seed: int = 0) -> tuple[FunctionCheck, ...]:
+                    at: Mapping[str, float] | None = None, seed: int = 0,
+                    regime: Mapping[str, float] | None = None) -> tuple[FunctionCheck, ...]:
     """The local check of each of `functions` (as :func:`local_analysis` makes it), without the real-valued kernel
-    directions that only the report shows (most of the time of a small model's analysis)."""
+    directions that only the report shows (most of the time of a small model's analysis); `at` is accepted as there
+    and checked, but only those directions use it."""
     with symbolic_budget(f"analyze {system.name!r}"):
-        return _analyze(system, unknown_params, inputs, unknown_inputs, functions, None, False, seed, None,
+        return _analyze(system, unknown_params, inputs, unknown_inputs, functions, at, False, seed, regime,
                         directions=False).functions
 
 
@@ -500,6 +502,4 @@ def observable_function(system: System, expr: ExprLike, **options: Any) -> Funct
     -------
     FunctionCheck
     """
-    if set(options) - {"unknown_params", "inputs", "unknown_inputs", "seed"}:
-        return local_analysis(system, functions=[expr], symmetries=False, **options).functions[0]
     return function_checks(system, [expr], **options)[0]
