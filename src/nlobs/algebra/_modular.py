@@ -110,7 +110,7 @@ def _matvec_mod(c: np.ndarray, B: np.ndarray, p: int) -> np.ndarray:
     return out
 
 
-def _matmul_mod(C: np.ndarray, B: np.ndarray, p: int) -> np.ndarray:
+def matmul_mod(C: np.ndarray, B: np.ndarray, p: int) -> np.ndarray:
     """(C @ B) mod p for reduced C (m x r) and B (r x n), in chunks of the inner dimension that cannot overflow int64."""
     out = np.zeros((C.shape[0], B.shape[1]), dtype=np.int64)
     for i in range(0, C.shape[1], MAX_TERMS):
@@ -173,7 +173,7 @@ class RowEchelon:
         C = V[:, self.pivots]
         if not C.any():
             return V
-        return (V - _matmul_mod(C, self.basis, p)) % p
+        return (V - matmul_mod(C, self.basis, p)) % p
 
     def add(self, row: np.ndarray) -> bool:
         """Add `row`; return True if it increased the rank."""
@@ -235,7 +235,7 @@ class RowEchelon:
             B = self._B[:r]
             C = B[:, piv]
             if C.any():
-                B[:] = (B - _matmul_mod(C, W, p)) % p
+                B[:] = (B - matmul_mod(C, W, p)) % p
         if r + rank > self._B.shape[0]:
             grown = np.zeros((min(n, max(2 * self._B.shape[0], r + rank)), n), dtype=np.int64)
             grown[:r] = self._B[:r]

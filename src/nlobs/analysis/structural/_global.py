@@ -1014,12 +1014,14 @@ class _Prepared:
 
 
 def _local_of(system: System, unknown_params: Any, inputs: Any, unknown_inputs: Mapping[str, int] | None,
-              functions: Sequence[ExprLike], seed: int) -> Any:
-    """The local analysis both routes start from (as :func:`_prepare` computes it)."""
+              functions: Sequence[ExprLike], seed: int, directions: bool = True) -> Any:
+    """The local analysis both routes start from (as :func:`_prepare` computes it); `directions` False leaves out the
+    real-valued kernel directions (only a report shows them)."""
     from ._lie import local_analysis as analyze
 
     params_unknown, ui, _, _ = _question(system, unknown_params, inputs, unknown_inputs, functions)
-    return analyze(system, unknown_params=params_unknown, inputs=inputs, unknown_inputs=ui, symmetries=False, seed=seed)
+    return analyze(system, unknown_params=params_unknown, inputs=inputs, unknown_inputs=ui, symmetries=False, seed=seed,
+                   directions=directions)
 
 
 def _question(system: System, unknown_params: Any, inputs: Any, unknown_inputs: Mapping[str, int] | None,

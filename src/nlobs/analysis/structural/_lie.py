@@ -381,13 +381,15 @@ def _regime_evaluator(system: System, regime: Mapping[str, float] | None,
 def local_analysis(system: System, *, unknown_params: Any = (), inputs: Any = "generic",
                    unknown_inputs: Mapping[str, int] | None = None, functions: Sequence[ExprLike] = (),
                    at: Mapping[str, float] | None = None, symmetries: bool = True, seed: int = 0,
-                   regime: Mapping[str, float] | None = None) -> ObservabilityReport:
+                   regime: Mapping[str, float] | None = None, directions: bool = True) -> ObservabilityReport:
     """The local route of :func:`nlobs.analyze` (generic rank of the output jets; see its documentation for the
-    arguments): what the global routes build on, without their parts."""
+    arguments): what the global routes build on, without their parts. `directions` False leaves out the real-valued
+    kernel directions (``unobservable_directions`` then has no rows; the global routes do not use them)."""
     if not isinstance(system, System):
         raise ModelError(f"analyze: `system` must be an nlobs.System, got {type(system).__name__}")
     with symbolic_budget(f"analyze {system.name!r}"):
-        return _analyze(system, unknown_params, inputs, unknown_inputs, functions, at, symmetries, seed, regime)
+        return _analyze(system, unknown_params, inputs, unknown_inputs, functions, at, symmetries, seed, regime,
+                        directions=directions)
 
 
 def function_checks(system: System, functions: Sequence[ExprLike], *, unknown_params: Any = (),

@@ -1,0 +1,148 @@
+"""The search for identifiable functions (nlobs.analysis.structural._identifiable), piece by piece.
+
+Reference values are derived by hand in each test: the modified Lotka-Volterra model of StructuralIdentifiability.jl's
+benchmarks (x1' = (a + b) x1 - c x1 x2, x2' = -a b x2 + d x1 x2, y = x1) has the symmetries a <-> b and
+(c, x2) -> (k c, x2 / k), and nothing else: its field is Q(x1, d, a + b, a b, c x2), of transcendence degree 5 of 6
+unknowns; the functions of the parameters alone are Q(d, a + b, a b), of degree 3.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from test_global import ENGINE, _same_field, needs_engine
+
+from nlobs import System
+from nlobs.algebra._groebner import get_engine
+from nlobs.analysis.structural import _identifiable as I
+from nlobs.analysis.structural._global import _prepare, _prepare_io
+
+LV_FIELD = ["x1", "d", "a + b", "a*b", "c*x2"]
+P = 2_147_483_647  # 2^31 - 1, a prime msolve accepts
+
+
+def _lv() -> System:
+    return System(states=["x1", "x2"], f=["(a + b)*x1 - c*x1*x2", "-a*b*x2 + d*x1*x2"], outputs=["y"], h=["x1"],
+                  params={"a": 1.0, "b": 2.0, "c": 3.0, "d": 4.0}, name="LV")
+
+
+@needs_engine
+def test_select_keeps_an_algebraic_candidate_that_is_not_a_rational_function():
+    # a + b and a b are algebraically independent; a - b is algebraic over Q(a + b, a b) (a root of
+    # z^2 - (a + b)^2 + 4 a b) but not in it (it is not symmetric), so it is kept; a^2 + b^2 = (a + b)^2 - 2 a b and
+    # (a - b)^2 are in Q(a + b, a b), and a = ((a + b) + (a - b)) / 2 is in Q(a + b, a b, a - b): all three dropped.
+    # The gradients decide a + b and a b without the engine; the four algebraic ones take two runs (a - b is found
+    # outside, then the last three inside), where testing one candidate at a time took four
+    eng = get_engine(ENGINE)
+    cands = [_sym(t) for t in ["a + b", "a*b", "a - b", "a**2 + b**2", "(a - b)**2", "a"]]
+    got = I._select(cands, ["a", "b"], eng, P, np.random.default_rng(1))
+    assert [str(g) for g in got] == ["a + b", "a*b", "a - b"]
+    assert eng.calls == 2
+
+
+@needs_engine
+def test_select_from_kept_functions():
+    # c is kept already; c**2 + a is independent of it, a is then a function of the two: one engine run, one kept
+    eng = get_engine(ENGINE)
+    got = I._select([_sym("c**2 + a"), _sym("a"), _sym("a*c")], ["a", "c"], eng, P,
+                    np.random.default_rng(2), kept=[_sym("c")])
+    assert [str(g) for g in got] == ["c", "a + c**2"]
+    assert eng.calls == 1
+
+
+def _sym(text: str):
+    import sympy as sp
+
+    from nlobs.model import symbol
+
+    return sp.sympify(text, locals={n: symbol(n) for n in ("a", "b", "c")})
+
+
+@needs_engine
+def test_field_rank_on_both_routes_with_and_without_the_states():
+    eng = get_engine(ENGINE)
+    lv = _lv()
+    for prep in (_prepare_io(lv, unknown_params="all", seed=0, eng=eng), _prepare(lv, unknown_params="all", seed=0)):
+        assert I._Search(prep, eng, list(prep.unknown_names), 2).field_rank() == 5
+        # the parameters alone: the state columns are outside U, and only d, a + b, a b remain
+        assert I._Search(prep, eng, ["a", "b", "c", "d"], 2).field_rank() == 3
+
+
+@needs_engine
+def test_lv_searches_without_the_globally_identifiable_unknowns():
+    # x1 and d are globally identifiable: the first search leaves them out of the monomials, finds a + b, a b, c x2,
+    # and its completeness check passes, so the search over every monomial never runs. Engine runs: 19 before (the
+    # full search, one membership test per kept candidate, two verification points)
+    eng = get_engine(ENGINE)
+    r = I.find_identifiable_functions(_lv(), engine=eng, route="io", reparametrize_model=False)
+    assert r.complete is True and all(r.local_checks)
+    assert _same_field(list(r.functions), LV_FIELD, ["x1", "x2", "a", "b", "c", "d"]), r.functions
+    assert eng.calls <= 11, eng.calls
+
+
+@needs_engine
+def test_a_generator_that_needs_a_globally_identifiable_unknown(monkeypatch):
+    # y'' + (a + b) y' + a b y = 0 with y(0) = x1, y'(0) = c x2 - a x1: the field is Q(x1, a + b, a b, c x2 - a x1)
+    # (by hand). x1 is globally identifiable, but no function free of x1 completes the field: c x2 is locally
+    # identifiable (a is, up to the swap with b) but not globally, so the first search reaches the transcendence
+    # degree after its local points (x1, a + b, a b, c x2) and falls short after its global ones; the search over
+    # every monomial then finds c x2 - a x1
+    fed = System(states=["x1", "x2"], f=["-a*x1 + c*x2", "-b*x2"], outputs=["y"], h=["x1"],
+                 params={"a": 1.0, "b": 1.0, "c": 1.0})
+    seen, searches = [], []
+    without, search = I._Search.without, I._search_and_select
+
+    def spy(self, names):
+        seen.append(tuple(names))
+        return without(self, names)
+
+    def count(*args, **kw):
+        searches.append(args[0])
+        return search(*args, **kw)
+
+    monkeypatch.setattr(I._Search, "without", spy)
+    monkeypatch.setattr(I, "_search_and_select", count)
+    r = I.find_identifiable_functions(fed, engine=ENGINE, route="io", reparametrize_model=False)
+    assert seen == [("x1",)] and len(searches) == 2
+    assert r.complete is True
+    assert _same_field(list(r.functions), ["x1", "a*b", "a + b", "c*x2 - a*x1"], ["x1", "x2", "a", "b", "c"])
+
+
+@needs_engine
+def test_candidates_of_points_that_ran_out_are_verified(monkeypatch):
+    # with two global points per denominator the LV search cannot cut its locally identifiable candidates down to the
+    # globally identifiable ones (a and b are each locally identifiable, not globally): those denominators are
+    # marked, their candidates go through the fresh-point check, and the result is still the field of LV
+    eng = get_engine(ENGINE)
+    prep = _prepare_io(_lv(), unknown_params="all", seed=0, eng=eng)
+    s = I._Search(prep, eng, list(prep.unknown_names), 3)
+    q1 = tuple(0 for _ in s.U)
+    k2 = s.solve(q1, max_points=2)
+    assert q1 in s.unconverged
+    assert k2.shape[0] > s.solve(q1).shape[0]  # the full run cuts further
+    orig = I._Search.solve
+    monkeypatch.setattr(I._Search, "solve", lambda self, Q, max_points=12: orig(self, Q, max_points=2))
+    r = I.find_identifiable_functions(_lv(), engine=ENGINE, route="io", reparametrize_model=False)
+    assert r.complete is True and all(r.local_checks)
+    assert _same_field(list(r.functions), LV_FIELD, ["x1", "x2", "a", "b", "c", "d"]), r.functions
+
+
+@needs_engine
+def test_the_first_search_stops_after_its_local_points(monkeypatch):
+    # HIV (StructuralIdentifiability.jl's benchmarks): the functions free of its globally identifiable unknowns are
+    # short of the transcendence degree already among the locally identifiable ones, so the first search ends before
+    # any global point, and the full search finds the published field
+    from test_io_route import _si_benchmark_model, _si_published
+
+    s = _si_benchmark_model("hiv")
+    searches = []
+    search = I._search_and_select
+
+    def count(*args, **kw):
+        searches.append(args[0])
+        return search(*args, **kw)
+
+    monkeypatch.setattr(I, "_search_and_select", count)
+    r = I.find_identifiable_functions(s, engine=ENGINE, route="io", reparametrize_model=False)
+    assert searches and not any(x._parent for x in searches)  # the full searches only (degree 2, then 3)
+    assert r.complete is True and all(r.local_checks)
+    assert _same_field(list(r.functions), _si_published("hiv"), [*s.states, *s.params]), r.functions
