@@ -51,9 +51,10 @@ def test_row_echelon_rank_and_kernel_match_an_independent_gf_p_computation(seed)
 def test_row_echelon_add_many_is_add_row_by_row(seed):
     # the identifiable-function search adds its constraints in blocks (issue 23): same pivots, same basis, same
     # kernel as one row at a time, with rows already in the space, zero rows, and a full rank reached midway;
-    # blocks of FLINT_BATCH rows or more go to FLINT's rref (the same rows, in pivot order)
+    # blocks of FLINT_BATCH rows or more, in FLINT_COLUMNS columns or more, go to FLINT's rref (the same rows, in pivot
+    # order)
     rng = np.random.default_rng(seed)
-    n = int(rng.integers(3, 14)) if seed < 5 else int(rng.integers(30, 60))
+    n = int(rng.integers(3, 14)) if seed < 5 else int(rng.integers(48, 80))  # FLINT from 48 columns (FLINT_COLUMNS)
     r = int(rng.integers(1, n + 1))
     rows = (rng.integers(0, 4, size=(int(rng.integers(1, 30 if seed < 5 else 90)), r))
             @ rng.integers(0, 4, size=(r, n))) % P

@@ -146,3 +146,43 @@ def test_the_first_search_stops_after_its_local_points(monkeypatch):
     assert searches and not any(x._parent for x in searches)  # the full searches only (degree 2, then 3)
     assert r.complete is True and all(r.local_checks)
     assert _same_field(list(r.functions), _si_published("hiv"), [*s.states, *s.params]), r.functions
+
+
+@needs_engine
+def test_local_rows_are_the_reduced_quotient_rule():
+    # the constraints at a local point are the gradients of P/Q (numerator of the quotient rule, Q grad m - m grad Q
+    # for each monomial m) reduced modulo the tangent rows; the search computes them from the monomials' reduced
+    # gradients shared by every Q. Here directly, one Q at a time
+    from nlobs.algebra._modular import monomial_value
+
+    eng = get_engine(ENGINE)
+    for prep in (_prepare_io(_lv(), unknown_params="all", seed=0, eng=eng), _prepare(_lv(), unknown_params="all", seed=0)):
+        s = I._Search(prep, eng, list(prep.unknown_names), 2)
+        for i in range(3):
+            ech, uvals, ucol, n, _, _ = s._local_point(i)
+            for Q in I._denominators(s.U, []):
+                p = s.p
+                G = np.zeros((len(s.monos), n), dtype=object)
+                for r, m in enumerate(s.monos):
+                    for c, u in enumerate(ucol):
+                        dm = m[c] * monomial_value([e - (j == c) for j, e in enumerate(m)], uvals, p) if m[c] else 0
+                        dq = Q[c] * monomial_value([e - (j == c) for j, e in enumerate(Q)], uvals, p) if Q[c] else 0
+                        G[r, u] = (monomial_value(Q, uvals, p) * dm - monomial_value(m, uvals, p) * dq) % p
+                R = ech.reduce_many(np.array(G, dtype=np.int64)).T
+                want = R[R.any(axis=1)]
+                got = np.array(s.local_rows(Q, i)).reshape(-1, len(s.monos))
+                assert np.array_equal(got, want)
+
+
+def test_widened_echelon_keeps_its_rows():
+    from nlobs.algebra._modular import RowEchelon
+
+    rng = np.random.default_rng(3)
+    ech = RowEchelon(6, P)
+    ech.add_many(rng.integers(0, P, size=(4, 6)))
+    w = ech.widened(3)
+    assert w.ncols == 9 and w.pivots == ech.pivots
+    assert np.array_equal(w.basis[:, :6], ech.basis) and not w.basis[:, 6:].any()
+    v = rng.integers(0, P, size=9)
+    assert w.add(v) and w.rank == 5  # still a working echelon form
+    assert w.contains(v)

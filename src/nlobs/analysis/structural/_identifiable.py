@@ -197,10 +197,12 @@ class _Search:
         #: shared with the searches made by :meth:`without`
         self._tangents: list[tuple[RowEchelon, list[int], list[int], int]] = []
         self._local: list[tuple[np.ndarray, np.ndarray]] = []
+        self._reduced: list[tuple[list[int], np.ndarray]] = []
         self._local_ech: dict[tuple[int, ...], RowEchelon] = {}
         #: the denominators whose global points ran out (``max_points``) before a point cut nothing
         self.unconverged: set[tuple[int, ...]] = set()
         self._global: list[list[Poly]] = []
+        self._nf_matrices: list[np.ndarray] = []
         #: exact numerator and denominator terms of every candidate returned by :meth:`functions` (as _qq_terms)
         self.exact: dict[sp.Expr, tuple] = {}
         self._args = (max_degree, top, powers)
@@ -244,12 +246,26 @@ class _Search:
         the jet Jacobian (zero iff P/Q is locally identifiable to first order there)."""
         p = self.p
         ech, uvals, ucol, n, mv, mg = self._local_point(i)
+        free, RM = self._reduced_gradients(i)
         qv = _mono_value(Q, uvals, p)
-        qg = np.array(_mono_grad(Q, uvals, p), dtype=np.int64)
-        G = np.zeros((len(self.monos), n), dtype=np.int64)
-        G[:, ucol] = (qv * mg % p - (mv[:, None] * qg[None, :]) % p) % p  # quotient rule, numerator
-        R = ech.reduce_many(G).T  # rows: coordinates, columns: candidates
+        G = np.zeros(n, dtype=np.int64)
+        G[ucol] = _mono_grad(Q, uvals, p)
+        rq = ech.reduce(G)[free]
+        # the quotient rule's numerator Q grad P - P grad Q, reduced (reduction is linear: the monomials' reduced
+        # gradients are shared by every Q at this point); rows: coordinates, columns: candidates
+        R = ((qv * RM % p - (mv[:, None] * rq[None, :]) % p) % p).T
         return list(R[R.any(axis=1)])
+
+    def _reduced_gradients(self, i: int) -> tuple[list[int], np.ndarray]:
+        """At local point `i`: the columns outside the pivots of the jet Jacobian's echelon form, and there the
+        gradients of the candidate monomials reduced modulo its rows (k x that many)."""
+        while len(self._reduced) <= i:
+            ech, _, ucol, n, _, mg = self._local_point(len(self._reduced))
+            free = [j for j in range(n) if j not in set(ech.pivots)]
+            G = np.zeros((len(self.monos), n), dtype=np.int64)
+            G[:, ucol] = mg
+            self._reduced.append((free, ech.reduce_many(G)[:, free]))
+        return self._reduced[i]
 
     # -- global rows ----------------------------------------------------------------------------
     def mono_polys(self, hs: _System) -> list[Poly]:
@@ -284,19 +300,43 @@ class _Search:
             self._global.append(self.eng.normal_forms(hs.names, self.p, hs.F, self.mono_polys(hs)))
         return self._global[j]
 
+    def nf_matrix(self, j: int) -> np.ndarray:
+        """The normal forms at global point `j` as a matrix: one row per monomial of their support, one column per
+        candidate monomial (shared by every Q)."""
+        while len(self._nf_matrices) <= j:
+            nfm = self.nf_monos(len(self._nf_matrices))
+            support: dict[tuple[int, ...], int] = {}
+            for g in nfm:
+                for m in g:
+                    support.setdefault(m, len(support))
+            A = np.zeros((len(support), len(nfm)), dtype=np.int64)
+            for ci, g in enumerate(nfm):
+                for m, c in g.items():
+                    A[support[m], ci] = c % self.p
+            self._nf_matrices.append(A)
+        return self._nf_matrices[j]
+
     def local_space(self, Q: tuple[int, ...]) -> RowEchelon:
         """Step 2: the local constraints on the coefficients of P (echelon form over them), at local points until the
-        space stops shrinking (twice in a row); cached by Q."""
+        space stops shrinking (twice in a row); cached by Q.
+
+        A point gives as many constraints as the local kernel has dimensions (often one), so some k / that many
+        points are needed: their rows are eliminated together (FLINT), then points are added one at a time until
+        two in a row cut nothing."""
         if Q not in self._local_ech:
             k = len(self.monos)
             ech = RowEchelon(k, self.p)
-            dims = []
-            for i in range(k + 3):
-                rows = self.local_rows(Q, i)
-                if rows:
-                    ech.add_many(np.array(rows, dtype=np.int64))
-                dims.append(k - ech.rank)
-                if len(dims) >= 3 and dims[-1] == dims[-2] == dims[-3]:
+            rows = self.local_rows(Q, 0)
+            first = max(1, -(-k // max(1, len(rows))))  # ceil(k / rows per point)
+            for i in range(1, min(first, k + 3)):
+                rows += self.local_rows(Q, i)
+            if rows:
+                ech.add_many(np.array(rows, dtype=np.int64))
+            still = 0
+            for i in range(first, k + 3):
+                more = self.local_rows(Q, i)
+                still = 0 if more and ech.add_many(np.array(more, dtype=np.int64)) else still + 1
+                if still == 2:
                     break
             self._local_ech[Q] = ech
         return self._local_ech[Q]
@@ -320,26 +360,16 @@ class _Search:
         """
         p, k = self.p, len(self.monos)
         width = k + max_points
-        ech = RowEchelon(width, p)
         local = self.local_space(Q)
-        if local.rank:
-            ech.add_many(np.concatenate([local.basis, np.zeros((local.rank, max_points), dtype=np.int64)], axis=1))
+        ech = local.widened(max_points)
         prev = [k - local.rank]
         Kc = np.zeros((0, k), dtype=np.int64)
         qi = self.mono_index[Q]
         for j in range(max_points):
-            nfm = self.nf_monos(j)
-            nfq = nfm[qi]
-            support: dict[tuple[int, ...], int] = {}
-            for g in nfm:
-                for m in g:
-                    support.setdefault(m, len(support))
-            M = np.zeros((len(support), width), dtype=np.int64)
-            for ci, g in enumerate(nfm):
-                for m, c in g.items():
-                    M[support[m], ci] = c % p
-            for m, c in nfq.items():
-                M[support[m], k + j] = (-c) % p
+            A = self.nf_matrix(j)
+            M = np.zeros((A.shape[0], width), dtype=np.int64)
+            M[:, :k] = A
+            M[:, k + j] = (-A[:, qi]) % p
             ech.add_many(M[M.any(axis=1)])
             # the dimension of the candidates' space, the projection of the kernel on the first k coordinates: the
             # kernel's dimension minus that of its part with P = 0 (the λ with A[:, k:] λ = 0, A the constraints;
@@ -813,7 +843,9 @@ def _route_generators(prep: Any, U: list[str], single: Sequence[str] = ()) -> li
         if f.is_number:
             continue
         out.append((len(a) + len(b), f, tuple(parts)))
-    out.sort(key=lambda t: (t[0], str(t[1])))
+    # fewest terms first, then lowest degree; ties in a fixed order of the exact terms (printing hundreds of large
+    # expressions to sort them by their text took most of this function's time, CGV1990)
+    out.sort(key=lambda t: (t[0], max(sum(e) for part in t[2] for e, _, _ in part), t[2]))
     return out
 
 
