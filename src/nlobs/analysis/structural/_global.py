@@ -1014,14 +1014,14 @@ class _Prepared:
 
 
 def _local_of(system: System, unknown_params: Any, inputs: Any, unknown_inputs: Mapping[str, int] | None,
-              functions: Sequence[ExprLike], seed: int, directions: bool = True) -> Any:
-    """The local analysis both routes start from (as :func:`_prepare` computes it); `directions` False leaves out the
-    real-valued kernel directions (only a report shows them)."""
+              functions: Sequence[ExprLike], seed: int) -> Any:
+    """The local analysis both routes start from (as :func:`_prepare` computes it), without the real-valued kernel
+    directions (only a report shows them; most of a small model's local analysis)."""
     from ._lie import local_analysis as analyze
 
     params_unknown, ui, _, _ = _question(system, unknown_params, inputs, unknown_inputs, functions)
     return analyze(system, unknown_params=params_unknown, inputs=inputs, unknown_inputs=ui, symmetries=False, seed=seed,
-                   directions=directions)
+                   directions=False)
 
 
 def _question(system: System, unknown_params: Any, inputs: Any, unknown_inputs: Mapping[str, int] | None,
@@ -1063,11 +1063,11 @@ def _prepare(system: System, *, unknown_params: Any = (), inputs: Any = "generic
             raise
         if local is None:
             local = analyze(system, unknown_params=params_unknown, inputs=inputs, unknown_inputs=ui, symmetries=False,
-                            seed=seed)
+                            seed=seed, directions=False)
         return _prepare_rewritten(system, rw, params_unknown, classes, ui, funcs, local, seed)
     if local is None:
         local = analyze(system, unknown_params=params_unknown, inputs=inputs, unknown_inputs=ui, symmetries=False,
-                        seed=seed)
+                        seed=seed, directions=False)
     rng = np.random.default_rng([seed, 12])
     local_ok = set(local.extra.get("observable_unknowns", (*local.observable_states, *local.identifiable_params)))
     unknown_names = [*rm.state_names, *rm.param_names]
@@ -1113,7 +1113,7 @@ def _prepare_io(system: System, *, unknown_params: Any = (), inputs: Any = "gene
         raise NotApplicable("an input is not generic (a constant or a polynomial in t)")
     if local is None:
         local = analyze(system, unknown_params=params_unknown, inputs=inputs, unknown_inputs=ui, symmetries=False,
-                        seed=seed)
+                        seed=seed, directions=False)
     rng = np.random.default_rng([seed, 23])
     gens = generators(rm.params, rm.states, [u for u, _ in rm.inputs], rm.f, rm.h, rng, eng)
     p = random_prime(rng, interval=_PRIME_RANGE, three_mod_four=False)

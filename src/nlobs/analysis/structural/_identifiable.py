@@ -983,7 +983,7 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
                                   max_degree=max_degree, local=local, engine=engine, seed=seed,
                                   reparametrize_model=reparametrize_model))
     if local is None:  # the real-valued kernel directions are not used here
-        local = _local_of(system, unknown_params, inputs, None, (), seed, directions=False)
+        local = _local_of(system, unknown_params, inputs, None, (), seed)
     try:
         if route != "sian":
             try:
@@ -1073,7 +1073,7 @@ def _race(system: System, kw: dict[str, Any]) -> IdentifiableFunctions:
     from ._global import race_routes
 
     if kw["local"] is None:
-        kw["local"] = _local_of(system, kw["unknown_params"], kw["inputs"], None, (), kw["seed"], directions=False)
+        kw["local"] = _local_of(system, kw["unknown_params"], kw["inputs"], None, (), kw["seed"])
     return race_routes(find_identifiable_functions, system, kw, lambda r: not r.refused, "on SIAN's system")
 
 
