@@ -198,3 +198,19 @@ class TestOptionsAndErrors:
         assert out["observable"] is True and out["identifiable_params"] == ["b"]
         assert main(["analyze", str(MODELS / "pendulum.toml"), "--params", "zz"]) == 1
         assert "not a parameter" in capsys.readouterr().err
+
+
+def test_local_analysis_without_directions_has_the_same_verdicts():
+    # the global routes ask for no real-valued kernel directions (directions=False): the same ranks, observable
+    # unknowns and unseen unknowns, and no direction rows. LV with x2 scaled against c: one direction (by hand)
+    from nlobs.analysis.structural._lie import local_analysis
+
+    lv = System(states=["x1", "x2"], f=["(a + b)*x1 - c*x1*x2", "-a*b*x2 + d*x1*x2"], outputs=["y"], h=["x1"],
+                params={"a": 1.0, "b": 2.0, "c": 3.0, "d": 4.0})
+    full = local_analysis(lv, unknown_params="all", symmetries=False)
+    bare = local_analysis(lv, unknown_params="all", symmetries=False, directions=False)
+    assert full.rank == bare.rank == 5
+    assert full.observable_states == bare.observable_states == ("x1",)
+    assert full.identifiable_params == bare.identifiable_params == ("a", "b", "d")
+    assert full.extra.get("unseen_unknowns") == bare.extra.get("unseen_unknowns")
+    assert full.unobservable_directions.shape == (1, 6) and bare.unobservable_directions.shape[0] == 0
