@@ -186,3 +186,20 @@ def test_widened_echelon_keeps_its_rows():
     v = rng.integers(0, P, size=9)
     assert w.add(v) and w.rank == 5  # still a working echelon form
     assert w.contains(v)
+
+
+def test_a_model_file_instead_of_a_system_is_named():
+    import pytest
+
+    from nlobs.analysis import global_identifiability
+    from nlobs.errors import ModelError
+    from nlobs import load_model
+
+    mf = load_model("dc_motor")  # a model of the library, as a parsed file
+    for call, name in ((I.find_identifiable_functions, "find_identifiable_functions"),
+                       (global_identifiability, "global_identifiability")):
+        with pytest.raises(ModelError, match=rf"{name}: `system` must be an nlobs.System, got ModelFile "
+                                             r"\(a parsed model file: pass its \.system\)"):
+            call(mf)
+    with pytest.raises(ModelError, match=r"got str \(a model file's name\? load it with nlobs.load_model"):
+        I.find_identifiable_functions("lv.toml")

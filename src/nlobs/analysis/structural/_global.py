@@ -1027,10 +1027,9 @@ def _local_of(system: System, unknown_params: Any, inputs: Any, unknown_inputs: 
 def _question(system: System, unknown_params: Any, inputs: Any, unknown_inputs: Mapping[str, int] | None,
               functions: Sequence[ExprLike]) -> tuple[list[str], dict[str, int], Mapping[str, Any], list]:
     """The question both routes answer, checked: unknown parameters, unknown inputs, input classes, functions."""
-    from ._inputs import _input_classes, _parse_functions, _unknown_params
+    from ._inputs import _input_classes, _parse_functions, _unknown_params, require_system
 
-    if not isinstance(system, System):
-        raise ModelError(f"global_identifiability: `system` must be an nlobs.System, got {type(system).__name__}")
+    require_system(system, "global_identifiability")
     params_unknown = _unknown_params(system, unknown_params)
     ui = dict(unknown_inputs or {})
     bad = [k for k in ui if k not in system.inputs]

@@ -68,6 +68,7 @@ from ...algebra._modular import monomial_values as _mono_values
 from ...algebra._modular import ratrec as _ratrec
 from ._global import IO_METHOD, NO_ENGINE, SIAN_METHOD, NotRational, _decide, _local_of, _prepare, _prepare_io, _System
 from ._budget import committed
+from ._inputs import require_system
 from ._io import NotApplicable
 from ._reparam import reparametrize
 from ...algebra._groebner import GroebnerEngine, Poly, get_engine
@@ -971,6 +972,7 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
     from ._lie import function_checks
 
     t0 = time.perf_counter()
+    require_system(system, "find_identifiable_functions")
     eng = engine if isinstance(engine, GroebnerEngine) else get_engine(engine)
     if eng is None:
         return IdentifiableFunctions(with_states=with_states, refused=NO_ENGINE)

@@ -124,3 +124,16 @@ def _parse_functions(system: System, functions: Sequence[ExprLike]) -> list[tupl
             expr = to_expr(e, allowed, where=f"functions[{k}]")
         out.append((str(e) if isinstance(e, str) else str(expr), expr))
     return out
+
+
+def require_system(system: Any, caller: str) -> System:
+    """`system` if it is an nlobs.System, else a ModelError naming `caller`, what it got and what to pass instead."""
+    if isinstance(system, System):
+        return system
+    hint = ""
+    if isinstance(getattr(system, "system", None), System):
+        hint = " (a parsed model file: pass its .system)"
+    elif isinstance(system, str):
+        hint = " (a model file's name? load it with nlobs.load_model(path).system)"
+    raise ModelError(f"{caller}: `system` must be an nlobs.System, got {type(system).__name__}{hint}")
+

@@ -28,7 +28,7 @@ from ...model._translate import NUMPY, translate
 from ...model._system import ExprLike, exact
 from ...algebra._modular import RowEchelon, random_prime
 from .._reports import FunctionCheck, ObservabilityReport, Symmetry
-from ._inputs import InputClass, _input_classes, _parse_functions, _unknown_params
+from ._inputs import InputClass, _input_classes, _parse_functions, _unknown_params, require_system
 from ...algebra._series import AffineJets, FloatField, ModField, Node, Program, Resample, SeriesRun, affine_structure, build_program
 from ...references import cite
 
@@ -385,8 +385,7 @@ def local_analysis(system: System, *, unknown_params: Any = (), inputs: Any = "g
     """The local route of :func:`nlobs.analyze` (generic rank of the output jets; see its documentation for the
     arguments): what the global routes build on, without their parts. `directions` False leaves out the real-valued
     kernel directions (``unobservable_directions`` then has no rows; the global routes do not use them)."""
-    if not isinstance(system, System):
-        raise ModelError(f"analyze: `system` must be an nlobs.System, got {type(system).__name__}")
+    require_system(system, "analyze")
     with symbolic_budget(f"analyze {system.name!r}"):
         return _analyze(system, unknown_params, inputs, unknown_inputs, functions, at, symmetries, seed, regime,
                         directions=directions)
