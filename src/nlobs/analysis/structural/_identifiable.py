@@ -20,7 +20,8 @@ checked exactly: every generator lies in the field of the chosen functions), els
    search), kept when the generators found, with those unknowns, reach the field's transcendence degree (checked
    after the local points, then after the global ones) and pass step 6's completeness check; else the search runs
    again on every monomial, on the same points (a generator may need a globally identifiable unknown: SLIQR's
-   (In + L + Q)/S).
+   (In + L + Q)/S). When even every monomial of the automatic degree 2 falls short of that degree after the local
+   points, the search goes straight to degree 3 (step 6's raise; HIV).
 2. *Locally identifiable* candidates: the gradient of P/Q lies in the row space of the Jacobian of
    the truncated jet equations at a random point (the tangent space of the set of unknowns giving
    the same output is its kernel). Linear in the coefficients of P; repeated at random points until
@@ -749,6 +750,22 @@ def _search_and_select(search: _Search, prep: Any, eng: GroebnerEngine, U: list[
     return _select(pool, U, eng, prep.p, rng, search.exact, kept=singles)
 
 
+def _short_locally(search: _Search, U: list[str], single: list[str]) -> bool:
+    """Whether the locally identifiable candidates of `search`, with the globally identifiable unknowns, fall short of
+    the field's transcendence degree: then no generators found among them give the whole field (local points only,
+    no engine run)."""
+    rows = [np.eye(len(U), dtype=np.int64)[[U.index(u) for u in single]]]
+    rows += [search.local_gradients(Q) for Q in _denominators(U, single)]
+    return _rank(np.concatenate(rows), search.p) < search.field_rank()
+
+
+def _degree_too_low(search: _Search, U: list[str], single: list[str], may_raise: bool) -> bool:
+    """Whether the candidates of the automatic degree 2 cannot give the whole field (:func:`_short_locally`; HIV), where
+    the degree may be raised to 3: then the search of degree 2 is skipped, since the raise would discard its result."""
+    return (may_raise and len(monomial_exponents(len([u for u in U if u not in single]), 3)) <= _MAX_MONOMIALS
+            and _short_locally(search, U, single))
+
+
 def _without_singles(search: _Search, prep: Any, eng: GroebnerEngine, U: list[str], all_unknowns: list[str],
                      single: list[str], rng: np.random.Generator) -> list[sp.Expr] | None:
     """Step 1's first try: candidates free of the globally identifiable unknowns (they are in the field already;
@@ -757,9 +774,7 @@ def _without_singles(search: _Search, prep: Any, eng: GroebnerEngine, U: list[st
     sub = search.without(single)
     # cheap first (local points only): the candidates and the globally identifiable unknowns must reach the field's
     # transcendence degree (SLIQR, SEIR_1, HIV... do not: they need a globally identifiable unknown in a generator)
-    rows = [np.eye(len(U), dtype=np.int64)[[U.index(u) for u in single]]]
-    rows += [sub.local_gradients(Q) for Q in _denominators(U, single)]
-    if _rank(np.concatenate(rows), prep.p) < search.field_rank():
+    if _short_locally(sub, U, single):
         return None
     chosen = _search_and_select(sub, prep, eng, U, single, rng)
     # then the generators themselves (the search's global points may have left out some directions)
@@ -1039,6 +1054,8 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
     elif single and (io_complete or with_states) and (chosen := _without_singles(search, prep, eng, rest, U, single,
                                                                                  rng)) is not None:
         complete = True
+    elif _degree_too_low(search, rest, single, io_complete and auto_degree and max_degree < 3 and not powers):
+        chosen = [symbol(u) for u in single]  # the completeness check below fails on these and raises the degree
     else:
         chosen = _search_and_select(search, prep, eng, rest, single, rng)
     if io_complete and complete is None:
