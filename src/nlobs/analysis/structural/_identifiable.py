@@ -240,7 +240,8 @@ class _Search:
         """Transcendence degree of the identifiable functions of the unknowns U (at local point 0): the dimension of
         the rows' span inside the coordinates of U, rank(rows) - rank(rows outside U's columns)."""
         ech, _, ucol, n = self.tangent(0)
-        other = [j for j in range(n) if j not in set(ucol)]
+        inside = set(ucol)
+        other = [j for j in range(n) if j not in inside]
         return ech.rank - (_rank(ech.basis[:, other], self.p) if other else 0)
 
     def local_rows(self, Q: tuple[int, ...], i: int) -> list[np.ndarray]:
@@ -263,7 +264,8 @@ class _Search:
         gradients of the candidate monomials reduced modulo its rows (k x that many)."""
         while len(self._reduced) <= i:
             ech, _, ucol, n, _, mg = self._local_point(len(self._reduced))
-            free = [j for j in range(n) if j not in set(ech.pivots)]
+            pivots = set(ech.pivots)
+            free = [j for j in range(n) if j not in pivots]
             G = np.zeros((len(self.monos), n), dtype=np.int64)
             G[:, ucol] = mg
             self._reduced.append((free, ech.reduce_many(G)[:, free]))
@@ -365,7 +367,6 @@ class _Search:
         local = self.local_space(Q)
         ech = local.widened(max_points)
         prev = [k - local.rank]
-        Kc = np.zeros((0, k), dtype=np.int64)
         qi = self.mono_index[Q]
         for j in range(max_points):
             A = self.nf_matrix(j)
@@ -593,6 +594,13 @@ def _select(cands: list[sp.Expr], X: list[str], eng: GroebnerEngine, p: int, rng
     first that is not a function of them is kept, and the pass resumes after it.
     """
     vals = [int(v) for v in rng.integers(1, p, size=len(X))]
+    grads: dict[sp.Expr, np.ndarray] = {}
+
+    def gradient(g: sp.Expr) -> np.ndarray:  # each candidate's once, whatever the number of passes
+        if g not in grads:
+            grads[g] = _gradient(g, X, vals, p, exact)
+        return grads[g]
+
     chosen = list(kept)
     rest = list(cands)
     limit = eng.timeout
@@ -600,11 +608,10 @@ def _select(cands: list[sp.Expr], X: list[str], eng: GroebnerEngine, p: int, rng
         while rest:
             ech = RowEchelon(len(X), p)
             for g in chosen:
-                ech.add(_gradient(g, X, vals, p, exact))
+                ech.add(gradient(g))
             pending, after = [], []
             for g in rest:  # the local pass: keep the independent, set aside the algebraic ones for the engine
-                grad = _gradient(g, X, vals, p, exact)
-                if ech.add(grad):
+                if ech.add(gradient(g)):
                     chosen.append(g)
                 else:
                     pending.append(g)
@@ -762,8 +769,13 @@ def _short_locally(search: _Search, U: list[str], single: list[str]) -> bool:
 def _degree_too_low(search: _Search, U: list[str], single: list[str], may_raise: bool) -> bool:
     """Whether the candidates of the automatic degree 2 cannot give the whole field (:func:`_short_locally`; HIV), where
     the degree may be raised to 3: then the search of degree 2 is skipped, since the raise would discard its result."""
-    return (may_raise and len(monomial_exponents(len([u for u in U if u not in single]), 3)) <= _MAX_MONOMIALS
-            and _short_locally(search, U, single))
+    return may_raise and _degree_three_fits(U, single) and _short_locally(search, U, single)
+
+
+def _degree_three_fits(U: list[str], single: Sequence[str]) -> bool:
+    """Whether the degree may be raised to 3: the new monomials (in the unknowns not globally identifiable) stay
+    within ``_MAX_MONOMIALS``."""
+    return len(monomial_exponents(len([u for u in U if u not in single]), 3)) <= _MAX_MONOMIALS
 
 
 def _without_singles(search: _Search, prep: Any, eng: GroebnerEngine, U: list[str], all_unknowns: list[str],
@@ -889,8 +901,7 @@ def _completed_on_the_route(prep: Any, eng: GroebnerEngine, search: _Search, cho
     complete, degree)."""
     complete = _complete_io(prep, eng, chosen, U, rng)
     rest = [u for u in U if u not in single]
-    if (complete is False and auto_degree and (max_degree < 3 or powers)
-            and len(monomial_exponents(len(rest), 3)) <= _MAX_MONOMIALS):
+    if complete is False and auto_degree and (max_degree < 3 or powers) and _degree_three_fits(U, single):
         # a generator of the field needs a numerator of degree 3 (HIV: c*q*x) or a power: search again one degree
         # higher, the new monomials only in the unknowns not globally identifiable, with the powers (the
         # completeness check below says whether that was enough)
