@@ -243,3 +243,20 @@ def test_monomial_values_and_gradients_against_sympy():
             at = dict(zip(x, vals))
             assert int(m.subs(at)) % P == mv[k]
             assert [int(sp.diff(m, xi).subs(at)) % P for xi in x] == list(mg[k])
+
+
+@pytest.mark.parametrize("p,shape", [(P, (4, 12000, 30)), (P, (30, 300, 200)), (P, (3, 4, 5)),
+                                     (2_147_483_647, (6, 50, 9)), (2_147_483_629, (2, 3, 2))])
+def test_matmul_mod_is_exact_against_python_integers(p, shape):
+    # the large products go through BLAS in doubles (14-bit halves, chunks of 4096 terms: every partial sum below
+    # 2^53); the worst case puts p - 1 everywhere in the first columns. Primes above 2^27 (tests use 2^31 - 1) take
+    # the integer path in chunks that cannot overflow (a single product of two values reaches 2^62). Reference: exact
+    # Python integers
+    from nlobs.algebra._modular import matmul_mod
+
+    m, r, n = shape
+    rng = np.random.default_rng(r)
+    C, B = rng.integers(0, p, size=(m, r)), rng.integers(0, p, size=(r, n))
+    C[:, : r // 2 + 1], B[: r // 2 + 1] = p - 1, p - 1
+    want = (C.astype(object) @ B.astype(object)) % p
+    assert np.array_equal(matmul_mod(C, B, p).astype(object), want)

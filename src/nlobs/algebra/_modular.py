@@ -102,19 +102,55 @@ def root(a: int, r: int, p: int) -> int | None:
     return out
 
 
+def _terms_for(p: int) -> int:
+    """Longest dot product of values reduced modulo `p` that cannot overflow int64 (MAX_TERMS for the primes of
+    PRIME_BITS bits; 1 for a prime near 2^31, whose products alone reach 2^62)."""
+    return MAX_TERMS if p <= 2**PRIME_BITS else max(1, (2**63 - 1 - p) // (p - 1) ** 2)
+
+
 def _matvec_mod(c: np.ndarray, B: np.ndarray, p: int) -> np.ndarray:
     """(c @ B) mod p for reduced c (length r) and B (r x n), in chunks that cannot overflow int64."""
     out = np.zeros(B.shape[1], dtype=np.int64)
-    for i in range(0, c.shape[0], MAX_TERMS):
-        out = (out + (c[i:i + MAX_TERMS] @ B[i:i + MAX_TERMS]) % p) % p
+    step = _terms_for(p)
+    for i in range(0, c.shape[0], step):
+        out = (out + (c[i:i + step] @ B[i:i + step]) % p) % p
     return out
 
 
+#: Half of a value of PRIME_BITS bits, in :func:`matmul_mod`'s floating-point products.
+_LOW_BITS = 14
+#: Longest exact floating-point dot product there: 2^12 terms below 2^27 * 2^14 sum below 2^53.
+_FLOAT_TERMS = 2**(53 - PRIME_BITS - _LOW_BITS)
+#: Smallest product (m * r * n multiplications) given to BLAS: below, numpy's integer product costs less than the
+#: conversions.
+_FLOAT_WORK = 200_000
+
+
 def matmul_mod(C: np.ndarray, B: np.ndarray, p: int) -> np.ndarray:
-    """(C @ B) mod p for reduced C (m x r) and B (r x n), in chunks of the inner dimension that cannot overflow int64."""
-    out = np.zeros((C.shape[0], B.shape[1]), dtype=np.int64)
-    for i in range(0, C.shape[1], MAX_TERMS):
-        out = (out + (C[:, i:i + MAX_TERMS] @ B[i:i + MAX_TERMS]) % p) % p
+    """(C @ B) mod p for reduced C (m x r) and B (r x n), exactly.
+
+    Large products run in double precision through BLAS (numpy's integer product has no BLAS: 0.8 GFLOP/s, most of a
+    10-state model's search): B is split into its low 14 bits and the rest, so each partial sum of C @ B_low (at most
+    2^12 products below 2^27 * 2^14) and of C @ B_high stays below 2^53, where doubles are exact integers, whatever
+    the order in which BLAS adds them. Small products and primes above PRIME_BITS bits use int64, in chunks of the
+    inner dimension that cannot overflow.
+    """
+    m, r = C.shape
+    n = B.shape[1]
+    if p <= 2**PRIME_BITS and m * r * n >= _FLOAT_WORK:
+        out = np.zeros((m, n), dtype=np.int64)
+        mask = (1 << _LOW_BITS) - 1
+        for i in range(0, r, _FLOAT_TERMS):
+            Cf = C[:, i:i + _FLOAT_TERMS].astype(np.float64)
+            Bi = B[i:i + _FLOAT_TERMS]
+            low = (Cf @ (Bi & mask).astype(np.float64)).astype(np.int64) % p
+            high = (Cf @ (Bi >> _LOW_BITS).astype(np.float64)).astype(np.int64) % p
+            out = (out + low + (high << _LOW_BITS) % p) % p
+        return out
+    out = np.zeros((m, n), dtype=np.int64)
+    step = _terms_for(p)
+    for i in range(0, r, step):
+        out = (out + (C[:, i:i + step] @ B[i:i + step]) % p) % p
     return out
 
 

@@ -56,6 +56,7 @@ import math
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from fractions import Fraction
 from typing import Any
 
 import numpy as np
@@ -168,6 +169,82 @@ def _mono_grad(e: Sequence[int], vals: Sequence[int], p: int) -> list[int]:
     return out
 
 
+# ----------------------------------------------------------------------------------------------
+#: exact terms of a polynomial: (exponents, numerator, denominator of the coefficient), as :func:`_qq_terms` gives them
+Terms = tuple[tuple[tuple[int, ...], int, int], ...]
+#: candidates with more terms than this are ordered by their exact terms, not by their printed text (step 4)
+_PRINTED_TERMS = 10
+
+
+class _Candidate:
+    """A rational function N/D of the unknowns `names`, kept as the exact terms of N and D.
+
+    The search returns candidates in one normal form (P monic, no monomial factor shared with its monomial
+    denominator Q), so equal functions have equal terms. The SymPy expression is built only when asked for: a 10-state
+    model gives thousands of candidates, and building them all was half the search's time, while only the kept ones
+    are printed.
+    """
+
+    __slots__ = ("num", "den", "names", "_expr", "_over")
+
+    def __init__(self, num: Terms, den: Terms, names: Sequence[str], expr: sp.Expr | None = None):
+        self.num, self.den, self.names, self._expr = num, den, tuple(names), expr
+        self._over: dict[tuple[str, ...], tuple[Terms, Terms]] = {}
+
+    @classmethod
+    def unknown(cls, u: str, names: Sequence[str]) -> _Candidate:
+        """The unknown `u` itself."""
+        zero = tuple(0 for _ in names)
+        return cls(((tuple(int(v == u) for v in names), 1, 1),), ((zero, 1, 1),), names, symbol(u))
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, _Candidate) and (self.num, self.den, self.names) == (other.num, other.den, other.names)
+
+    def __hash__(self) -> int:
+        return hash((self.num, self.den))
+
+    @property
+    def expr(self) -> sp.Expr:
+        if self._expr is None:
+            syms = [symbol(u) for u in self.names]
+            num, den = (sp.Add(*[sp.Rational(a, b) * sp.Mul(*[s**k for s, k in zip(syms, e) if k]) for e, a, b in t])
+                        for t in (self.num, self.den))
+            self._expr = num / den
+        return self._expr
+
+    def __str__(self) -> str:
+        return str(self.expr)
+
+    __repr__ = __str__
+
+    def terms_over(self, X: Sequence[str]) -> tuple[Terms, Terms]:
+        """Numerator and denominator terms with exponents over the unknowns `X` (which include `names`)."""
+        X = tuple(X)
+        if X == self.names:
+            return self.num, self.den
+        if X not in self._over:
+            col = [X.index(u) for u in self.names]
+
+            def widen(t: Terms) -> Terms:
+                out = []
+                for e, a, b in t:
+                    ee = [0] * len(X)
+                    for j, k in zip(col, e):
+                        ee[j] += k
+                    out.append((tuple(ee), a, b))
+                return tuple(out)
+
+            self._over[X] = (widen(self.num), widen(self.den))
+        return self._over[X]
+
+
+def _terms_of(f: _Candidate | sp.Expr, X: Sequence[str], cancel: bool) -> tuple[Terms, Terms]:
+    """Exact numerator and denominator terms of `f` over `X` (a candidate's are known, and in lowest terms)."""
+    if isinstance(f, _Candidate):
+        return f.terms_over(X)
+    return _qq_terms(f, tuple(X), cancel)
+
+
 class _Search:
     """Steps 2-3 of the module docstring for every denominator Q, on points shared by all of them.
 
@@ -201,12 +278,11 @@ class _Search:
         self._local: list[tuple[np.ndarray, np.ndarray]] = []
         self._reduced: list[tuple[list[int], np.ndarray]] = []
         self._local_ech: dict[tuple[int, ...], RowEchelon] = {}
+        self._lex: np.ndarray | None = None
         #: the denominators whose global points ran out (``max_points``) before a point cut nothing
         self.unconverged: set[tuple[int, ...]] = set()
         self._global: list[list[Poly]] = []
         self._nf_matrices: list[np.ndarray] = []
-        #: exact numerator and denominator terms of every candidate returned by :meth:`functions` (as _qq_terms)
-        self.exact: dict[sp.Expr, tuple] = {}
         self._args = (max_degree, top, powers)
         #: the search this one is a part of (:meth:`without`) and the positions of its monomials there
         self._parent: tuple[_Search, list[int]] | None = None
@@ -387,47 +463,40 @@ class _Search:
             self.unconverged.add(Q)
         return _row_space(ech.kernel()[:, :k], p)
 
-    def functions(self, Kc: np.ndarray, Q: tuple[int, ...]) -> list[sp.Expr]:
-        """The candidates P/Q of the rows of `Kc`, normalised as :func:`_normalise` does (on exponent dictionaries:
-        SymPy's cancel on hundreds of candidates was most of the running time)."""
+    def functions(self, Kc: np.ndarray, Q: tuple[int, ...]) -> list[_Candidate]:
+        """The candidates P/Q of the rows of `Kc`: coefficients recovered as small rationals, the monomial factor
+        common to P and Q cancelled, P made monic (leading term in the lexicographic order of the names) and, when Q
+        is 1, without its constant term (a function is identifiable up to a constant factor, and a polynomial up to
+        an additive constant too). On exponent arrays: SymPy's cancel on hundreds of candidates, then building
+        thousands of expressions, was most of the search's time."""
         p = self.p
-        syms = [symbol(u) for u in self.U]
-        order = sorted(range(len(syms)), key=lambda i: str(syms[i]))
+        if self._lex is None:  # position of each monomial in the lexicographic order of the names
+            order = sorted(range(len(self.U)), key=lambda i: self.U[i])
+            self._lex = np.empty(len(self.monos), dtype=np.int64)
+            self._lex[sorted(range(len(self.monos)), key=lambda m: tuple(self.monos[m][i] for i in order))] = \
+                np.arange(len(self.monos))
+        Qa = np.array(Q, dtype=np.int64)
         out = []
         for row in _rref(Kc, p):
-            terms: dict[tuple[int, ...], sp.Rational] = {}
-            ok = True
-            for c, e in zip(row, self.monos):
-                if not c:
-                    continue
-                rr = _ratrec(int(c), p)
-                if rr is None:
-                    ok = False
-                    break
-                terms[e] = sp.Rational(rr[0], rr[1])
-            if not ok or not terms:
+            nz = np.flatnonzero(row)
+            coef = [_ratrec(int(c), p) for c in row[nz]]
+            if not coef or any(c is None for c in coef):
                 continue
-            # cancel the common monomial factor of P and Q
-            g = [min([Q[i], *(e[i] for e in terms)]) for i in range(len(syms))]
-            terms = {tuple(a - b for a, b in zip(e, g)): c for e, c in terms.items()}
-            q = tuple(a - b for a, b in zip(Q, g))
-            zero = tuple([0] * len(syms))
-            if not any(q):  # a polynomial: identifiable up to an additive constant too
-                terms.pop(zero, None)
-            if not terms or (list(terms) == [zero] and not any(q)):
+            E = self.E[nz]
+            g = np.minimum(E.min(axis=0), Qa)
+            q = tuple(int(x) for x in Qa - g)
+            E = E - g
+            keep = [i for i in np.argsort(-self._lex[nz], kind="stable")
+                    if any(q) or E[i].any()]  # P's terms, leading first; a polynomial's constant term dropped
+            if not keep:
                 continue
-            # monic in the lexicographic order of the names (SymPy's Poly(...).LC() over the sorted names), built
-            # term by term: a dense SymPy Poly in some 30 unknowns cost most of the search's time (p53)
-            lead = terms[max(terms, key=lambda e: tuple(e[i] for i in order))]
-            monic = {e: c / lead for e, c in terms.items()}
-            f = sp.Add(*[c * sp.Mul(*[syms[i]**k for i, k in enumerate(e) if k]) for e, c in monic.items()])
-            f = f / sp.Mul(*[s**k for s, k in zip(syms, q)])
-            if f.is_number:
-                continue
-            num = tuple((e, int(c.p), int(c.q)) for e, c in sorted(monic.items(), reverse=True,
-                                                                   key=lambda t: tuple(t[0][i] for i in order)))
-            self.exact.setdefault(f, (num, ((q, 1, 1),)))
-            out.append(f)
+            la, lb = coef[keep[0]]
+            num = []
+            for i in keep:
+                a, b = coef[i][0] * lb, coef[i][1] * la
+                d = math.gcd(a, b) * (1 if b > 0 else -1)
+                num.append((tuple(int(x) for x in E[i]), a // d, b // d))
+            out.append(_Candidate(tuple(num), ((q, 1, 1),), self.U))
         return out
 
 
@@ -453,19 +522,14 @@ def _rref(K: np.ndarray, p: int) -> list[np.ndarray]:
     return [b for _, b in sorted(zip(ech.pivots, ech.basis), key=lambda t: t[0])]
 
 
-def _normalise(f: sp.Expr) -> sp.Expr:
-    """Drop a constant factor (and an additive constant of a polynomial): identifiable up to both."""
-    num, den = sp.fraction(sp.cancel(sp.together(f)))
-    num, den = sp.expand(num), sp.expand(den)
-    if den.is_number:
-        num, den = sp.expand(num / den), sp.Integer(1)
-        num = num - num.as_coeff_Add()[0]
-    gens = sorted(num.free_symbols | den.free_symbols, key=str)
-    lc = sp.Poly(num, *gens).LC() if num.free_symbols else num
-    return sp.cancel(num / lc / den)
-
-
-def _complexity(f: sp.Expr) -> tuple:
+def _complexity(f: _Candidate | sp.Expr) -> tuple:
+    """Step 4's order: fewest terms, then lowest degree, then shortest printed text; candidates of more than
+    ``_PRINTED_TERMS`` terms are not printed (chain10: thousands of them), their ties are ordered by their exact terms."""
+    if isinstance(f, _Candidate):
+        if len(f.num) + len(f.den) - 1 > _PRINTED_TERMS:
+            return (len(f.num) + len(f.den) - 1, max(sum(e) for e, _, _ in f.num) + max(sum(e) for e, _, _ in f.den),
+                    0, (f.num, f.den))
+        f = f.expr
     num, den = sp.fraction(f)
     terms = len(sp.Add.make_args(sp.expand(num))) + len(sp.Add.make_args(sp.expand(den))) - 1
     deg = sp.Poly(num, *num.free_symbols).total_degree() if num.free_symbols else 0
@@ -526,7 +590,7 @@ def _fibre_system(funcs: Sequence[sp.Expr], X: list[str], p: int, rng: np.random
     from ...algebra._modular import poly_mul as _mul
 
     for f in funcs:
-        tn, td = _qq_terms(f, tuple(X), True)
+        tn, td = _terms_of(f, X, True)
         N, D = to_poly(tn), to_poly(td)
         dv = value(D)
         if dv == 0:
@@ -544,13 +608,9 @@ def _fibre_system(funcs: Sequence[sp.Expr], X: list[str], p: int, rng: np.random
     return names, F, xhat
 
 
-def _relation(f: sp.Expr, X: list[str], xhat: dict[str, int], p: int, exact: dict | None = None) -> Poly:
-    """num(x) den(x̂) - num(x̂) den(x): zero on the fibre iff f is constant there.
-
-    `exact`: numerator and denominator terms over `X` already known (``_Search.exact``), by candidate.
-    """
-    known = exact.get(f) if exact else None
-    tn, td = known if known else _qq_terms(f, tuple(X), False)  # candidates are already P/Q in lowest terms
+def _relation(f: _Candidate | sp.Expr, X: list[str], xhat: dict[str, int], p: int) -> Poly:
+    """num(x) den(x̂) - num(x̂) den(x): zero on the fibre iff f is constant there."""
+    tn, td = _terms_of(f, X, False)  # candidates are already P/Q in lowest terms
     vals = [xhat[u] for u in X]
     num, den = _terms_mod(tn, p), _terms_mod(td, p)
     nv = sum(c * _mono_value(mono, vals, p) for mono, c in num) % p
@@ -563,10 +623,9 @@ def _relation(f: sp.Expr, X: list[str], xhat: dict[str, int], p: int, exact: dic
     return {k: v for k, v in out.items() if v}
 
 
-def _gradient(f: sp.Expr, X: list[str], vals: Sequence[int], p: int, exact: dict | None = None) -> np.ndarray:
+def _gradient(f: _Candidate | sp.Expr, X: list[str], vals: Sequence[int], p: int) -> np.ndarray:
     """The gradient of f = N/D at the point `vals` over GF(p), up to the factor 1/D^2: D grad N - N grad D."""
-    known = exact.get(f) if exact else None
-    tn, td = known if known else _qq_terms(f, tuple(X), False)
+    tn, td = _terms_of(f, X, False)
     out = []
     for terms in (tn, td):
         v, g = 0, np.zeros(len(X), dtype=object)
@@ -579,9 +638,8 @@ def _gradient(f: sp.Expr, X: list[str], vals: Sequence[int], p: int, exact: dict
     return np.array((dv * ng - nv * dg) % p, dtype=np.int64)
 
 
-def _select(cands: list[sp.Expr], X: list[str], eng: GroebnerEngine, p: int, rng: np.random.Generator,
-            exact: dict | None = None, kept: Sequence[sp.Expr] = (), deadline: float | None = None
-            ) -> list[sp.Expr] | None:
+def _select(cands: list[Any], X: list[str], eng: GroebnerEngine, p: int, rng: np.random.Generator,
+            kept: Sequence[Any] = (), deadline: float | None = None) -> list[Any] | None:
     """Greedy, simplest first: keep a candidate unless it is a function of those kept (constant on their fibre),
     starting from `kept`. With a `deadline` (time.perf_counter()) every engine run is stopped there, and None is
     returned when one does not finish.
@@ -594,11 +652,11 @@ def _select(cands: list[sp.Expr], X: list[str], eng: GroebnerEngine, p: int, rng
     first that is not a function of them is kept, and the pass resumes after it.
     """
     vals = [int(v) for v in rng.integers(1, p, size=len(X))]
-    grads: dict[sp.Expr, np.ndarray] = {}
+    grads: dict[Any, np.ndarray] = {}
 
-    def gradient(g: sp.Expr) -> np.ndarray:  # each candidate's once, whatever the number of passes
+    def gradient(g: Any) -> np.ndarray:  # each candidate's once, whatever the number of passes
         if g not in grads:
-            grads[g] = _gradient(g, X, vals, p, exact)
+            grads[g] = _gradient(g, X, vals, p)
         return grads[g]
 
     chosen = list(kept)
@@ -624,7 +682,7 @@ def _select(cands: list[sp.Expr], X: list[str], eng: GroebnerEngine, p: int, rng
                     return None
                 eng.timeout = min(left, limit) if limit else left
             names, F, xhat = _fibre_system(chosen, X, p, rng)
-            rels = [_relation(g, X, xhat, p, exact) for g in pending]
+            rels = [_relation(g, X, xhat, p) for g in pending]
             try:
                 nfs = eng.normal_forms(names, p, F, rels)
             except EngineError:
@@ -658,7 +716,7 @@ def _count(eng: GroebnerEngine, names: list[str], F: list[Poly], ell: Poly, p: i
     return None if mp is None else _distinct_roots(mp, p)
 
 
-def _complete(prep: Any, eng: GroebnerEngine, chosen: list[sp.Expr], U: list[str], rng: np.random.Generator,
+def _complete(prep: Any, eng: GroebnerEngine, chosen: list[_Candidate], U: list[str], rng: np.random.Generator,
               cap: int = 48) -> bool | None:
     """Same number of points on one random cut for the identifiability fibre and the fibre of `chosen`."""
     hs, p = prep.hs, prep.p
@@ -696,8 +754,8 @@ def _complete(prep: Any, eng: GroebnerEngine, chosen: list[sp.Expr], U: list[str
     return n_sian == n_fun
 
 
-def _verified(prep: Any, eng: GroebnerEngine, cands: list[sp.Expr], U: list[str], rounds: int = 2,
-              exact: dict | None = None) -> list[sp.Expr]:
+def _verified(prep: Any, eng: GroebnerEngine, cands: list[_Candidate], U: list[str], rounds: int = 2
+              ) -> list[_Candidate]:
     """Keep the candidates that are constant on the solutions at fresh random points (normal forms)."""
     for _ in range(rounds):
         if not cands:
@@ -710,7 +768,7 @@ def _verified(prep: Any, eng: GroebnerEngine, cands: list[sp.Expr], U: list[str]
         ws = [hs.weight.get(v, 1) for v in var]
         rels = []
         for g in cands:
-            rel = _relation(g, U, xhat, p, exact)
+            rel = _relation(g, U, xhat, p)
             out: Poly = {}
             for m, c in rel.items():
                 mm = [0] * len(hs.names)
@@ -736,25 +794,25 @@ def _denominators(U: list[str], single: Sequence[str]) -> list[tuple[int, ...]]:
 
 
 def _search_and_select(search: _Search, prep: Any, eng: GroebnerEngine, U: list[str], single: list[str],
-                       rng: np.random.Generator) -> list[sp.Expr]:
+                       rng: np.random.Generator) -> list[_Candidate]:
     """Steps 1-4 of the module docstring: candidates per denominator, verified, then the simplest generators."""
-    cands: list[sp.Expr] = []
-    unsure: set[sp.Expr] = set()
+    cands: list[_Candidate] = []
+    unsure: set[_Candidate] = set()
     for Q in _denominators(U, single):
         Kc = search.solve(Q)
         found = search.functions(Kc, Q)
         cands += found
         if Q in search.unconverged:
             unsure.update(found)
-    singles = [symbol(u) for u in single]
+    singles = [_Candidate.unknown(u, search.U) for u in single]
     pool = list(dict.fromkeys(c for c in cands if c not in singles))
     # the candidates of a denominator whose points ran out are checked at fresh points (the others passed a point
     # that cut nothing, step 3)
-    bad = set(unsure) - set(_verified(prep, eng, [c for c in pool if c in unsure], U, exact=search.exact))
+    bad = set(unsure) - set(_verified(prep, eng, [c for c in pool if c in unsure], U))
     pool = sorted([c for c in pool if c not in bad], key=_complexity)  # sort the survivors only
     # the globally identifiable unknowns are distinct variables, none a function of the others: kept without a test
     # (one engine run each saved; HIV's 27 runs of the selection were mostly these)
-    return _select(pool, U, eng, prep.p, rng, search.exact, kept=singles)
+    return _select(pool, U, eng, prep.p, rng, kept=singles)
 
 
 def _short_locally(search: _Search, U: list[str], single: list[str]) -> bool:
@@ -779,7 +837,7 @@ def _degree_three_fits(U: list[str], single: Sequence[str]) -> bool:
 
 
 def _without_singles(search: _Search, prep: Any, eng: GroebnerEngine, U: list[str], all_unknowns: list[str],
-                     single: list[str], rng: np.random.Generator) -> list[sp.Expr] | None:
+                     single: list[str], rng: np.random.Generator) -> list[_Candidate] | None:
     """Step 1's first try: candidates free of the globally identifiable unknowns (they are in the field already;
     LV: 35 monomials instead of 84). Returns the generators when they are shown complete with those unknowns, else
     None (the search then runs on every monomial: a generator may need them, SLIQR's (In + L + Q)/S)."""
@@ -793,18 +851,15 @@ def _without_singles(search: _Search, prep: Any, eng: GroebnerEngine, U: list[st
     vals = [int(v) for v in rng.integers(1, prep.p, size=len(U))]
     ech = RowEchelon(len(U), prep.p)
     for f in chosen:
-        ech.add(_gradient(f, U, vals, prep.p, sub.exact))
+        ech.add(_gradient(f, U, vals, prep.p))
     if ech.rank < search.field_rank():
         return None
     complete = (_complete_io(prep, eng, chosen, U, rng) if prep.io is not None
                 else _complete(prep, eng, chosen, all_unknowns, rng))
-    if not complete:
-        return None
-    search.exact.update(sub.exact)
-    return chosen
+    return chosen if complete else None
 
 
-def _complete_io(prep: Any, eng: GroebnerEngine, chosen: list[sp.Expr], U: list[str],
+def _complete_io(prep: Any, eng: GroebnerEngine, chosen: list[_Candidate], U: list[str],
                  rng: np.random.Generator) -> bool:
     """On the input-output route: every generator of the route (which together give every identifiable function;
     the coefficients alone every identifiable function of the parameters, Ovchinnikov, Pogudin & Thompson (2023)) is
@@ -825,10 +880,9 @@ def _complete_io(prep: Any, eng: GroebnerEngine, chosen: list[sp.Expr], U: list[
     return not any(eng.normal_forms(names, p, F, rels))
 
 
-def _route_generators(prep: Any, U: list[str], single: Sequence[str] = ()) -> list[tuple[int, sp.Expr, tuple]]:
+def _route_generators(prep: Any, U: list[str], single: Sequence[str] = ()) -> list[_Candidate]:
     """The input-output route's generators (coefficient ratios and the outputs' Lie derivatives, which together give
-    every identifiable function) over the unknowns U, as (number of terms, expression, exact terms as _qq_terms gives
-    them), smallest first; those involving other variables (inputs) are left out. Monomial factors in the globally
+    every identifiable function) over the unknowns U, smallest first; those involving other variables (inputs) are left out. Monomial factors in the globally
     identifiable unknowns `single` are cancelled (they change no field the singles are in), and integer contents."""
     gens, _ = prep.io
     model = {v: u for u, v in prep.hs.unknown_var.items()}  # ring name -> model name
@@ -870,31 +924,27 @@ def _route_generators(prep: Any, U: list[str], single: Sequence[str] = ()) -> li
         f = num / den
         if f.is_number:
             continue
-        out.append((len(a) + len(b), f, tuple(parts)))
+        out.append((len(a) + len(b), _Candidate(*parts, U, f)))
     # fewest terms first, then lowest degree; ties in a fixed order of the exact terms (printing hundreds of large
     # expressions to sort them by their text took most of this function's time, CGV1990)
-    out.sort(key=lambda t: (t[0], max(sum(e) for part in t[2] for e, _, _ in part), t[2]))
-    return out
+    out.sort(key=lambda t: (t[0], max(sum(e) for part in (t[1].num, t[1].den) for e, _, _ in part), t[1].num, t[1].den))
+    return [c for _, c in out]
 
 
-def _add_route_generators(prep: Any, eng: GroebnerEngine, chosen: list[sp.Expr], U: list[str],
-                          rng: np.random.Generator, exact: dict, deadline: float) -> list[sp.Expr] | None:
+def _add_route_generators(prep: Any, eng: GroebnerEngine, chosen: list[_Candidate], U: list[str],
+                          rng: np.random.Generator, deadline: float) -> list[_Candidate] | None:
     """`chosen` completed by the route's own generators, smallest first, each kept unless it is a function of those
     kept (:func:`_select` from `chosen`): where the search's simple forms (numerators of degree <= 3 over monomials)
     miss part of the field (StructuralIdentifiability.jl's St, QY: generators with polynomial denominators), the
     result is still a complete generating set, in the route's coefficients. None when the Gröbner bases of the
     growing fibres do not finish before `deadline`."""
-    single = [u for u in U if symbol(u) in chosen]
-    rest = []
-    for _, f, terms in _route_generators(prep, U, single):
-        exact.setdefault(f, terms)
-        rest.append(f)
-    return _select(rest, U, eng, prep.p, rng, exact, kept=chosen, deadline=deadline)
+    single = [u for u in U if _Candidate.unknown(u, U) in chosen]
+    return _select(_route_generators(prep, U, single), U, eng, prep.p, rng, kept=chosen, deadline=deadline)
 
 
-def _completed_on_the_route(prep: Any, eng: GroebnerEngine, search: _Search, chosen: list[sp.Expr], U: list[str],
+def _completed_on_the_route(prep: Any, eng: GroebnerEngine, search: _Search, chosen: list[_Candidate], U: list[str],
                             single: list[str], rng: np.random.Generator, max_degree: int, auto_degree: bool,
-                            powers: dict, notes: list[str], t0: float) -> tuple[list[sp.Expr], bool, int]:
+                            powers: dict, notes: list[str], t0: float) -> tuple[list[_Candidate], bool, int]:
     """On the input-output route: the completeness check (exact), a search one degree higher when
     it fails and the degree was automatic, then step 6 of the module docstring, given as long as the search took
     (at least 10 s; Linear_compartment_hard: the growing fibres take minutes, the search 12 s). Returns (chosen,
@@ -911,7 +961,7 @@ def _completed_on_the_route(prep: Any, eng: GroebnerEngine, search: _Search, cho
         complete = _complete_io(prep, eng, chosen, U, rng)
     if complete is False:
         spent = time.perf_counter() - t0
-        more = _add_route_generators(prep, eng, chosen, U, rng, search.exact, time.perf_counter() + max(10.0, spent))
+        more = _add_route_generators(prep, eng, chosen, U, rng, time.perf_counter() + max(10.0, spent))
         if more is None:
             notes.append(f"completing the generators with the input-output coefficients stopped after "
                          f"{max(10.0, spent):.0f} s (as long as the search took)")
@@ -924,7 +974,7 @@ def _completed_on_the_route(prep: Any, eng: GroebnerEngine, search: _Search, cho
 
 
 def _set_aside(prep: Any, eng: GroebnerEngine, search: _Search, U: list[str], single: list[str], max_degree: int,
-               powers: dict, notes: list[str]) -> tuple[list[str], _Search, dict, list[sp.Expr] | None]:
+               powers: dict, notes: list[str]) -> tuple[list[str], _Search, dict, list[_Candidate] | None]:
     """Step 0 of the module docstring. Unknowns whose axis is a direction of the local kernel (a state that no output
     sees, a parameter only it uses; NF-kB's x15): no identifiable function depends on them, and the search leaves them
     out. Returns (the unknowns searched, the search, the powers, the generators when nothing is left to search: every
@@ -938,7 +988,7 @@ def _set_aside(prep: Any, eng: GroebnerEngine, search: _Search, U: list[str], si
                      f"the globally identifiable unknowns generate every identifiable function: the others "
                      f"({', '.join(unseen)}) are each a direction of the local kernel by themselves, so no "
                      "identifiable function depends on them")
-        return rest, search, powers, [symbol(u) for u in single]
+        return rest, search, powers, [_Candidate.unknown(u, rest) for u in single]
     if unseen:
         notes.append(f"{', '.join(unseen)}: each a direction of the local kernel by itself, so in no identifiable "
                      "function; the search leaves them out")
@@ -1066,7 +1116,7 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
                                                                                  rng)) is not None:
         complete = True
     elif _degree_too_low(search, rest, single, io_complete and auto_degree and max_degree < 3 and not powers):
-        chosen = [symbol(u) for u in single]  # the completeness check below fails on these and raises the degree
+        chosen = [_Candidate.unknown(u, rest) for u in single]  # the completeness check below fails on these and raises the degree
     else:
         chosen = _search_and_select(search, prep, eng, rest, single, rng)
     if io_complete and complete is None:
@@ -1107,5 +1157,5 @@ def _race(system: System, kw: dict[str, Any]) -> IdentifiableFunctions:
     return race_routes(find_identifiable_functions, system, kw, lambda r: not r.refused, "on SIAN's system")
 
 
-def _text(f: sp.Expr) -> str:
+def _text(f: _Candidate | sp.Expr) -> str:
     return str(f)
