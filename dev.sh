@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The two commands of the README:
 #   ./dev.sh demo   set up (virtualenv in .venv) and run the main job: `nlobs demo`
-#   ./dev.sh test   set up and run the test suite (which also builds the documentation)
+#   ./dev.sh test   set up and run the test suite (which also builds the documentation), on up to 4 cores
 # and three helpers:
 #   ./dev.sh nlobs ARGS   any nlobs command, from the project's .venv
 #   ./dev.sh docs         build the documentation site into site/ (warnings are errors)
@@ -30,7 +30,7 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
 fi
 case "${1:-}" in
   demo) shift; exec .venv/bin/nlobs demo "$@" ;;
-  test) shift; exec .venv/bin/python -m pytest -q "$@" ;;
+  test) shift; exec .venv/bin/python -m pytest -q -n auto --maxprocesses 4 --dist loadgroup "$@" ;;   # -n 0: one process
   nlobs) shift; cd "$caller"; exec "$project/.venv/bin/nlobs" "$@" ;;   # paths relative to where you are
   python) shift; cd "$caller"; exec "$project/.venv/bin/python" "$@" ;;
   docs) shift; exec .venv/bin/python -m sphinx -W --keep-going -q -b html docs site "$@" ;;

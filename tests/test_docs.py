@@ -13,6 +13,9 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 FILE_NAME = re.compile(r"\d{3}_[0-9a-f]{16}\.txt")
+#: one worker builds the site once for every test here (pytest-xdist, `--dist loadgroup` in dev.sh): the build writes the
+#: gallery's sources into docs/, and a second build at the same time would race it
+pytestmark = pytest.mark.xdist_group("docs")
 
 
 @pytest.fixture(scope="module")
