@@ -9,6 +9,7 @@ unknowns; the functions of the parameters alone are Q(d, a + b, a b), of degree 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from test_global import ENGINE, _same_field, needs_engine
 
 from nlobs import System
@@ -205,3 +206,46 @@ def test_a_model_file_instead_of_a_system_is_named():
             call(mf)
     with pytest.raises(ModelError, match=r"got str \(a model file's name\? load it with nlobs.load_model"):
         I.find_identifiable_functions("lv.toml")
+
+
+@needs_engine
+@pytest.mark.parametrize("model", ["lv", "rate"])
+def test_candidates_are_exact_terms_that_print_as_their_function(model):
+    # the search's candidates stay exact terms until printed: each must print as the function P/Q its terms say
+    # (checked against SymPy's own expansion of the printed expression), equal the unknown itself where it is one (the
+    # globally identifiable x1 is recognised among them, so it is not kept twice), read the same over a wider list of
+    # unknowns (the completeness check on SIAN's system uses every unknown), and be identifiable. "rate": x' = -(a +
+    # 2 b) x, y = x, whose candidates a + 2 b, a**2 + 4*a*b + 4*b**2... have coefficients other than 1
+    import sympy as sp
+
+    from nlobs.analysis import global_identifiability
+    from nlobs.model import symbol
+
+    system = _lv() if model == "lv" else System(states=["x1"], f=["-(a + 2*b)*x1"], outputs=["y"], h=["x1"],
+                                                 params={"a": 1.0, "b": 1.0})
+    eng = get_engine(ENGINE)
+    prep = _prepare_io(system, unknown_params="all", seed=0, eng=eng)
+    U = list(prep.unknown_names)
+    s = I._Search(prep, eng, U, 2)
+    found = s.functions(s.solve(tuple(0 for _ in U)), tuple(0 for _ in U))
+    assert I._Candidate.unknown("x1", U) in found
+    syms = [symbol(u) for u in U]
+    for c in found:
+        num, den = sp.fraction(sp.cancel(c.expr))
+        k = None  # SymPy may scale N and D by one constant
+        for part, terms in ((num, c.num), (den, c.den)):
+            want = {tuple(e): sp.Rational(a, b) for e, a, b in terms}
+            got = sp.Poly(part, *syms).as_dict()
+            k = k or next(iter(got.values())) / want[next(iter(got))]
+            assert {e: v / k for e, v in got.items()} == want, (c, part)
+        wider = ["z", *reversed(U)]
+        tn, td = c.terms_over(wider)
+        assert tn == tuple((tuple([0, *reversed(e)]), a, b) for e, a, b in c.num) and len(td) == len(c.den)
+        if len(c.num) <= I._PRINTED_TERMS:
+            assert I._complexity(c) == I._complexity(c.expr)  # the printed order of step 4 is kept
+    # the global check's own verdict on the printed functions (a coefficient recovered wrongly, 1/2 for 2, gives a
+    # function that is not identifiable)
+    texts = [str(c) for c in found]
+    assert model == "lv" or "a + 2*b" in texts, texts
+    res = global_identifiability(system, unknown_params="all", functions=texts, engine=ENGINE, route="io")
+    assert [v for _, v, _ in res.functions] == ["globally"] * len(texts), res.functions

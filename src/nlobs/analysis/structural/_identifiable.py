@@ -485,9 +485,9 @@ class _Search:
             E = self.E[nz]
             g = np.minimum(E.min(axis=0), Qa)
             q = tuple(int(x) for x in Qa - g)
-            E = E - g
-            keep = [i for i in np.argsort(-self._lex[nz], kind="stable")
-                    if any(q) or E[i].any()]  # P's terms, leading first; a polynomial's constant term dropped
+            E = (E - g).tolist()
+            keep = [i for i in np.argsort(-self._lex[nz], kind="stable").tolist()
+                    if any(q) or any(E[i])]  # P's terms, leading first; a polynomial's constant term dropped
             if not keep:
                 continue
             la, lb = coef[keep[0]]
@@ -495,7 +495,7 @@ class _Search:
             for i in keep:
                 a, b = coef[i][0] * lb, coef[i][1] * la
                 d = math.gcd(a, b) * (1 if b > 0 else -1)
-                num.append((tuple(int(x) for x in E[i]), a // d, b // d))
+                num.append((tuple(E[i]), a // d, b // d))
             out.append(_Candidate(tuple(num), ((q, 1, 1),), self.U))
         return out
 
