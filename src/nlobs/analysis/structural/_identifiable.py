@@ -282,6 +282,8 @@ class _Search:
         #: the denominators whose global points ran out (``max_points``) before a point cut nothing
         self.unconverged: set[tuple[int, ...]] = set()
         self._global: list[list[Poly]] = []
+        #: the systems of global points 1, 2, ... (a search of another degree on the same unknowns reuses them)
+        self._systems: list[_System] = []
         self._nf_matrices: list[np.ndarray] = []
         self._args = (max_degree, top, powers)
         #: the search this one is a part of (:meth:`without`) and the positions of its monomials there
@@ -376,7 +378,10 @@ class _Search:
                 nfs = parent.nf_monos(len(self._global))
                 self._global.append([nfs[i] for i in pick])
                 continue
-            hs = self.prep.hs if not self._global else self.prep.point()
+            k = len(self._global)
+            while len(self._systems) < k:  # point 0 is the system of `prep`; the others fresh, kept for other searches
+                self._systems.append(self.prep.point())
+            hs = self.prep.hs if not k else self._systems[k - 1]
             self._global.append(self.eng.normal_forms(hs.names, self.p, hs.F, self.mono_polys(hs)))
         return self._global[j]
 
@@ -882,12 +887,12 @@ def _complete_io(prep: Any, eng: GroebnerEngine, chosen: list[_Candidate], U: li
 
 def _route_generators(prep: Any, U: list[str], single: Sequence[str] = ()) -> list[_Candidate]:
     """The input-output route's generators (coefficient ratios and the outputs' Lie derivatives, which together give
-    every identifiable function) over the unknowns U, smallest first; those involving other variables (inputs) are left out. Monomial factors in the globally
-    identifiable unknowns `single` are cancelled (they change no field the singles are in), and integer contents."""
+    every identifiable function) over the unknowns U, smallest first; those involving other variables (inputs) are
+    left out. Monomial factors in the globally identifiable unknowns `single` are cancelled (they change no field the
+    singles are in), and integer contents."""
     gens, _ = prep.io
     model = {v: u for u, v in prep.hs.unknown_var.items()}  # ring name -> model name
     col = {u: i for i, u in enumerate(U)}
-    syms = [symbol(u) for u in U]
     out = []
     for a, b in (*gens.params, *gens.states):
         g = a.gcd(b)
@@ -919,12 +924,9 @@ def _route_generators(prep: Any, U: list[str], single: Sequence[str] = ()) -> li
             k = math.gcd(*[c for _, c, _ in t]) * (1 if t[0][1] > 0 else -1)
             out_parts.append(tuple((tuple(x - y for x, y in zip(e, shift)), c // k, d) for e, c, d in t))
         parts = out_parts
-        num, den = (sp.Add(*[sp.Rational(c, d) * sp.Mul(*[s**k for s, k in zip(syms, e) if k]) for e, c, d in t])
-                    for t in parts)
-        f = num / den
-        if f.is_number:
+        if parts[0] == parts[1] or not any(any(e) for t in parts for e, _, _ in t):  # a constant
             continue
-        out.append((len(a) + len(b), _Candidate(*parts, U, f)))
+        out.append((len(a) + len(b), _Candidate(*parts, U)))  # printed only if kept (CGV1990: 1 s for all of them)
     # fewest terms first, then lowest degree; ties in a fixed order of the exact terms (printing hundreds of large
     # expressions to sort them by their text took most of this function's time, CGV1990)
     out.sort(key=lambda t: (t[0], max(sum(e) for part in (t[1].num, t[1].den) for e, _, _ in part), t[1].num, t[1].den))
@@ -956,7 +958,9 @@ def _completed_on_the_route(prep: Any, eng: GroebnerEngine, search: _Search, cho
         # higher, the new monomials only in the unknowns not globally identifiable, with the powers (the
         # completeness check below says whether that was enough)
         max_degree = 3
-        search = _Search(prep, eng, U, max_degree, top=rest, powers=powers)
+        prev, search = search, _Search(prep, eng, U, max_degree, top=rest, powers=powers)
+        if prev.U == U:  # the same random points: they depend on the unknowns only (CGV1990: 122 of 328 local ones)
+            search._tangents, search._systems = prev._tangents, prev._systems
         chosen = _search_and_select(search, prep, eng, U, single, rng)
         complete = _complete_io(prep, eng, chosen, U, rng)
     if complete is False:
