@@ -32,7 +32,8 @@ checked exactly: every generator lies in the field of the chosen functions), els
    identifiable is cut at a random point but with probability at most (degree / p). Where the points run out
    first (12), the candidates are checked again at fresh points.
 4. *Generators, simplest first.* The solutions, brought to reduced echelon form (each with few
-   terms), coefficients recovered from GF(p) as small rationals, are sorted by size; one is kept
+   terms), coefficients recovered from GF(p) as small rationals, are sorted by size (terms, degree, then printed
+   text; candidates of more than ten terms are not printed, their ties go by their exact terms); one is kept
    when it is not already a function of those kept before (membership: its value is constant on the
    fibre of the kept functions, a normal form modulo their fibre ideal). A candidate whose gradient is independent
    of the kept ones' at a random point is kept without that test (it is not even algebraic over them); the others
