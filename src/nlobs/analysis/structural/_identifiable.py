@@ -531,11 +531,12 @@ def _rref(K: np.ndarray, p: int) -> list[np.ndarray]:
 def _complexity(f: _Candidate | sp.Expr) -> tuple:
     """Step 4's order: fewest terms, then lowest degree, then shortest printed text; candidates of more than
     ``_PRINTED_TERMS`` terms are not printed (chain10: thousands of them), their ties are ordered by their exact terms."""
-    if isinstance(f, _Candidate):
-        if len(f.num) + len(f.den) - 1 > _PRINTED_TERMS:
-            return (len(f.num) + len(f.den) - 1, max(sum(e) for e, _, _ in f.num) + max(sum(e) for e, _, _ in f.den),
-                    0, (f.num, f.den))
-        f = f.expr
+    if isinstance(f, _Candidate):  # the same terms and degree as SymPy's (tests), from the exact terms
+        size = (len(f.num) + len(f.den) - 1, max(sum(e) for e, _, _ in f.num) + max(sum(e) for e, _, _ in f.den))
+        if size[0] > _PRINTED_TERMS:
+            return (*size, 0, (f.num, f.den))
+        text = str(f)
+        return (*size, len(text), text)
     num, den = sp.fraction(f)
     terms = len(sp.Add.make_args(sp.expand(num))) + len(sp.Add.make_args(sp.expand(den))) - 1
     deg = sp.Poly(num, *num.free_symbols).total_degree() if num.free_symbols else 0
