@@ -16,7 +16,6 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from scipy import stats
 
 from ..references import cite
 
@@ -94,5 +93,7 @@ def ljung_box(r: np.ndarray, *, lags: int | None = None, alpha: float = 0.05) ->
         return Whiteness(n, mean, rms, max(h, 0), None, None, None, alpha)
     rho = np.array([np.dot(d[k:], d[:-k]) / denom for k in range(1, h + 1)])
     q = float(n * (n + 2) * np.sum(rho**2 / (n - np.arange(1, h + 1))))
+    from scipy import stats  # here: importing scipy.stats costs every command a second
+
     p = float(stats.chi2.sf(q, h))
     return Whiteness(n, mean, rms, h, q, p, p >= alpha, alpha)
