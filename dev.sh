@@ -30,7 +30,7 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
 fi
 case "${1:-}" in
   demo) shift; exec .venv/bin/nlobs demo "$@" ;;
-  test) shift; exec .venv/bin/python -m pytest -q -n auto --maxprocesses 4 --dist loadgroup "$@" ;;   # -n 0: one process
+  test) shift; exec .venv/bin/python -m pytest -q -n auto --maxprocesses 4 "$@" ;;   # -n 0: one process
   nlobs) shift; cd "$caller"; exec "$project/.venv/bin/nlobs" "$@" ;;   # paths relative to where you are
   python) shift; cd "$caller"; exec "$project/.venv/bin/python" "$@" ;;
   docs) shift; exec .venv/bin/python -m sphinx -W --keep-going -q -b html docs site "$@" ;;

@@ -3,6 +3,7 @@ public function and every paper example, cites no internal file, and its guides'
 
 from __future__ import annotations
 
+import os
 import re
 import subprocess
 import sys
@@ -13,17 +14,35 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 FILE_NAME = re.compile(r"\d{3}_[0-9a-f]{16}\.txt")
-#: one worker builds the site once for every test here (pytest-xdist, `--dist loadgroup` in dev.sh): the build writes the
-#: gallery's sources into docs/, and a second build at the same time would race it
-pytestmark = pytest.mark.xdist_group("docs")
 
 
 @pytest.fixture(scope="module")
 def site(tmp_path_factory):
-    out = tmp_path_factory.mktemp("site")
-    proc = subprocess.run([sys.executable, "-m", "sphinx", "-W", "--keep-going", "-E", "-q", "-b", "html",
-                           "-d", str(out / ".doctrees"), str(DOCS), str(out)], capture_output=True, text=True, timeout=900)
-    assert proc.returncode == 0, f"the documentation does not build cleanly:\n{proc.stderr[-5000:]}"
+    # built once per test run: the workers of pytest-xdist (dev.sh runs the suite on several) share the run's temporary
+    # folder, and the first to take the lock builds there (the build also writes the gallery's sources into docs/, so
+    # two at a time would race); the others read its site, or its failure
+    import fcntl
+
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        root = root.parent
+    out, failed = root / "docs-site", root / "docs-site.failed"
+    with open(root / "docs-site.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not out.exists() and not failed.exists():
+            partial = root / "docs-site.partial"  # renamed once complete: a crashed build leaves no half site behind
+            try:
+                proc = subprocess.run([sys.executable, "-m", "sphinx", "-W", "--keep-going", "-E", "-q", "-b", "html",
+                                       "-d", str(root / "docs-doctrees"), str(DOCS), str(partial)],
+                                      capture_output=True, text=True, timeout=900)
+                error = proc.stderr[-5000:] if proc.returncode else ""
+            except subprocess.TimeoutExpired:
+                error = "sphinx did not finish in 900 s"
+            if error:
+                failed.write_text(error, encoding="utf-8")
+            else:
+                os.replace(partial, out)
+    assert not failed.exists(), f"the documentation does not build cleanly:\n{failed.read_text(encoding='utf-8')}"
     return out
 
 
