@@ -192,11 +192,9 @@ def test_widened_echelon_keeps_its_rows():
 
 
 def test_a_model_file_instead_of_a_system_is_named():
-    import pytest
-
+    from nlobs import load_model
     from nlobs.analysis import global_identifiability
     from nlobs.errors import ModelError
-    from nlobs import load_model
 
     mf = load_model("dc_motor")  # a model of the library, as a parsed file
     for call, name in ((I.find_identifiable_functions, "find_identifiable_functions"),
@@ -240,7 +238,7 @@ def test_candidates_are_exact_terms_that_print_as_their_function(model):
             assert {e: v / k for e, v in got.items()} == want, (c, part)
         wider = ["z", *reversed(U)]
         tn, td = c.terms_over(wider)
-        assert tn == tuple((tuple([0, *reversed(e)]), a, b) for e, a, b in c.num) and len(td) == len(c.den)
+        assert tn == tuple(((0, *reversed(e)), a, b) for e, a, b in c.num) and len(td) == len(c.den)
         if len(c.num) <= I._PRINTED_TERMS:
             assert I._complexity(c) == I._complexity(c.expr)  # the printed order of step 4 is kept
     # the global check's own verdict on the printed functions (a coefficient recovered wrongly, 1/2 for 2, gives a

@@ -57,7 +57,6 @@ import math
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from fractions import Fraction
 from typing import Any
 
 import numpy as np
@@ -186,7 +185,7 @@ class _Candidate:
     are printed.
     """
 
-    __slots__ = ("num", "den", "names", "_expr", "_over")
+    __slots__ = ("_expr", "_over", "den", "names", "num")
 
     def __init__(self, num: Terms, den: Terms, names: Sequence[str], expr: sp.Expr | None = None):
         self.num, self.den, self.names, self._expr = num, den, tuple(names), expr
@@ -573,7 +572,7 @@ def _terms_mod(terms: Sequence[tuple[tuple[int, ...], int, int]], p: int) -> lis
     return [(mono, a % p * inv(b % p, p) % p) for mono, a, b in terms]
 
 
-def _fibre_system(funcs: Sequence[sp.Expr], X: list[str], p: int, rng: np.random.Generator,
+def _fibre_system(funcs: Sequence[_Candidate | sp.Expr], X: list[str], p: int, rng: np.random.Generator,
                   point: dict[str, int] | None = None) -> tuple[list[str], list[Poly], dict[str, int]]:
     """Ideal of {x : f(x) = f(x̂)} at a random x̂ (saturated by the denominators), over GF(p)."""
     names = list(X) + ["z_sat"]
