@@ -763,7 +763,7 @@ def _coefficient_values(coeffs: list[Any], names: Sequence[str], P: int, rng: np
         V = flint.nmod_mat(cols, P)
         if V.rank() < len(cols) or len(cols) > len(coeffs):
             return V.transpose()
-        batch = max(16, len(cols) // 2)
+        batch = max(16, len(cols) // 4)  # the last batch overshoots the span by at most a quarter
 
 
 def _taylor_matrix(io: IOEquations, monos: list[tuple[int, ...]], n: int, P: int, rng: np.random.Generator) -> Any:
