@@ -109,12 +109,13 @@ def _terms_for(p: int) -> int:
     return MAX_TERMS if p <= 2**PRIME_BITS else max(1, (2**63 - 1 - p) // (p - 1) ** 2)
 
 
-def _matvec_mod(c: np.ndarray, B: np.ndarray, p: int) -> np.ndarray:
-    """(c @ B) mod p for reduced c (length r) and B (r x n), in chunks that cannot overflow int64."""
-    out = np.zeros(B.shape[1], dtype=np.int64)
+def _int_matmul(C: np.ndarray, B: np.ndarray, p: int) -> np.ndarray:
+    """(C @ B) mod p for reduced C (m x r, or a vector of length r) and B (r x n) in int64, in chunks of the inner
+    dimension that cannot overflow."""
+    out = np.zeros(C.shape[:-1] + B.shape[1:], dtype=np.int64)
     step = _terms_for(p)
-    for i in range(0, c.shape[0], step):
-        out = (out + (c[i:i + step] @ B[i:i + step]) % p) % p
+    for i in range(0, C.shape[-1], step):
+        out = (out + (C[..., i:i + step] @ B[i:i + step]) % p) % p
     return out
 
 
@@ -162,11 +163,7 @@ def matmul_mod(C: np.ndarray, B: np.ndarray, p: int) -> np.ndarray:
                 high = (Cf @ (Bi >> _LOW_BITS).astype(np.float64)).astype(np.int64) % p
                 out = (out + low + (high << _LOW_BITS) % p) % p
         return out
-    out = np.zeros((m, n), dtype=np.int64)
-    step = _terms_for(p)
-    for i in range(0, r, step):
-        out = (out + (C[:, i:i + step] @ B[i:i + step]) % p) % p
-    return out
+    return _int_matmul(C, B, p)
 
 
 #: Rows added at once from which :meth:`RowEchelon.add_many` hands the elimination to FLINT.
@@ -214,7 +211,7 @@ class RowEchelon:
         c = v[self.pivots]
         if not c.any():
             return v
-        return (v - _matvec_mod(c, self.basis, p)) % p
+        return (v - _int_matmul(c, self.basis, p)) % p
 
     def contains(self, row: np.ndarray) -> bool:
         return not np.any(self.reduce(row))

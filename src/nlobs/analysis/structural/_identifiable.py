@@ -270,6 +270,11 @@ class _Search:
         # most complex first: pivots of the reduced echelon form fall on the complex monomials
         self.monos.sort(key=lambda e: (-sum(e), tuple(-x for x in e)))
         self.mono_index = {e: i for i, e in enumerate(self.monos)}
+        # position of each monomial in the lexicographic order of the names (a candidate's leading term, step 4)
+        order = sorted(range(len(U)), key=lambda i: U[i])
+        self._lex = np.empty(len(self.monos), dtype=np.int64)
+        self._lex[sorted(range(len(self.monos)), key=lambda m: tuple(self.monos[m][i] for i in order))] = \
+            np.arange(len(self.monos))
         self.E = np.array(self.monos, dtype=np.int64).reshape(len(self.monos), len(U))
         self.var = {u: prep.hs.unknown_var[u] for u in U}
         #: local points (echelon form of the jet Jacobian, values and columns of the unknowns, number of columns),
@@ -278,7 +283,6 @@ class _Search:
         self._local: list[tuple[np.ndarray, np.ndarray]] = []
         self._reduced: list[tuple[list[int], np.ndarray]] = []
         self._local_ech: dict[tuple[int, ...], RowEchelon] = {}
-        self._lex: np.ndarray | None = None
         #: the denominators whose global points ran out (``max_points``) before a point cut nothing
         self.unconverged: set[tuple[int, ...]] = set()
         self._global: list[list[Poly]] = []
@@ -294,9 +298,16 @@ class _Search:
         are computed for every monomial of this search (the same engine run), so that this search reuses them."""
         sub = _Search(self.prep, self.eng, self.U, self._args[0], top=self._args[1], powers=self._args[2],
                       without=names)
-        sub._tangents = self._tangents
+        sub.share_points(self)
         sub._parent = (self, [self.mono_index[e] for e in sub.monos])
         return sub
+
+    def share_points(self, other: _Search) -> None:
+        """Use the random points of `other`, a search on the same unknowns (of another degree, or a part of it): its
+        local tangents and its global systems depend on the unknowns only."""
+        if other.U != self.U:
+            raise ValueError("searches on different unknowns have different points")
+        self._tangents, self._systems = other._tangents, other._systems
 
     # -- local rows -----------------------------------------------------------------------------
     def tangent(self, i: int) -> tuple[RowEchelon, list[int], list[int], int]:
@@ -475,11 +486,6 @@ class _Search:
         an additive constant too). On exponent arrays: SymPy's cancel on hundreds of candidates, then building
         thousands of expressions, was most of the search's time."""
         p = self.p
-        if self._lex is None:  # position of each monomial in the lexicographic order of the names
-            order = sorted(range(len(self.U)), key=lambda i: self.U[i])
-            self._lex = np.empty(len(self.monos), dtype=np.int64)
-            self._lex[sorted(range(len(self.monos)), key=lambda m: tuple(self.monos[m][i] for i in order))] = \
-                np.arange(len(self.monos))
         Qa = np.array(Q, dtype=np.int64)
         out = []
         for row in _rref(Kc, p):
@@ -960,8 +966,8 @@ def _completed_on_the_route(prep: Any, eng: GroebnerEngine, search: _Search, cho
         # completeness check below says whether that was enough)
         max_degree = 3
         prev, search = search, _Search(prep, eng, U, max_degree, top=rest, powers=powers)
-        if prev.U == U:  # the same random points: they depend on the unknowns only (CGV1990: 122 of 328 local ones)
-            search._tangents, search._systems = prev._tangents, prev._systems
+        if prev.U == U:
+            search.share_points(prev)  # CGV1990: 122 of its 328 local points
         chosen = _search_and_select(search, prep, eng, U, single, rng)
         complete = _complete_io(prep, eng, chosen, U, rng)
     if complete is False:
@@ -1121,7 +1127,8 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
                                                                                  rng)) is not None:
         complete = True
     elif _degree_too_low(search, rest, single, io_complete and auto_degree and max_degree < 3 and not powers):
-        chosen = [_Candidate.unknown(u, rest) for u in single]  # the completeness check below fails on these and raises the degree
+        # the completeness check below fails on these and raises the degree
+        chosen = [_Candidate.unknown(u, rest) for u in single]
     else:
         chosen = _search_and_select(search, prep, eng, rest, single, rng)
     if io_complete and complete is None:

@@ -136,4 +136,3 @@ def require_system(system: Any, caller: str) -> System:
     elif isinstance(system, str):
         hint = " (a model file's name? load it with nlobs.load_model(path).system)"
     raise ModelError(f"{caller}: `system` must be an nlobs.System, got {type(system).__name__}{hint}")
-
