@@ -15,7 +15,8 @@ time limit the whole process group goes, msolve/Singular included) runs, one at 
 - ``functions``: ``nlobs.analysis.find_identifiable_functions(system, with_states=True, reparametrize_model=False)``
   (SI.jl's published benchmark is ``find_identifiable_functions`` with states).
 
-Measured in the child around the call only (not the imports): wall seconds, CPU seconds of the process and its
+Measured in the child around the call only, after a warm-up call of the same part on a two-state model that is
+not a benchmark model (the lazy imports and caches; SI.jl's published times are after a warm-up too): wall seconds, CPU seconds of the process and its
 finished children (``getrusage`` RUSAGE_SELF + RUSAGE_CHILDREN, user + system: the Gröbner engines run as
 subprocesses), and peak RSS (``ru_maxrss`` of the process and of its largest child, MB; of the whole process,
 imports included; a child's figure includes the Python pages it had when forked, before exec). Also the verdicts, the route (``method``), notes and refusals. The parent records "timeout"
@@ -84,12 +85,31 @@ def _route(method: str) -> str:
     return method[:40]
 
 
+def _warm_up(part: str) -> float:
+    """One call of the same part on a two-state model that is not a benchmark model: the lazy imports (scipy.sparse
+    alone takes 0.3 s on this VM), SymPy's caches and the engine lookup are paid before the timed call, as
+    StructuralIdentifiability.jl's published times are taken after a warm-up (Julia's compilation excluded).
+    Returns its wall seconds (recorded: what a first call costs more)."""
+    from nlobs import System
+    from nlobs.analysis import find_identifiable_functions, global_identifiability
+
+    warm = System(states=["x1", "x2"], f=["-(a + b)*x1 + c*x2", "b*x1 - c*x2"], outputs=["y"], h=["x1"],
+                  params={"a": 1.0, "b": 1.0, "c": 1.0}, name="warm_up")
+    t0 = time.perf_counter()
+    if part == "global":
+        global_identifiability(warm, unknown_params="all")
+    else:
+        find_identifiable_functions(warm, with_states=True, reparametrize_model=False)
+    return time.perf_counter() - t0
+
+
 def child(key: str, part: str) -> dict[str, Any]:
     t_import = time.perf_counter()
     from nlobs.analysis import find_identifiable_functions, global_identifiability
 
     sys_ = si_models.system(key)
     out: dict[str, Any] = {"import_seconds": time.perf_counter() - t_import}
+    out["warm_up_seconds"] = _warm_up(part)
     c0, _, _ = _usage()
     t0 = time.perf_counter()
     if part == "global":
@@ -253,10 +273,14 @@ def report(path: Path) -> Path:
              f"`{si_models.FILE}`. **SI.jl's times are the published ones, not rerun here**: "
              f"{data.get('si_run', SI_RUN)}. SI.jl's runtime is the wall time of one call after a warm-up (Julia "
              "compilation excluded).")
+    warmed = [r["warm_up_seconds"] for r in rows if r.get("warm_up_seconds") is not None]
+    warm = (f"the timed call after a warm-up call of the same part on a two-state model in the same process "
+            f"({len(warmed)} of {len(rows)} rows; the warm-up took {min(warmed):.2f}-{max(warmed):.2f} s wall, what a "
+            "first call costs more)" if warmed else "no warm-up: the first call pays the lazy imports")
     how = (f"nlobs: run {dates[0]} to {dates[-1]} on a shared {mach.get('cpus', '?')}-CPU machine "
            f"({mach.get('platform', mach.get('machine', '?'))}, Python {mach.get('python', '?')}, engines: "
            f"{mach.get('engines', '?')}), one model at a time, each part in its own process, args "
-           f"`{data.get('args', '')}`. Wall s (CPU s): CPU is the process plus its Gröbner-engine subprocesses, user + "
+           f"`{data.get('args', '')}`, {warm}. Wall s (CPU s): CPU is the process plus its Gröbner-engine subprocesses, user + "
            "system, the fair measure on a shared machine. Global: `global_identifiability(system, "
            "unknown_params=\"all\")`; functions: `find_identifiable_functions(system, with_states=True, "
            "reparametrize_model=False)`. Size: states x params x outputs x inputs. Ratio: nlobs functions CPU s / "

@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 import sympy as sp
 
@@ -219,6 +220,38 @@ def test_engines_agree():
     for n, out in outs.items():
         assert out == ref, n
     assert ref[1] == {(1, 1, 0): 1, (0, 0, 0): 3} or ref[1] == {(3, 0, 0): 1, (0, 0, 0): 3}
+
+
+@pytest.mark.parametrize("inconsistent", [False, True])
+def test_normal_forms_together_are_each_systems_own(inconsistent):
+    # several systems in one engine call (disjoint copies of their variables): each G gets the normal forms of its own
+    # system, as SymPy's Buchberger computes them one system at a time; with an inconsistent system among them (the
+    # sum of the ideals is then the unit ideal), every system still gets its own answer
+    from nlobs.algebra._groebner import GroebnerEngine
+
+    p = 32003
+    rng = np.random.default_rng(3)
+
+    def system(nv):
+        # x_i^2 - a x_{i+1} - b, ..., x_last^2 - c: zero-dimensional, random coefficients
+        F = []
+        for i in range(nv):
+            f = {tuple(2 if j == i else 0 for j in range(nv)): 1, (0,) * nv: int(rng.integers(1, p))}
+            if i + 1 < nv:
+                f[tuple(1 if j == i + 1 else 0 for j in range(nv))] = int(rng.integers(1, p))
+            F.append(f)
+        G = [{tuple(int(e) for e in rng.integers(0, 4, nv)): 1, (0,) * nv: 5} for _ in range(4)]
+        return [f"v{j}" for j in range(nv)], F, G
+
+    systems = [system(2), system(3), system(2)]
+    if inconsistent:
+        systems.insert(1, (["s", "t"], [{(1, 0): 1, (0, 0): 1}, {(1, 0): 1, (0, 0): 2}], [{(0, 1): 1}]))
+    ref = [GroebnerEngine("sympy").normal_forms(*[names, p, F, G]) for names, F, G in systems]
+    assert any(r and any(sum(m) for m in r[0]) for r in ref)  # not trivial: the normal forms keep variables
+    for name, path in available_engines().items():
+        assert GroebnerEngine(name, path).normal_forms_together(p, systems) == ref, name
+    if inconsistent:
+        assert ref[1] == [{}]
 
 
 # ----------------------------------------------------------------------------------------------

@@ -147,6 +147,37 @@ class GroebnerEngine:
             self.calls += 1
         return out
 
+    def normal_forms_together(self, p: int, systems: Sequence[tuple[Sequence[str], Sequence[Poly], Sequence[Poly]]]
+                              ) -> list[list[Poly]]:
+        """:meth:`normal_forms` of several systems ``(names, F, G)`` over GF(`p`) in one engine call.
+
+        The systems are written in disjoint copies of their variables (copy i's names prefixed ``c<i>_``, the copies
+        one after the other). The reduced Gröbner basis of a sum of ideals in disjoint variables is the union of
+        their reduced bases (S-pairs across copies have coprime leading monomials), and grevlex restricted to one
+        copy's variables is that copy's own grevlex: each G gets its own system's normal forms, unless one system is
+        inconsistent (then the sum is the unit ideal). That is checked with the normal form of 1 and the systems are
+        then reduced one by one. Small systems are where this pays: msolve's start-up (about 7 ms) is most of
+        their call."""
+        if len(systems) == 1:
+            names, F, G = systems[0]
+            return [self.normal_forms(names, p, F, G)]
+        names_all: list[str] = []
+        F_all: list[Poly] = []
+        G_all: list[Poly] = []
+        spans = []
+        width = sum(len(names) for names, _, _ in systems)
+        for i, (names, F, G) in enumerate(systems):
+            at = len(names_all)
+            names_all += [f"c{i}_{v}" for v in names]
+            pad = ((0,) * at, (0,) * (width - at - len(names)))
+            F_all += [{(*pad[0], *m, *pad[1]): c for m, c in f.items()} for f in F]
+            spans.append((at, len(names), len(G_all), len(G)))
+            G_all += [{(*pad[0], *m, *pad[1]): c for m, c in g.items()} for g in G]
+        nfs = self.normal_forms(names_all, p, F_all, [*G_all, {(0,) * width: 1}])
+        if not nfs[-1]:  # some system is inconsistent: its own call says which
+            return [self.normal_forms(names, p, F, G) for names, F, G in systems]
+        return [[{m[at:at + n]: c for m, c in nf.items()} for nf in nfs[g0:g0 + ng]] for at, n, g0, ng in spans]
+
     # -- msolve ------------------------------------------------------------------------------
     def _msolve(self, names: Sequence[str], p: int, F: Sequence[Poly], G: Sequence[Poly]) -> list[Poly]:
         if p >= 2**31:
