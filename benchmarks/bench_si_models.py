@@ -60,7 +60,7 @@ from _common import RESULTS, machine, write
 
 PARTS = ("global", "functions")
 HEADER = ("| model | size | SI.jl functions s | nlobs global wall s (CPU s) | nlobs functions wall s (CPU s) "
-          "| ratio functions CPU / SI.jl | route | status | same field as SI.jl's |")
+          "| ratio functions CPU / SI.jl | route | status | same field as SI.jl's | machine |")
 DEFAULT_JSON = RESULTS / "si_models.json"
 #: From SI.jl's benchmarking/IdentifiableFunctions/benchmark_result.md (quoted, not measured here).
 SI_RUN = ("2023-09-15 (`benchmark_result.md` of SciML/StructuralIdentifiability.jl, "
@@ -85,22 +85,32 @@ def _route(method: str) -> str:
     return method[:40]
 
 
-def _warm_up(part: str) -> float:
+def _warm_up(part: str) -> tuple[float, float]:
     """One call of the same part on a two-state model that is not a benchmark model: the lazy imports (scipy.sparse
     alone takes 0.3 s on this VM), SymPy's caches and the engine lookup are paid before the timed call, as
     StructuralIdentifiability.jl's published times are taken after a warm-up (Julia's compilation excluded).
-    Returns its wall seconds (recorded: what a first call costs more)."""
+    Returns its wall seconds (what a first call costs more) and the CPU seconds of the reference call (the smaller of
+    two more identical calls): the same work in every row, whose spread shows how fast the shared machine ran then."""
     from nlobs import System
     from nlobs.analysis import find_identifiable_functions, global_identifiability
 
-    warm = System(states=["x1", "x2"], f=["-(a + b)*x1 + c*x2", "b*x1 - c*x2"], outputs=["y"], h=["x1"],
-                  params={"a": 1.0, "b": 1.0, "c": 1.0}, name="warm_up")
+    def call() -> None:
+        warm = System(states=["x1", "x2"], f=["-(a + b)*x1 + c*x2", "b*x1 - c*x2"], outputs=["y"], h=["x1"],
+                      params={"a": 1.0, "b": 1.0, "c": 1.0}, name="warm_up")
+        if part == "global":
+            global_identifiability(warm, unknown_params="all")
+        else:
+            find_identifiable_functions(warm, with_states=True, reparametrize_model=False)
+
     t0 = time.perf_counter()
-    if part == "global":
-        global_identifiability(warm, unknown_params="all")
-    else:
-        find_identifiable_functions(warm, with_states=True, reparametrize_model=False)
-    return time.perf_counter() - t0
+    call()
+    wall = time.perf_counter() - t0
+    ref = []
+    for _ in range(2):  # the smaller of two: one call alone varies by 1.5x from second to second
+        c0, _, _ = _usage()
+        call()
+        ref.append(_usage()[0] - c0)
+    return wall, min(ref)
 
 
 def child(key: str, part: str) -> dict[str, Any]:
@@ -109,7 +119,7 @@ def child(key: str, part: str) -> dict[str, Any]:
 
     sys_ = si_models.system(key)
     out: dict[str, Any] = {"import_seconds": time.perf_counter() - t_import}
-    out["warm_up_seconds"] = _warm_up(part)
+    out["warm_up_seconds"], out["reference_cpu"] = _warm_up(part)
     c0, _, _ = _usage()
     t0 = time.perf_counter()
     if part == "global":
@@ -263,6 +273,14 @@ def _cell(r: dict[str, Any] | None) -> str:
     return "error"
 
 
+def _machine(r: dict[str, Any] | None, fastest: float | None) -> str:
+    """The functions row's reference call against the fastest in the file: "x1.8" = the machine ran 1.8 times slower
+    than at its best when that row was measured."""
+    if not r or not r.get("reference_cpu") or not fastest:
+        return "-"
+    return f'x{r["reference_cpu"] / fastest:.1f}'
+
+
 def report(path: Path) -> Path:
     data = json.loads(path.read_text())
     rows = data["rows"]
@@ -285,12 +303,17 @@ def report(path: Path) -> Path:
            "unknown_params=\"all\")`; functions: `find_identifiable_functions(system, with_states=True, "
            "reparametrize_model=False)`. Size: states x params x outputs x inputs. Ratio: nlobs functions CPU s / "
            "SI.jl's published runtime; above 3 in bold. Route: the global check's (io = input-output equations, "
-           "sian = SIAN).")
+           "sian = SIAN). Machine: the CPU time of the functions row's reference call (the warm-up model again, the "
+           "same work in every row) over the fastest reference call in the file; the VM's speed varies by up to 2x "
+           "over a day, so compare rows measured at the same factor, and read a ratio measured at x2 with that in "
+           "mind (the ratio itself is not corrected).")
     L = ["# nlobs on StructuralIdentifiability.jl's benchmark models", "",
          f"Written by `python benchmarks/bench_si_models.py report` from `{path.name}`; do not edit by hand.", "",
          intro, "", how, "",
          HEADER,
-         "|---|---|---|---|---|---|---|---|---|"]
+         "|---|---|---|---|---|---|---|---|---|---|"]
+    refs = [r["reference_cpu"] for r in rows if r.get("reference_cpu")]
+    fastest = min(refs) if refs else None
     keys = [k for k in si_models.MODELS if any((k, p) in by for p in PARTS)]
     errors, timeouts, suspicious, refusals = [], [], [], []
     for k in keys:
@@ -328,7 +351,7 @@ def report(path: Path) -> Path:
         same = f.get("same_field", "-") if f else "-"
         same = {True: "yes", False: "**NO**"}.get(same, same) if isinstance(same, bool) else same
         L.append(f'| {k} ({m["name"]}) | {_size(m)} | {"-" if si is None else f"{si:g}"} | {_cell(g)} | {_cell(f)} | '
-                 f'{ratio} | {route} | {"; ".join(status)} | {same} |')
+                 f'{ratio} | {route} | {"; ".join(status)} | {same} | {_machine(f, fastest)} |')
     ok_f = [(k, by[(k, "functions")]) for k in keys if (k, "functions") in by and by[(k, "functions")]["status"] == "ok"
             and not by[(k, "functions")].get("refused") and si_models.MODELS[k]["si_functions_seconds"]]
     L += ["", "## Summary", ""]
