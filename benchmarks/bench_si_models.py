@@ -60,7 +60,7 @@ from _common import RESULTS, machine, write
 
 PARTS = ("global", "functions")
 HEADER = ("| model | size | SI.jl functions s | nlobs global wall s (CPU s) | nlobs functions wall s (CPU s) "
-          "| ratio functions CPU / SI.jl | route | status | same field as SI.jl's | machine |")
+          "| ratio functions CPU / SI.jl | route | status | same field as SI.jl's | machine: reference call CPU ms |")
 DEFAULT_JSON = RESULTS / "si_models.json"
 #: From SI.jl's benchmarking/IdentifiableFunctions/benchmark_result.md (quoted, not measured here).
 SI_RUN = ("2023-09-15 (`benchmark_result.md` of SciML/StructuralIdentifiability.jl, "
@@ -273,12 +273,18 @@ def _cell(r: dict[str, Any] | None) -> str:
     return "error"
 
 
-def _machine(r: dict[str, Any] | None, fastest: float | None) -> str:
-    """The functions row's reference call against the fastest in the file: "x1.8" = the machine ran 1.8 times slower
-    than at its best when that row was measured."""
-    if not r or not r.get("reference_cpu") or not fastest:
+def _machine(r: dict[str, Any] | None) -> str:
+    """CPU ms of the functions row's reference call (the same work in every row: how fast the machine ran then)."""
+    if not r or not r.get("reference_cpu"):
         return "-"
-    return f'x{r["reference_cpu"] / fastest:.1f}'
+    return f'{1000 * r["reference_cpu"]:.0f}'
+
+
+def _spread(rows: list[dict[str, Any]]) -> str:
+    refs = sorted(1000 * r["reference_cpu"] for r in rows if r.get("reference_cpu"))
+    if not refs:
+        return "not measured in this file's rows"
+    return f"{refs[0]:.0f}-{refs[-1]:.0f} ms over the {len(refs)} rows that have it, median {refs[len(refs) // 2]:.0f}"
 
 
 def report(path: Path) -> Path:
@@ -304,16 +310,14 @@ def report(path: Path) -> Path:
            "reparametrize_model=False)`. Size: states x params x outputs x inputs. Ratio: nlobs functions CPU s / "
            "SI.jl's published runtime; above 3 in bold. Route: the global check's (io = input-output equations, "
            "sian = SIAN). Machine: the CPU time of the functions row's reference call (the warm-up model again, the "
-           "same work in every row) over the fastest reference call in the file; the VM's speed varies by up to 2x "
-           "over a day, so compare rows measured at the same factor, and read a ratio measured at x2 with that in "
-           "mind (the ratio itself is not corrected).")
+           f"same work in every row; {_spread(rows)}). The VM's speed varies by up to 2x over a day (Modified LV, "
+           "same code: 0.15 s CPU in one hour, 0.29 s in another): compare rows at similar reference times, and read "
+           "a ratio measured at a slow hour with that in mind; the ratio itself is not corrected.")
     L = ["# nlobs on StructuralIdentifiability.jl's benchmark models", "",
          f"Written by `python benchmarks/bench_si_models.py report` from `{path.name}`; do not edit by hand.", "",
          intro, "", how, "",
          HEADER,
          "|---|---|---|---|---|---|---|---|---|---|"]
-    refs = [r["reference_cpu"] for r in rows if r.get("reference_cpu")]
-    fastest = min(refs) if refs else None
     keys = [k for k in si_models.MODELS if any((k, p) in by for p in PARTS)]
     errors, timeouts, suspicious, refusals = [], [], [], []
     for k in keys:
@@ -351,7 +355,7 @@ def report(path: Path) -> Path:
         same = f.get("same_field", "-") if f else "-"
         same = {True: "yes", False: "**NO**"}.get(same, same) if isinstance(same, bool) else same
         L.append(f'| {k} ({m["name"]}) | {_size(m)} | {"-" if si is None else f"{si:g}"} | {_cell(g)} | {_cell(f)} | '
-                 f'{ratio} | {route} | {"; ".join(status)} | {same} | {_machine(f, fastest)} |')
+                 f'{ratio} | {route} | {"; ".join(status)} | {same} | {_machine(f)} |')
     ok_f = [(k, by[(k, "functions")]) for k in keys if (k, "functions") in by and by[(k, "functions")]["status"] == "ok"
             and not by[(k, "functions")].get("refused") and si_models.MODELS[k]["si_functions_seconds"]]
     L += ["", "## Summary", ""]
