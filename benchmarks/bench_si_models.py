@@ -243,6 +243,19 @@ def fields(keys: list[str], timeout: float, path: Path) -> None:
     print(f"written {path}")
 
 
+def carry_field_check(old: list[dict[str, Any]], row: dict[str, Any]) -> None:
+    """Keep the `fields` verdict of the model's previous functions row when the new row has the same generators: the
+    check's only input is the generator list (and SI.jl's published one), so its answer is the same. Marked with
+    the date of the row it came from."""
+    if row.get("what") != "functions" or row.get("status") != "ok":
+        return
+    for prev in old:
+        if (prev.get("model"), prev.get("what")) == (row["model"], "functions") and "same_field" in prev \
+                and prev.get("functions") == row.get("functions"):
+            row["same_field"] = prev["same_field"]
+            row["same_field_from"] = prev.get("same_field_from", prev.get("date"))
+
+
 def run(keys: list[str], parts: list[str], timeout: float, path: Path, fresh: bool) -> None:
     old: list[dict[str, Any]] = []
     if path.exists() and not fresh:
@@ -253,6 +266,7 @@ def run(keys: list[str], parts: list[str], timeout: float, path: Path, fresh: bo
     for k in keys:
         for p in parts:
             r = run_one(k, p, timeout)
+            carry_field_check(old, r)
             rows.append(r)
             _save(path, rows, extra)
             shown = (f'{r["wall"]:.2f} s wall, {r["cpu"]:.2f} s CPU, {r.get("rss_mb", 0):.0f} MB'
@@ -312,7 +326,9 @@ def report(path: Path) -> Path:
            "sian = SIAN). Machine: the CPU time of the functions row's reference call (the warm-up model again, the "
            f"same work in every row; {_spread(rows)}). The VM's speed varies by up to 2x over a day (Modified LV, "
            "same code: 0.15 s CPU in one hour, 0.29 s in another): compare rows at similar reference times, and read "
-           "a ratio measured at a slow hour with that in mind; the ratio itself is not corrected.")
+           "a ratio measured at a slow hour with that in mind; the ratio itself is not corrected. Same field: the "
+           "`fields` mode's independent SymPy check; a verdict is carried over from an earlier row of the model with "
+           "the same generators (`same_field_from` in the JSON: the check's only input is the generator list).")
     L = ["# nlobs on StructuralIdentifiability.jl's benchmark models", "",
          f"Written by `python benchmarks/bench_si_models.py report` from `{path.name}`; do not edit by hand.", "",
          intro, "", how, "",

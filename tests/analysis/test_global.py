@@ -222,6 +222,24 @@ def test_engines_agree():
     assert ref[1] == {(1, 1, 0): 1, (0, 0, 0): 3} or ref[1] == {(3, 0, 0): 1, (0, 0, 0): 3}
 
 
+def test_lowest_terms_match_sympys_cancel():
+    # the rational form of a right-hand side, computed in SymPy's fraction field: the same expanded numerator and
+    # denominator as fraction(cancel(together(e))), the independent (and slower) computation it replaces
+    from nlobs.analysis.structural._global import _fraction_field, _lowest_terms
+
+    x, y, z, a = sp.symbols("x y z a")
+    R = sp.Rational
+    exprs = [(x / 2) / (y / 3 + 1), R(3, 7) * x / (R(2, 5) * y + R(1, 3) * z), -x / (-y - 1), (x**2 - 1) / (x - 1) / a,
+             (a * x + a) / (2 * a * y), 1 / (x * y) + 1 / (2 * z), -1 / (3 * y - 6), sp.Integer(5), sp.Integer(0),
+             x / (-2), -(x + y) / (-(z + 1)), (x - 2 * y) / (4 * z - 6), -3 * x * y / 7, R(2, 3), -x,
+             a * x / (a + x) - y * x / (z + x + y), a * y * (z - y) / z, x * (y - R(1, 2)) ** 2 / (1 + x**2) ** 2,
+             a * x / 2 - y, x / 3 + y / 5 - R(1, 7)]
+    F = _fraction_field([a, x, y, z])
+    for e in exprs:
+        num, den = sp.fraction(sp.cancel(sp.together(e)))
+        assert _lowest_terms(e, F) == (sp.expand(num), sp.expand(den)), e
+
+
 @pytest.mark.parametrize("inconsistent", [False, True])
 def test_normal_forms_together_are_each_systems_own(inconsistent):
     # several systems in one engine call (disjoint copies of their variables): each G gets the normal forms of its own

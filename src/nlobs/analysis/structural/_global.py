@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 import sympy as sp
 from sympy.polys.domains import QQ
+from sympy.polys.polyerrors import CoercionFailed
 from sympy.polys.rings import ring
 
 from ...errors import EngineError, ModelError
@@ -266,6 +267,24 @@ def _ratify(e: sp.Expr) -> sp.Expr:
     return e.xreplace(floats) if floats else e
 
 
+def _fraction_field(gens: Sequence[sp.Symbol]) -> Any:
+    from sympy.polys.fields import field
+
+    return field(list(gens), QQ)[0]
+
+
+def _lowest_terms(e: sp.Expr, F: Any) -> tuple[sp.Expr, sp.Expr]:
+    """Expanded numerator and denominator of `e` in lowest terms, computed in SymPy's sparse fraction field over QQ
+    (`F`): the same pair as ``fraction(cancel(together(e)))`` expanded (a constant denominator split as
+    :func:`sympy.fraction` splits it), 3-4x faster (SymPy's ``cancel`` on expressions was half of Biohydrogenation's
+    0.17 s global check)."""
+    r = F(e)
+    num, den = r.numer.as_expr(), r.denom.as_expr()
+    if den.is_Number:
+        num, den = sp.fraction(sp.expand(num / den))
+    return sp.expand(num), sp.expand(den)
+
+
 def _to_rational(system: System, params_unknown: Sequence[str], classes: Mapping[str, Any],
                  unknown_inputs: Mapping[str, int], force_time: bool = False) -> _Rational:
     from ._inputs import InputClass
@@ -318,6 +337,7 @@ def _to_rational(system: System, params_unknown: Sequence[str], classes: Mapping
         names["tt"] = "t"
         inputs.append(("tt", 1))  # t' = 1: jets (t0, 1, 0, ...)
     allowed = set(sub.values()) | {_PI, _E}
+    ring = _fraction_field(sorted(allowed, key=str))
     out = []
     for k, e in enumerate(exprs):
         e = _ratify(e.xreplace(sub))
@@ -333,13 +353,10 @@ def _to_rational(system: System, params_unknown: Sequence[str], classes: Mapping
                 f"{where}: not a rational function ({what}); the global algorithm ({cite('hong2019')}) works on "
                 "rational right-hand sides and outputs. Rewrite the model in rational form (e.g. an auxiliary state "
                 "for sqrt, exp or sin with its own ODE, as the model allows), or use the local verdict")
-        num, den = sp.fraction(sp.cancel(sp.together(e)))
         try:
-            sp.Poly(num, *sorted(allowed, key=str), domain="QQ")
-            sp.Poly(den, *sorted(allowed, key=str), domain="QQ")
-        except sp.PolynomialError as err:
+            out.append(_lowest_terms(e, ring))
+        except (sp.PolynomialError, CoercionFailed, ValueError) as err:
             raise NotRational(f"{where}: not a rational function with rational coefficients ({err})") from None
-        out.append((sp.expand(num), sp.expand(den)))
     nf = system.n_states
     f = out[:nf] + [(e, sp.Integer(1)) for e in extra_f]
     consts = [c.name for c in (_PI, _E) if any(c in n.free_symbols or c in d.free_symbols for n, d in out)]
