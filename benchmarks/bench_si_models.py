@@ -147,6 +147,7 @@ def run_one(key: str, part: str, timeout: float) -> dict[str, Any]:
     row: dict[str, Any] = {"model": key, "name": m["name"], "what": part, "size": _size(m),
                            "si_functions_seconds": m["si_functions_seconds"], "timeout_s": timeout,
                            "date": time.strftime("%Y-%m-%d %H:%M:%S"), "load_1min": os.getloadavg()[0]}
+    row["commit"] = _commit()
     t0 = time.perf_counter()
     proc = subprocess.Popen([sys.executable, __file__, "child", "--models", key, "--what", part],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
@@ -170,6 +171,17 @@ def run_one(key: str, part: str, timeout: float) -> dict[str, Any]:
         row["status"] = "error: " + (tail[-1] if tail else f"exit code {proc.returncode}, no output")
         row["traceback_tail"] = tail[-12:]
     return row
+
+
+@functools.lru_cache(maxsize=1)
+def _commit() -> str:
+    """The commit of the tree this benchmark file is in (the code measured, with ``PYTHONPATH`` at its ``src``), and
+    "+changes" when that tree has uncommitted changes."""
+    def git(*a: str) -> str:
+        return subprocess.run(["git", "-C", str(ROOT), *a], capture_output=True, text=True, check=False).stdout.strip()
+
+    head = git("rev-parse", "--short", "HEAD") or "unknown"
+    return head + ("+changes" if git("status", "--porcelain", "--untracked-files=no", "src") else "")
 
 
 def _size(m: dict[str, Any]) -> str:
@@ -294,6 +306,13 @@ def _machine(r: dict[str, Any] | None) -> str:
     return f'{1000 * r["reference_cpu"]:.0f}'
 
 
+def _commits(rows: list[dict[str, Any]]) -> str:
+    counts: dict[str, int] = {}
+    for r in rows:
+        counts[r.get("commit", "not recorded")] = counts.get(r.get("commit", "not recorded"), 0) + 1
+    return ", ".join(f"{c} ({n} rows)" for c, n in sorted(counts.items(), key=lambda kv: -kv[1]))
+
+
 def _spread(rows: list[dict[str, Any]]) -> str:
     refs = sorted(1000 * r["reference_cpu"] for r in rows if r.get("reference_cpu"))
     if not refs:
@@ -318,7 +337,7 @@ def report(path: Path) -> Path:
     how = (f"nlobs: run {dates[0]} to {dates[-1]} on a shared {mach.get('cpus', '?')}-CPU machine "
            f"({mach.get('platform', mach.get('machine', '?'))}, Python {mach.get('python', '?')}, engines: "
            f"{mach.get('engines', '?')}), one model at a time, each part in its own process, args "
-           f"`{data.get('args', '')}`, {warm}. Wall s (CPU s): CPU is the process plus its Gröbner-engine subprocesses, user + "
+           f"`{data.get('args', '')}`, {warm}; code: {_commits(rows)}. Wall s (CPU s): CPU is the process plus its Gröbner-engine subprocesses, user + "
            "system, the fair measure on a shared machine. Global: `global_identifiability(system, "
            "unknown_params=\"all\")`; functions: `find_identifiable_functions(system, with_states=True, "
            "reparametrize_model=False)`. Size: states x params x outputs x inputs. Ratio: nlobs functions CPU s / "
