@@ -305,7 +305,7 @@ def _si_section(rows: dict) -> list[str]:
          "system decided (IO: input-output equations; SIAN: output derivatives). SI.jl's identifiable-functions "
          "benchmark includes the states; the published generators of some models here do not (Goodwin), so the "
          "last column gives the same measure as SI.jl's, with states, from `si_models.json` (`bench_si_models.py`, "
-         "one process per model and part, no warm-up).", "",
+         "one process per model and part, after a warm-up call on a two-state model).", "",
          "| model | SI.jl global s | nlobs global CPU s (wall) | ratio | route | SI.jl functions s (with states) "
          "| nlobs functions CPU s (wall), as published | ratio | route | nlobs functions with states CPU s (ratio) |",
          "|---|---|---|---|---|---|---|---|---|---|"]

@@ -314,10 +314,11 @@ def _commits(rows: list[dict[str, Any]]) -> str:
 
 
 def _spread(rows: list[dict[str, Any]]) -> str:
-    refs = sorted(1000 * r["reference_cpu"] for r in rows if r.get("reference_cpu"))
+    refs = sorted(1000 * r["reference_cpu"] for r in rows if r.get("reference_cpu") and r.get("what") == "functions")
     if not refs:
         return "not measured in this file's rows"
-    return f"{refs[0]:.0f}-{refs[-1]:.0f} ms over the {len(refs)} rows that have it, median {refs[len(refs) // 2]:.0f}"
+    return (f"{refs[0]:.0f}-{refs[-1]:.0f} ms over the {len(refs)} functions rows that have it, median "
+            f"{refs[len(refs) // 2]:.0f}")
 
 
 def report(path: Path) -> Path:
