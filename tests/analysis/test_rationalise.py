@@ -211,6 +211,24 @@ def test_unused_tie_gives_undecided_never_non_identifiable():
 
 
 @needs_engine
+def test_unused_tie_that_decides_nothing_is_not_reported_as_undecided():
+    # cascaded tanks, y = x2: x2' = k2 sqrt(x1) - k3 sqrt(x2) gives x2 and k3; w = k2 sqrt(x1) has
+    # w' = -k1 k2 / 2 + k2^2 k4 u / (2 w), so only k1 k2, k2^2 k4 and w(0) are known: (k1, k2, k4, x1) ->
+    # (k1/l, l k2, k4/l^2, x1/l^2) fits the output. The tie of sqrt(x1) stays unused (x1 is not identifiable), but
+    # every verdict is decided (x1, k1, k2, k4 by the local rank): no "undecided" note
+    from pathlib import Path
+
+    from nlobs import load_model
+
+    s = load_model(Path(__file__).resolve().parents[2] / "src" / "nlobs" / "models" / "cascaded_tanks.toml").system
+    g = global_identifiability(s, unknown_params="all")
+    assert set(g.globally) == {"x2", "k3"} and set(g.non_identifiable) == {"x1", "k1", "k2", "k4"}
+    assert g.undecided == ()
+    assert not any("undecided" in n for n in g.notes)
+    assert any("not pinned" in n for n in g.notes)  # the unused tie is still said
+
+
+@needs_engine
 def test_exact_rewriting_keeps_locally_only():
     # x' = a² exp(x), y = x: the tie is pinned (x known), the rewriting is exact, and a -> -a remains: 2 values
     g = _glob(System(states=["x"], f=["a**2*exp(x)"], outputs=["y"], h=["x"], params={"a": 1.0}), "all")

@@ -1379,7 +1379,7 @@ def _decide_rewritten(prep: _Rewritten, eng: GroebnerEngine, max_solutions: int)
             funcs.append((text, v, k))
         else:
             funcs.append((text, "undecided", None))
-    if not exact_:
+    if not exact_ and (undecided or any(v == "undecided" for _, v, _ in funcs)):
         notes.append("verdicts other than 'globally' are undecided: some ties were not used (rewritten model: "
                      f"{', '.join(lo.name + ' ' + str(lo.solutions) + ' solutions' for lo in res['locally_only']) or 'no locally-only unknown'})")
     notes.append(f"{rounds} Gröbner pass(es) on the rewritten model")
