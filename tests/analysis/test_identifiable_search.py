@@ -247,3 +247,31 @@ def test_candidates_are_exact_terms_that_print_as_their_function(model):
     assert model == "lv" or "a + 2*b" in texts, texts
     res = global_identifiability(system, unknown_params="all", functions=texts, engine=ENGINE, route="io")
     assert [v for _, v, _ in res.functions] == ["globally"] * len(texts), res.functions
+
+
+@needs_engine
+@pytest.mark.parametrize("model, chosen, counts", [
+    # x' = -(a + b) x, y = x: the field is Q(x, a + b); the random cut (a line in the (a, b) plane) meets the line
+    # a + b = const of both fibres in one point, so the identifiability fibre's count (at most that of the chosen
+    # functions', at least 1) is not computed
+    ("sum", ["x", "a + b"], 1),
+    # x' = -a b x: the cut meets the hyperbola a b = const in two points: both counts are computed, and agree
+    ("product", ["x", "a*b"], 2),
+    # Modified LV: a <-> b leaves two points on the cut in both fibres: both counts are computed, and agree
+    ("lv", LV_FIELD, 2),
+])
+def test_completeness_counts_the_identifiability_fibre_only_when_needed(monkeypatch, model, chosen, counts):
+    import sympy as sp
+
+    rhs = {"sum": "-(a + b)*x", "product": "-a*b*x"}
+    system = _lv() if model == "lv" else System(states=["x"], f=[rhs[model]], outputs=["y"], h=["x"],
+                                                params={"a": 1.0, "b": 2.0}, name=model)
+    eng = get_engine(ENGINE)
+    prep = _prepare(system, unknown_params="all", seed=0)
+    U = list(prep.unknown_names)
+    calls = []
+    count = I._count
+    monkeypatch.setattr(I, "_count", lambda *a, **k: calls.append(a[1]) or count(*a, **k))
+    funcs = [sp.sympify(c, locals={u: I.symbol(u) for u in U}) for c in chosen]
+    assert I._complete(prep, eng, funcs, U, np.random.default_rng(1)) is True
+    assert len(calls) == counts

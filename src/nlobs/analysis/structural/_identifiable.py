@@ -745,18 +745,14 @@ def _count(eng: GroebnerEngine, names: list[str], F: list[Poly], ell: Poly, p: i
 
 def _complete(prep: Any, eng: GroebnerEngine, chosen: list[_Candidate], U: list[str], rng: np.random.Generator,
               cap: int = 48) -> bool | None:
-    """Same number of points on one random cut for the identifiability fibre and the fibre of `chosen`."""
+    """Same number of points on one random cut for the identifiability fibre and the fibre of `chosen`.
+
+    The chosen functions are identifiable, so the identifiability fibre (projected on U) lies in their fibre: its
+    count is at most theirs, and at least 1 (the point itself). When their fibre has one point, so does it, and its
+    Gröbner basis with one more variable is not computed (Covid model (Gevertz): 27 of 41 s)."""
     hs, p = prep.hs, prep.p
     var = {u: hs.unknown_var[u] for u in U}
     r = {u: int(rng.integers(1, p)) for u in U}
-    # the SIAN side (weighted variables: u = V^w)
-    nv = len(hs.names)
-    ell: Poly = {}
-    for u in U:
-        m = [0] * nv
-        m[hs.names.index(var[u])] = hs.weight.get(var[u], 1)
-        ell[tuple(m)] = r[u]
-    n_sian = _count(eng, hs.names, hs.F, ell, p, cap)
     # the fibre of the chosen functions at the same point, on the same cut
     xhat = {u: hs.value[var[u]] for u in U}
     names, F, _ = _fibre_system(chosen, U, p, rng, point=xhat)
@@ -776,6 +772,16 @@ def _complete(prep: Any, eng: GroebnerEngine, chosen: list[_Candidate], U: list[
         mm[names.index(u)] = 1
         ell2[tuple(mm)] = r[u]
     n_fun = _count(eng, names, F, ell2, p, cap)
+    if n_fun == 1:
+        return True
+    # the SIAN side (weighted variables: u = V^w)
+    nv = len(hs.names)
+    ell: Poly = {}
+    for u in U:
+        m = [0] * nv
+        m[hs.names.index(var[u])] = hs.weight.get(var[u], 1)
+        ell[tuple(m)] = r[u]
+    n_sian = _count(eng, hs.names, hs.F, ell, p, cap)
     if n_sian is None or n_fun is None:
         return None
     return n_sian == n_fun
