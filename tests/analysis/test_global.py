@@ -241,7 +241,7 @@ def test_lowest_terms_match_sympys_cancel():
 
 
 @pytest.mark.parametrize("inconsistent", [False, True])
-def test_normal_forms_together_are_each_systems_own(inconsistent):
+def test_normal_forms_together_and_side_by_side_are_each_systems_own(inconsistent):
     # several systems in one engine call (disjoint copies of their variables): each G gets the normal forms of its own
     # system, as SymPy's Buchberger computes them one system at a time; with an inconsistent system among them (the
     # sum of the ideals is then the unit ideal), every system still gets its own answer
@@ -268,6 +268,10 @@ def test_normal_forms_together_are_each_systems_own(inconsistent):
     assert any(r and any(sum(m) for m in r[0]) for r in ref)  # not trivial: the normal forms keep variables
     for name, path in available_engines().items():
         assert GroebnerEngine(name, path).normal_forms_together(p, systems) == ref, name
+        # side by side (threads waiting on one engine run per system): the same answers, in the systems' order
+        eng = GroebnerEngine(name, path, workers=2)
+        assert eng.normal_forms_side_by_side(p, systems) == ref, name
+        assert eng.calls == len(systems)
     if inconsistent:
         assert ref[1] == [{}]
 

@@ -111,6 +111,8 @@ class GroebnerEngine:
         Number of engine calls so far.
     threads : int
         Threads msolve may use.
+    workers : int
+        Engine runs :meth:`normal_forms_side_by_side` starts at once (default: the cores, at most 4).
     timeout : float or None
         Seconds after which a subprocess engine is stopped (an EngineError saying so); None: no limit.
     """
@@ -122,6 +124,7 @@ class GroebnerEngine:
     calls: int = 0
     threads: int = 1
     timeout: float | None = None
+    workers: int = field(default_factory=lambda: max(1, min(4, os.cpu_count() or 1)))
     _version: str = field(default="", repr=False)
 
     def normal_forms(self, names: Sequence[str], p: int, F: Sequence[Poly], G: Sequence[Poly]) -> list[Poly]:
@@ -177,6 +180,26 @@ class GroebnerEngine:
         if not nfs[-1]:  # some system is inconsistent: its own call says which
             return [self.normal_forms(names, p, F, G) for names, F, G in systems]
         return [[{m[at:at + n]: c for m, c in nf.items()} for nf in nfs[g0:g0 + ng]] for at, n, g0, ng in spans]
+
+    def normal_forms_side_by_side(self, p: int, systems: Sequence[tuple[Sequence[str], Sequence[Poly],
+                                                                         Sequence[Poly]]]) -> list[list[Poly]]:
+        """:meth:`normal_forms` of independent systems ``(names, F, G)``, up to :attr:`workers` msolve runs at a time
+        (threads that wait on the subprocesses: the cores work on the bases, Python only writes and reads them).
+        For the larger systems, where one basis is most of a call; other engines run the systems one after the
+        other."""
+        if self.name != "msolve" or len(systems) == 1 or self.workers < 2:
+            return [self.normal_forms(names, p, F, G) for names, F, G in systems]
+        from concurrent.futures import ThreadPoolExecutor
+
+        t0 = time.perf_counter()
+        c0 = _cpu(self.name)
+        try:
+            with ThreadPoolExecutor(max_workers=min(self.workers, len(systems))) as pool:
+                return list(pool.map(lambda s: self._msolve(*s[:1], p, *s[1:]), systems))
+        finally:  # counted once for the batch: the children's CPU is only known for all of them together
+            self.seconds += time.perf_counter() - t0
+            self.cpu_seconds += _cpu(self.name) - c0
+            self.calls += len(systems)
 
     # -- msolve ------------------------------------------------------------------------------
     def _msolve(self, names: Sequence[str], p: int, F: Sequence[Poly], G: Sequence[Poly]) -> list[Poly]:

@@ -402,13 +402,15 @@ class _Search:
                 self._global.append(self.eng.normal_forms(hs.names, self.p, hs.F, self.mono_polys(hs)))
                 continue
             # small systems a few points per engine call: msolve's start-up is most of their time (Modified LV: 8
-            # points, 7 ms each), and a point drawn ahead costs little more than its start-up
-            ahead = _POINTS_TOGETHER if sum(map(len, self.prep.hs.F)) <= _SMALL_TERMS else 1
+            # points, 7 ms each), and a point drawn ahead costs little more than its start-up; larger ones a point
+            # per core, side by side (the wall time of one; at most one point per search more than needed)
+            small = sum(map(len, self.prep.hs.F)) <= _SMALL_TERMS
+            ahead = _POINTS_TOGETHER if small else self.eng.workers
             while len(self._systems) < k - 1 + ahead:
                 self._systems.append(self.prep.point())
-            batch = self._systems[k - 1:k - 1 + ahead]
-            self._global += self.eng.normal_forms_together(self.p, [(hs.names, hs.F, self.mono_polys(hs))
-                                                                    for hs in batch])
+            batch = [(hs.names, hs.F, self.mono_polys(hs)) for hs in self._systems[k - 1:k - 1 + ahead]]
+            self._global += (self.eng.normal_forms_together(self.p, batch) if small
+                             else self.eng.normal_forms_side_by_side(self.p, batch))
         return self._global[j]
 
     def nf_matrix(self, j: int) -> np.ndarray:
