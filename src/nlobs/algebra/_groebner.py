@@ -195,7 +195,7 @@ class GroebnerEngine:
         c0 = _cpu(self.name)
         try:
             with ThreadPoolExecutor(max_workers=min(self.workers, len(systems))) as pool:
-                return list(pool.map(lambda s: self._msolve(*s[:1], p, *s[1:]), systems))
+                return list(pool.map(lambda s: self._msolve(s[0], p, s[1], s[2]), systems))
         finally:  # counted once for the batch: the children's CPU is only known for all of them together
             self.seconds += time.perf_counter() - t0
             self.cpu_seconds += _cpu(self.name) - c0

@@ -337,7 +337,7 @@ def _to_rational(system: System, params_unknown: Sequence[str], classes: Mapping
         names["tt"] = "t"
         inputs.append(("tt", 1))  # t' = 1: jets (t0, 1, 0, ...)
     allowed = set(sub.values()) | {_PI, _E}
-    ring = _fraction_field(sorted(allowed, key=str))
+    qq_field = _fraction_field(sorted(allowed, key=str))
     out = []
     for k, e in enumerate(exprs):
         e = _ratify(e.xreplace(sub))
@@ -354,7 +354,7 @@ def _to_rational(system: System, params_unknown: Sequence[str], classes: Mapping
                 "rational right-hand sides and outputs. Rewrite the model in rational form (e.g. an auxiliary state "
                 "for sqrt, exp or sin with its own ODE, as the model allows), or use the local verdict")
         try:
-            out.append(_lowest_terms(e, ring))
+            out.append(_lowest_terms(e, qq_field))
         except (sp.PolynomialError, CoercionFailed, ValueError) as err:
             raise NotRational(f"{where}: not a rational function with rational coefficients ({err})") from None
     nf = system.n_states

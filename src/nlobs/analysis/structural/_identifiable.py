@@ -284,6 +284,8 @@ class _Search:
             np.arange(len(self.monos))
         self.E = np.array(self.monos, dtype=np.int64).reshape(len(self.monos), len(U))
         self.var = {u: prep.hs.unknown_var[u] for u in U}
+        #: a small system (:data:`_SMALL_TERMS`): its fresh global points go several to one engine call, else side by side
+        self._small = sum(map(len, prep.hs.F)) <= _SMALL_TERMS
         #: local points (echelon form of the jet Jacobian, values and columns of the unknowns, number of columns),
         #: shared with the searches made by :meth:`without`
         self._tangents: list[tuple[RowEchelon, list[int], list[int], int]] = []
@@ -404,12 +406,11 @@ class _Search:
             # small systems a few points per engine call: msolve's start-up is most of their time (Modified LV: 8
             # points, 7 ms each), and a point drawn ahead costs little more than its start-up; larger ones a point
             # per core, side by side (the wall time of one; at most one point per search more than needed)
-            small = sum(map(len, self.prep.hs.F)) <= _SMALL_TERMS
-            ahead = _POINTS_TOGETHER if small else self.eng.workers
+            ahead = _POINTS_TOGETHER if self._small else self.eng.workers
             while len(self._systems) < k - 1 + ahead:
                 self._systems.append(self.prep.point())
             batch = [(hs.names, hs.F, self.mono_polys(hs)) for hs in self._systems[k - 1:k - 1 + ahead]]
-            self._global += (self.eng.normal_forms_together(self.p, batch) if small
+            self._global += (self.eng.normal_forms_together(self.p, batch) if self._small
                              else self.eng.normal_forms_side_by_side(self.p, batch))
         return self._global[j]
 
