@@ -16,6 +16,7 @@ import keyword
 import os
 import re
 import tempfile
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -25,7 +26,7 @@ import numpy as np
 
 from ..design import ObserverDesign, check_positive
 from ..engine import compile_system, rk4_step
-from ..errors import PreconditionError
+from ..errors import ModelError, PreconditionError
 from ._base import AbstractObserver, Observer
 from ._convert import as_observer
 
@@ -52,6 +53,13 @@ class CExport:
         Sizes of the internal state, the estimate, u and y.
     max_step : float or None
         The largest RK4 step between samples baked into the code (None: one step per interval).
+    delays : dict of str to float, or None
+        The known measurement delay of each output (seconds) of the fusion filter ``NAME_fusion_step``
+        (None: no fusion filter was written).
+    history : int or None
+        The knots the fusion filter's history holds (``NAME_HISTORY``).
+    min_interval : float or None
+        The smallest row spacing the history was sized for (None: `history` was given directly).
     """
 
     name: str
@@ -63,6 +71,9 @@ class CExport:
     n_inputs: int
     n_outputs: int
     max_step: float | None
+    delays: dict[str, float] | None = None
+    history: int | None = None
+    min_interval: float | None = None
 
     @property
     def build_command(self) -> str:
@@ -72,6 +83,11 @@ class CExport:
     def __str__(self) -> str:
         lines = [f"C export {self.name!r}: z has {self.n_z} entries, x̂ {self.n_states}, u {self.n_inputs}, y {self.n_outputs}"
                  + (f"; RK4 steps <= {self.max_step:g}" if self.max_step else "; one RK4 step per sample interval")]
+        if self.delays is not None:
+            late = ", ".join(f"{k} {v:g} s" for k, v in self.delays.items() if v > 0) or "none"
+            lines.append(f"fusion filter {self.name}_fusion_step (rows stamped at arrival): delays {late}; history of "
+                         f"{self.history} knots"
+                         + (f" (rows at least {self.min_interval:g} s apart)" if self.min_interval is not None else ""))
         for p in (self.source, self.header, self.example):
             lines.append(f"  {p} ({p.stat().st_size} bytes)")
         lines.append(f"  build the example: cd {self.source.parent} && {self.build_command}")
@@ -148,6 +164,20 @@ def _functions(design: ObserverDesign, name: str) -> tuple[ca.Function, ca.Funct
     sample = ca.Function(f"{name}_cg_sample", [z, t, u, y, m, y_prev], [z_plus, xhat, y_used],
                          ["z", "t", "u", "y", "m", "y_prev"], ["z_plus", "xhat", "y_held"])
     return init, rk4, sample
+
+
+def _fusion_functions(design: ObserverDesign, name: str) -> tuple[ca.Function, ca.Function]:
+    """update(z, t, u, y, m) -> z+ (the design's J as it is: the fusion filter fills the missing entries of y itself);
+    output(z, t, u, y) -> xhat (H)."""
+    fns = [design.output] + ([design.update] if design.update is not None else [])
+    Sym = ca.SX if all(f.is_a("SXFunction") for f in fns) else ca.MX
+    s = design.system
+    z, t = Sym.sym("z", design.n_z), Sym.sym("t")
+    u, y, m = Sym.sym("u", s.n_inputs), Sym.sym("y", s.n_outputs), Sym.sym("m", s.n_outputs)
+    update = ca.Function(f"{name}_cg_update", [z, t, u, y, m], [design.update(t, z, u, y, m)],
+                         ["z", "t", "u", "y", "m"], ["z_plus"])
+    output = ca.Function(f"{name}_cg_output", [z, t, u, y], [design.output(t, z, u, y)], ["z", "t", "u", "y"], ["xhat"])
+    return update, output
 
 
 def _generate(fns: list[ca.Function], name: str, method: str) -> str:
@@ -236,12 +266,95 @@ int {name}_step(const double *z, double t, double dt,
                 const double *u_prev, const double *y_prev,
                 const double *u, const double *y,
                 double *z_next, double *xhat, double *y_held);
-
+{fusion_decls}
 #ifdef __cplusplus
 }} /* extern "C" */
 #endif
 
 #endif /* {NAME}_H */
+"""
+
+_FUSION_HEADER = """
+/* ---- Known measurement delays: the fusion filter -------------------------------------------
+ *
+ * Output j's sample taken at time s reaches the program at s + {name}_delay[j] (seconds):
+ *   {delay_text}
+ * Feed the rows as they arrive, stamped at arrival (a logger's CSV; see main.c):
+ *
+ *   {name}_fusion f;                     // caller-allocated: sizeof({name}_fusion) bytes, no malloc
+ *   {name}_fusion_init(&f, NULL);        // xhat0: the design's default
+ *   for each row (t, u, y):              // y[j] NaN: nothing of output j arrived at t
+ *     rc = {name}_fusion_step(&f, t, u, y, xhat);
+ *
+ * Semantics (those of nlobs.estimate(observer, recording, delay={{...}}), exact re-processing): a
+ * number y[j] in the row stamped t is the sample taken at s = t - {name}_delay[j]. The filter
+ * keeps a history of knots -- the row times, and the times samples were taken -- with the state
+ * after each. A late sample is inserted at the time it was taken, and the filter runs again from
+ * the knot just before it: the flow from knot to knot (RK4, u and the held measurement of the
+ * knot held; n = max(1, ceil(gap / {NAME}_MAX_STEP - 1e-9)) equal steps per gap; gaps of at most
+ * 1e-12 relative are not integrated), the update at each knot that has samples, in the order
+ * they were taken, then on to t. The input held over a gap, and used by the update at a knot, is
+ * that of the row whose hold interval [t_r, t_r+1) contains the knot. Samples taken within 1e-12
+ * (relative) of each other share a knot. Exact: the estimate at t equals the undelayed filter
+ * (the same flow and update, as {name}_step applies them, with the rows and the taken times as
+ * its sample times) run on the samples that have arrived by t, each applied at the time it was
+ * taken. An output with delay 0 is applied at its row, as {name}_step applies it. A row with no
+ * sample moves the filter on without an update. Samples taken before the first row are left
+ * out (counted in f.early). Missing entries at a knot are left out of the update (mask m = 0);
+ * the held measurement y_held is, per output, the last sample in taken order (zero before the
+ * first): the continuous-discrete observers of nlobs read y only through the update.
+ *
+ * The history holds {NAME}_HISTORY knots: every row and taken time within the largest delay
+ * ({NAME}_MAX_DELAY s) of the newest row, plus one. {sizing_text}
+ * A row that would not fit returns {NAME}_EHISTORY and changes nothing: export again with a
+ * smaller min_interval or a larger history.
+ */
+#define {NAME}_HISTORY {history}
+#define {NAME}_MAX_DELAY {max_delay_c}
+/* the smallest row spacing the history was sized for (0: the history was given directly) */
+#define {NAME}_MIN_INTERVAL {min_interval_c}
+#define {NAME}_EHISTORY 4   /* the history is full: rows closer than {NAME}_MIN_INTERVAL */
+#define {NAME}_ESTATE 5     /* not initialised, or an earlier step failed: call {name}_fusion_init */
+
+/* The delay of each output (seconds), in the order of y. */
+extern const double {name}_delay[{NAME}_NY_ALLOC];
+
+/* One knot of the history: a row time or a time samples were taken. */
+typedef struct {{
+  double t;                        /* the knot's time */
+  double z[{NAME}_NZ];             /* the state at t, after the update with the samples taken at t */
+  double u[{NAME}_NU_ALLOC];       /* the input held from t on (the row whose hold interval holds t) */
+  double y[{NAME}_NY_ALLOC];       /* the samples taken at t, where m = 1 */
+  double m[{NAME}_NY_ALLOC];       /* 1: output j was taken at t */
+  double y_held[{NAME}_NY_ALLOC];  /* per output, the last sample taken at or before t */
+  int row;                         /* 1: a row time */
+  int sampled;                     /* 1: some output was taken at t (an update is applied there) */
+}} {name}_knot;
+
+/* The fusion filter's whole state (fixed size; copy it to keep a snapshot). */
+typedef struct {{
+  {name}_knot knot[{NAME}_HISTORY];  /* storage, in no particular order */
+  int order[{NAME}_HISTORY];         /* knot[order[0]], ..., knot[order[n - 1]]: the knots in time order */
+  int free_slot[{NAME}_HISTORY];     /* the unused storage */
+  int n, n_free;
+  double z0[{NAME}_NZ];              /* the state before the first row */
+  double t0;                         /* the first row's time */
+  long early;                        /* delayed samples taken before t0, left out */
+  int status;                        /* {NAME}_OK, or the error that stopped the filter */
+  unsigned magic;                    /* set by {name}_fusion_init */
+}} {name}_fusion;
+
+/* Start from the initial estimate xhat0 (NULL: {name}_xhat0_default); the first row is the first
+ * {name}_fusion_step. Returns {NAME}_OK. */
+int {name}_fusion_init({name}_fusion *f, const double *xhat0);
+
+/* One row stamped at arrival: t (increasing), the input u applied from t on (NULL when the model
+ * has no inputs), y with NaN where nothing arrived; xhat receives the estimate at t from every
+ * sample arrived by t. Errors: {NAME}_EINPUT (t not after the last row, a non-finite t or u, an
+ * infinite y; nothing changed), {NAME}_EHISTORY (nothing changed), {NAME}_ENONFINITE or
+ * {NAME}_EINTERNAL (the filter diverged or a generated function failed: it stops, and returns
+ * {NAME}_ESTATE until {name}_fusion_init), {NAME}_ESTATE. xhat is written only on {NAME}_OK. */
+int {name}_fusion_step({name}_fusion *f, double t, const double *u, const double *y, double *xhat);
 """
 
 _WRAPPER = """
@@ -317,6 +430,186 @@ int {name}_step(const double *z, double t, double dt,
   for (i = 0; i < {NAME}_NX; ++i) xhat[i] = x_new[i];
   if (y_held) for (i = 0; i < {NAME}_NY; ++i) y_held[i] = y_new[i];
   return {NAME}_OK;
+}}
+"""
+
+_FUSION_WRAPPER = """
+/* ---- nlobs wrapper: the fusion filter with known measurement delays (see {name}.h) ------- */
+
+#define {NAME}_TOL(s) (1e-12 * (fabs(s) > 1.0 ? fabs(s) : 1.0))  /* nlobs' time tolerance */
+#define {NAME}_MAGIC 0x6e6c6f62u
+#define {NAME}_KNOT(f, i) ((f)->knot[(f)->order[i]])
+
+const double {name}_delay[{NAME}_NY_ALLOC] = {{{delays_c}}};
+/* the outputs by decreasing delay, then by index: the samples of a row in the order they were taken */
+static const int {name}_taken_order[{NAME}_NY_ALLOC] = {{{taken_order_c}}};
+
+int {name}_fusion_init({name}_fusion *f, const double *xhat0) {{
+  int i, rc;
+  if (!f) return {NAME}_EINPUT;
+  rc = {name}_init(xhat0, f->z0);
+  for (i = 0; i < {NAME}_HISTORY; ++i) f->free_slot[i] = {NAME}_HISTORY - 1 - i;
+  f->n = 0;
+  f->n_free = {NAME}_HISTORY;
+  f->t0 = 0.0;
+  f->early = 0;
+  f->status = rc;
+  f->magic = {NAME}_MAGIC;
+  return rc;
+}}
+
+/* the flow from ta to tb with u and y held, in place on z (as {name}_step integrates a sample interval) */
+static int {name}_flow(double *z, double ta, double tb, const double *u, const double *y) {{
+  const double *arg[{NAME}_SZ_ARG];
+  double *res[{NAME}_SZ_RES];
+  int iw[{NAME}_SZ_IW];
+  double w[{NAME}_SZ_W];
+  double zb[{NAME}_NZ], h, dt = tb - ta;
+  long n = 1, k;
+  int i;
+  if (!(dt > {NAME}_TOL(tb))) return {NAME}_OK;
+  if ({NAME}_MAX_STEP > 0.0) {{
+    double q = ceil(dt / {NAME}_MAX_STEP - 1e-9);
+    if (!(q < 1e9)) return {NAME}_EINPUT;
+    if (q > 1.0) n = (long) q;
+  }}
+  h = dt / (double) n;
+  for (k = 0; k < n; ++k) {{
+    double tk = ta + (double) k * h;
+    arg[0] = z; arg[1] = &tk; arg[2] = &h; arg[3] = u; arg[4] = y;
+    res[0] = zb;
+    if ({name}_cg_rk4(arg, res, iw, w, 0)) return {NAME}_EINTERNAL;
+    for (i = 0; i < {NAME}_NZ; ++i) z[i] = zb[i];
+  }}
+  return {NAME}_OK;
+}}
+
+int {name}_fusion_step({name}_fusion *f, double t, const double *u, const double *y, double *xhat) {{
+  static const double zeros[{NAME}_NY_ALLOC > {NAME}_NU_ALLOC ? {NAME}_NY_ALLOC : {NAME}_NU_ALLOC] = {{0}};
+  const double *arg[{NAME}_SZ_ARG];
+  double *res[{NAME}_SZ_RES];
+  int iw[{NAME}_SZ_IW];
+  double w[{NAME}_SZ_W];
+  double x_new[{NAME}_NX], y_fill[{NAME}_NY_ALLOC], zb[{NAME}_NZ], s, cut;
+  int i, j, jj, c, e, pos, first, need, ndrop, slot, target, rc = {NAME}_OK;
+  {name}_knot *k;
+
+  if (!f || f->magic != {NAME}_MAGIC || f->status != {NAME}_OK) return {NAME}_ESTATE;
+  if (!y) return {NAME}_EINPUT;
+  if (!u) u = zeros;
+  if (!(t - t == 0.0)) return {NAME}_EINPUT;                            /* NaN or inf */
+  for (i = 0; i < {NAME}_NU; ++i) if (!(u[i] - u[i] == 0.0)) return {NAME}_EINPUT;
+  for (j = 0; j < {NAME}_NY; ++j) if (y[j] == y[j] && y[j] - y[j] != 0.0) return {NAME}_EINPUT;
+  if (f->n > 0) {{
+    double t_last = {NAME}_KNOT(f, f->n - 1).t;
+    if (!(t > t_last)) return {NAME}_EINPUT;
+    if ({NAME}_MAX_STEP > 0.0 && !((t - t_last) / {NAME}_MAX_STEP < 1e9)) return {NAME}_EINPUT;
+  }}
+
+  /* no sample of this row or a later one is taken before t - MAX_DELAY: the knots before it go,
+     but the last of them (the state a replay starts from) */
+  ndrop = 0;
+  if (f->n > 0) {{
+    cut = t - {NAME}_MAX_DELAY;
+    cut -= {NAME}_TOL(cut);
+    while (ndrop + 1 < f->n && {NAME}_KNOT(f, ndrop + 1).t < cut) ++ndrop;
+  }}
+  need = f->n - ndrop + 1;                                               /* the row's knot */
+  for (j = 0; j < {NAME}_NY; ++j) if (y[j] == y[j] && {name}_delay[j] > 0.0) ++need;   /* a knot per late sample */
+  if (need > {NAME}_HISTORY) return {NAME}_EHISTORY;
+
+  for (i = 0; i < ndrop; ++i) f->free_slot[f->n_free++] = f->order[i];
+  for (i = ndrop; i < f->n; ++i) f->order[i - ndrop] = f->order[i];
+  f->n -= ndrop;
+  if (f->n == 0) f->t0 = t;
+
+  /* the row's knot */
+  slot = f->free_slot[--f->n_free];
+  k = &f->knot[slot];
+  k->t = t;
+  k->row = 1;
+  k->sampled = 0;
+  for (i = 0; i < {NAME}_NU; ++i) k->u[i] = u[i];
+  for (j = 0; j < {NAME}_NY; ++j) {{ k->y[j] = 0.0; k->m[j] = 0.0; }}
+  f->order[f->n++] = slot;
+  first = f->n - 1;
+
+  /* the row's samples, each at the time it was taken */
+  for (jj = 0; jj < {NAME}_NY; ++jj) {{
+    j = {name}_taken_order[jj];
+    if (!(y[j] == y[j])) continue;                                       /* nothing arrived */
+    s = t - {name}_delay[j];
+    if (!(s >= f->t0 - 1e-12)) {{ ++f->early; continue; }}               /* taken before the first row */
+    pos = f->n;                                                          /* the first knot at or after s */
+    while (pos > 0 && {NAME}_KNOT(f, pos - 1).t >= s) --pos;
+    for (e = pos; e < f->n && !{NAME}_KNOT(f, e).sampled; ++e) {{}}
+    if (e < f->n && fabs({NAME}_KNOT(f, e).t - s) <= {NAME}_TOL(s)) target = e;   /* same time as other samples */
+    else if (pos < f->n && {NAME}_KNOT(f, pos).t == s) target = pos;               /* a row's time */
+    else if (pos == 0) target = 0;          /* taken within 1e-12 before the first row: applied there */
+    else {{                                                              /* a knot of its own */
+      slot = f->free_slot[--f->n_free];
+      k = &f->knot[slot];
+      k->t = s;
+      k->row = 0;
+      k->sampled = 0;
+      for (i = f->n; i > pos; --i) f->order[i] = f->order[i - 1];
+      f->order[pos] = slot;
+      ++f->n;
+      if (first >= pos) ++first;
+      /* the input of the row whose hold interval contains s: the next knot's when it is a row within
+         the tolerance, else the previous knot's (every row since the cut is a knot) */
+      {{
+        const {name}_knot *next = &{NAME}_KNOT(f, pos + 1), *prev = &{NAME}_KNOT(f, pos - 1);
+        const double *uh = (next->row && next->t <= s + {NAME}_TOL(s)) ? next->u : prev->u;
+        for (i = 0; i < {NAME}_NU; ++i) k->u[i] = uh[i];
+      }}
+      for (c = 0; c < {NAME}_NY; ++c) {{ k->y[c] = 0.0; k->m[c] = 0.0; }}
+      target = pos;
+    }}
+    k = &{NAME}_KNOT(f, target);
+    k->y[j] = y[j];
+    k->m[j] = 1.0;
+    k->sampled = 1;
+    if (target < first) first = target;
+  }}
+
+  /* run again from the knot before the earliest change: flow, update where samples were taken */
+  for (i = first; i < f->n; ++i) {{
+    const double *zp, *up, *yp;
+    double tp;
+    k = &{NAME}_KNOT(f, i);
+    if (i == 0) {{ tp = f->t0; zp = f->z0; up = k->u; yp = zeros; }}    /* only before any knot was dropped */
+    else {{
+      const {name}_knot *prev = &{NAME}_KNOT(f, i - 1);
+      tp = prev->t; zp = prev->z; up = prev->u; yp = prev->y_held;
+    }}
+    for (c = 0; c < {NAME}_NZ; ++c) zb[c] = zp[c];
+    rc = {name}_flow(zb, tp, k->t, up, yp);
+    if (rc != {NAME}_OK) goto failed;
+    for (c = 0; c < {NAME}_NY; ++c) y_fill[c] = k->m[c] > 0.0 ? k->y[c] : yp[c];
+    if (k->sampled) {{
+      arg[0] = zb; arg[1] = &k->t; arg[2] = k->u; arg[3] = y_fill; arg[4] = k->m;
+      res[0] = k->z;
+      if ({name}_cg_update(arg, res, iw, w, 0)) {{ rc = {NAME}_EINTERNAL; goto failed; }}
+    }} else {{
+      for (c = 0; c < {NAME}_NZ; ++c) k->z[c] = zb[c];
+    }}
+    for (c = 0; c < {NAME}_NY; ++c) k->y_held[c] = y_fill[c];
+    for (c = 0; c < {NAME}_NZ; ++c) if (k->z[c] - k->z[c] != 0.0) {{ rc = {NAME}_ENONFINITE; goto failed; }}
+  }}
+
+  /* the estimate at t */
+  k = &{NAME}_KNOT(f, f->n - 1);
+  arg[0] = k->z; arg[1] = &k->t; arg[2] = k->u; arg[3] = k->y_held;
+  res[0] = x_new;
+  if ({name}_cg_output(arg, res, iw, w, 0)) {{ rc = {NAME}_EINTERNAL; goto failed; }}
+  for (i = 0; i < {NAME}_NX; ++i) if (x_new[i] - x_new[i] != 0.0) {{ rc = {NAME}_ENONFINITE; goto failed; }}
+  if (xhat) for (i = 0; i < {NAME}_NX; ++i) xhat[i] = x_new[i];
+  return {NAME}_OK;
+
+failed:
+  f->status = rc;
+  return rc;
 }}
 """
 
@@ -408,8 +701,150 @@ int main(int argc, char **argv) {{
 """
 
 
+_MAIN_FUSION = """\
+/* main.c -- example: run the observer {name} on a CSV stamped at arrival, read from stdin.
+ *
+ * Input: one row per line, "t,u1..u{nu},y1..y{ny}" in this order:
+ *   t,{in_cols}
+ * stamped when the values arrived: a delayed output's value in the row stamped t was taken
+ * at t - delay ({delay_text}). An empty y field or "nan": nothing of that output arrived at t.
+ * (A first line that does not start with a number is a header and is skipped.)
+ * Output: "t,xhat..." per row, on stdout: the estimate at t from every sample arrived by t
+ * (see {name}_fusion_step in {name}.h). Optional arguments: the initial estimate xhat0 ({nx}
+ * numbers; default: the design's).
+ *
+ * Build and run:  cc -std=c99 -O2 -o {name} {name}.c main.c -lm
+ *                 ./{name} < data.csv > estimates.csv
+ */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <math.h>
+#include "{name}.h"
+
+#define NCOL (1 + {NAME}_NU + {NAME}_NY)
+
+/* split a line at commas into v[0..NCOL-1]; empty or unparsable y fields become NaN */
+static int parse(char *line, double *v) {{
+  char *p = line, *end;
+  int j;
+  for (j = 0; j < NCOL; ++j) {{
+    while (*p == ' ' || *p == '\\t') ++p;
+    if (*p == ',' || *p == '\\n' || *p == '\\r' || *p == '\\0') {{
+      if (j <= {NAME}_NU) return -1;   /* t and u may not be missing */
+      v[j] = NAN;
+    }} else {{
+      v[j] = strtod(p, &end);
+      if (end == p) return -1;
+      p = end;
+    }}
+    while (*p == ' ' || *p == '\\t') ++p;
+    if (j < NCOL - 1) {{
+      if (*p != ',') return -1;
+      ++p;
+    }}
+  }}
+  return 0;
+}}
+
+static const char *why(int rc) {{
+  switch (rc) {{
+    case {NAME}_EINPUT: return "bad row (time did not increase, or a value is infinite)";
+    case {NAME}_EHISTORY: return "the history is full: rows closer together than the export was sized for "
+                                 "(export again with a smaller min_interval or a larger history)";
+    case {NAME}_ENONFINITE: return "the observer diverged (non-finite state)";
+    default: return "internal error";
+  }}
+}}
+
+int main(int argc, char **argv) {{
+  static char line[1 << 16];
+  static {name}_fusion f;   /* large: not on the stack */
+  double v[NCOL], xhat[{NAME}_NX], xhat0[{NAME}_NX];
+  long lineno = 0, rows = 0;
+  int i, rc;
+
+  if (argc != 1 && argc != 1 + {NAME}_NX) {{
+    fprintf(stderr, "usage: %s [xhat0 ({nx} numbers)] < data.csv\\n", argv[0]);
+    return 2;
+  }}
+  for (i = 0; i < {NAME}_NX; ++i) xhat0[i] = argc > 1 ? atof(argv[1 + i]) : {name}_xhat0_default[i];
+  {name}_fusion_init(&f, xhat0);
+  fputs("t,{out_cols}\\n", stdout);
+  while (fgets(line, sizeof line, stdin)) {{
+    ++lineno;
+    if (strspn(line, " \\t\\r\\n") == strlen(line)) continue;
+    if (parse(line, v) != 0) {{
+      if (rows == 0 && lineno == 1) continue;  /* a header */
+      fprintf(stderr, "line %ld: expected %d comma-separated numbers (t, u, y)\\n", lineno, NCOL);
+      return 1;
+    }}
+    rc = {name}_fusion_step(&f, v[0], v + 1, v + 1 + {NAME}_NU, xhat);
+    if (rc != {NAME}_OK) {{
+      fprintf(stderr, "line %ld (t = %g): %s\\n", lineno, v[0], why(rc));
+      return 1;
+    }}
+    printf("%.17g", v[0]);
+    for (i = 0; i < {NAME}_NX; ++i) printf(",%.17g", xhat[i]);
+    printf("\\n");
+    ++rows;
+  }}
+  if (f.early) fprintf(stderr, "note: %ld delayed sample(s) taken before the first row were left out\\n", f.early);
+  return 0;
+}}
+"""
+
+
+def _shown_name(text: Any) -> str:
+    return repr(_c_comment(text))
+
+
+def _check_delays(delays: Any, outputs: list[str]) -> np.ndarray:
+    """The delay of each output (0 for those not named), checked."""
+    if not isinstance(delays, Mapping):
+        raise ValueError(f"export_c: `delays` must be a mapping {{output: seconds}}, got {type(delays).__name__}")
+    d = np.zeros(len(outputs))
+    for k, v in delays.items():
+        if k not in outputs:
+            raise ValueError(f"export_c: `delays` names {k!r}, which is not an output; the outputs are {', '.join(outputs)}")
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not (np.isfinite(v) and v >= 0):
+            raise ValueError(f"export_c: the delay of {k!r} must be a finite number of seconds >= 0, got {v!r}")
+        d[outputs.index(k)] = float(v)
+    return d
+
+
+def _history_size(d: np.ndarray, min_interval: Any, history: Any) -> tuple[int, float | None]:
+    """The knots the fusion filter must hold, and the row spacing it was sized for.
+
+    At a row t the history keeps the knots taken at or after t - max(d) and one before; with rows at least h apart,
+    those are at most R = floor(max(d)/h) + 1 rows and, per distinct positive delay, at most R taken times; the row
+    then adds its own knot and one per late sample. R takes one more as a margin."""
+    late = d[d > 0]
+    per_row = 1 + late.size                # the row's knot, and a knot per late sample
+    if history is not None:
+        if isinstance(history, bool) or not isinstance(history, (int, np.integer)) or history < per_row + 1:
+            raise ValueError(f"export_c: `history` must be a whole number of knots >= {per_row + 1} (a kept knot, the row's "
+                             f"and one per delayed output), got {history!r}")
+        if int(history) > 10**6:
+            raise ValueError(f"export_c: `history` = {history} knots is more than 10^6; give a smaller one")
+        return int(history), None
+    if not late.size:
+        return per_row + 2, None
+    if min_interval is None:
+        raise ValueError("export_c: with measurement `delays`, give `min_interval` (the smallest spacing of the rows the "
+                         "program will be fed, in seconds) to size the history buffer, or `history` (the number of knots)")
+    h = check_positive(min_interval, "min_interval", "export_c")
+    rows = int(np.floor(late.max() / h + 1e-9)) + 2
+    size = rows * (1 + np.unique(late).size) + per_row + 1
+    if size > 10**6:
+        raise ValueError(f"export_c: a delay of {late.max():g} s with rows {h:g} s apart needs a history of {size} knots "
+                         "(more than 10^6); give a larger `min_interval`")
+    return size, h
+
+
 def export_c(observer: AbstractObserver | ObserverDesign, directory: str | os.PathLike[str], *, name: str | None = None,
-             max_step: float | None = None) -> CExport:
+             max_step: float | None = None, delays: Mapping[str, float] | None = None, min_interval: float | None = None,
+             history: int | None = None) -> CExport:
     r"""Write an observer's sample-to-sample step as dependency-free C: ``NAME.c``, ``NAME.h``, ``main.c``.
 
     The exported ``NAME_step(z, t, dt, u_prev, y_prev, u, y) -> (z_next, xhat)`` does what
@@ -430,6 +865,21 @@ def export_c(observer: AbstractObserver | ObserverDesign, directory: str | os.Pa
     is an example program that reads ``t, u..., y...`` lines from stdin and prints
     ``t, xhat...``.
 
+    With `delays` (known measurement delays, ``{output: seconds}``) the C file also holds a fusion
+    filter for rows stamped at *arrival*, with the semantics of ``nlobs.estimate(..., delay=delays)``:
+    ``NAME_fusion_init(&f, xhat0)``, then ``NAME_fusion_step(&f, t, u, y, xhat)`` per row (NaN in y:
+    nothing of that output arrived at t). A number y_j in the row stamped t was taken at
+    :math:`t - d_j`; the filter keeps a fixed-size, caller-allocated history (``NAME_fusion``) of
+    the knots -- the row times and the times samples were taken -- with the state after each, puts a
+    late sample at the time it was taken and runs again from the knot before it. The estimate at t
+    is exactly the undelayed filter on the samples that have arrived by t, each applied when it was
+    taken (taken times between rows are knots of their own: the flow to them, the update there with
+    the input of the row whose hold interval contains them, then on). Outputs of delay 0 are applied
+    at their row, as ``NAME_step`` does. The history holds ``NAME_HISTORY`` knots, sized from
+    `min_interval`; a row that would not fit returns ``NAME_EHISTORY`` and changes nothing. The example
+    ``main.c`` then runs the fusion filter on a CSV stamped at arrival (the CSV that
+    :meth:`nlobs.Run.to_csv` writes for a delayed run).
+
     Parameters
     ----------
     observer : Observer or ObserverDesign
@@ -441,7 +891,19 @@ def export_c(observer: AbstractObserver | ObserverDesign, directory: str | os.Pa
         ``pendulum_ekf``). A C identifier of at most 40 characters.
     max_step : float, optional
         Largest RK4 step between samples, as in :func:`nlobs.estimate` (default: one RK4
-        step per sample interval). Baked into the code as ``NAME_MAX_STEP``.
+        step per sample interval). Baked into the code as ``NAME_MAX_STEP``. With `delays`, the RK4
+        steps are those of each gap between knots, as :func:`nlobs.estimate` takes them when
+        `max_step` sets them (there its rule h·ρ <= 1 on the flow's rate may shorten them further).
+    delays : mapping of output name to seconds, optional
+        Known measurement delays (outputs not named: 0): writes the fusion filter described above. A
+        model file's ``[simulation] delay`` is the same mapping. Needs a continuous-discrete observer
+        (EKF, UKF, their square-root forms, IEKF, ...) of a continuous-time model.
+    min_interval : float, optional
+        With delays: the smallest spacing of the rows the program will be fed (seconds). Sizes the
+        history: ``NAME_HISTORY = (floor(max delay / min_interval) + 2) * (1 + distinct positive
+        delays) + 2 + delayed outputs``.
+    history : int, optional
+        With delays: the number of knots the history holds, given directly (instead of `min_interval`).
 
     Returns
     -------
@@ -451,7 +913,11 @@ def export_c(observer: AbstractObserver | ObserverDesign, directory: str | os.Pa
     Raises
     ------
     ValueError
-        For a `name` that is not a C identifier, a `max_step` that is not positive and finite.
+        For a `name` that is not a C identifier, a `max_step` that is not positive and finite; for
+        `delays` that name no output or are not finite and >= 0, and for delays without
+        `min_interval` or `history`.
+    ModelError
+        For `delays` on an observer that takes the output continuously, or on a discrete-time model.
     TypeError
         For an observer whose equations are not CasADi functions (not built from a design).
     PreconditionError
@@ -481,10 +947,24 @@ def export_c(observer: AbstractObserver | ObserverDesign, directory: str | os.Pa
     name = _check_name(_default_name(design) if name is None else name)
     if max_step is not None:
         max_step = check_positive(max_step, "max_step", "export_c")
-    out = Path(directory)
-    fns = list(_functions(design, name))
-    body = _generate(fns, name, design.method)  # before writing anything: it may refuse
     s = design.system
+    fusion = delays is not None
+    if fusion:
+        d = _check_delays(delays, list(s.outputs))
+        if s.is_discrete:
+            raise ModelError(f"export_c: measurement delays on the discrete-time model {_shown_name(s.name)}: the fusion "
+                             "filter re-runs a flow between knots, which a map does not have; export without `delays`")
+        if not design.sampled:
+            raise ModelError(f"export_c: the {design.method!r} observer takes the output continuously; measurement delays "
+                             "are handled by the continuous-discrete observers (a flow between samples and an update at "
+                             "each: ekf, ukf, srekf, srukf, iekf, ...)")
+        n_hist, min_interval = _history_size(d, min_interval, history)
+    elif min_interval is not None or history is not None:
+        raise ValueError("export_c: `min_interval` and `history` size the history of the fusion filter, which is written "
+                         "only with measurement `delays`; give `delays` too, or leave them out")
+    out = Path(directory)
+    fns = list(_functions(design, name)) + (list(_fusion_functions(design, name)) if fusion else [])
+    body = _generate(fns, name, design.method)  # before writing anything: it may refuse
     nz, nx, nu, ny = design.n_z, s.n_states, s.n_inputs, s.n_outputs
     NAME = name.upper()
     fill = dict(
@@ -501,13 +981,26 @@ def export_c(observer: AbstractObserver | ObserverDesign, directory: str | os.Pa
         sz_iw=max(max(f.sz_iw() for f in fns), 1), sz_w=max(max(f.sz_w() for f in fns), 1),
         xhat0=_doubles(design.xhat0),
         in_cols=_c_comment(",".join([*s.inputs, *s.outputs])), out_cols=_c_string(",".join(f"xhat_{v}" for v in s.states)),
+        fusion_decls="",
     )
+    if fusion:
+        late = [(o, float(v)) for o, v in zip(s.outputs, d) if v > 0]
+        fill.update(
+            delay_text=_c_comment(", ".join(f"{o} {v!r} s" for o, v in late) or "none (every output at its row)"),
+            history=n_hist, max_delay_c=repr(float(d.max())), min_interval_c=repr(min_interval) if min_interval else "0.0",
+            sizing_text=(f"Sized for rows at least {min_interval!r} s apart." if min_interval else "Given directly."),
+            delays_c=_doubles(d), taken_order_c=", ".join(str(j) for j in sorted(range(ny), key=lambda j: (-d[j], j))) or "0",
+        )
+        fill["fusion_decls"] = _FUSION_HEADER.format(**fill)
     header = out / f"{name}.h"
     source = out / f"{name}.c"
     example = out / "main.c"
     out.mkdir(parents=True, exist_ok=True)
     header.write_text(_HEADER.format(**fill))
     source.write_text(f"/* {name}.c -- {fill['title']}; generated by nlobs {fill['version']}. Interface: {name}.h */\n"
-                      f'#include "{name}.h"\n' + body + _WRAPPER.format(**fill))
-    example.write_text(_MAIN.format(**fill))
-    return CExport(name, source, header, example, nz, nx, nu, ny, max_step)
+                      f'#include "{name}.h"\n' + body + _WRAPPER.format(**fill)
+                      + (_FUSION_WRAPPER.format(**fill) if fusion else ""))
+    example.write_text((_MAIN_FUSION if fusion else _MAIN).format(**fill))
+    return CExport(name, source, header, example, nz, nx, nu, ny, max_step,
+                   delays={o: float(v) for o, v in zip(s.outputs, d)} if fusion else None,
+                   history=n_hist if fusion else None, min_interval=min_interval if fusion else None)
