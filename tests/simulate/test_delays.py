@@ -135,3 +135,60 @@ def test_a_delayed_run_written_to_csv_is_stamped_at_arrival_and_estimated_back(t
     np.testing.assert_allclose(rec.t[k_gps[:3]], [0.15, 0.4, 0.65], atol=1e-12)   # taken at 0, 0.25, 0.5; 0.15 s late
     back = nlobs.estimate({"ekf": _ekf()}, rec, delay=delay, on_missing="skip")
     np.testing.assert_allclose(back.observers["ekf"].xhat, run.observers["ekf"].xhat, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("engine", ["c", "vm"])
+def test_compiled_and_vm_replays_equal_the_plain_filter_on_the_arrived_samples(engine):
+    # the definition (issue 36): the estimate at t_k is the undelayed filter run on the samples arrived by t_k, here
+    # computed by estimate() on a recording holding only those samples; the replay runs once over the whole run
+    delay = {"gps": 0.15, "wheel": 0.03}
+    rec = _samples(nlobs.simulate(CART, None, t_final=4.0, **KW))
+    obs = nlobs.Observer(_ekf())
+    ev = Events.from_rows(rec.t, rec.y, np.isfinite(rec.y), np.array([0.15, 0.03]), stamped_at_arrival=False)
+    _, X = run_delayed(obs, rec.t, rec.u, ev, obs.initial_state(), engine=engine)
+    for k in (2, 15, 16, 27, 140, 263, 400):
+        y = rec.y[:k + 1].copy()
+        for j, d in enumerate(delay.values()):
+            y[rec.t[:k + 1] + d > rec.t[k] + 1e-12, j] = np.nan
+        part = nlobs.Recording.from_arrays(CART, rec.t[:k + 1], y, rec.u[:k + 1])
+        plain = nlobs.estimate({"ekf": _ekf()}, part, on_missing="skip", engine=engine)
+        np.testing.assert_allclose(X[k], plain.observers["ekf"].xhat[-1], rtol=0, atol=1e-8)
+
+
+def test_a_delay_between_rows_applies_the_sample_when_it_was_taken():
+    # rows every 0.1 s; the gps fix in row k arrived then, 0.037 s late: it was taken at t_k - 0.037, between two
+    # rows. Reference: the plain filter on a recording with a row at each taken time of the fixes arrived by t_k (the
+    # input held from the row before), the fix in it
+    d, rows = 0.037, np.round(np.arange(0.0, 3.0 + 1e-9, 0.1), 12)
+    fine = nlobs.simulate(CART, None, t_final=3.0, dt=0.001, x0=[0.0, 1.0, 0.3], inputs={"a": "sin(0.5*t)"})
+    at = lambda tt: fine.y_true[np.rint(np.asarray(tt) / 0.001).astype(int)]   # noqa: E731  (outputs on the fine grid)
+    u = np.sin(0.5 * rows)[:, None]
+    y = np.column_stack([np.r_[np.nan, at(rows[1:] - d)[:, 0]], at(rows)[:, 1]])   # row k: the fix taken at t_k - d
+    late = nlobs.estimate({"ekf": _ekf()}, nlobs.Recording.from_arrays(CART, rows, y, u), on_missing="skip",
+                          delay={"gps": d})
+    for k in (1, 2, 9, 30):
+        taken = rows[1:k + 1] - d                            # the fixes arrived by t_k
+        grid = np.union1d(rows[:k + 1], taken)
+        y_ref = np.full((grid.size, 2), np.nan)
+        y_ref[np.searchsorted(grid, rows[:k + 1]), 1] = y[:k + 1, 1]
+        y_ref[np.searchsorted(grid, taken), 0] = y[1:k + 1, 0]
+        u_ref = np.sin(0.5 * rows[np.searchsorted(rows, grid + 1e-12, side="right") - 1])[:, None]
+        ref = nlobs.estimate({"ekf": _ekf()}, nlobs.Recording.from_arrays(CART, grid, y_ref, u_ref), on_missing="skip")
+        np.testing.assert_allclose(late.observers["ekf"].xhat[k], ref.observers["ekf"].xhat[-1], rtol=0, atol=1e-8)
+
+
+def test_the_replay_re_integrates_the_latency_share_of_the_run():
+    # gps every 0.25 s and 0.15 s late on a 0.01 s grid: each fix sends the filter back 15 intervals (60 % of the
+    # time is integrated twice); the wheel is not late and costs nothing more
+    run = nlobs.simulate(CART, {"ekf": _ekf()}, t_final=6.0, delay={"gps": 0.15}, **KW)
+    fixes = int(np.sum(np.arange(0.0, 6.0 - 0.15 + 1e-9, 0.25) + 0.15 <= 6.0 + 1e-9))
+    assert run.info["replayed"] == 15 * fixes
+
+
+def test_a_latency_no_sample_outlives_gets_a_note(capsys, tmp_path):
+    run = nlobs.simulate(CART, {"ekf": _ekf()}, t_final=1.0, delay={"gps": 1e9}, **KW)
+    assert any("no sample of gps arrives within the run" in n and "unit" in n for n in run.info["notes"])
+    model = tmp_path / "cart.toml"
+    model.write_text(MODEL.replace("delay = { gps = 0.15, wheel = 0.15 }", "delay = { gps = 150 }"), encoding="utf-8")
+    assert main(["simulate", str(model)]) == 0
+    assert "no sample of gps arrives within the run" in capsys.readouterr().out

@@ -21,6 +21,7 @@ import numpy as np
 from ..design import ObserverDesign, check_positive
 from ..engine import compile_system, raise_deferred, rk4_step
 from ..engine._batch import evaluate_one
+from ..engine._intervals import fastest_rate
 from ..errors import DataError, FiniteEscapeError, ShapeError
 from ._compiled import CompiledObserver, compiled_observer
 from ._signals import signals_by_keyword, time_first
@@ -81,7 +82,8 @@ class AbstractObserver(ABC):
         return OnlineObserver(self, xhat0, max_step=max_step)
 
     def rate(self, t: float, z: Any, u: Any, y: Any) -> float:
-        """The flow's fastest local rate at (t, z): the spectral radius of ∂F/∂z (1/time), 0 where it is not finite."""
+        """The flow's fastest local rate at (t, z): the spectral radius of ∂F/∂z (1/time; estimated above 64 internal
+        states, see :func:`nlobs.engine._intervals.fastest_rate`), 0 where it is not finite."""
         fn = getattr(self, "_rate_fn", None)
         if fn is None:
             d, s = self.design, self.system
@@ -93,9 +95,7 @@ class AbstractObserver(ABC):
         n = self.n_z
         J = evaluate_one(fn, np.array([float(t)]), _vec(z, n, "z"), _vec(u, self.system.n_inputs, "u"),
                          _vec(y, self.system.n_outputs, "y")).reshape(n, n, order="F")
-        if not J.size or not np.all(np.isfinite(J)):
-            return 0.0
-        return float(np.max(np.abs(np.linalg.eigvals(J))))
+        return fastest_rate(J)
 
 
 class Observer(AbstractObserver):
@@ -297,6 +297,7 @@ class OnlineObserver:
         self._u = np.zeros(observer.system.n_inputs)
         self._y = np.zeros(observer.system.n_outputs)
         self._predicted: float | None = None   # the time predict() brought z to, until the update there
+        self._rate = [np.nan]   # the flow's rate at the end of the last interval: the next one's first step size
 
     @property
     def P(self) -> np.ndarray | None:
@@ -375,7 +376,7 @@ class OnlineObserver:
     def _flow(self, t: float, dt: float) -> np.ndarray:
         """z at `t` from the previous sample, with its u and y held (see :func:`integrate`)."""
         return integrate(self.observer, self.t, self.z, t, self._u, self._y, max_step=self.max_step,
-                         where="OnlineObserver.update")
+                         where="OnlineObserver.update", rate=self._rate)
 
     def _predicted_output(self, t: float, z: np.ndarray, u: np.ndarray) -> np.ndarray:
         xhat = self.observer.estimate(t, z, u, self._y)

@@ -5,7 +5,7 @@ input and the measurement held (zero-order hold, or linear interpolation to the 
 in RK4 sub-steps whose number is chosen per interval at run time (see :mod:`nlobs.engine`'s
 interval runner): at least ``ceil(dt_k / max_step)``, and enough that h·ρ ≤ 1 for the fastest
 rate ρ of the flow, measured as the run goes (the first interval uses the spectral radius of
-∂F/∂z at the initial state). At each sample the continuous-discrete observers apply their
+∂F/∂z at the initial state, estimated for large observers: :func:`nlobs.engine._intervals.fastest_rate`). At each sample the continuous-discrete observers apply their
 update. The functions are built once per design; the C code for them is compiled once per
 machine and cached on disk.
 """
@@ -23,7 +23,7 @@ import numpy as np
 from ..design import ObserverDesign
 from ..engine import Backend, compile_system, rows
 from ..engine._integrate import rk4_step_rate
-from ..engine._intervals import MAX_SUBSTEPS, IntervalRunner
+from ..engine._intervals import MAX_SUBSTEPS, IntervalRunner, fastest_rate
 from .._progress import as_progress
 from ..errors import DataError, FiniteEscapeError, ShapeError
 from ._signals import signals_by_keyword
@@ -166,7 +166,9 @@ class CompiledObserver:
     def _runner(self, engine: Backend) -> IntervalRunner:
         r = self._runners.get(engine)
         if r is None:
-            r = self._runners[engine] = IntervalRunner(self.sub, self.jump, backend=engine)
+            o1 = 2 + self.nu + 2 * self.ny   # the mask of the outputs sampled at the interval's end: all 0, no update
+            r = self._runners[engine] = IntervalRunner(self.sub, self.jump, backend=engine,
+                                                       idle=slice(o1 + self.nu + self.ny, o1 + self.nu + 2 * self.ny))
         return r
 
     # -- running --------------------------------------------------------------------------------
@@ -221,7 +223,7 @@ class CompiledObserver:
                                     hint=f"at its first sample (t = {t[0]:g})")
             err.interval, err.substeps = -1, 0
             raise err
-        rate0 = float(np.max(np.abs(np.linalg.eigvals(J)))) if J.size and np.all(np.isfinite(J)) else 0.0
+        rate0 = fastest_rate(J)
         dts = np.diff(t)
         A = interval_table(t, u, y, m)
         nmin = np.ones(N - 1) if max_step is None else np.maximum(1.0, np.ceil(dts / max_step - 1e-9))
@@ -249,6 +251,56 @@ class CompiledObserver:
         xhat = z[:, :self.n] if self.selects_state else np.vstack([xs.reshape(1, -1), res.outputs[:, :self.n]])
         return ObserverTrajectory(t, z, np.ascontiguousarray(xhat), S[:, self.nz:], prior.reshape(-1), yhat_prior,
                                   res.substeps, res.rate, res.backend)
+
+
+    def replay(self, plan: Any, z0: np.ndarray, *, t: np.ndarray, u: np.ndarray, max_step: float | None = None,
+               engine: Backend = "auto", name: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Run a re-processing plan for measurement delays (:func:`nlobs.simulate._delays.plan`): the internal
+        state and the estimate at each row of `t`, each from the samples arrived by then. One call of the compiled
+        interval driver (or the VM stretch by stretch); `z0` is the prior state at t[0].
+
+        Raises
+        ------
+        FiniteEscapeError
+            When the state becomes non-finite (with the time, and the row whose arrivals were being processed).
+        DataError
+            When an interval would need more than 10⁸ RK4 steps.
+        """
+        label = f"observer {name or self.design.method!r}"
+        if max_step is not None and not (np.isfinite(max_step) and max_step > 0):
+            raise ShapeError(f"{label}: `max_step` must be a positive number, got {max_step!r}")
+        z0 = np.asarray(z0, dtype=float).reshape(-1)
+        _, zs, ys, _, J, _ = self._start(z0, float(t[0]), u[0], plan.y0, plan.m0)
+        if not np.all(np.isfinite(zs)):
+            err = FiniteEscapeError(label, float(t[0]), z0, self.design.z_names, np.inf,
+                                    hint=f"at its first sample (t = {t[0]:g})")
+            err.interval, err.substeps = -1, 0
+            raise err
+        J = J.reshape(self.nz, self.nz, order="F")
+        rate0 = fastest_rate(J)
+        A = plan.table
+        nmin = np.ones(A.shape[0]) if max_step is None else np.maximum(1.0, np.ceil(A[:, 1] / max_step - 1e-9))
+        res = self._runner(engine).run(np.concatenate([z0, np.zeros(self.ny)]), A, nmin, rate0=rate0,
+                                       schedule=plan.schedule)
+        if res.refused is not None:
+            k, need = res.refused
+            raise DataError(
+                f"{label}: the interval from t = {A[k, 0]:g} to {A[k, 0] + A[k, 1]:g} (length {A[k, 1]:g}) would need "
+                f"{need:.3g} RK4 steps (more than {MAX_SUBSTEPS:.0e}); check the model's time scale"
+                + (f" and max_step = {max_step:g}" if max_step is not None else ""))
+        if res.failed is not None:
+            k = res.failed
+            row = int(plan.pass_row[k])
+            late = " (re-processing the samples that arrived by then)" if plan.knot_time[k] < t[row] else ""
+            before = res.states[row - 1, :self.nz] if row > 0 and np.isfinite(res.states[row - 1]).all() else z0
+            err = FiniteEscapeError(label, float(A[k, 0]), before, self.design.z_names, np.inf,
+                                    hint=f"between t = {A[k, 0]:g} and t = {A[k, 0] + A[k, 1]:g}, at the row t = {t[row]:g}"
+                                         + late)
+            err.interval, err.substeps = row, int(res.substeps[k])
+            raise err
+        z = res.states[:, :self.nz]
+        xhat = z[:, :self.n] if self.selects_state else res.outputs[:, :self.n]
+        return z, np.ascontiguousarray(xhat)
 
 
 def interval_table(t: np.ndarray, u: np.ndarray, y: np.ndarray, m: np.ndarray) -> np.ndarray:

@@ -1,13 +1,21 @@
 r"""Known measurement delays: a sample of output j taken at :math:`t_s` reaches the observer at :math:`t_s + d_j`.
 
-Method: filter recalculation from a state history. The observer keeps the samples it has used, sorted by the
-time they were *taken*, and its state after each one. When a sample arrives that was taken before the last one
-used (a late GPS fix behind the wheel encoder's samples), it goes back to its state just before that time,
-applies the samples again in the order they were taken (now with the late one), and runs forward to the
-present. The estimate reported at time t is therefore exactly the one the same observer gives without delays on
-the samples that have *arrived* by t: a delay costs only the information that is not there yet, never a sample
-applied at the wrong time. The price is re-running at most the last max_j d_j of the run at each late arrival
-(samples older than that can no longer be preceded by a new one and are dropped from the history).
+Method: filter recalculation from a state history (exact). The observer keeps its state after each sample it has
+used, the samples sorted by the time they were *taken*. When a sample arrives that was taken before the last one
+used (a late GPS fix behind the IMU's samples), it goes back to its state just before that time, applies the
+samples again in the order they were taken (now with the late one), and runs forward to the present. The estimate
+reported at time t is therefore exactly the one the same observer gives without delays on the samples that have
+*arrived* by t: a delay costs only the information that is not there yet, never a sample applied at the wrong
+time. The price is re-running the last d of the run at each late arrival: for a 5 Hz GPS 150 ms late, 75 % of the
+time is integrated twice.
+
+The whole re-processing is planned before anything runs, because which samples have arrived when does not depend on
+the estimates: :func:`plan` turns the samples and their arrival times into a list of intervals ("knot" to knot, a
+knot being a row time or the time a sample was taken), each starting from the end of the previous one or from a
+saved state, saving its end and, when it reaches a row, reporting that row's estimate (an
+:class:`nlobs.engine._intervals.Schedule`). The observer's compiled interval driver then runs the list in one call
+(C), or stretch by stretch on CasADi's virtual machine: no Python per grid interval. A saved state carries the rate
+the step-size rule passes on, so a replay integrates with the same sub-steps as the first pass did.
 
 This holds for every continuous-discrete observer (a flow between samples and an update at each: EKF, UKF, the
 square-root filters, ...): the update uses the sample at the time it was taken, with the state predicted to that
@@ -20,15 +28,16 @@ Used by :func:`nlobs.simulate` (``delay={output: seconds}``, with sampled measur
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
+from ..engine import Backend
+from ..engine._intervals import Schedule
 from ..errors import ModelError, ShapeError
 from ..observer import AbstractObserver
-from ..observer._base import integrate
 
-__all__ = ["delays_of", "Events", "run_delayed"]
+__all__ = ["delays_of", "Events", "Plan", "plan", "run_delayed", "latency_notes"]
 
 
 def delays_of(delay: Mapping[str, float] | None, outputs: Sequence[str], caller: str) -> np.ndarray:
@@ -67,47 +76,158 @@ class Events:
         return cls(taken, arrived, cols, y[rows, cols])
 
 
-@dataclass
-class _History:
-    """The samples used so far (sorted by the time taken, same-time samples merged) and the state after each."""
+def _tol(v: np.ndarray | float) -> np.ndarray | float:
+    """Times closer than this are the same time (as the recording's rows are compared)."""
+    return 1e-12 * np.maximum(1.0, np.abs(v))
 
-    t0: float
-    z0: np.ndarray
-    times: list[float] = field(default_factory=list)
-    ys: list[np.ndarray] = field(default_factory=list)
-    masks: list[np.ndarray] = field(default_factory=list)
-    states: list[np.ndarray] = field(default_factory=list)
 
-    def insert(self, t: float, j: int, v: float, ny: int) -> int:
-        """Add the sample of output j taken at t; the index of its entry (its state must be recomputed)."""
-        i = int(np.searchsorted(np.asarray(self.times), t, side="left")) if self.times else 0
-        if i < len(self.times) and abs(self.times[i] - t) <= 1e-12 * max(1.0, abs(t)):
-            self.ys[i][j], self.masks[i][j] = v, 1.0
-            return i
-        y, m = np.zeros(ny), np.zeros(ny)
-        y[j], m[j] = v, 1.0
-        self.times.insert(i, t)
-        self.ys.insert(i, y)
-        self.masks.insert(i, m)
-        self.states.insert(i, np.full_like(self.z0, np.nan))
-        return i
+@dataclass(frozen=True, eq=False)
+class Plan:
+    """The re-processing of a run with delays, as intervals for the compiled driver (see :func:`plan`).
 
-    def before(self, i: int) -> tuple[float, np.ndarray]:
-        return (self.t0, self.z0) if i == 0 else (self.times[i - 1], self.states[i - 1])
+    Attributes
+    ----------
+    table : numpy.ndarray of shape (n_ops, na)
+        One row per interval: (start, length, u held, 0, 0 (no linear hold), u at the end, the samples taken at the
+        end, their mask: those arrived by the pass's time), as :func:`nlobs.observer._compiled.interval_table`.
+    schedule : Schedule
+        Where each interval starts from, saves to and reports (row of `t`).
+    knot_time, pass_row : numpy.ndarray of shape (n_ops,)
+        The time each interval ends at and the row of `t` whose arrivals it accounts for (for messages).
+    m0 : numpy.ndarray of shape (ny,)
+        The mask of the samples applied at the first time (taken and arrived then).
+    y0 : numpy.ndarray of shape (ny,)
+    replayed : int
+        Intervals integrated again because a late sample arrived.
+    """
 
-    def settle(self, horizon: float) -> None:
-        """Drop the entries taken before `horizon` (no later arrival can precede them), keeping the last one's state."""
-        k = int(np.searchsorted(np.asarray(self.times), horizon, side="left"))
-        if k > 0:
-            self.t0, self.z0 = self.times[k - 1], self.states[k - 1]
-            del self.times[:k], self.ys[:k], self.masks[:k], self.states[:k]
+    table: np.ndarray
+    schedule: Schedule
+    knot_time: np.ndarray
+    pass_row: np.ndarray
+    m0: np.ndarray
+    y0: np.ndarray
+    replayed: int
+
+
+def plan(t: np.ndarray, u: np.ndarray, events: Events, ny: int) -> Plan:
+    """Plan the exact re-processing of `events` on the rows `t` (inputs `u` held from each row to the next).
+
+    Knots are the row times and the times samples were taken; knot q is *active* from the time its first sample
+    arrives (a row: always), and pass k (for row k) accounts for every sample arrived by t_k. Pass k starts at the
+    last knot before the earliest sample that arrived in (t_{k-1}, t_k] (or continues from the end of pass k - 1 when
+    no such sample was taken before t_{k-1}) and runs over the active knots up to row k, applying at each knot the
+    samples taken there that have arrived by t_k. Row 0 is the update at t_0 from the prior state (saved in its own
+    slot, for a late sample taken at t_0)."""
+    t = np.asarray(t, dtype=float)
+    N = t.size
+    keep = (events.taken >= t[0] - _tol(t[0])) & (events.arrived <= t[-1] + _tol(t[-1]))
+    tk, ar = events.taken[keep], events.arrived[keep]
+    out, val = events.output[keep].astype(np.int64), events.value[keep]
+    # samples taken on a row are at that row (t - d computed in floating point)
+    r = np.clip(np.searchsorted(t, tk + _tol(tk), side="right") - 1, 0, N - 1)
+    on_row = np.abs(t[r] - tk) <= _tol(tk)
+    tk = np.where(on_row, t[r], tk)
+    # knots: the rows and the taken times between them, in time order (a row first where they are equal)
+    extra = np.unique(tk[~on_row])
+    T = np.concatenate([t, extra])
+    is_row = np.concatenate([np.ones(N, bool), np.zeros(extra.size, bool)])
+    order = np.lexsort((~is_row, T))
+    inv = np.argsort(order)                                  # the sorted position of each unsorted knot
+    T, is_row = T[order], is_row[order]
+    Q = T.size
+    row_knot = inv[:N]                                       # knot of row k
+    knot_row = np.clip(np.searchsorted(t, T + _tol(T), side="right") - 1, 0, N - 1)   # the row whose hold holds knot q
+    q_of = inv[np.where(on_row, r, N + np.searchsorted(extra, tk))]
+    # the samples at each knot: value and arrival per output (the later arrival wins where one output has two)
+    arr = np.full((Q, ny), np.inf)
+    yv = np.zeros((Q, ny))
+    o2 = np.lexsort((ar, q_of))
+    arr[q_of[o2], out[o2]] = ar[o2]
+    yv[q_of[o2], out[o2]] = val[o2]
+    act = np.where(is_row, -np.inf, np.min(arr, axis=1))     # a knot between rows exists once a sample taken there arrived
+    # the pass (row) each arrival is accounted for in: the first row at or after it
+    k_of = np.clip(np.searchsorted(t, ar - _tol(ar), side="left"), 0, N - 1)
+    qmin = np.full(N, Q, dtype=np.int64)
+    np.minimum.at(qmin, k_of, q_of)
+    prev_end = np.r_[-1, row_knot[:-1]]                      # where pass k continues from (pass 0: the prior)
+    start = prev_end.copy()
+    late = qmin <= prev_end
+    late[0] = False
+    # a late pass starts at the last knot before its earliest new sample that existed in the previous pass
+    rows_late = np.flatnonzero(late)
+    s = qmin[rows_late] - 1
+    cut = t[rows_late - 1] + _tol(t[rows_late - 1])
+    while s.size and np.any(bad := (s >= 0) & (act[np.maximum(s, 0)] > cut)):
+        s[bad] -= 1
+    start[rows_late] = s
+    # the intervals: pass k covers the knots in (start_k, row_knot_k] that exist at t_k
+    lengths = row_knot - start
+    lengths[0] = 1                                           # row 0: the update at t_0, from the prior
+    total = int(lengths.sum())
+    pass_of = np.repeat(np.arange(N), lengths)
+    first = np.cumsum(lengths) - lengths
+    q = np.repeat(start + 1, lengths) + (np.arange(total) - np.repeat(first, lengths))
+    q[0] = 0
+    alive = act[q] <= t[pass_of] + _tol(t[pass_of])          # rows always; every pass keeps at least its row
+    q, pass_of = q[alive], pass_of[alive]
+    n_ops = q.size
+    is_first = np.r_[True, pass_of[1:] != pass_of[:-1]]
+    cutoff = t[pass_of] + _tol(t[pass_of])
+    # where each interval starts: the previous knot of its pass, or the knot the pass starts from
+    prev_q = np.r_[0, q[:-1]]
+    prev_q[is_first] = np.maximum(start[pass_of[is_first]], 0)
+    prev_q[0] = 0                                            # the update at t_0: a zero-length interval
+    t_start = T[prev_q]
+    mask = (arr[q] <= cutoff[:, None]).astype(float)
+    u = np.asarray(u, dtype=float).reshape(N, -1)
+    table = np.hstack([t_start[:, None], (T[q] - t_start)[:, None], u[knot_row[prev_q]], np.zeros((n_ops, 2 * ny)),
+                       u[knot_row[q]], np.where(mask > 0, yv[q], 0.0), mask])
+    # the ring of saved states: a pass goes back at most `back` knots behind the last one stored
+    back = int(np.max(prev_end[late] - start[late])) if late.any() else 0
+    R = back + 2
+    prior = R
+    load = np.full(n_ops, -1, dtype=np.int64)
+    rewind = is_first & late[pass_of]
+    load[rewind] = np.where(start[pass_of[rewind]] >= 0, start[pass_of[rewind]] % R, prior)
+    load[0] = prior
+    store = (q % R).astype(np.int64)
+    emit = np.full(n_ops, -1, dtype=np.int64)
+    last = np.r_[np.flatnonzero(pass_of[1:] != pass_of[:-1]), n_ops - 1]
+    emit[last] = pass_of[last]
+    sched = Schedule(load, store, emit, R + 1, N, prior)
+    return Plan(table, sched, T[q], pass_of, mask[0].copy(), np.where(mask[0] > 0, yv[0], 0.0), int(n_ops - N))
+
+
+def latency_notes(events: Events, t_end: float, outputs: Sequence[str], delays: np.ndarray) -> list[str]:
+    """A note per delayed output of which no sample arrives within the run (a latency in the wrong unit, say)."""
+    notes = []
+    for j, name in enumerate(outputs):
+        if delays[j] <= 0:
+            continue
+        mine = events.output == j
+        if mine.any() and not np.any(events.arrived[mine] <= t_end + _tol(t_end)):
+            notes.append(f"no sample of {name} arrives within the run: its delay, {delays[j]:g} s, is longer than the "
+                         f"time from its first sample to the end ({t_end - float(events.taken[mine].min()):g} s), so the "
+                         f"observers never see {name}. Check the delay's unit (seconds)")
+    return notes
 
 
 def run_delayed(obs: AbstractObserver, t: np.ndarray, u: np.ndarray, events: Events, z0: np.ndarray, *,
-                max_step: float | None = None, name: str = "observer") -> tuple[np.ndarray, np.ndarray]:
+                max_step: float | None = None, name: str = "observer", engine: Backend = "auto",
+                the_plan: Plan | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The observer's state and estimate at each time of `t`, from the samples that have arrived by then (see the
-    module docstring). `u` is held (zero-order) between the times of `t`; returns ``(Z, X)``."""
+    module docstring). `u` is held (zero-order) between the times of `t`; returns ``(Z, X)``.
+
+    Raises
+    ------
+    FiniteEscapeError
+        When the observer's state becomes non-finite (with the time and the pass it happened in).
+    DataError
+        When an interval would need more than 10⁸ RK4 steps.
+    """
     from ..observer import ParticleObserver
+    from ..observer._compiled import compiled_observer
 
     if isinstance(obs, ParticleObserver):
         raise ModelError(f"observer {name!r} is a particle filter, which runs on a whole recording at once; measurement "
@@ -116,57 +236,8 @@ def run_delayed(obs: AbstractObserver, t: np.ndarray, u: np.ndarray, events: Eve
         raise ModelError(f"observer {name!r} ({obs.design.method}) takes the output continuously; measurement delays are "
                          "handled by the continuous-discrete observers (a flow between samples and an update at each: "
                          "ekf, ukf, srekf, srukf, iekf, ...)")
-    ny = obs.system.n_outputs
-    keep = (events.taken >= t[0] - 1e-12) & (events.arrived <= t[-1] + 1e-12)
-    order = np.lexsort((events.taken[keep], events.arrived[keep]))
-    ev = [(float(events.arrived[keep][i]), float(events.taken[keep][i]), int(events.output[keep][i]),
-           float(events.value[keep][i])) for i in order]
-    horizon = float(np.max(events.arrived - events.taken)) if events.taken.size else 0.0
-    hist = _History(float(t[0]), np.asarray(z0, dtype=float))
-    y_held = np.zeros(ny)
-    Z, X = np.empty((t.size, hist.z0.size)), np.empty((t.size, obs.system.n_states))
-    e = 0
-    carry = [np.nan]   # the flow's rate at the present state (its next interval starts there)
-    for k, tk in enumerate(t):
-        first = None
-        while e < len(ev) and ev[e][0] <= tk + 1e-12 * max(1.0, abs(tk)):
-            _, taken, j, v = ev[e]
-            i = hist.insert(taken, j, v, ny)
-            first = i if first is None else min(first, i)
-            e += 1
-        if first is not None:   # go back to the state before the earliest new sample and apply them again in order
-            for i in range(first, len(hist.times)):
-                ti, z = hist.before(i)
-                z = _flow(obs, t, u, ti, z, hist.times[i], y_held, max_step, name)
-                ui = u[_row(t, hist.times[i])]
-                y_i = np.where(hist.masks[i] > 0, hist.ys[i], y_held)
-                hist.states[i] = np.asarray(obs.update(hist.times[i], z, ui, y_i, hist.masks[i]), dtype=float)
-                y_held = np.where(hist.masks[i] > 0, hist.ys[i], y_held)
-        if first is None and k > 0:   # nothing new: the present state follows from the previous one
-            Z[k] = _flow(obs, t, u, float(t[k - 1]), Z[k - 1], float(tk), y_held, max_step, name, carry)
-        else:
-            t_last, z_last = hist.before(len(hist.times))
-            carry = [np.nan]
-            Z[k] = _flow(obs, t, u, t_last, z_last, float(tk), y_held, max_step, name, carry)
-        X[k] = obs.estimate(float(tk), Z[k], u[k], y_held)
-        hist.settle(float(tk) - horizon)
-    return Z, X
+    p = the_plan if the_plan is not None else plan(t, u, events, obs.system.n_outputs)
+    co = compiled_observer(obs.design)
+    return co.replay(p, np.asarray(z0, dtype=float).reshape(-1), t=np.asarray(t, dtype=float), u=np.asarray(u, dtype=float),
+                     max_step=max_step, engine=engine, name=name)
 
-
-def _row(t: np.ndarray, s: float) -> int:
-    """The row of `t` whose hold interval [t_r, t_{r+1}) contains s."""
-    return int(np.clip(np.searchsorted(t, s + 1e-12 * max(1.0, abs(s)), side="right") - 1, 0, t.size - 1))
-
-
-def _flow(obs: AbstractObserver, t: np.ndarray, u: np.ndarray, a: float, z: np.ndarray, b: float, y: np.ndarray,
-          max_step: float | None, name: str, rate: list[float] | None = None) -> np.ndarray:
-    """The flow from (a, z) to b, holding each row's input over its interval of `t`. `rate` carries the flow's rate
-    from one interval to the next (see ``integrate``): a first guess of the step only, since the rate at each
-    interval's end is measured and the interval redone if its steps were too long."""
-    rate = [np.nan] if rate is None else rate
-    while b - a > 1e-12 * max(1.0, abs(b)):
-        r = _row(t, a)
-        end = min(b, float(t[r + 1])) if r + 1 < t.size else b
-        z = integrate(obs, a, z, end, u[r], y, max_step=max_step, where=f"observer {name!r}", rate=rate)
-        a = end
-    return z

@@ -12,7 +12,7 @@ import numpy as np
 
 from ..design import check_positive
 from ..engine import Backend
-from ..errors import DataError, FiniteEscapeError, ModelError, PreconditionError, ShapeError, SolverError
+from ..errors import DataError, EngineError, FiniteEscapeError, ModelError, PreconditionError, ShapeError, SolverError
 from ..model import ModelFile, System
 from ..observer import AbstractObserver, ParticleObserver, compiled_observer
 from ._isolate import failure_of
@@ -337,7 +337,7 @@ def estimate(
     if any(o.system.is_discrete for o in obs.values()):
         return _estimate_map(obs, recording, t, u, y0, mask, xhat0, smooth)
     if delay and any(float(v) > 0 for v in delay.values()):
-        return _estimate_delayed(obs, recording, delay, mask, xhat0, max_step, smooth)
+        return _estimate_delayed(obs, recording, delay, mask, xhat0, max_step, smooth, engine)
     traces, integration, failures, first = {}, {}, {}, None
     for i, (name, o) in enumerate(obs.items()):
         part = progress if progress is None or isinstance(progress, bool) else (
@@ -401,21 +401,22 @@ def _estimate_one(name: str, o: AbstractObserver, recording: Recording, xhat0: A
 
 
 def _estimate_delayed(obs: Mapping[str, Any], rec: Recording, delay: Mapping[str, float], mask: np.ndarray, xhat0: Any,
-                      max_step: float | None, smooth: bool) -> Run:
+                      max_step: float | None, smooth: bool, engine: Backend = "auto") -> Run:
     """Observers on a recording stamped at arrival, with the delayed samples applied when they were taken."""
-    from ._delays import Events, delays_of, run_delayed
+    from ._delays import Events, delays_of, latency_notes, plan, run_delayed
 
     if smooth:
         raise ModelError("estimate: smoothing a recording with measurement delays is not supported (the smoother "
                          "uses every sample at its row); estimate without `smooth`, or without `delay`")
     d = delays_of(delay, list(rec.output_names), "estimate")
     events = Events.from_rows(rec.t, rec.y, mask > 0, d, stamped_at_arrival=True)
+    the_plan = plan(rec.t, rec.u, events, rec.y.shape[1])
     traces, failures, errors = {}, {}, []
     for name, o in obs.items():
         z0 = o.initial_state(_xhat0_for(xhat0, name, o.system.n_states))
         try:
-            Z, X = run_delayed(o, rec.t, rec.u, events, z0, max_step=max_step, name=name)
-        except (FiniteEscapeError, SolverError) as e:
+            Z, X = run_delayed(o, rec.t, rec.u, events, z0, max_step=max_step, name=name, engine=engine, the_plan=the_plan)
+        except (FiniteEscapeError, SolverError, ModelError, DataError, EngineError) as e:
             failures[name] = failure_of(name, o.design.method, e)
             errors.append(e)
             continue
@@ -429,7 +430,7 @@ def _estimate_delayed(obs: Mapping[str, Any], rec: Recording, delay: Mapping[str
     notes = ([f"{early} delayed sample(s) taken before the recording's first time were left out"] if early else [])
     return Run(f"{system.name} (recorded: {rec.source})", rec.t, system.states, rec.input_names, rec.output_names,
                rec.u, rec.y, traces, x=rec.x, info={"delay": {k: float(v) for k, v in delay.items()}, "notes": notes,
-                                                    "max_step": max_step},
+                                                    "max_step": max_step, "replayed": the_plan.replayed},
                estimated_params=system.estimated_params, failures=failures)
 
 

@@ -27,7 +27,7 @@ from .._progress import as_progress
 from ..design import ObserverDesign
 from ..design._pf import ParticleDesign
 from ..engine import Backend, StepRunner, compile_system, evaluate_many, rk4_step, rows
-from ..errors import FiniteEscapeError, ModelError, ShapeError, SolverError
+from ..errors import DataError, EngineError, FiniteEscapeError, ModelError, ShapeError, SolverError
 from ..model import ModelFile, ObserverConfig, System, input_signals
 from ..observer import AbstractObserver, Observer, ParticleObserver, as_observer
 from ._file import file_arguments, observers_of
@@ -215,8 +215,10 @@ def simulate(
 
 def _simulate_delayed(plant: System, observers: Any, delay: Mapping[str, float], *, sampling: Sampling | None,
                       x0: Any, xhat0: Any, params: Mapping[str, float] | None, **kw: Any) -> Run:
-    """The plant on its own, then each observer on the samples as they arrive (see :mod:`nlobs.simulate._delays`)."""
-    from ._delays import Events, delays_of, run_delayed
+    """The plant on its own, then each observer on the samples as they arrive (see :mod:`nlobs.simulate._delays`):
+    one compiled re-processing per observer, planned once for all of them; an observer that fails is reported with
+    its reason and the others keep their results."""
+    from ._delays import Events, delays_of, latency_notes, plan, run_delayed
     from ._isolate import failure_of
 
     if not isinstance(plant, System) or plant.is_discrete:
@@ -231,24 +233,21 @@ def _simulate_delayed(plant: System, observers: Any, delay: Mapping[str, float],
     x0v = list(np.asarray(x0, dtype=float).reshape(-1))
     if tail and len(x0v) == plant_.n_states - len(tail):
         x0v += list(tail)
+    for name, o in obs.items():
+        check_compatible(plant_, name, o)
     base = simulate(plant_, None, x0=x0v, sampling=sampling, **kw)
     measured = base.info.get("measured")
     if measured is None:   # one clock for all outputs
         every = sampling.every(float(kw["dt"]))
         measured = np.repeat((np.arange(base.t.size) % every == 0)[:, None], plant_.n_outputs, axis=1)
     events = Events.from_rows(base.t, base.y, measured, d, stamped_at_arrival=False)
+    the_plan = plan(base.t, base.u, events, plant_.n_outputs) if obs else None
     traces, failures, errors = {}, {}, []
     for name, o in obs.items():
-        check_compatible(plant_, name, o)
         z0 = o.initial_state(_xhat0_for(xhat0, name, plant_.n_states))
         try:
-            Z, X = run_delayed(o, base.t, base.u, events, z0, name=name)
-            bad = np.flatnonzero(~np.isfinite(X).all(axis=1))
-            if bad.size:
-                r = max(int(bad[0]) - 1, 0)
-                raise FiniteEscapeError(f"observer {name!r}", float(base.t[r]), Z[r], o.design.z_names, np.inf,
-                                        hint=f"after t = {base.t[r]:g}")
-        except (FiniteEscapeError, SolverError, ModelError) as e:   # the others still run; all failed: the first error
+            Z, X = run_delayed(o, base.t, base.u, events, z0, name=name, engine=kw.get("engine", "auto"), the_plan=the_plan)
+        except (FiniteEscapeError, SolverError, ModelError, DataError, EngineError) as e:   # the others still run
             failures[name] = failure_of(name, o.design.method, e)   # (ModelError: takes the output continuously)
             errors.append(e)
             continue
@@ -257,7 +256,9 @@ def _simulate_delayed(plant: System, observers: Any, delay: Mapping[str, float],
                                      covariance=getattr(o.design, "covariance", None))
     if errors and not traces:
         raise errors[0]
-    info = {**base.info, "delay": {k: float(v) for k, v in delay.items()}, "measured": measured}
+    notes = (*base.info.get("notes", ()), *latency_notes(events, float(base.t[-1]), list(plant_.outputs), d))
+    info = {**base.info, "delay": {k: float(v) for k, v in delay.items()}, "measured": measured, "notes": notes,
+            "replayed": the_plan.replayed if the_plan is not None else 0}
     return replace(base, observers=traces, failures=failures, info=info)
 
 
