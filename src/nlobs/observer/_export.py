@@ -294,8 +294,9 @@ _FUSION_HEADER = """
  * knot held; n = max(1, ceil(gap / {NAME}_MAX_STEP - 1e-9)) equal steps per gap; gaps of at most
  * 1e-12 relative are not integrated), the update at each knot that has samples, in the order
  * they were taken, then on to t. The input held over a gap, and used by the update at a knot, is
- * that of the row whose hold interval [t_r, t_r+1) contains the knot. Samples taken within 1e-12
- * (relative) of each other share a knot. Exact: the estimate at t equals the undelayed filter
+ * that of the row whose hold interval [t_r, t_r+1) contains the knot. A sample taken within 1e-12
+ * (relative) of a knot -- a row, or other samples -- is applied there, with them (t - delay is
+ * rounded). Exact: the estimate at t equals the undelayed filter
  * (the same flow and update, as {name}_step applies them, with the rows and the taken times as
  * its sample times) run on the samples that have arrived by t, each applied at the time it was
  * taken. An output with delay 0 is applied at its row, as {name}_step applies it. A row with no
@@ -491,7 +492,7 @@ int {name}_fusion_step({name}_fusion *f, double t, const double *u, const double
   int iw[{NAME}_SZ_IW];
   double w[{NAME}_SZ_W];
   double x_new[{NAME}_NX], y_fill[{NAME}_NY_ALLOC], zb[{NAME}_NZ], s, cut;
-  int i, j, jj, c, e, pos, first, need, ndrop, slot, target, rc = {NAME}_OK;
+  int i, j, jj, c, pos, first, need, ndrop, slot, target, rc = {NAME}_OK;
   {name}_knot *k;
 
   if (!f || f->magic != {NAME}_MAGIC || f->status != {NAME}_OK) return {NAME}_ESTATE;
@@ -539,14 +540,16 @@ int {name}_fusion_step({name}_fusion *f, double t, const double *u, const double
     j = {name}_taken_order[jj];
     if (!(y[j] == y[j])) continue;                                       /* nothing arrived */
     s = t - {name}_delay[j];
-    if (!(s >= f->t0 - 1e-12)) {{ ++f->early; continue; }}               /* taken before the first row */
+    if (!(s >= f->t0 - {NAME}_TOL(f->t0))) {{ ++f->early; continue; }}   /* taken before the first row */
     pos = f->n;                                                          /* the first knot at or after s */
     while (pos > 0 && {NAME}_KNOT(f, pos - 1).t >= s) --pos;
-    for (e = pos; e < f->n && !{NAME}_KNOT(f, e).sampled; ++e) {{}}
-    if (e < f->n && fabs({NAME}_KNOT(f, e).t - s) <= {NAME}_TOL(s)) target = e;   /* same time as other samples */
-    else if (pos < f->n && {NAME}_KNOT(f, pos).t == s) target = pos;               /* a row's time */
-    else if (pos == 0) target = 0;          /* taken within 1e-12 before the first row: applied there */
-    else {{                                                              /* a knot of its own */
+    /* a knot within the tolerance of s (a row, or other samples' time): the nearer one either side */
+    target = -1;
+    if (pos < f->n && {NAME}_KNOT(f, pos).t - s <= {NAME}_TOL(s)) target = pos;
+    if (pos > 0 && s - {NAME}_KNOT(f, pos - 1).t <= {NAME}_TOL(s)
+        && (target < 0 || s - {NAME}_KNOT(f, pos - 1).t < {NAME}_KNOT(f, pos).t - s)) target = pos - 1;
+    if (target < 0 && pos == 0) target = 0;       /* before the first row by rounding only: applied there */
+    if (target < 0) {{                                                   /* a knot of its own */
       slot = f->free_slot[--f->n_free];
       k = &f->knot[slot];
       k->t = s;
@@ -556,13 +559,9 @@ int {name}_fusion_step({name}_fusion *f, double t, const double *u, const double
       f->order[pos] = slot;
       ++f->n;
       if (first >= pos) ++first;
-      /* the input of the row whose hold interval contains s: the next knot's when it is a row within
-         the tolerance, else the previous knot's (every row since the cut is a knot) */
-      {{
-        const {name}_knot *next = &{NAME}_KNOT(f, pos + 1), *prev = &{NAME}_KNOT(f, pos - 1);
-        const double *uh = (next->row && next->t <= s + {NAME}_TOL(s)) ? next->u : prev->u;
-        for (i = 0; i < {NAME}_NU; ++i) k->u[i] = uh[i];
-      }}
+      /* the input of the row whose hold interval contains s: the previous knot's (no row is within the
+         tolerance after s, and every row since the cut is a knot) */
+      for (i = 0; i < {NAME}_NU; ++i) k->u[i] = {NAME}_KNOT(f, pos - 1).u[i];
       for (c = 0; c < {NAME}_NY; ++c) {{ k->y[c] = 0.0; k->m[c] = 0.0; }}
       target = pos;
     }}
