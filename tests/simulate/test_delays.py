@@ -192,3 +192,20 @@ def test_a_latency_no_sample_outlives_gets_a_note(capsys, tmp_path):
     model.write_text(MODEL.replace("delay = { gps = 0.15, wheel = 0.15 }", "delay = { gps = 150 }"), encoding="utf-8")
     assert main(["simulate", str(model)]) == 0
     assert "no sample of gps arrives within the run" in capsys.readouterr().out
+
+
+def test_samples_taken_a_rounding_error_apart_are_one_knot():
+    # t − d rounds either way: 0.35 − 0.3 and 0.55 − 0.5 are 0.04999999999999999 and 0.050000000000000044; the two
+    # samples were taken at the same time and are applied together (one update), between the rows 0 and 0.1
+    from nlobs.simulate._delays import plan
+
+    t = np.array([0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6])
+    ev = Events(taken=np.array([0.35 - 0.3, 0.55 - 0.5]), arrived=np.array([0.35, 0.55]), output=np.array([0, 1]),
+                value=np.array([1.0, 2.0]))
+    assert ev.taken[0] != ev.taken[1]
+    p = plan(t, np.zeros((7, 1)), ev, 2)
+    at = p.knot_time[(p.knot_time > 0.0) & (p.knot_time < 0.1)]
+    assert np.unique(at).size == 1                                 # one knot between rows 0 and 0.1
+    last = p.table[p.pass_row == 6]                                # the last pass: both samples at that knot
+    mask_cols = slice(2 + 1 + 2 * 2 + 1 + 2, None)
+    assert (last[:, mask_cols].sum(axis=1) == 2).sum() == 1

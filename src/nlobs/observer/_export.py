@@ -292,9 +292,9 @@ _FUSION_HEADER = """
  * after each. A late sample is inserted at the time it was taken, and the filter runs again from
  * the knot just before it: the flow from knot to knot (RK4, u and the held measurement of the
  * knot held; n = max(1, ceil(gap / {NAME}_MAX_STEP - 1e-9)) equal steps per gap; gaps of at most
- * 1e-12 relative are not integrated), the update at each knot that has samples, in the order
+ * 64 ulp (relative) are not integrated), the update at each knot that has samples, in the order
  * they were taken, then on to t. The input held over a gap, and used by the update at a knot, is
- * that of the row whose hold interval [t_r, t_r+1) contains the knot. A sample taken within 1e-12
+ * that of the row whose hold interval [t_r, t_r+1) contains the knot. A sample taken within 64 ulp
  * (relative) of a knot -- a row, or other samples -- is applied there, with them (t - delay is
  * rounded). Exact: the estimate at t equals the undelayed filter
  * (the same flow and update, as {name}_step applies them, with the rows and the taken times as
@@ -437,7 +437,7 @@ int {name}_step(const double *z, double t, double dt,
 _FUSION_WRAPPER = """
 /* ---- nlobs wrapper: the fusion filter with known measurement delays (see {name}.h) ------- */
 
-#define {NAME}_TOL(s) (1e-12 * (fabs(s) > 1.0 ? fabs(s) : 1.0))  /* nlobs' time tolerance */
+#define {NAME}_TOL(s) (1.4210854715202004e-14 * (fabs(s) > 1.0 ? fabs(s) : 1.0))  /* nlobs' time tolerance: 64 ulp */
 #define {NAME}_MAGIC 0x6e6c6f62u
 #define {NAME}_KNOT(f, i) ((f)->knot[(f)->order[i]])
 

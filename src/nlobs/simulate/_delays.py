@@ -76,9 +76,22 @@ class Events:
         return cls(taken, arrived, cols, y[rows, cols])
 
 
+#: Times closer than TOL·max(1, |t|) are the same time: 64 units in the last place, far above the rounding of t − d
+#: and far below any sample interval, also for Unix time stamps (1.7e9 s: 24 µs).
+TOL = 64 * float(np.finfo(float).eps)
+
+
 def _tol(v: np.ndarray | float) -> np.ndarray | float:
-    """Times closer than this are the same time (as the recording's rows are compared)."""
-    return 1e-12 * np.maximum(1.0, np.abs(v))
+    """Times closer than this to `v` are the same time (see :data:`TOL`)."""
+    return TOL * np.maximum(1.0, np.abs(v))
+
+
+def _merged(v: np.ndarray) -> np.ndarray:
+    """The distinct times of `v`, sorted, those within the tolerance of the one before merged into it."""
+    v = np.sort(v)
+    if v.size < 2:
+        return v
+    return v[np.r_[True, np.diff(v) > _tol(v[1:])]]
 
 
 @dataclass(frozen=True, eq=False)
@@ -129,7 +142,12 @@ def plan(t: np.ndarray, u: np.ndarray, events: Events, ny: int) -> Plan:
     on_row = np.abs(t[r] - tk) <= _tol(tk)
     tk = np.where(on_row, t[r], tk)
     # knots: the rows and the taken times between them, in time order (a row first where they are equal)
-    extra = np.unique(tk[~on_row])
+    extra = _merged(tk[~on_row])
+    if extra.size:   # a taken time within the tolerance of another one is that time (t − d rounded either way)
+        near = np.clip(np.searchsorted(extra, tk, side="left"), 0, extra.size - 1)
+        below = np.clip(near - 1, 0, extra.size - 1)
+        pick = np.where(np.abs(extra[below] - tk) < np.abs(extra[near] - tk), below, near)
+        tk = np.where(on_row, tk, extra[pick])
     T = np.concatenate([t, extra])
     is_row = np.concatenate([np.ones(N, bool), np.zeros(extra.size, bool)])
     order = np.lexsort((~is_row, T))

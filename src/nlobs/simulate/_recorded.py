@@ -335,6 +335,10 @@ def estimate(
     y0 = np.where(mask > 0, recording.y, 0.0)
     t, u = recording.t, recording.u
     if any(o.system.is_discrete for o in obs.values()):
+        if delay and any(float(v) > 0 for v in delay.values()):
+            raise ModelError("estimate: measurement delays are handled for continuous-time models (a late sample is "
+                             "applied at the time it was taken, between two steps of the flow); a discrete-time model "
+                             "steps from sample to sample: shift the delayed output's column by its delay in steps instead")
         return _estimate_map(obs, recording, t, u, y0, mask, xhat0, smooth)
     if delay and any(float(v) > 0 for v in delay.values()):
         return _estimate_delayed(obs, recording, delay, mask, xhat0, max_step, smooth, engine)
@@ -403,7 +407,7 @@ def _estimate_one(name: str, o: AbstractObserver, recording: Recording, xhat0: A
 def _estimate_delayed(obs: Mapping[str, Any], rec: Recording, delay: Mapping[str, float], mask: np.ndarray, xhat0: Any,
                       max_step: float | None, smooth: bool, engine: Backend = "auto") -> Run:
     """Observers on a recording stamped at arrival, with the delayed samples applied when they were taken."""
-    from ._delays import Events, delays_of, latency_notes, plan, run_delayed
+    from ._delays import TOL, Events, delays_of, latency_notes, plan, run_delayed
 
     if smooth:
         raise ModelError("estimate: smoothing a recording with measurement delays is not supported (the smoother "
@@ -426,7 +430,7 @@ def _estimate_delayed(obs: Mapping[str, Any], rec: Recording, delay: Mapping[str
     if errors and not traces:
         raise errors[0]
     system = next(iter(obs.values())).system
-    early = int(np.sum(events.taken < rec.t[0] - 1e-12))
+    early = int(np.sum(events.taken < rec.t[0] - TOL * max(1.0, abs(float(rec.t[0])))))
     notes = ([f"{early} delayed sample(s) taken before the recording's first time were left out"] if early else [])
     return Run(f"{system.name} (recorded: {rec.source})", rec.t, system.states, rec.input_names, rec.output_names,
                rec.u, rec.y, traces, x=rec.x, info={"delay": {k: float(v) for k, v in delay.items()}, "notes": notes,
