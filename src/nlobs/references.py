@@ -205,6 +205,14 @@ _ALL = (
               "Feedback Systems: An Introduction for Scientists and Engineers", "Princeton University Press", 2008),
     Reference("fitzhugh1961", "R. FitzHugh", "FitzHugh", "Impulses and physiological states in theoretical models of nerve membrane",
               "Biophysical Journal 1(6):445–466", 1961),
+    Reference("mahony2012", "R. Mahony, V. Kumar, P. Corke", "Mahony, Kumar & Corke",
+              "Multirotor aerial vehicles: modeling, estimation, and control of quadrotor",
+              "IEEE Robotics & Automation Magazine 19(3):20–32", 2012, doi="10.1109/MRA.2012.2206474"),
+    Reference("groves2013", "P. D. Groves", "Groves",
+              "Principles of GNSS, Inertial, and Multisensor Integrated Navigation Systems",
+              "2nd ed., Artech House, Boston", 2013),
+    Reference("sola2017", "J. Solà", "Solà", "Quaternion kinematics for the error-state Kalman filter",
+              "arXiv:1711.02508", 2017),
 )
 
 #: Every work nlobs cites, by key.
