@@ -71,6 +71,24 @@ def test_srukf_refuses_negative_weights():
         design_srukf(VDP, Q=np.eye(2), R=[[1.0]], alpha=0.5, beta=2.0)
 
 
+# two outputs of the same coordinate (a GPS height and a barometer both see pz): the predicted outputs are correlated,
+# so the factor Sy of S = Sy Syᵀ is not diagonal, and K = Pxy (Sy Syᵀ)⁻¹ needs Sy⁻ᵀ Sy⁻¹, not Sy⁻¹ Sy⁻¹
+TWIN = nlobs.System(states=["z", "w", "v"], f=["w", "-z", "-v"], outputs=["gps", "baro", "both"],
+                    h=["z", "z + 0.1*sin(w)", "z + v"], name="twin")
+P3 = np.array([[0.5, 0.1, 0.05], [0.1, 0.3, 0.0], [0.05, 0.0, 0.2]])
+
+
+@pytest.mark.parametrize("square_root, reference", [(design_srukf, design_ukf), (design_srekf, design_ekf)],
+                         ids=["srukf", "srekf"])
+def test_square_root_update_with_correlated_outputs_is_the_covariance_update(square_root, reference):
+    kw = dict(Q=np.zeros((3, 3)), R=np.diag([0.04, 0.01, 0.02]), P0=P3)
+    a, b = nlobs.Observer(square_root(TWIN, **kw)), nlobs.Observer(reference(TWIN, **kw))
+    x0, y = [0.3, -0.2, 0.1], [0.9, 0.7, 0.2]
+    za, zb = a.update(0.0, a.initial_state(x0), None, y), b.update(0.0, b.initial_state(x0), None, y)
+    np.testing.assert_allclose(a.estimate(0.0, za), b.estimate(0.0, zb), rtol=0, atol=1e-13)
+    np.testing.assert_allclose(np.array(a.design.covariance(za)), np.array(b.design.covariance(zb)), rtol=0, atol=1e-13)
+
+
 # -- square-root EKF -------------------------------------------------------------------------------
 @pytest.mark.parametrize("system", [LTI, VDP], ids=["linear", "van der Pol"])
 def test_srekf_equals_the_ekf_without_process_noise(system):

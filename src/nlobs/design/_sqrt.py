@@ -2,7 +2,8 @@
 
 - :func:`tria`: a lower-triangular L with L Lᵀ = A Aᵀ, by Givens rotations (the R factor of the QR
   decomposition of Aᵀ, transposed; Arasaratnam & Haykin (2009) call it Tria). P = L Lᵀ is never formed.
-- :func:`lower_solve`: L⁻¹ B by forward substitution.
+- :func:`lower_solve`: L⁻¹ B by forward substitution; :func:`lower_t_solve`: L⁻ᵀ B by back substitution (a gain
+  K = C (L Lᵀ)⁻¹ is (L⁻ᵀ (L⁻¹ Cᵀ))ᵀ: one of each).
 - :func:`phi`: Φ(A), the lower triangle of A with half its diagonal (Särkkä (2007), eq. of the square-root
   continuous-time UKF): with Ṡ = S Φ(S⁻¹ M S⁻ᵀ), d(SSᵀ)/dt = M for symmetric M.
 - :func:`sqrt_psd`: a numerical square root of a positive semidefinite matrix (Cholesky when definite).
@@ -19,7 +20,7 @@ import numpy as np
 from ._base import Check
 from ._checks import check_matrix
 
-__all__ = ["tria", "lower_solve", "phi", "sqrt_psd", "covariance_inputs", "unpack_lower", "pack_lower"]
+__all__ = ["tria", "lower_solve", "lower_t_solve", "phi", "sqrt_psd", "covariance_inputs", "unpack_lower", "pack_lower"]
 
 
 def _cells(A: ca.SX) -> list[list[ca.SX]]:
@@ -69,6 +70,23 @@ def lower_solve(L: ca.SX, B: ca.SX) -> ca.SX:
                 if not ca.is_equal(L[i, j], 0):
                     acc = acc - L[i, j] * xs[j]
             xs.append(acc / L[i, i])
+        for i in range(n):
+            X[i, c] = xs[i]
+    return X
+
+
+def lower_t_solve(L: ca.SX, B: ca.SX) -> ca.SX:
+    """L⁻ᵀ B for a lower-triangular L (Lᵀ is upper triangular), by back substitution."""
+    n = L.shape[0]
+    X = ca.SX.zeros(n, B.shape[1])
+    for c in range(B.shape[1]):
+        xs: list[Any] = [None] * n
+        for i in reversed(range(n)):
+            acc = B[i, c]
+            for j in range(i + 1, n):
+                if not ca.is_equal(L[j, i], 0):
+                    acc = acc - L[j, i] * xs[j]
+            xs[i] = acc / L[i, i]
         for i in range(n):
             X[i, c] = xs[i]
     return X

@@ -15,7 +15,7 @@ from ._tune import robust_filter
 from ._kind import Tuning
 from ._kind import kind
 from ._common import require_system
-from ._sqrt import covariance_inputs, lower_solve, sqrt_psd, tria
+from ._sqrt import covariance_inputs, lower_solve, lower_t_solve, sqrt_psd, tria
 
 __all__ = ["design_srekf"]
 
@@ -97,7 +97,7 @@ def design_srekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any =
     HS = Md @ H @ Sm
     Rh = Md @ ca.DM(sqrt_psd(Rm))
     Sy = tria(ca.horzcat(HS, Rh, ca.diag(1 - s.m)))  # unmeasured outputs: a decoupled unit block, zero gain
-    K = lower_solve(Sy, lower_solve(Sy, HS @ Sm.T)).T  # K = S⁻(HS⁻)ᵀ Sy⁻ᵀ Sy⁻¹
+    K = lower_t_solve(Sy, lower_solve(Sy, HS @ Sm.T)).T  # Kᵀ = Sy⁻ᵀ Sy⁻¹ (HS⁻)S⁻ᵀ, i.e. K = S⁻(HS⁻)ᵀ (Sy Syᵀ)⁻¹
     x_plus = x + K @ (s.m * (s.y - hx))
     S_plus = tria(ca.horzcat(Sm - K @ HS, K @ Rh))
     update = ca.vertcat(x_plus, ca.vec(S_plus), ca.vec(Lq), 0)

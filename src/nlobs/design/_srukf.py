@@ -16,7 +16,7 @@ from ._tune import robust_filter
 from ._kind import Tuning
 from ._kind import kind
 from ._common import require_system
-from ._sqrt import covariance_inputs, lower_solve, sqrt_psd, tria
+from ._sqrt import covariance_inputs, lower_solve, lower_t_solve, sqrt_psd, tria
 from ._ukf import unscented_weights
 
 __all__ = ["design_srukf"]
@@ -122,7 +122,7 @@ def design_srukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any =
     Yt = Md @ ca.horzcat(*[sw[i] * (Y[i] - yhat) for i in range(npts)])
     Rh = Md @ ca.DM(sqrt_psd(Rm))
     Sy = tria(ca.horzcat(Yt, Rh, ca.diag(1 - s.m)))  # unmeasured outputs: a decoupled unit block, zero gain
-    K = lower_solve(Sy, lower_solve(Sy, Yt @ Xt.T)).T  # K = Pxy Sy⁻ᵀ Sy⁻¹
+    K = lower_t_solve(Sy, lower_solve(Sy, Yt @ Xt.T)).T  # Kᵀ = Sy⁻ᵀ Sy⁻¹ Pxyᵀ, i.e. K = Pxy (Sy Syᵀ)⁻¹
     m_plus = m + K @ (s.m * (s.y - yhat))
     S_plus = tria(ca.horzcat(Xt - K @ Yt, K @ Rh))
     update = ca.vertcat(*sigma(m_plus, S_plus), 0)
