@@ -10,16 +10,38 @@ Automatic tuning rules (each one reported with the candidate that uses it):
   the sample-and-hold of the measurements stay well inside their stability limits
   (:math:`\omega_o\,dt \le 0.5`, :math:`\omega_o T_s \le 0.5`).
 * **Region.** The box the nominal run visits (states, inputs, outputs), widened by 10 % of each range.
+* **Local scale.** A state's scale s_i is its range on the run; its local scale ℓ_i is that range, at most the
+  distance its fastest rate on the run covers in 2/ω_p (:math:`\ell_i = \min(s_i, 2\max_t|\dot x_i|/\omega_p)`):
+  for a state oscillating at the plant's own rate the two agree; a position that travels a kilometre, or an angle that
+  winds five turns, has a range that says nothing of what a filter is uncertain about over one time scale.
 * **Noise.** A Gaussian output noise of standard deviation σ gives the sample covariance
   :math:`R = \sigma^2` (continuous-discrete filters) and the intensity :math:`R\,T_s` (continuous-time
   filters); a uniform bound b gives :math:`\sigma^2 = b^2/3`. Without declared noise, σ is 0.1 % of the
   output's range (said so in the tuning). Declared process noise σ_w gives :math:`Q = \sigma_w^2`;
-  otherwise :math:`Q = (0.01\,s_i)^2\omega_p` per state (s_i its scale, below), a small model-error allowance.
-* **Initial estimate.** x̂(0) is x(0) moved by half of each state's scale s_i (its range on the run; half its
-  largest magnitude for a state that moves less than 5 % of it; no more than max(|x_i(0)|, s_i/10) for a state that
-  travels far from where it starts), with alternating signs (a state that keeps its
-  sign on the run keeps it: ×1.5 or ×0.5 where the move would flip it); unknown parameters start at the file's
-  value (the initial guess). P(0) = diag(max(s_i, |x̂_i(0) − x_i(0)|)²).
+  otherwise :math:`Q = (0.01\,\ell_i)^2\omega_p` per state, a small model-error allowance (1 % of the state's local
+  change per time scale).
+* **Initial estimate.** x̂(0) is x(0) moved by half of each state's local scale ℓ_i (no more than max(|x_i(0)|,
+  s_i/10) for a state that travels far from where it starts), with alternating signs (a state that keeps its sign
+  on the run keeps it: ×1.5 or ×0.5 where the move would flip it), inside the box the run visits; unknown parameters
+  start at the file's value (the initial guess). P(0) = diag(σ₀²), σ₀ = max(min(offset, ℓ_i), ℓ_i/10): the offset
+  is a one-σ error.
+* **States that do not move on the run** (a sensor bias, a constant: ẋ = 0 along it, so the box the run visits is a
+  single point and clipping into it would start the estimate *at the true value*): x̂(0) = x(0) ± σ₀ (away from 0
+  for a nonzero state, never clipped onto the point) and P(0) = σ₀², with σ₀
+
+  (a) the file's ``[simulation] initial_std`` for it (which also sets σ₀, offset and P(0), of any moving state or
+      unknown parameter it names; a parameter keeps its guess);
+  (b) else, with ``process_noise`` σ_w declared for it, :math:`\sigma_w\sqrt{t_{final}}`: the spread its own random
+      walk reaches over the run, the uncertainty the model itself gives it;
+  (c) else |x(0)|/2, its magnitude;
+  (d) else (x(0) = 0) the smallest offset the run resolves, :math:`1/\sqrt{\mathrm{mean}_t\sum_k
+      (\partial y_k(t)/\partial x_i(0))^2/\sigma_k^2}` (the sensitivities of the model linearised along the nominal
+      run): an offset whose effect on the outputs is one noise σ in RMS over the run. It is well above the error such a
+      run leaves (about that value over the square root of the number of samples), so the run shows whether the state
+      converges; 1 (said so) when the outputs do not depend on the state along the run at all.
+
+  A constant's scale and local scale are its σ₀ (as an unknown parameter's are its uncertainty). When the run cannot
+  settle a constant from its offset, the ranking says so (:func:`nlobs.advise._rank._unsettled`).
 """
 
 from __future__ import annotations
@@ -66,6 +88,7 @@ class Scenario:
     seed: int | None
     periods: Mapping[str, float] | None = None   # one period per output (multi-rate sensors), or None
     delay: Mapping[str, float] | None = None     # known measurement delays by output, or None
+    initial_std: Mapping[str, float] | None = None  # [simulation] initial_std: σ of the initial error by state/parameter
 
     @property
     def sampling(self) -> Sampling | None:
@@ -123,6 +146,9 @@ class Context:
     configs: dict[str, tuple[str, Mapping[str, Any]]] = field(default_factory=dict)  # kind -> the file's [observers.NAME]
     choice: tuple[str, str] | None = None  # (kind, why) when a rule marks one kind as the choice (e.g. pf for a symmetric output)
     choice_rank: int = 0                   # the weight of that rule (Tuning.choice_rank): a stronger rule replaces a weaker one
+    choice_notes: dict[str, str] = field(default_factory=dict)  # kind -> the note in `notes` that names it as the choice
+    local_scale: np.ndarray | None = None  # ℓ per state: its range, at most the distance its fastest rate covers in 2/ω_p
+    constant: tuple[int, ...] = ()         # the states the nominal run leaves where they start (biases, constants)
 
     @property
     def n(self) -> int:
@@ -241,7 +267,8 @@ def _scenario(mf: ModelFile | None, simulation: Any, system: System) -> Scenario
     periods = dict(cfg.sample_period) if isinstance(cfg.sample_period, Mapping) else None
     fastest = min(periods.values()) if periods else (float(cfg.sample_period) if cfg.sample_period else None)
     return Scenario(t_final, dt, np.asarray(cfg.x0, dtype=float), dict(cfg.inputs), noise, std, pstd, fastest, cfg.seed,
-                    periods, dict(getattr(cfg, "delay", None) or {}) or None)
+                    periods, dict(getattr(cfg, "delay", None) or {}) or None,
+                    dict(getattr(cfg, "initial_std", None) or {}) or None)
 
 
 def _jacobians(system: System, s: Mapping[str, np.ndarray]) -> np.ndarray:
@@ -358,19 +385,138 @@ def _region(system: System, run: Run, names_u: Sequence[str]) -> dict[str, tuple
     return out
 
 
-def _xhat0(x0: np.ndarray, run: Run | None, scale: np.ndarray, estimated: Sequence[int], guesses: Sequence[float]) -> np.ndarray:
-    """x̂(0): x(0) moved by half each state's scale (alternating signs), inside the box the run visits (so inside
-    every region a design assumes from that box: a state of charge stays below 1, a concentration positive)."""
+#: A state whose range on the nominal run is at most this fraction of its size (at least 1) is constant on the run.
+STILL = 1e-12
+
+
+def _still(span: np.ndarray, mag: np.ndarray) -> np.ndarray:
+    """Which states the nominal run leaves where they start (a sensor bias, a constant: ẋ = 0 on the run)."""
+    return span <= STILL * np.maximum(mag, 1.0)
+
+
+def _resolvable(system: System, run: Run, idx: Sequence[int], sig: np.ndarray, count: int = 1001) -> np.ndarray:
+    r"""For each state in `idx`: the initial offset δ whose effect on the outputs along the run is, in RMS over the run,
+    one noise standard deviation:
+    :math:`\delta_i = 1/\sqrt{\operatorname{mean}_t \sum_k (\partial y_k(t)/\partial x_i(0))^2/\sigma_k^2}`.
+
+    The sensitivities are those of the model linearised along the nominal run: :math:`\dot S = A(t) S`, S(0) = the unit
+    vectors of `idx`, :math:`\partial y/\partial x(0) = C(t)S(t)`, with A = ∂f/∂x and C = ∂h/∂x at (up to) `count` points
+    of the run (S stepped by exp of the trapezoidal mean of A over each interval; a map multiplies its Jacobians step by
+    step). An offset smaller than δ_i moves the outputs less than their noise: a run cannot show it being estimated.
+    inf where the outputs do not depend on the state along the run."""
+    import scipy.linalg
+
+    from ..design._constructions import jacobians_at
+
+    m = len(idx)
+    if m == 0:
+        return np.zeros(0)
+    N = run.t.size
+    if system.is_discrete:
+        k = np.arange(min(N, 5000))
+    else:
+        k = np.unique(np.linspace(0, N - 1, min(N, count)).astype(int))
+    t = run.t[k]
+    F, H = jacobians_at(system, t, run.x[k], run.u[k])
+    S = np.zeros((system.n_states, m))
+    S[list(idx), np.arange(m)] = 1.0
+    acc = np.zeros(m)
+    used = 0
+    with np.errstate(all="ignore"):
+        for j in range(k.size):
+            Y = H[j] @ S / sig[:, None]
+            if not (np.all(np.isfinite(Y)) and np.all(np.isfinite(F[j]))):
+                break
+            acc += np.sum(Y ** 2, axis=0)
+            used += 1
+            if j + 1 < k.size:
+                S = F[j] @ S if system.is_discrete else scipy.linalg.expm(0.5 * (F[j] + F[j + 1]) * (t[j + 1] - t[j])) @ S
+                if not np.all(np.isfinite(S)) or np.abs(S).max() > 1e150:
+                    break
+    mean = acc / max(used, 1)
+    with np.errstate(divide="ignore"):
+        return np.where(mean > 0, 1.0 / np.sqrt(mean), np.inf)
+
+
+def _initial_std(model: System, system: System, sc: Scenario, nominal: Run | None, still: np.ndarray,
+                 sig: np.ndarray) -> tuple[dict[int, float], str]:
+    """σ₀ of the initial error for each state the rule fixes (the file's ``initial_std``, and every state constant on the
+    run), by state index, with the sentence that says how (see the module docstring)."""
+    given = dict(sc.initial_std or {})
+    names = list(system.states)
+    # a parameter the file declares unknown but this analysis does not estimate (--params): nothing to start
+    given = {k: v for k, v in given.items() if k in names or k not in model.params}
+    bad = [k for k in given if k not in names]
+    if bad:
+        raise ModelError(f"advise: [simulation] initial_std names {bad[0]!r}, which is not a state or an unknown parameter of "
+                         f"{model.name!r}; states and unknown parameters: {', '.join(names)}")
+    for k, v in given.items():
+        if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
+            raise ModelError(f"advise: [simulation] initial_std.{k} must be a positive finite number (the standard deviation of "
+                             f"the initial estimation error of {k}), got {v!r}")
+    out = {names.index(k): float(v) for k, v in given.items()}
+    const = [i for i in range(model.n_states) if still[i] and i not in out]
+    if not const:
+        why = (f"x̂(0) and P(0) of {', '.join(given)} from [simulation] initial_std (σ₀ = "
+               + ", ".join(f"{v:.3g}" for v in given.values()) + ")") if given else ""
+        return out, why
+    x0 = sc.x0
+    at_zero = [i for i in const if x0[i] == 0]
+    floor = dict(zip(at_zero, _resolvable(system, nominal, at_zero, sig) if nominal is not None else [np.inf] * len(at_zero)))
+    pstd = sc.process_std
+    parts = []
+    for j, i in enumerate(const):
+        fl = float(floor.get(i, np.inf))
+        fl_ok = np.isfinite(fl) and fl > 0
+        if pstd is not None and pstd[i] > 0:     # (b) the spread its own random walk reaches over the run
+            base, how = float(pstd[i] * np.sqrt(sc.t_final)), "σ_w·√t_final"
+        elif x0[i] != 0:                           # (c) its magnitude
+            base, how = 0.5 * abs(float(x0[i])), "|x(0)|/2"
+        elif fl_ok:                                # (c) at 0: the smallest offset the run resolves
+            base, how = fl, "x(0) = 0: the smallest offset the run resolves, its effect on the outputs one noise σ in RMS"
+        else:
+            base, how = 0.0, ""
+        if not base > 0:                            # x(0) = 0 and the run does not show the state in the outputs at all
+            base, how = 1.0, "1 (x(0) = 0 and the outputs do not depend on it along the run: give initial_std)"
+        out[i] = base
+        parts.append(f"{names[i]}: {base:.3g} ({how})")
+    why = ("states constant on the run (" + ", ".join(names[i] for i in const) + ") start off their true value by σ₀ = "
+           + "; ".join(parts) + ", P(0) = σ₀²")
+    if given:
+        why += "; " + ", ".join(given) + " from [simulation] initial_std"
+    return out, why
+
+
+def _xhat0(x0: np.ndarray, run: Run | None, scale: np.ndarray, estimated: Sequence[int], guesses: Sequence[float],
+           fixed: Mapping[int, float] | None = None, local: np.ndarray | None = None) -> np.ndarray:
+    """x̂(0): x(0) moved by half each state's local scale (alternating signs), inside the box the run visits (so inside
+    every region a design assumes from that box: a state of charge stays below 1, a concentration positive).
+
+    A state in `fixed` (σ₀ by index: the file's ``initial_std`` and the states constant on the run) is moved by σ₀
+    itself: towards the box the run visits where that box has room, never clipped onto it (a constant's box is a
+    single point: clipping would start it at its true value, and bias estimation would look solved when it was never
+    tested); a nonzero state keeps its sign. Unknown parameters (`estimated`) start at their `guesses`."""
     out = np.array(x0, dtype=float)
+    fixed = dict(fixed or {})
+    local = scale if local is None else local
     sign = 1.0
     for i in range(out.size):
         if i in estimated:
             continue
         keeps = run is not None and (np.all(run.x[:, i] > 0) or np.all(run.x[:, i] < 0))
-        # half the state's scale, but no more than its initial size (or a tenth of its range) for a state that grows
-        # far from where it starts
-        s0 = min(scale[i], max(abs(x0[i]), 0.1 * scale[i]))
         lo, hi = (float(np.min(run.x[:, i])), float(np.max(run.x[:, i]))) if run is not None else (-np.inf, np.inf)
+        if i in fixed:
+            d = fixed[i]
+            tries = [x0[i] + d * sign, x0[i] - d * sign]
+            if x0[i] != 0:   # keep the sign: of the two directions, away from 0 when the other would cross it
+                tries = [v for v in tries if v * x0[i] > 0] or [x0[i] + d * np.sign(x0[i])]
+            # the direction that stays nearest the visited box (inside it when it has room)
+            out[i] = min(tries, key=lambda v: max(lo - v, v - hi, 0.0))
+            sign = -sign
+            continue
+        # half the state's local scale, but no more than its initial size (or a tenth of its range) for a state that
+        # grows far from where it starts
+        s0 = min(local[i], max(abs(x0[i]), 0.1 * scale[i]))
         tries = [x0[i] + 0.5 * s0 * sign, x0[i] - 0.5 * s0 * sign]
         if keeps:  # a state that keeps its sign on the run (a level, a concentration) keeps it
             tries = [v if v * x0[i] > 0 else x0[i] * (1.5 if v > x0[i] else 0.5) for v in tries]
@@ -404,7 +550,7 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
         x0_plant = np.concatenate([scen.x0, [truth[k] for k in unknown]])
         scen = Scenario(scen.t_final, scen.dt, x0_plant, scen.inputs, scen.noise, scen.noise_std,
                         None if scen.process_std is None else np.concatenate([scen.process_std, np.zeros(len(unknown))]),
-                        scen.sample_period, scen.seed, scen.periods, scen.delay)
+                        scen.sample_period, scen.seed, scen.periods, scen.delay, scen.initial_std)
         try:
             nominal = simulate(system, None, t_final=scen.t_final, dt=scen.dt, x0=scen.x0, inputs=scen.inputs)
         except FiniteEscapeError as e:
@@ -422,34 +568,8 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
         except (ModelError, ValueError, TypeError):
             rep_sig = None
     t_final = scen.t_final if scen is not None else 10.0
-    if nominal is not None:
-        s = {"t": nominal.t, "x": nominal.x, "u": nominal.u}
-        k = np.unique(np.linspace(0, nominal.t.size - 1, 200).astype(int))
-        span = nominal.x.max(axis=0) - nominal.x.min(axis=0)
-        mag = np.abs(nominal.x).max(axis=0)
-        # a state's scale: its range on the run; for a state that barely moves (< 5 % of its size), half its size
-        scale = np.where(span > 0.05 * mag, span, 0.5 * mag)
-        scale = np.maximum(scale, 1e-6)
-        for j, k_ in enumerate(unknown):  # a constant parameter: its uncertainty, not its (zero) range
-            i = model.n_states + j
-            scale[i] = max(0.5 * abs(float(model.params[k_])), abs(truth[k_] - float(model.params[k_])), 1e-3)
-        region = _region(system, nominal, model.inputs)
-        omega_p, scale_note = _time_scales(system, {key: v[k] for key, v in s.items()}, t_final, scale)
-    else:
-        pts = {"t": np.zeros(1), "x": np.zeros((1, system.n_states)), "u": np.zeros((1, system.n_inputs))}
-        scale = np.ones(system.n_states)
-        omega_p, scale_note = _time_scales(system, pts, t_final, scale, "at x = 0, u = 0")
-        region = {}
     sc = scen
-    limit = np.inf
-    if sc is not None:
-        limit = 0.5 / sc.dt
-        if sc.sample_period:
-            limit = min(limit, 0.5 / sc.sample_period)
-    omega_o = float(min(3.0 * omega_p, limit))
-    notes.append(f"time scale: {scale_note}; observer rate ω_o = {omega_o:.3g} s⁻¹ (3 ω_p"
-                 + (f", capped at {limit:.3g} by the step/sample period" if 3.0 * omega_p > limit else "") + ")")
-    # noise -> R, Q
+    # output noise -> R (σ per output; the constant states' offsets below are measured against it)
     p = system.n_outputs
     if sc is not None and sc.noise_std is not None and np.all(sc.noise_std > 0):
         sig = sc.noise_std
@@ -459,20 +579,66 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
         sig = np.maximum(1e-3 * yspan, 1e-6)
         if sc is not None and sc.noise_std is not None:
             sig = np.where(sc.noise_std > 0, sc.noise_std, sig)
-        noise_note = ("no (or zero) output noise declared: R from σ = 0.1 % of each output's range on the run" if nominal is not None
-                      else "no output noise declared and no run: R from σ = 1e-3")
+        noise_note = ("no (or zero) output noise declared: R from σ = 0.1 % of each output's range on the run"
+                      if nominal is not None else "no output noise declared and no run: R from σ = 1e-3")
+    sigma0: dict[int, float] = {}
+    initial_note = ""
+    if nominal is not None:
+        s = {"t": nominal.t, "x": nominal.x, "u": nominal.u}
+        k = np.unique(np.linspace(0, nominal.t.size - 1, 200).astype(int))
+        span = nominal.x.max(axis=0) - nominal.x.min(axis=0)
+        mag = np.abs(nominal.x).max(axis=0)
+        still = _still(span, mag)
+        still[model.n_states:] = False              # unknown parameters: their own rule below
+        # a state's scale: its range on the run; for a state that barely moves (< 5 % of its size), half its size
+        scale = np.where(span > 0.05 * mag, span, 0.5 * mag)
+        scale = np.maximum(scale, 1e-6)
+        for j, k_ in enumerate(unknown):  # a constant parameter: its uncertainty, not its (zero) range
+            i = model.n_states + j
+            scale[i] = max(0.5 * abs(float(model.params[k_])), abs(truth[k_] - float(model.params[k_])), 1e-3)
+        sigma0, initial_note = _initial_std(model, system, sc, nominal, still, sig)
+        for i, v in sigma0.items():     # a constant state: its uncertainty, not its (zero) range
+            if still[i]:
+                scale[i] = v
+        region = _region(system, nominal, model.inputs)
+        omega_p, scale_note = _time_scales(system, {key: v[k] for key, v in s.items()}, t_final, scale)
+        # the local scale: the distance a state covers at its fastest rate in 2/ω_p, at most its range (a position that
+        # travels a kilometre, an angle that winds five turns: their range is no measure of the uncertainty a filter
+        # carries over one time scale); a constant's is its uncertainty
+        local = scale.copy()
+        if not system.is_discrete:
+            rate = (np.max(np.abs(np.gradient(nominal.x, nominal.t, axis=0)), axis=0) if nominal.t.size > 1
+                    else np.zeros(system.n_states))
+            moving = ~still
+            moving[model.n_states:] = False
+            local[moving] = np.minimum(scale[moving], np.maximum(2.0 * rate[moving] / omega_p, 1e-6))
+    else:
+        pts = {"t": np.zeros(1), "x": np.zeros((1, system.n_states)), "u": np.zeros((1, system.n_inputs))}
+        scale = np.ones(system.n_states)
+        local = scale
+        omega_p, scale_note = _time_scales(system, pts, t_final, scale, "at x = 0, u = 0")
+        region = {}
+    limit = np.inf
+    if sc is not None:
+        limit = 0.5 / sc.dt
+        if sc.sample_period:
+            limit = min(limit, 0.5 / sc.sample_period)
+    omega_o = float(min(3.0 * omega_p, limit))
+    notes.append(f"time scale: {scale_note}; observer rate ω_o = {omega_o:.3g} s⁻¹ (3 ω_p"
+                 + (f", capped at {limit:.3g} by the step/sample period" if 3.0 * omega_p > limit else "") + ")")
     period = (sc.sample_period or sc.dt) if sc is not None else 1e-2
     R = np.diag(sig ** 2)
     R_rate = R * period
     per_step = system.is_discrete   # a map's Q is the covariance of the noise of one step, not an intensity
-    allowance = (0.01 * scale) ** 2 * (1.0 if per_step else omega_p)
+    allowance = (0.01 * local) ** 2 * (1.0 if per_step else omega_p)
     if sc is not None and sc.process_std is not None and np.any(sc.process_std > 0):
         q = np.where(sc.process_std > 0, sc.process_std ** 2, allowance)
         noise_note += "; Q = σ_w² from the declared process noise"
     else:
         q = allowance
         noise_note += ("; Q = (0.01·range)² per step and state (no process noise declared)" if per_step else
-                       "; Q = (0.01·range)²·ω_p per state (no process noise declared)")
+                       "; Q = (0.01·ℓ)²·ω_p per state, ℓ its local scale (its range, at most the distance its fastest rate "
+                       "covers in 2/ω_p; no process noise declared)")
     Q = np.diag(q)
     if xhat0 is not None:
         xh0 = np.asarray(xhat0, dtype=float).reshape(-1)
@@ -480,16 +646,24 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
             raise ModelError(f"advise: `xhat0` must have {system.n_states} entries ({', '.join(system.states)}), got {xh0.size}")
     elif sc is not None and sc.x0 is not None:
         est = list(range(model.n_states, system.n_states))
-        xh0 = _xhat0(sc.x0, nominal, scale, est, [float(model.params[k]) for k in unknown])
+        xh0 = _xhat0(sc.x0, nominal, scale, est, [float(model.params[k]) for k in unknown], sigma0, local)
     else:
         xh0 = np.array([0.0] * model.n_states + [float(model.params[k]) for k in unknown])
     # P(0): the initial uncertainty, i.e. the offset of x̂(0) from x(0) chosen above, at least a tenth of the state's
-    # range on the run; never the whole range squared (1e4 m² on a position that covers 100 m puts sigma points and
-    # EKF corrections far outside anything the model has seen)
-    offset = np.abs(xh0 - sc.x0) if sc is not None and sc.x0 is not None else scale
-    P0 = np.diag(np.maximum(np.minimum(offset, scale), 0.1 * scale) ** 2)
+    # local scale; never the whole range squared (1e4 m² on a position that covers 100 m puts sigma points and
+    # EKF corrections far outside anything the model has seen). A state with a σ₀ of its own (initial_std, a constant on
+    # the run) has P(0) = σ₀²: its offset is σ₀, a one-σ error.
+    offset = np.abs(xh0 - sc.x0) if sc is not None and sc.x0 is not None else local
+    sd0 = np.maximum(np.minimum(offset, local), 0.1 * local)
+    given = {system.states.index(k) for k in (sc.initial_std or {})} if sc is not None else set()
+    for i, v in sigma0.items():   # with an x̂(0) of the caller's, a constant's P(0) covers that offset too
+        sd0[i] = v if xhat0 is None or i in given else max(v, float(offset[i]))
+    P0 = np.diag(sd0 ** 2)
+    if initial_note:
+        notes.append(initial_note)
     ctx = Context(model, system, unknown, truth, sc, nominal, rep, rep_sig, omega_p, omega_o, scale, region, xh0, R, R_rate, Q,
-                  P0, noise_note, notes=notes, recording=recording)
+                  P0, noise_note, notes=notes, recording=recording, local_scale=np.asarray(local, dtype=float),
+                  constant=tuple(int(i) for i in np.flatnonzero(still)) if nominal is not None else ())
     blockers, info = _unobservable(model, rep, nominal, unknown)
     ctx.detectability = info
     ctx.forms = recognise(system)

@@ -9,6 +9,9 @@ angle in radians) — and, among errors within a factor 1.25 of each other (a ti
 precision such a run has), by the convergence time. On a recording there is no true state; the
 candidates are then ranked by the RMS of their innovations y_k − h(x̂_k⁻) over the last 20 % (what
 :func:`nlobs.estimate` records; y − h(x̂) for an observer without them).
+
+A constant (a state the run leaves where it starts, such as a sensor bias, or an unknown parameter) whose error over
+the last 20 % is still above 20 % of its initial error is named in its score's detail: "not converged within the run".
 """
 
 from __future__ import annotations
@@ -45,12 +48,46 @@ def _score(run: Run, name: str, ctx: Context) -> Score:
         tail = run.t >= run.t[-1] - 0.2 * (run.t[-1] - run.t[0])
         scaled = err[tail] / ctx.scale[:err.shape[1]]
         nrms = float(np.sqrt(np.mean(scaled ** 2)))
-        return Score(name, "ok", m.rms_error, m.convergence_time, m.final_error, parameters=params, normalised_rms=nrms)
+        return Score(name, "ok", m.rms_error, m.convergence_time, m.final_error, parameters=params, normalised_rms=nrms,
+                     detail=_unsettled(err, tail, ctx, _initial_error(run, name, err)))
     resid, what = residuals(run, name, ctx.system)
     tail = run.t >= run.t[-1] - 0.2 * (run.t[-1] - run.t[0])
     ok = np.all(np.isfinite(resid), axis=1) & tail
     rms = float(np.sqrt(np.mean(np.sum(resid[ok] ** 2, axis=1)))) if ok.any() else float("nan")
     return Score(name, "ok", rms, None, float(np.linalg.norm(resid[-1])), detail=f"{what} (no true state)", parameters=params)
+
+
+#: A constant state (a bias) or an unknown parameter whose error over the last 20 % of the run is above this fraction
+#: of its initial error is reported as not converged within the run (the cap of the convergence band, nlobs.simulate).
+UNSETTLED = 0.2
+
+
+def _initial_error(run: Run, name: str, err: np.ndarray) -> np.ndarray:
+    """x̂(0) − x(0) before any measurement (the trace's first row may follow the first update)."""
+    prior = getattr(run.observers[name], "xhat_prior", None)
+    if prior is not None and np.size(prior) == err.shape[1]:
+        return np.asarray(prior, dtype=float) - run.x[0, :err.shape[1]]
+    return err[0]
+
+
+def _unsettled(err: np.ndarray, tail: np.ndarray, ctx: Context, e_start: np.ndarray) -> str:
+    """The constants (states that do not move on the run, unknown parameters) whose estimate did not settle: the RMS of
+    their error over the last 20 % of the run above UNSETTLED of their initial error. '' when all settled.
+
+    A run started from an offset of these states exists to show them converge; the error norm of all states together
+    (the convergence time) is dominated by the moving ones and cannot say it."""
+    n_plant = ctx.model.n_states
+    idx = sorted(set(getattr(ctx, "constant", ())) | set(range(n_plant, err.shape[1])))
+    out = []
+    for i in idx:
+        e0 = abs(float(e_start[i]))
+        late = float(np.sqrt(np.mean(err[tail, i] ** 2)))
+        if e0 > 0 and late > UNSETTLED * e0:
+            out.append(f"{ctx.system.states[i]} ({late / e0:.0%})")
+    if not out:
+        return ""
+    return ("not converged within the run: " + ", ".join(out) + " of the initial error left over the last 20 % (the run "
+            "does not show " + ("it" if len(out) == 1 else "them") + " converge)")
 
 
 def _parameters(run: Run, name: str, ctx: Context) -> dict[str, dict[str, float | None]]:

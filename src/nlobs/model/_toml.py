@@ -31,6 +31,7 @@ The format (a contract other tools rely on)::
     sample_period = 0.01              # optional: sampled measurements, zero-order hold (or one per output: { y = 0.01, gps = 1.0 })
     delay = { y = 0.15 }              # optional: known measurement delays (s), for simulate and estimate
     true_parameters = { k2 = 0.25 }   # the plant's values in a simulation (default: the values above)
+    initial_std = { x2 = 0.5, k2 = 0.1 }  # optional: std of the initial estimation error per state or unknown parameter
     seed = 1
     [observers.ekf]           # named observer configurations: kind + tuning
     kind = "ekf"
@@ -72,7 +73,7 @@ __all__ = ["ModelFile", "SimulationConfig", "ObserverConfig", "load_model", "loa
 _TOP = ("name", "description", "time", "sample_time", "states", "inputs", "outputs", "parameters", "tables", "definitions",
         "dynamics", "output", "units", "simulation", "observers")
 _SIM = ("t_final", "dt", "x0", "inputs", "noise", "noise_bound", "process_noise", "sample_period", "delay", "true_parameters",
-        "seed")
+        "initial_std", "seed")
 _PARAM_KEYS = ("value", "unknown")
 #: Observer names become JSON keys, CSV column prefixes and C file names: a conservative alphabet.
 _OBSERVER_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_-]{0,59}")
@@ -98,6 +99,9 @@ class SimulationConfig:
     sample_period: float | Mapping[str, float] | None = None  #: one period, or one per output
     seed: int | None = None
     true_parameters: Mapping[str, float] = field(default_factory=dict)
+    #: The standard deviation of the initial estimation error per state or unknown parameter (as PX4's EKF2_GBIAS_INIT):
+    #: the automatic tuning (``nlobs design``) offsets x̂(0) by it and takes P(0) = σ² for each one named.
+    initial_std: Mapping[str, float] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -311,7 +315,7 @@ class _Loader:
         except ModelError as e:
             raise self.err(str(e)) from None
         units = self.units(doc, system)
-        simulation = self.simulation(doc, system, definitions)
+        simulation = self.simulation(doc, system, definitions, unknown_params)
         observer_system = system.augmented(unknown_params)
         guesses = {k: params[k] for k in unknown_params}
         observers = self.observers(doc, definitions, observer_system, guesses)
@@ -403,7 +407,8 @@ class _Loader:
             out[k] = self.label(v, f"units.{k}", "unit", 40)
         return out
 
-    def simulation(self, doc: Mapping[str, Any], system: System, definitions: Mapping[str, sp.Expr]) -> SimulationConfig:
+    def simulation(self, doc: Mapping[str, Any], system: System, definitions: Mapping[str, sp.Expr],
+                   unknown_params: tuple[str, ...] = ()) -> SimulationConfig:
         sim = self.table(doc, "simulation")
         unknown = [k for k in sim if k not in _SIM]
         if unknown:
@@ -453,6 +458,18 @@ class _Loader:
                                f"simulation.true_parameters.{k}")
             true[k] = self.number(v, f"simulation.true_parameters.{k}")
         out["true_parameters"] = MappingProxyType(true)
+        initial = {}
+        for k, v in self.table(sim, "simulation.initial_std").items():
+            key = f"simulation.initial_std.{k}"
+            if k in system.params and k not in unknown_params:
+                raise self.err(f"`{shorten(k, 40)[1:-1]}` is a known parameter: an initial uncertainty applies to the states and "
+                               f"to parameters declared unknown ({k} = {{ value = ..., unknown = true }} in [parameters])", key)
+            if k not in system.states and k not in unknown_params:
+                raise self.err(f"`{shorten(k, 40)[1:-1]}` is not a state or an unknown parameter; states: "
+                               f"{shorten_list(system.states)}" + (f"; unknown parameters: {shorten_list(unknown_params)}"
+                                                                   if unknown_params else ""), key)
+            initial[k] = self.number(v, key, positive=True)
+        out["initial_std"] = MappingProxyType(initial)
         # inputs are signals of time: t, the parameters and the definitions built from those only
         base = {"t", *system.params}
         sym_t: dict[str, sp.Expr] = {"t": TIME, **{k: symbol(k) for k in system.params}}
