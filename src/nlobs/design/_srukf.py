@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 import casadi as ca
@@ -15,6 +16,7 @@ from ._base import Certificate, Check, ObserverDesign, Symbols, check_vector
 from ._tune import robust_filter
 from ._kind import Tuning
 from ._kind import kind
+from ._bounds import POLICY, bounds_check, check_start, clip_const, parse_bounds
 from ._common import require_system
 from ._sqrt import covariance_inputs, lower_solve, lower_t_solve, sqrt_psd, tria
 from ._ukf import unscented_weights
@@ -34,7 +36,7 @@ def tune_srukf(ctx: Any) -> Tuning:
 @kind('srukf', summary='square-root unscented Kalman filter (continuous-discrete): P is never formed, its Cholesky factor is updated by QR',
       references=(work("vandermerwe2001", "square root by QR"), work("arasaratnam2009")), tune=tune_srukf)
 def design_srukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None, alpha: float = 1.0,
-                 beta: float = 0.0, kappa: float = 0.0) -> ObserverDesign:
+                 beta: float = 0.0, kappa: float = 0.0, bounds: Mapping[str, Any] | None = None) -> ObserverDesign:
     r"""Square-root unscented Kalman filter (continuous-discrete, van der Merwe & Wan (2001)): P is never formed;
     its lower Cholesky factor S is rebuilt at each sample by QR triangularisations of sums of squares.
 
@@ -73,6 +75,10 @@ def design_srukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any =
         Covariance of one measurement sample, positive definite.
     P0 : array_like of shape (n, n), optional
         Initial covariance (identity), positive definite.
+    bounds : mapping of state name to (lo, hi), optional
+        State bounds, as for :func:`~nlobs.design.design_ukf`: f and h are evaluated at the sigma points clipped to
+        the bounds (the points themselves, and the spreads of the square roots, are the unclipped ones); the mean is
+        projected onto the bounds (clipped) at each update and the reported estimate is the clipped mean.
 
     Other Parameters
     ----------------
@@ -91,11 +97,15 @@ def design_srukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any =
     n, p = system.n_states, system.n_outputs
     Qm, Rm, P0m, checks = covariance_inputs(Q, R, P0, n, p, caller)
     wm, wc, c = unscented_weights(n, float(alpha), float(beta), float(kappa))
-    if wc.min() < 0:
+    if wc.min() < -1e-12 * float(np.abs(wc).max()):
+        bound = float(wc[0] - beta)   # W0 = λ/(n + λ) + 1 − α² + β
         raise PreconditionError(f"{caller}: the covariance weight W0 = {wc[0]:g} is negative (α = {alpha:g}, β = {beta:g}, "
-                                f"κ = {kappa:g}); the square-root form needs non-negative weights: take β ≤ α² + λ/(n + λ) - 1 "
-                                "or the defaults α = 1, β = 0, κ = 0")
+                                f"κ = {kappa:g}); the square-root form needs non-negative weights: take β ≥ α² − 1 − λ/(n + λ) "
+                                f"= {-bound:.10g}, or the defaults α = 1, β = 0, κ = 0")
+    wc = np.maximum(wc, 0.0)   # a W0 of −1e-16 from rounding β: 0
     x0v = check_vector(np.zeros(n) if xhat0 is None else xhat0, n, "xhat0", caller)
+    box = parse_bounds(system, bounds, caller)
+    evidence = check_start(system, box, np.array(x0v, dtype=float), caller)
     f, h = compile_system(system).bind()
     npts = 2 * n + 1
     s = Symbols.make(system, n * npts + 1)
@@ -109,13 +119,13 @@ def design_srukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any =
     def mean_of(P: list[Any]) -> Any:
         return sum((float(wm[i]) * P[i] for i in range(npts)), ca.SX.zeros(n))
 
-    flow = ca.vertcat(*[f(s.t, xi, s.u) for xi in pts], 1)
+    flow = ca.vertcat(*[f(s.t, clip_const(xi, box), s.u) for xi in pts], 1)
     # time update: the propagated points and Q·τ, triangularised (never P)
     m = mean_of(pts)
     Lq = ca.DM(sqrt_psd(Qm))
     Sm = tria(ca.horzcat(*[sw[i] * (pts[i] - m) for i in range(npts)], ca.sqrt(tau) * Lq))
     X = sigma(m, Sm)
-    Y = [h(s.t, xi, s.u) for xi in X]
+    Y = [h(s.t, clip_const(xi, box), s.u) for xi in X]
     yhat = sum((float(wm[i]) * Y[i] for i in range(npts)), ca.SX.zeros(p))
     Md = ca.diag(s.m)
     Xt = ca.horzcat(*[sw[i] * (X[i] - m) for i in range(npts)])
@@ -123,7 +133,7 @@ def design_srukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any =
     Rh = Md @ ca.DM(sqrt_psd(Rm))
     Sy = tria(ca.horzcat(Yt, Rh, ca.diag(1 - s.m)))  # unmeasured outputs: a decoupled unit block, zero gain
     K = lower_t_solve(Sy, lower_solve(Sy, Yt @ Xt.T)).T  # Kᵀ = Sy⁻ᵀ Sy⁻¹ Pxyᵀ, i.e. K = Pxy (Sy Syᵀ)⁻¹
-    m_plus = m + K @ (s.m * (s.y - yhat))
+    m_plus = clip_const(m + K @ (s.m * (s.y - yhat)), box)   # projected onto the bounds (identity without)
     S_plus = tria(ca.horzcat(Xt - K @ Yt, K @ Rh))
     update = ca.vertcat(*sigma(m_plus, S_plus), 0)
     dev = ca.horzcat(*[sw[i] * (pts[i] - m) for i in range(npts)])
@@ -132,8 +142,11 @@ def design_srukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any =
     values: dict[str, Any] = {"Q": Qm, "R": Rm, "P0": P0m, "alpha": float(alpha), "beta": float(beta), "kappa": float(kappa),
                               "weights_mean": wm, "weights_cov": wc,
                               "square root": "lower Cholesky factor S (P = SSᵀ) from Givens QR; no Cholesky factorisation or downdate"}
+    if box is not None:
+        checks.append(bounds_check(box, evidence))
+        values.update({"bounds": box.describe(), "bounds policy": POLICY})
     cert = Certificate("Square-root unscented Kalman filter (continuous-discrete)", REF, tuple(checks), values)
     names = [f"X{i}_{v}" for i in range(npts) for v in system.states] + ["tau"]
-    return ObserverDesign.build("srukf", system, s, z_names=names, flow=flow, xhat=m, xhat0_sym=x0,
+    return ObserverDesign.build("srukf", system, s, z_names=names, flow=flow, xhat=clip_const(m, box), xhat0_sym=x0,
                                 z0=ca.vertcat(*sigma(x0, ca.DM(np.linalg.cholesky(P0m))), 0), xhat0=x0v,
                                 certificate=cert, update=update, covariance=dev @ dev.T + tau * ca.DM(Qm))
