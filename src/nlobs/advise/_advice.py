@@ -260,9 +260,11 @@ class Advice:
                          + ", then convergence time):")
             for i, s in enumerate(self.scores):
                 if s.status == "ok":
-                    tc = MISSING if s.convergence_time is None else f"{s.convergence_time:.3g}"
+                    conv = ("did not converge within the run" if s.convergence_time is None and s.final_error is not None
+                            and any(o.status == "ok" and o.convergence_time is not None for o in self.scores)
+                            else f"converged at {MISSING if s.convergence_time is None else f'{s.convergence_time:.3g}'}")
                     rel = f"rel. {s.normalised_rms:.3g}  " if s.normalised_rms is not None else ""
-                    lines.append(f"  {i + 1:>2}. {s.kind:<24} {rel}RMS {s.rms_error:.3g}  converged at {tc}  "
+                    lines.append(f"  {i + 1:>2}. {s.kind:<24} {rel}RMS {s.rms_error:.3g}  {conv}  "
                                  f"final {s.final_error:.3g}" + (f"  {s.detail}" if s.detail else ""))
                     for k, v in s.parameters.items():  # unknown parameters: the estimate at the final time
                         est = f"{v['estimate']:.6g}" + ("" if v.get("std") is None else f" ± {2 * v['std']:.3g} (2σ)")

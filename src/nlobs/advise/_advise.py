@@ -17,7 +17,7 @@ from ..errors import ModelError
 from ..model import ModelFile, System, load_model
 from ..references import cite
 from ..simulate import Recording
-from ._advice import Advice, Candidate
+from ._advice import Advice, Candidate, Score
 from ..design._constructions import evaluate
 from ._context import Context, build_context, file_true_parameters, file_unknown_params
 from ._kinds import try_kind
@@ -116,6 +116,56 @@ def _try_with_progress(ctx: Any, kind: str, position: str, say: Any) -> Candidat
     finally:
         if slow is not None:
             slow.cancel()
+
+
+def _reconcile_choice(ctx: Context, candidates: Sequence[Candidate], failed: Sequence[Score], where: str,
+                      ranked: Sequence[Score] | None = None) -> None:
+    """A note that names a kind as the choice, checked against what was run.
+
+    A kind that blew up or failed (`failed`: the screening's or the run's scores) is never recommended: its note says
+    what happened, and the choice goes to the best-ranked kind that ran and converged (`ranked`, best first; without a
+    run, to none: the screening ranks nothing). A kind that ran to the end but did not converge within it, where
+    another did, is treated the same way; one that converged but ranked below others keeps the choice, and its note
+    says where it ranked."""
+    if not ctx.choice_notes:
+        return
+    bad = {s.kind: s for s in failed if s.status != "ok"}
+    ok = [s for s in (ranked or ()) if s.status == "ok"]
+    converged = [s for s in ok if s.convergence_time is not None]
+    best = (converged or ok or [None])[0]
+    for kind, note in list(ctx.choice_notes.items()):
+        cand = next((c for c in candidates if c.kind == kind), None)
+        mine = next((s for s in ok if s.kind == kind), None)
+        if kind in bad:
+            s = bad[kind]
+            problem = f"{'blew up' if s.status == 'diverged' else 'failed'} on {where} ({s.detail})"
+        elif cand is not None and not cand.applies:
+            problem = f"does not apply ({cand.why})"
+        elif mine is not None and mine.convergence_time is None and converged:
+            problem = f"ran on {where} but did not converge within it"
+        else:
+            problem = ""
+        if not problem:
+            if mine is not None and best is not None and best.kind != kind:
+                place = [s.kind for s in ok].index(kind) + 1
+                text = (f"{note} (on {where} it ranked {place} of {len(ok)}: rel. error "
+                        f"{mine.normalised_rms or mine.rms_error:.3g}, against {best.normalised_rms or best.rms_error:.3g} "
+                        f"for {best.kind})")
+                ctx.notes[ctx.notes.index(note)] = text
+                ctx.choice_notes[kind] = text
+            continue
+        other = best if best is not None and best.kind != kind else None
+        text = (f"{note}; but {kind} {problem}: it is not recommended"
+                + (f"; the best-ranked kind that ran is {other.kind}" if other is not None else
+                   "; `nlobs design --run` ranks the kinds that apply" if ranked is None else ""))
+        if note in ctx.notes:
+            ctx.notes[ctx.notes.index(note)] = text
+        else:
+            ctx.notes.append(text)
+        ctx.choice_notes[kind] = text
+        if ctx.choice is not None and ctx.choice[0] == kind:
+            ctx.choice = ((other.kind, f"ranked first on {where}; the rule's choice, {kind}, {problem}") if other is not None
+                          else None)
 
 
 def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[str] | None = None, simulation: Any = None,
@@ -228,7 +278,9 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
     if not run and not ctx.blockers and not ctx.run_blockers:
         if say:
             say(f"advise {system.name}: screening the applicable designs on the start of the simulation run ...")
-        candidates = demoted(candidates, screen(ctx, candidates), "the start of the [simulation] run")
+        screened = screen(ctx, candidates)
+        candidates = demoted(candidates, screened, "the start of the [simulation] run")
+        _reconcile_choice(ctx, candidates, screened, "the start of the [simulation] run")
     scores = runres = None
     scenario = ""
     refused = ""
@@ -240,9 +292,12 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
             n_run = sum(c.applies and c.runnable for c in candidates)
             say(f"advise {system.name}: running {n_run} design(s) ...")
         scores, runres = compare(ctx, candidates, engine=engine)
-        candidates = demoted(candidates, scores, "the comparison run" if ctx.recording is not None else "the [simulation] run")
+        where = "the comparison run" if ctx.recording is not None else "the [simulation] run"
+        candidates = demoted(candidates, scores, where)
         left_out = [c for c in candidates if c.applies and not c.runnable]   # not in the run: screened on its start
-        candidates = demoted(candidates, screen(ctx, left_out), "the start of the [simulation] run")
+        screened = screen(ctx, left_out)
+        candidates = demoted(candidates, screened, "the start of the [simulation] run")
+        _reconcile_choice(ctx, candidates, [*scores, *screened], where, scores)
         scores = [s for s in scores if s.status != "diverged"]
         if scores and ctx.recording is None and ctx.scenario.process_std is None:
             ctx.notes.append("the comparison run has no process noise and the model is exact: estimators that lean on the "

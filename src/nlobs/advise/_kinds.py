@@ -75,6 +75,7 @@ def _candidate(ctx: Context, kind: str, tuning: Tuning) -> Candidate:
         ctx.choice = (kind, tuning.choice_reason or tuning.why)
         ctx.choice_rank = tuning.choice_rank
         ctx.notes.append(tuning.choice)
+        ctx.choice_notes[kind] = tuning.choice   # checked against the screening and the run (advise._reconcile_choice)
     return cand
 
 
