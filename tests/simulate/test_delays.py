@@ -209,3 +209,14 @@ def test_samples_taken_a_rounding_error_apart_are_one_knot():
     last = p.table[p.pass_row == 6]                                # the last pass: both samples at that knot
     mask_cols = slice(2 + 1 + 2 * 2 + 1 + 2, None)
     assert (last[:, mask_cols].sum(axis=1) == 2).sum() == 1
+
+
+def test_the_particle_filter_does_not_apply_to_late_samples(tmp_path):
+    # it processes its samples in one pass and cannot put a late one back where it was taken: the advisor says so
+    # instead of calling it applicable and then losing it on the run
+    model = tmp_path / "cart.toml"
+    model.write_text(MODEL, encoding="utf-8")
+    pf = nlobs.advise(str(model), kinds=["pf"]).candidate("pf")
+    assert pf.status == "fails" and "arrive late" in pf.why and "gps (0.15 s)" in pf.why
+    model.write_text(MODEL.replace("delay = { gps = 0.15, wheel = 0.15 }\n", ""), encoding="utf-8")
+    assert nlobs.advise(str(model), kinds=["pf"]).candidate("pf").applies

@@ -163,7 +163,8 @@ def compare(ctx: Context, candidates: Sequence[Candidate], *, progress: bool | C
 
 def screen(ctx: Context, candidates: Sequence[Candidate]) -> list[Score]:
     """The applicable candidates (those left out of ``--run`` too: a moving-horizon estimator on many samples) that
-    blow up on the first part of the scenario (2 % of it, at least 20 samples), run on the virtual machine: what "applies" promises without ``--run`` (the design runs on the file's
+    blow up on the first part of the scenario (2 % of it, at least 20 samples; an NLP estimator its first 40 samples),
+    run on the virtual machine: what "applies" promises without ``--run`` (the design runs on the file's
     [simulation], at least where a tuning mistake shows: an unstable first step, sigma points outside the model's
     domain). Returns one "diverged" score per candidate that blew up."""
     sc = ctx.scenario
@@ -175,10 +176,13 @@ def screen(ctx: Context, candidates: Sequence[Candidate]) -> list[Score]:
     period = sc.sample_period or sc.dt
     t_pre = min(sc.t_final, max(0.02 * sc.t_final, 20 * period))
     t_pre = max(sc.dt, round(t_pre / period) * period)
+    # an estimator that solves an NLP per sample (MHE) on its first windows only: 40 samples, on the virtual machine
+    # (a screen that compiled its NLP would wait minutes for the compiler before the first window)
+    t_heavy = min(t_pre, max(sc.dt, 40 * period))
     failed: list[Score] = []
-    for group in (light, *({k: d} for k, d in heavy.items())):
+    for group, t_end in ((light, t_pre), *(({k: d}, t_heavy) for k, d in heavy.items())):
         if group:
-            failed += _without_diverging(ctx, group, t_pre, "vm", None)[2]
+            failed += _without_diverging(ctx, group, t_end, "vm", None)[2]
     return failed
 
 
@@ -195,7 +199,8 @@ def _run_group(ctx: Context, designs: dict[str, Any], engine: str, progress: Any
     """One simulation of `designs` together; a design that blows up is reported and the rest run again without it."""
     sc, rec = ctx.scenario, ctx.recording
     failed: list[Score] = []
-    if rec is None and engine != "vm" and len(designs) > 1:
+    isolated = rec is None and bool(sc.delay) and any(v > 0 for v in sc.delay.values())   # each observer runs on its own
+    if rec is None and engine != "vm" and len(designs) > 1 and not isolated:
         # candidates that blow up at the start (a filter unstable at its first step, a gain beyond the step), found on a
         # short prefix on the virtual machine: the whole run then compiles its joint step once, instead of once more
         # for every candidate that diverges (a C build of a dozen observers takes seconds)

@@ -21,6 +21,7 @@ from __future__ import annotations
 import hashlib
 import itertools
 import threading
+import time
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Literal
@@ -30,6 +31,7 @@ import numpy as np
 import sympy as sp
 
 from ..engine import compile_c, compile_system, compiled_nlpsol, defer_error, find_compiler, rk4_step
+from ..engine._codegen import COSTS, built_path, choose_backend, code_size, signature_of
 from ..errors import EngineError, PreconditionError, SolverError
 from ..model import System
 from ..references import cite, work
@@ -70,16 +72,34 @@ class _Solvers:
     ipopt_compiled: bool = False
     _fast: ca.Function | None = None
 
+    vm_spent: float = 0.0   # seconds the SQP path has run on the virtual machine in this process
+    _sig: str | None = None
+    _size: int | None = None
+
     def fast(self) -> ca.Function:
-        """The SQP path as compiled C (or, without a compiler or when compiling fails, on the virtual machine)."""
-        if self._fast is None:
-            fn = self.graph
-            if self.compiled:
-                try:
-                    fn = compile_c(self.graph)
-                except EngineError:
-                    self.compiled = False
-            self._fast = fn
+        """The SQP path: compiled C when it is built (cached on disk), or once the time it has spent on the virtual
+        machine in this process reaches the time its compile is predicted to take (so a short run, such as the
+        advisor's screening of a window or two, never waits for the compiler: :func:`nlobs.engine.choose_backend`'s
+        rule, solve by solve); without a compiler, or when compiling fails, the virtual machine."""
+        if self._fast is not None:
+            return self._fast
+        if not self.compiled:
+            self._fast = self.graph
+            return self._fast
+        if self._sig is None:
+            self._sig = signature_of(self.graph)
+        path = built_path("mhe", self._sig, "")
+        COSTS.spent[self._sig] = self.vm_spent
+        if self._size is None:
+            self._size = code_size(self.graph)
+        if choose_backend("auto", ready=path is not None and path.exists(), n_instr=self._size, vm_instr=0.0,
+                          signature=self._sig) == "vm":
+            return self.graph
+        try:
+            self._fast = compile_c(self.graph, sig=self._sig, tag="mhe")
+        except EngineError:
+            self.compiled = False
+            self._fast = self.graph
         return self._fast
 
     def ipopt_solver(self) -> ca.Function:
@@ -519,11 +539,14 @@ class _MHEUpdate(ca.Callback):
         self._args = [np.zeros(1), np.zeros(lay.size), np.zeros(self.nu), np.zeros(self.p), np.zeros(self.p), consts.copy()]
         self._res = [np.zeros(lay.size), np.zeros(2)]
         self._ev: Any = None
+        self._ev_of: Any = None
         self.construct(name, {})
 
     def _evaluator(self) -> Any:
-        if self._ev is None:
-            buf, ev = self.solvers.fast().buffer()
+        fn = self.solvers.fast()
+        if self._ev is None or fn is not self._ev_of:
+            self._ev_of = fn
+            buf, ev = fn.buffer()
             for i, a in enumerate(self._args):
                 buf.set_arg(i, memoryview(a))
             for i, a in enumerate(self._res):
@@ -582,7 +605,10 @@ class _MHEUpdate(ca.Callback):
                 ev = self._evaluator()
                 for dst, src in zip(self._args, (t, z, u, y, m)):
                     dst[:] = src
+                t0 = time.perf_counter()
                 ev()
+                if self._ev_of is self.solvers.graph:   # on the VM: counts toward compiling it
+                    self.solvers.vm_spent += time.perf_counter() - t0
                 zp, status = self._res[0].copy(), self._res[1].copy()
             if self._ok(zp, status):
                 return zp

@@ -30,7 +30,7 @@ import numpy as np
 
 from ..errors import ConvergenceWarning, EngineError
 
-__all__ = ["Backend", "COSTS", "choose_backend", "signature_of", "built_path", "CompiledBatch", "CompiledLoop", "cache_dir", "find_compiler", "compile_c", "resolve_backend"]
+__all__ = ["Backend", "COSTS", "choose_backend", "code_size", "signature_of", "built_path", "CompiledBatch", "CompiledLoop", "cache_dir", "find_compiler", "compile_c", "resolve_backend"]
 
 Backend = Literal["auto", "vm", "c"]
 
@@ -161,6 +161,18 @@ def choose_backend(backend: Backend, *, ready: bool, n_instr: int, vm_instr: flo
         return "c"
     spent = COSTS.spent.get(signature, 0.0)
     return "c" if spent + COSTS.vm_seconds(vm_instr) >= COSTS.compile_seconds(n_instr) else "vm"
+
+
+def code_size(fn: ca.Function) -> int:
+    """The instructions the C of `fn` is generated from: its own, plus those of every function an MX graph calls
+    (an MX instruction may be a call of a large SX function). The size compile times are predicted from."""
+    if fn.is_a("SXFunction"):
+        return int(fn.n_instructions())
+    try:
+        called = fn.find_functions()
+    except (AttributeError, RuntimeError):
+        called = []
+    return int(fn.n_instructions()) + sum(int(f.n_instructions()) for f in called if f.is_a("SXFunction"))
 
 
 def signature_of(fn: ca.Function) -> str:
@@ -321,15 +333,20 @@ def _build(code: str | Callable[[], str], tag: str, so: Path | None = None, n_in
     return so
 
 
-def compile_c(fn: ca.Function) -> ca.Function:
+def compile_c(fn: ca.Function, *, sig: str | None = None, tag: str | None = None) -> ca.Function:
     """Generate C for `fn`, compile it (or reuse the cached build) and load it with ``casadi.external``.
+
+    With `sig` (e.g. :func:`signature_of`), the build is found in the cache by it, without generating the code.
 
     Raises
     ------
     EngineError
         If there is no compiler or the compiler fails (its message is included).
     """
-    so = _build(_generate(fn), fn.name())
+    if sig is not None:
+        so = _build(lambda: _generate(fn), tag or fn.name(), built_path(tag or fn.name(), sig, ""), n_instr=code_size(fn))
+    else:
+        so = _build(_generate(fn), fn.name())
     try:
         return ca.external(fn.name(), str(so))
     except RuntimeError as e:
@@ -436,6 +453,8 @@ def _compile_driver(step: ca.Function, template: str, tag: str, no: int, sig: st
 
 
 def _renamed(fn: ca.Function, name: str) -> ca.Function:
-    """`fn` under another name (the C symbol), evaluated symbolically so it stays SX when it was."""
-    args = [ca.SX.sym(fn.name_in(i), fn.sparsity_in(i)) for i in range(fn.n_in())]
+    """`fn` under another name (the C symbol), evaluated symbolically so it stays SX when it was (and an MX function
+    stays one call: the functions it calls are generated once, not inlined)."""
+    Sym = ca.SX if fn.is_a("SXFunction") else ca.MX
+    args = [Sym.sym(fn.name_in(i), fn.sparsity_in(i)) for i in range(fn.n_in())]
     return ca.Function(name, args, fn.call(args))

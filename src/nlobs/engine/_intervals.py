@@ -214,6 +214,9 @@ class IntervalRunner:
     jump : casadi.Function
         ``(s[ns], a[na]) -> (s_next[ns], o[no])``, applied at the end of every interval.
     backend : {"auto", "vm", "c"}
+    sub_c : casadi.Function, optional
+        The same sub-step built for C (e.g. over MX, calling the flow at the stages rather than inlining it); it is
+        what the compiled driver is generated from. Default: `sub`.
     idle : slice, optional
         Entries of `a` (e.g. the mask of the outputs sampled at the interval's end) that, when all zero, mean
         nothing happens at the end but what the jump does with them zero: the compiled driver then calls the
@@ -221,8 +224,10 @@ class IntervalRunner:
         measurement is 1/15 of the instructions), so the intervals between samples cost the flow only.
     """
 
-    def __init__(self, sub: ca.Function, jump: ca.Function, *, backend: Backend = "auto", idle: slice | None = None):
+    def __init__(self, sub: ca.Function, jump: ca.Function, *, backend: Backend = "auto", idle: slice | None = None,
+                 sub_c: ca.Function | None = None):
         self.sub, self.jump = sub, jump
+        self.sub_c = sub_c if sub_c is not None else sub
         self.ns, self.na, self.no = sub.size1_in(0), sub.size1_in(1), jump.size1_out(1)
         self.backend = backend
         self.compilable = sub.is_a("SXFunction") and jump.is_a("SXFunction")
@@ -230,21 +235,29 @@ class IntervalRunner:
         self._sig = signature_of(sub) + signature_of(jump) if self.compilable else ""
         if self._sig and self.idle is not None:
             self._sig += f"/idle{self.idle.start}:{self.idle.stop}"
+        if self._sig and sub_c is not None:
+            self._sig += "/sub-c:" + signature_of(sub_c)[:16]
         self._c: _CompiledIntervals | None = None
         self._ready = False
         self._vm: dict[tuple[int, bool], ca.Function] = {}
         self._progress: Callable[[float], None] | None = None  # during a VM run: called with the time reached
         self._n_instr = (sub.n_instructions() + jump.n_instructions()) if self.compilable else 0
 
-    def backend_for(self, work: float) -> str:
-        """Where a run of `work` sub-steps goes (by measured cost; MX functions always run on the VM)."""
+    def vm_instructions(self, substeps: float, intervals: float) -> float:
+        """VM instructions of a run: every sub-step evaluates the flow, every interval the jump (the VM's rows of an
+        interval with few sub-steps evaluate both: an SX conditional computes both branches)."""
+        return substeps * self.sub.n_instructions() + intervals * (self.jump.n_instructions() if self.compilable else 0)
+
+    def backend_for(self, work: float, intervals: float = 0.0) -> str:
+        """Where a run of `work` sub-steps over `intervals` intervals goes (by measured cost; MX functions always run
+        on the VM)."""
         if not self.compilable or self.backend == "vm":
             return "vm"
         if not self._ready:  # remembered once true: the build stays in the cache
             path = built_path("intervals", self._sig, _C_DRIVER)
             self._ready = self._c is not None or (path is not None and path.exists())
         ready = self._ready
-        return choose_backend(self.backend, ready=ready, n_instr=self._n_instr, vm_instr=work * self.sub.n_instructions(),
+        return choose_backend(self.backend, ready=ready, n_instr=self._n_instr, vm_instr=self.vm_instructions(work, intervals),
                               signature=self._sig)
 
     def run(self, s0: np.ndarray, A: np.ndarray, nmin: np.ndarray, *, rate0: float, target: float = 1.0,
@@ -265,10 +278,10 @@ class IntervalRunner:
         N = A.shape[0]
         rate0 = _finite_rate(rate0)
         # the work predicted from the first rate (a long gap needs many sub-steps although nmin is small there)
-        backend = self.backend_for(float(np.maximum(nmin, np.ceil(A[:, 1] * rate0 / target)).sum()))
+        backend = self.backend_for(float(np.maximum(nmin, np.ceil(A[:, 1] * rate0 / target)).sum()), N)
         if backend == "c":
             if self._c is None:
-                self._c = _CompiledIntervals(self.sub, self.jump, self._sig, self.idle)
+                self._c = _CompiledIntervals(self.sub_c, self.jump, self._sig, self.idle)
             res = self._c(s0, A, nmin, rate0, target, reject, max_substeps)
             if on_progress is not None and res.failed is None and res.refused is None:
                 on_progress(1.0)
@@ -292,7 +305,7 @@ class IntervalRunner:
         if self.compilable:
             spent = time.perf_counter() - t0
             COSTS.spent[self._sig] = COSTS.spent.get(self._sig, 0.0) + spent
-            COSTS.record_vm(float(res.substeps.sum()) * self.sub.n_instructions(), spent)
+            COSTS.record_vm(self.vm_instructions(float(res.substeps.sum()), N), spent)
         return res
 
     def _run_schedule(self, s0: np.ndarray, A: np.ndarray, nmin: np.ndarray, rate0: float, target: float, reject: float,
@@ -306,10 +319,10 @@ class IntervalRunner:
         slots = np.full((sched.n_slots, self.ns + 1), np.nan)
         if sched.prior is not None:
             slots[sched.prior, :self.ns], slots[sched.prior, self.ns] = s0, rate0
-        backend = self.backend_for(float(np.maximum(nmin, np.ceil(A[:, 1] * rate0 / target)).sum()))
+        backend = self.backend_for(float(np.maximum(nmin, np.ceil(A[:, 1] * rate0 / target)).sum()), N)
         if backend == "c":
             if self._c is None:
-                self._c = _CompiledIntervals(self.sub, self.jump, self._sig, self.idle)
+                self._c = _CompiledIntervals(self.sub_c, self.jump, self._sig, self.idle)
             res = self._c(s0, A, nmin, rate0, target, reject, max_substeps, sched, slots)
         else:
             t0 = time.perf_counter()
@@ -317,7 +330,7 @@ class IntervalRunner:
             if self.compilable:
                 spent = time.perf_counter() - t0
                 COSTS.spent[self._sig] = COSTS.spent.get(self._sig, 0.0) + spent
-                COSTS.record_vm(float(res.substeps.sum()) * self.sub.n_instructions(), spent)
+                COSTS.record_vm(self.vm_instructions(float(res.substeps.sum()), N), spent)
         if on_progress is not None and res.failed is None and res.refused is None and N:
             on_progress(1.0)
         return res
@@ -490,7 +503,7 @@ class IntervalRunner:
         rfirst = np.full(counts.size, np.nan)
         state, i = start, 0
         while i < total:
-            K = min(4096, total - i)
+            K = min(4096 if self.compilable else 256, total - i)   # an MX row (an NLP inside) holds much more
             K2 = 1 << (K - 1).bit_length()  # a power of two: few distinct VM functions
             r = np.arange(i, i + K)
             idx = np.searchsorted(cum, r, side="right")
@@ -572,18 +585,25 @@ class _CompiledIntervals:
         self.ns, self.na, self.no = sub.size1_in(0), sub.size1_in(1), jump.size1_out(1)
 
         def code() -> str:
-            rs, rj = _renamed(sub, "nlobs_sub"), _renamed(jump, "nlobs_jump")
+            rs, rj = _renamed(sub, "nlobs_sub"), _renamed(jump, "nlobs_jump")   # (MX stays MX: its calls stay calls)
             fns = [rs, rj]
+            skip = idle
             if idle is not None:   # the jump with the idle entries of `a` at 0, simplified by SX's constant folding
                 s, a = ca.SX.sym("s", self.ns), ca.SX.sym("a", self.na)
                 a0 = ca.vertcat(a[:idle.start], ca.SX.zeros(idle.stop - idle.start), a[idle.stop:])
-                fns.append(ca.Function("nlobs_jump0", [s, a], list(jump(s, a0))))
+                j0 = ca.Function("nlobs_jump0", [s, a], list(jump(s, a0)))
+                # worth its compile only when it is much smaller (an EKF's update without a sample is 1/15 of it; a
+                # square-root filter's still re-triangularises its factor, half of it)
+                if j0.n_instructions() <= 0.25 * jump.n_instructions():
+                    fns.append(j0)
+                else:
+                    skip = None
             defs = {"NLOBS_SZ_ARG": max(f.sz_arg() for f in fns), "NLOBS_SZ_RES": max(f.sz_res() for f in fns),
                     "NLOBS_SZ_IW": max(f.sz_iw() for f in fns), "NLOBS_SZ_W": max(f.sz_w() for f in fns),
-                    "IDLEAT": idle.start if idle is not None else 0,
-                    "IDLEN": (idle.stop - idle.start) if idle is not None else 0,
+                    "IDLEAT": skip.start if skip is not None else 0,
+                    "IDLEN": (skip.stop - skip.start) if skip is not None else 0,
                     "NS": self.ns, "NA": self.na, "NO": self.no}
-            driver = (_C_DRIVER.replace("SUB(", "nlobs_sub(").replace("JUMP0(", "nlobs_jump0(" if idle is not None else
+            driver = (_C_DRIVER.replace("SUB(", "nlobs_sub(").replace("JUMP0(", "nlobs_jump0(" if skip is not None else
                                                                       "nlobs_jump(").replace("JUMP(", "nlobs_jump("))
             for k, v in defs.items():
                 driver = driver.replace(k, str(int(v)))

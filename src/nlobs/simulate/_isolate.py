@@ -11,15 +11,24 @@ failure).
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
+from typing import Any, TypeVar
 
 import numpy as np
 
 from ..errors import FiniteEscapeError, SolverError
 from ._results import ObserverFailure, Run
 
-__all__ = ["culprits", "isolate", "observer_fault", "failure_of"]
+__all__ = ["culprits", "isolate", "observer_fault", "failure_of", "each_observer", "WORKERS"]
+
+T = TypeVar("T")
+
+#: Threads that run independent observers side by side: their C compiles (gcc processes) and compiled runs (which
+#: release Python's lock) use the cores; CasADi's virtual machine holds the lock, so VM work takes turns.
+WORKERS = max(1, min(2, os.cpu_count() or 1))
 
 #: Places a FiniteEscapeError can name that are not an observer.
 _NOT_OBSERVERS = ("plant", "the plant's output", "measurement hold")
@@ -82,3 +91,26 @@ def isolate(run_with: Callable[[tuple[str, ...] | None], Run], names: Sequence[s
         raise first  # type: ignore[misc]
     info = dict(base.info, **({"particles": particles} if particles else {}))
     return replace(base, observers=traces, failures=failures, info=info)
+
+
+def each_observer(names: Sequence[str], work: Callable[[str], T], *, alone: Sequence[str] = ()) -> dict[str, T | BaseException]:
+    """``work(name)`` for every observer, the names in `alone` (e.g. an MHE, whose solver reports errors through
+    process-wide state) one after another first, the others on :data:`WORKERS` threads; each name's result, or the
+    exception it raised (kept with that name: one observer's failure is not the others')."""
+    out: dict[str, Any] = {}
+
+    def guarded(name: str) -> Any:
+        try:
+            return work(name)
+        except Exception as e:   # noqa: BLE001 - returned to the caller, who decides per observer
+            return e
+
+    for name in alone:
+        out[name] = guarded(name)
+    rest = [n for n in names if n not in alone]
+    if len(rest) > 1 and WORKERS > 1:
+        with ThreadPoolExecutor(max_workers=WORKERS, thread_name_prefix="nlobs-observer") as pool:
+            out.update(zip(rest, pool.map(guarded, rest)))
+    else:
+        out.update((n, guarded(n)) for n in rest)
+    return {n: out[n] for n in names}

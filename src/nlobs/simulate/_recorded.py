@@ -15,7 +15,7 @@ from ..engine import Backend
 from ..errors import DataError, EngineError, FiniteEscapeError, ModelError, PreconditionError, ShapeError, SolverError
 from ..model import ModelFile, System
 from ..observer import AbstractObserver, ParticleObserver, compiled_observer
-from ._isolate import failure_of
+from ._isolate import each_observer, failure_of
 from ._results import ObserverTrace, Run
 from ._options import xhat0_for as _xhat0_for
 from ._run import named_observers
@@ -416,16 +416,21 @@ def _estimate_delayed(obs: Mapping[str, Any], rec: Recording, delay: Mapping[str
     events = Events.from_rows(rec.t, rec.y, mask > 0, d, stamped_at_arrival=True)
     the_plan = plan(rec.t, rec.u, events, rec.y.shape[1])
     traces, failures, errors = {}, {}, []
+    z0s = {name: o.initial_state(_xhat0_for(xhat0, name, o.system.n_states)) for name, o in obs.items()}
+    done = each_observer(list(obs), lambda name: run_delayed(obs[name], rec.t, rec.u, events, z0s[name], max_step=max_step,
+                                                             name=name, engine=engine, the_plan=the_plan),
+                         alone=[k for k, o in obs.items() if getattr(o.design, "needs_mx", False)])
     for name, o in obs.items():
-        z0 = o.initial_state(_xhat0_for(xhat0, name, o.system.n_states))
-        try:
-            Z, X = run_delayed(o, rec.t, rec.u, events, z0, max_step=max_step, name=name, engine=engine, the_plan=the_plan)
-        except (FiniteEscapeError, SolverError, ModelError, DataError, EngineError) as e:
-            failures[name] = failure_of(name, o.design.method, e)
-            errors.append(e)
+        res = done[name]
+        if isinstance(res, BaseException):   # the others keep their results
+            if not isinstance(res, (FiniteEscapeError, SolverError, ModelError, DataError, EngineError)):
+                raise res
+            failures[name] = failure_of(name, o.design.method, res)
+            errors.append(res)
             continue
+        Z, X = res
         traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, Z, X,
-                                     o.estimate(rec.t[0], z0, rec.u[0], np.zeros(rec.y.shape[1])),
+                                     o.estimate(rec.t[0], z0s[name], rec.u[0], np.zeros(rec.y.shape[1])),
                                      covariance=getattr(o.design, "covariance", None))
     if errors and not traces:
         raise errors[0]

@@ -219,7 +219,7 @@ def _simulate_delayed(plant: System, observers: Any, delay: Mapping[str, float],
     one compiled re-processing per observer, planned once for all of them; an observer that fails is reported with
     its reason and the others keep their results."""
     from ._delays import Events, delays_of, latency_notes, plan, run_delayed
-    from ._isolate import failure_of
+    from ._isolate import each_observer, failure_of
 
     if not isinstance(plant, System) or plant.is_discrete:
         raise ModelError("simulate: measurement delays are handled for continuous-time models")
@@ -243,16 +243,21 @@ def _simulate_delayed(plant: System, observers: Any, delay: Mapping[str, float],
     events = Events.from_rows(base.t, base.y, measured, d, stamped_at_arrival=False)
     the_plan = plan(base.t, base.u, events, plant_.n_outputs) if obs else None
     traces, failures, errors = {}, {}, []
+    z0s = {name: o.initial_state(_xhat0_for(xhat0, name, plant_.n_states)) for name, o in obs.items()}
+    done = each_observer(list(obs), lambda name: run_delayed(obs[name], base.t, base.u, events, z0s[name], name=name,
+                                                             engine=kw.get("engine", "auto"), the_plan=the_plan),
+                         alone=[k for k, o in obs.items() if getattr(o.design, "needs_mx", False)])
     for name, o in obs.items():
-        z0 = o.initial_state(_xhat0_for(xhat0, name, plant_.n_states))
-        try:
-            Z, X = run_delayed(o, base.t, base.u, events, z0, name=name, engine=kw.get("engine", "auto"), the_plan=the_plan)
-        except (FiniteEscapeError, SolverError, ModelError, DataError, EngineError) as e:   # the others still run
-            failures[name] = failure_of(name, o.design.method, e)   # (ModelError: takes the output continuously)
-            errors.append(e)
+        res = done[name]
+        if isinstance(res, BaseException):   # the others keep their results (ModelError: takes the output continuously)
+            if not isinstance(res, (FiniteEscapeError, SolverError, ModelError, DataError, EngineError)):
+                raise res
+            failures[name] = failure_of(name, o.design.method, res)
+            errors.append(res)
             continue
+        Z, X = res
         traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, Z, X,
-                                     o.estimate(base.t[0], z0, base.u[0], base.y[0]),
+                                     o.estimate(base.t[0], z0s[name], base.u[0], base.y[0]),
                                      covariance=getattr(o.design, "covariance", None))
     if errors and not traces:
         raise errors[0]
