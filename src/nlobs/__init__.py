@@ -17,6 +17,7 @@ from .errors import ConvergenceWarning as ConvergenceWarning
 from .errors import DataError as DataError
 from .errors import FiniteEscapeError as FiniteEscapeError
 from .errors import SolverError as SolverError
+from .errors import TimeBudgetError as TimeBudgetError
 from .errors import FormError as FormError
 from .errors import ModelError as ModelError
 from .errors import ModelFileError as ModelFileError

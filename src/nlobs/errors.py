@@ -29,6 +29,7 @@ __all__ = [
     "EngineError",
     "FiniteEscapeError",
     "SolverError",
+    "TimeBudgetError",
     "ConvergenceWarning",
 ]
 
@@ -165,6 +166,23 @@ class SolverError(NlobsError, RuntimeError):
         super().__init__(message)
         self.window = (float(window[0]), float(window[1]))
         self.status = status
+
+
+class TimeBudgetError(NlobsError, RuntimeError):
+    """A run (one observer's, in ``nlobs design --run``) did not finish within its time budget.
+
+    Attributes
+    ----------
+    seconds : float
+        The budget.
+    what : str
+        What was running when it ran out (compiling, the compiled loop, the virtual machine).
+    """
+
+    def __init__(self, seconds: float, what: str):
+        super().__init__(f"did not finish within {seconds:g} s (its time budget; it was {what}). Give it more time "
+                         "(nlobs design --run --budget SECONDS) or run it alone with nlobs simulate")
+        self.seconds, self.what = float(seconds), what
 
 
 class ConvergenceWarning(UserWarning):

@@ -47,8 +47,8 @@ def test_the_rule_marks_srukf_when_it_runs(model):
 def test_a_choice_that_blows_up_at_the_screening_is_withdrawn(model, monkeypatch):
     real = _advise.screen
 
-    def screen(ctx, candidates):
-        return [*real(ctx, candidates), Score("srukf", "diverged", detail="blew up after t = 0.15")]
+    def screen(ctx, candidates, *budget):
+        return [*real(ctx, candidates, *budget), Score("srukf", "diverged", detail="blew up after t = 0.15")]
 
     monkeypatch.setattr(_advise, "screen", screen)
     adv = nlobs.advise(model, kinds=["ekf", "srukf"])

@@ -164,8 +164,8 @@ def test_estimate_reports_progress_through_a_long_gap(vdp_rec, engine):
     seen: list[float] = []
     estimate({"a": _ekf(), "b": _ekf()}, gap, engine=engine, progress=seen.append)
     assert seen[-1] == 1.0 and np.all(np.diff(seen) >= 0) and 0 < seen[0] <= 0.5
-    if engine == "vm":  # several reports per observer, some inside the gap (t = 10 ... 10⁴ + 10 of 10⁴ + 20)
-        assert sum(0.01 < f < 0.49 for f in seen) >= 5 and 0.5 in seen
+    if engine == "vm":  # several reports per observer, some inside the gap (t = 10 ... 10⁴ + 10 of 10⁴ + 20); the two
+        assert sum(0.01 < f < 0.49 for f in seen) >= 5   # observers run side by side: the mean of their fractions
     seen.clear()
     bad = vdp_rec.y.copy()
     bad[1500] = 1e200  # the EKF's state becomes non-finite after this sample: no 100 %

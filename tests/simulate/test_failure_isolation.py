@@ -10,6 +10,7 @@ import pytest
 
 import nlobs
 from nlobs import FiniteEscapeError, SolverError, System, design_ekf, design_mhe, simulate
+from nlobs.errors import EngineError
 from nlobs.cli import main
 from nlobs.simulate import Noise, Recording
 
@@ -143,3 +144,168 @@ def test_montecarlo_counts_a_failure_against_the_failing_observer_only():
     assert all(reason.startswith("observer 'bad' blew up after t = ") for _, reason in mc.failures)
     df_failed = [bool(v) for v in np.isnan(mc.observers["bad"].final_error)]
     assert df_failed == [True] * 4
+
+
+# -- every path keeps the others (issue 36 §3): one candidate fails, every other one equals its run alone ---------------
+
+def _cart():
+    return System(states=["p", "v", "b"], inputs=["a"], outputs=["gps", "wheel"], f=["v", "a - 0.1*v", "0"],
+                  h=["p", "v + b"], name="cart")
+
+
+def _cart_wrong():
+    # the same measurements explained by a velocity that escapes in finite time (v' = v²): started at v = 40 with a
+    # filter that hardly trusts the data, its estimate blows up at t ≈ 1/40 s
+    return System(states=["p", "v", "b"], inputs=["a"], outputs=["gps", "wheel"], f=["v", "a + v**2", "0"],
+                  h=["p", "v + b"], name="cart")
+
+
+def _cart_ekfs():
+    good = nlobs.design_ekf(_cart(), R=np.diag([0.25, 0.01]), Q=np.diag([1e-4, 1e-3, 1e-6]), xhat0=[5.0, 0.0, 0.0])
+    other = nlobs.design_ekf(_cart(), R=np.diag([1.0, 0.04]), Q=np.diag([1e-3, 1e-2, 1e-5]), xhat0=[-3.0, 2.0, 0.1])
+    bad = nlobs.design_ekf(_cart_wrong(), R=np.diag([1e9, 1e9]), Q=np.diag([1e-4, 1e-3, 1e-6]), xhat0=[0.0, 40.0, 0.0])
+    return good, other, bad
+
+
+CART_RUN = dict(t_final=3.0, dt=0.01, x0=[0.0, 1.0, 0.3], inputs={"a": "sin(0.5*t)"},
+                noise=Noise.per_output({"gps": 0.5, "wheel": 0.1}), sampling=nlobs.Sampling({"gps": 0.25, "wheel": 0.1}),
+                seed=3)
+
+
+@pytest.mark.parametrize("path", ["multirate", "delayed", "estimate", "estimate_delayed"])
+def test_one_failing_candidate_leaves_every_other_result_as_it_is_alone(path):
+    good, other, bad = _cart_ekfs()
+    delay = {"gps": 0.15} if "delayed" in path else None
+    if path.startswith("estimate"):
+        plant = simulate(_cart(), None, **{**CART_RUN, "delay": delay})
+        rec = Recording.from_arrays(_cart(), plant.t, np.where(plant.info["measured"], plant.y, np.nan), plant.u, x=plant.x)
+
+        def run(obs):
+            return nlobs.estimate(obs, rec, on_missing="skip", delay=delay)
+    else:
+        def run(obs):
+            return simulate(_cart(), obs, **{**CART_RUN, "delay": delay})
+    both = run({"good": good, "bad": bad, "other": other})
+    assert list(both.observers) == ["good", "other"] and list(both.failures) == ["bad"]
+    assert both.failures["bad"].error == "FiniteEscapeError"
+    for name, d in (("good", good), ("other", other)):
+        alone = run({name: d})
+        np.testing.assert_allclose(both.observers[name].xhat, alone.observers[name].xhat, rtol=0, atol=1e-12)
+
+
+def test_a_map_observer_that_fails_leaves_the_others():
+    plant = System(states=["x"], outputs=["y"], f=["0.9*x"], h=["x"], time="discrete", sample_time=0.1, name="decay")
+    # a filter whose model neither sees x in its output nor stays bounded: x[k+1] = 2x² from 3 overflows in ~10 steps
+    wrong = System(states=["x"], outputs=["y"], f=["2*x**2"], h=["0*x"], time="discrete", sample_time=0.1, name="decay")
+    good = nlobs.design_ekf(plant, Q=[[1e-4]], R=[[1e-2]], xhat0=[0.5])
+    bad = nlobs.design_ekf(wrong, Q=[[1e-4]], R=[[1e-2]], xhat0=[3.0])
+    both = simulate(plant, {"good": good, "bad": bad}, t_final=5.0, x0=[1.0], noise=Noise.gaussian(0.01), seed=2)
+    alone = simulate(plant, {"good": good}, t_final=5.0, x0=[1.0], noise=Noise.gaussian(0.01), seed=2)
+    assert list(both.observers) == ["good"] and both.failures["bad"].error == "FiniteEscapeError"
+    np.testing.assert_array_equal(both.observers["good"].xhat, alone.observers["good"].xhat)
+
+
+def test_a_particle_filter_that_fails_leaves_the_others():
+    good, _, _ = _cart_ekfs()
+    pf = nlobs.design_pf(_cart_wrong(), Q=np.diag([1e-4, 1e-3, 1e-6]), R=np.diag([1e9, 1e9]), xhat0=[0.0, 40.0, 0.0],
+                         P0=np.diag([1e-2, 1e-2, 1e-2]), particles=200)
+    both = simulate(_cart(), {"good": good, "pf": pf}, **CART_RUN)
+    alone = simulate(_cart(), {"good": good}, **CART_RUN)
+    assert list(both.observers) == ["good"] and "pf" in both.failures
+    np.testing.assert_allclose(both.observers["good"].xhat, alone.observers["good"].xhat, rtol=0, atol=1e-12)
+
+
+def test_an_mhe_whose_window_cannot_be_solved_leaves_the_others_in_simulate():
+    mhe = design_mhe(PEND, horizon=6, R=[[1e-4]], Q=0.01 * np.eye(2), P0=100 * np.eye(2), xhat0=[8.0, -8.0], max_iter=1)
+    kw = {**RUN, "t_final": 1.0, "sampling": nlobs.Sampling(0.01)}
+    both = simulate(PEND, {"mhe": mhe, "ekf": _good()}, **kw)
+    alone = simulate(PEND, {"ekf": _good()}, **kw)
+    assert list(both.observers) == ["ekf"] and both.failures["mhe"].error == "SolverError"
+    np.testing.assert_allclose(both.observers["ekf"].xhat, alone.observers["ekf"].xhat, rtol=0, atol=1e-12)
+
+
+def test_a_failed_compile_is_that_candidates_failure(monkeypatch):
+    # gcc refusing one observer's code (an EngineError while building its step) fails that observer, not the run
+    from nlobs.engine import _codegen
+
+    good, other, _ = _cart_ekfs()
+    real = _codegen._compile_driver
+    calls = []
+
+    def picky(step, template, tag, no, sig=None):
+        calls.append(step)
+        if len(calls) == 1:
+            raise EngineError("the C compiler /usr/bin/gcc failed on the generated code for loop: (simulated)")
+        return real(step, template, tag, no, sig)
+
+    monkeypatch.setattr(_codegen, "_compile_driver", picky)
+    import nlobs.engine._integrate as integ
+    monkeypatch.setattr(integ, "_LOOPS", {})
+    run = simulate(_cart(), {"good": good, "other": other}, **{**CART_RUN, "engine": "c"})
+    assert len(run.observers) == 1 and len(run.failures) == 1
+    (name, f), = run.failures.items()
+    assert f.error == "EngineError" and "C compiler" in f.reason
+
+
+def test_with_the_automatic_engine_a_failed_compile_falls_back_to_the_virtual_machine(monkeypatch):
+    from nlobs.engine import _codegen
+    import nlobs.engine._integrate as integ
+
+    good, _, _ = _cart_ekfs()
+    vm = simulate(_cart(), {"good": good}, **{**CART_RUN, "engine": "vm"})
+
+    def refuse(*args, **kw):
+        raise EngineError("the C compiler /usr/bin/gcc failed on the generated code for loop: (simulated)")
+
+    monkeypatch.setattr(_codegen, "_compile_driver", refuse)
+    monkeypatch.setattr(integ, "_LOOPS", {})
+    monkeypatch.setattr(integ, "choose_backend", lambda *a, **k: "c")   # "auto" decides to compile
+    with pytest.warns(nlobs.ConvergenceWarning, match="C compiler .* running on CasADi's virtual machine instead"):
+        run = simulate(_cart(), {"good": good}, **CART_RUN)
+    np.testing.assert_allclose(run.observers["good"].xhat, vm.observers["good"].xhat, rtol=0, atol=1e-12)
+
+
+# -- time budgets (nlobs design --run --budget): a candidate that does not finish in time is its own failure -----------
+
+def test_a_compiled_loop_stops_at_its_deadline():
+    import time as _time
+
+    import casadi as ca
+
+    from nlobs.engine import StepRunner
+    from nlobs.engine._budget import time_budget
+
+    s, a, c = ca.SX.sym("s", 2), ca.SX.sym("a", 1), ca.SX.sym("c", 1)
+    step = ca.Function("slow", [s, a, c], [ca.vertcat(s[0] + c * ca.sin(s[1]), s[1] + c * ca.cos(s[0]))])
+    runner = StepRunner(step, backend="c")
+    runner.run(np.zeros(2), np.zeros((10, 1)), np.array([1e-3]))   # compiled (cached) before the clock starts
+    t0 = _time.perf_counter()
+    with time_budget(0.2), pytest.raises(nlobs.TimeBudgetError, match=r"did not finish within 0.2 s .*compiled loop"):
+        runner.run(np.zeros(2), np.zeros((3 * 10**8, 1)), np.array([1e-3]))
+    assert _time.perf_counter() - t0 < 5.0                        # stopped, not run to the end (minutes)
+
+
+def test_design_run_reports_a_candidate_over_its_budget_and_ranks_the_others(tmp_path, monkeypatch):
+    import time as _time
+
+    import importlib
+
+    run_mod = importlib.import_module("nlobs.simulate._run")
+
+    model = tmp_path / "pendulum.toml"
+    model.write_text(MODEL.split("[observers.ekf]")[0], encoding="utf-8")
+    real = run_mod.Simulation._run_all
+
+    def slow_ukf(self, *args, **kw):   # the ukf's part takes longer than its budget, then checks its deadline
+        if "ukf" in self._prep.obs:
+            _time.sleep(0.6)
+            from nlobs.engine._budget import check_time
+            check_time("running on CasADi's virtual machine")
+        return real(self, *args, **kw)
+
+    monkeypatch.setattr(run_mod.Simulation, "_run_all", slow_ukf)
+    adv = nlobs.advise(str(model), kinds=["ekf", "ukf"], run=True, budget=0.5)
+    by = {s.kind: s for s in adv.scores}
+    assert by["ekf"].status == "ok" and by["ukf"].status == "failed"
+    assert by["ukf"].detail.startswith("did not finish within 0.5 s")
+    assert "ukf" in str(adv) and "did not finish within 0.5 s" in str(adv)

@@ -30,6 +30,10 @@ __all__ = ["advise"]
 #: Seconds after which the progress names the kind being tried on a line of its own (in logs as on a terminal).
 SLOW_KIND = 3.0
 
+#: Seconds each candidate gets in ``--run`` by default (compiling its C included): a candidate that takes longer is
+#: reported as "did not finish", never the reason a whole run is lost.
+BUDGET = 120.0
+
 
 def _progress_writer(progress: bool | Callable[[str], None] | None) -> Callable[[str], None] | None:
     """True: one line redrawn in place on a terminal; elsewhere (logs, CI) only the phases, one line each."""
@@ -171,7 +175,8 @@ def _reconcile_choice(ctx: Context, candidates: Sequence[Candidate], failed: Seq
 def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[str] | None = None, simulation: Any = None,
            recording: Recording | None = None, true_parameters: Mapping[str, float] | None = None,
            kinds: Sequence[str] | None = None, run: bool = False, xhat0: Sequence[float] | None = None,
-           progress: bool | Callable[[str], None] | None = None, engine: str = "auto", seed: int = 0) -> Advice:
+           progress: bool | Callable[[str], None] | None = None, engine: str = "auto", seed: int = 0,
+           budget: float | None = BUDGET) -> Advice:
     r"""Which observers fit this model, why the others do not, and (with `run`) which works best.
 
     Runs the structural observability analysis (:func:`nlobs.analyze`) and the form recognition, then tries
@@ -211,6 +216,8 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
         Numeric backend of the comparison run.
     seed : int
         Seed of the structural analysis.
+    budget : float or None
+        Seconds each candidate may take in the run and the screening, compiling included (None: no limit).
 
     Returns
     -------
@@ -278,7 +285,7 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
     if not run and not ctx.blockers and not ctx.run_blockers:
         if say:
             say(f"advise {system.name}: screening the applicable designs on the start of the simulation run ...")
-        screened = screen(ctx, candidates)
+        screened = screen(ctx, candidates, budget)
         candidates = demoted(candidates, screened, "the start of the [simulation] run")
         _reconcile_choice(ctx, candidates, screened, "the start of the [simulation] run")
     scores = runres = None
@@ -291,11 +298,11 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
         if say:
             n_run = sum(c.applies and c.runnable for c in candidates)
             say(f"advise {system.name}: running {n_run} design(s) ...")
-        scores, runres = compare(ctx, candidates, engine=engine)
+        scores, runres = compare(ctx, candidates, engine=engine, budget=budget)
         where = "the comparison run" if ctx.recording is not None else "the [simulation] run"
         candidates = demoted(candidates, scores, where)
         left_out = [c for c in candidates if c.applies and not c.runnable]   # not in the run: screened on its start
-        screened = screen(ctx, left_out)
+        screened = screen(ctx, left_out, budget)
         candidates = demoted(candidates, screened, "the start of the [simulation] run")
         _reconcile_choice(ctx, candidates, [*scores, *screened], where, scores)
         scores = [s for s in scores if s.status != "diverged"]

@@ -528,6 +528,42 @@ def _xhat0(x0: np.ndarray, run: Run | None, scale: np.ndarray, estimated: Sequen
     return out
 
 
+def _blockers(ctx: Context, model: System, unknown: Sequence[str], rep: Any, rep_sig: Any, nominal: Run | None,
+              recording: Recording | None) -> None:
+    """What stops every observer (an unobservable state, a non-identifiable parameter) or the run (an input that does
+    not excite it), and the notes on local-only observability: into `ctx`."""
+    system = ctx.system
+    blockers, info = _unobservable(model, rep, nominal, unknown)
+    ctx.detectability = info
+    ctx.forms = recognise(system)
+    badp = [k for k in unknown if k not in rep.identifiable_params]
+    if badp:
+        blockers.append(f"the unknown parameter(s) {', '.join(badp)} {'is' if len(badp) == 1 else 'are'} not identifiable from "
+                        f"{', '.join(model.outputs)} (generic rank {rep.rank} < {len(rep.unknowns)}): no observer can estimate "
+                        f"{'it' if len(badp) == 1 else 'them'}; fix {'its' if len(badp) == 1 else 'their'} value(s) in the file or "
+                        "estimate an identifiable combination (`nlobs analyze --params` shows the directions)")
+    ctx.blockers = blockers
+    if not badp and unknown and rep_sig is not None and recording is None:
+        # identifiable for generic inputs, but the [simulation] inputs may not excite a parameter (k·u with u = 0): the
+        # run would only show a parameter that never moves, so it is refused before anything is estimated
+        badsig = [k for k in unknown if k not in rep_sig.identifiable_params]
+        if badsig:
+            one = len(badsig) == 1
+            ctx.run_blockers.append(
+                f"with the [simulation] inputs ({rep_sig.inputs}) the unknown parameter{'' if one else 's'} "
+                f"{', '.join(badsig)} {'is' if one else 'are'} not identifiable (rank {rep_sig.rank} < {len(rep_sig.unknowns)}; "
+                f"generic inputs would identify {'it' if one else 'them'}): a run would not show the estimation converge. "
+                "Choose a richer [simulation] input (inputs = {...})")
+    if rep_sig is not None and rep.observable and not rep_sig.observable:
+        lost = [s for s in rep.unknowns if s not in rep_sig.extra.get("observable_unknowns", rep_sig.observable_states)]
+        ctx.notes.append(f"with the simulation's input ({rep_sig.inputs}) {', '.join(lost)} {'is' if len(lost) == 1 else 'are'} "
+                         "not observable (a singular input): the comparison run cannot show convergence in "
+                         f"{'it' if len(lost) == 1 else 'them'}; choose a richer [simulation] input")
+    if rep.symmetries and rep.observable:
+        ctx.notes.append("only locally observable: the output is invariant under "
+                         + "; ".join(str(s) for s in rep.symmetries) + "; estimates can converge to the mirror image")
+
+
 def build_context(model: System, *, model_file: ModelFile | None = None, unknown_params: Sequence[str] = (),
                   simulation: Any = None, recording: Recording | None = None, true_parameters: Mapping[str, float] | None = None,
                   xhat0: Sequence[float] | None = None, seed: int = 0) -> Context:
@@ -664,34 +700,6 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
     ctx = Context(model, system, unknown, truth, sc, nominal, rep, rep_sig, omega_p, omega_o, scale, region, xh0, R, R_rate, Q,
                   P0, noise_note, notes=notes, recording=recording, local_scale=np.asarray(local, dtype=float),
                   constant=tuple(int(i) for i in np.flatnonzero(still)) if nominal is not None else ())
-    blockers, info = _unobservable(model, rep, nominal, unknown)
-    ctx.detectability = info
-    ctx.forms = recognise(system)
-    badp = [k for k in unknown if k not in rep.identifiable_params]
-    if badp:
-        blockers.append(f"the unknown parameter(s) {', '.join(badp)} {'is' if len(badp) == 1 else 'are'} not identifiable from "
-                        f"{', '.join(model.outputs)} (generic rank {rep.rank} < {len(rep.unknowns)}): no observer can estimate "
-                        f"{'it' if len(badp) == 1 else 'them'}; fix {'its' if len(badp) == 1 else 'their'} value(s) in the file or "
-                        "estimate an identifiable combination (`nlobs analyze --params` shows the directions)")
-    ctx.blockers = blockers
-    if not badp and unknown and rep_sig is not None and recording is None:
-        # identifiable for generic inputs, but the [simulation] inputs may not excite a parameter (k·u with u = 0): the
-        # run would only show a parameter that never moves, so it is refused before anything is estimated
-        badsig = [k for k in unknown if k not in rep_sig.identifiable_params]
-        if badsig:
-            one = len(badsig) == 1
-            ctx.run_blockers.append(
-                f"with the [simulation] inputs ({rep_sig.inputs}) the unknown parameter{'' if one else 's'} "
-                f"{', '.join(badsig)} {'is' if one else 'are'} not identifiable (rank {rep_sig.rank} < {len(rep_sig.unknowns)}; "
-                f"generic inputs would identify {'it' if one else 'them'}): a run would not show the estimation converge. "
-                "Choose a richer [simulation] input (inputs = {...})")
-    if rep_sig is not None and rep.observable and not rep_sig.observable:
-        lost = [s for s in rep.unknowns if s not in rep_sig.extra.get("observable_unknowns", rep_sig.observable_states)]
-        ctx.notes.append(f"with the simulation's input ({rep_sig.inputs}) {', '.join(lost)} {'is' if len(lost) == 1 else 'are'} "
-                         "not observable (a singular input): the comparison run cannot show convergence in "
-                         f"{'it' if len(lost) == 1 else 'them'}; choose a richer [simulation] input")
-    if rep.symmetries and rep.observable:
-        ctx.notes.append("only locally observable: the output is invariant under "
-                         + "; ".join(str(s) for s in rep.symmetries) + "; estimates can converge to the mirror image")
+    _blockers(ctx, model, unknown, rep, rep_sig, nominal, recording)
     return ctx
 

@@ -1,7 +1,8 @@
 r"""``--run``: every applicable design on the same measurements, ranked.
 
-The candidates run together in one simulation (one compiled step). A candidate that blows up is
-reported as diverged, with the time, and the others are run again without it.
+The candidates run in one simulation, each with its own copy of the plant (its own compiled step, cached
+per observer; the copies see the same measurements). A candidate that blows up is reported as diverged,
+with the time; one that fails otherwise (its NLP, a gap) as failed; the others keep their results.
 
 Ranking: by the error after convergence — the RMS over the last 20 % of the run of x̂ − x with each
 state divided by its scale on the run (its range; so that a position in metres does not outweigh an
@@ -23,9 +24,11 @@ from typing import Any
 import numpy as np
 
 from ..engine import compile_system
-from ..errors import FiniteEscapeError
+from ..engine._budget import observer_budget, time_budget
+from ..errors import DataError, EngineError, FiniteEscapeError, SolverError, TimeBudgetError
 from ..model import System
 from ..simulate import Run, estimate, simulate
+from ..simulate._isolate import failure_of
 from ._advice import Candidate, Score
 from ._context import Context
 
@@ -144,24 +147,18 @@ def rank(scores: Sequence[Score]) -> list[Score]:
 
 
 def compare(ctx: Context, candidates: Sequence[Candidate], *, progress: bool | Callable[[float], None] | None = None,
-            engine: str = "auto") -> tuple[list[Score], Run | None]:
-    """Run every runnable applicable candidate on the context's scenario; return the ranked scores and the run."""
+            engine: str = "auto", budget: float | None = None) -> tuple[list[Score], Run | None]:
+    """Run every runnable applicable candidate on the context's scenario; return the ranked scores and the run.
+
+    Each candidate runs with its own copy of the plant (its compiled step cached per observer; an NLP estimator on
+    its own, the others side by side) and gets `budget` seconds of its own: one that does not finish in time is
+    reported as failed ("did not finish within N s"), the others keep their results."""
     designs = {c.kind: c.design for c in candidates if c.applies and c.runnable and c.design is not None}
-    # designs that are not plain SX (MHE embeds an NLP solver) would put the whole joint step on CasADi's virtual
-    # machine: they run on their own, on the same measurements (same seed), so the others keep the compiled step
-    heavy = {k: d for k, d in designs.items() if d.needs_mx}
-    light = {k: d for k, d in designs.items() if k not in heavy}
-    scores: list[Score] = []
-    run = None
-    for group in (light, *({k: d} for k, d in heavy.items())):
-        part, done = _run_group(ctx, group, engine, progress)
-        scores += done
-        if part is not None:
-            run = part if run is None else _merge(run, part)
-    return rank(scores), run
+    run, done = _run_group(ctx, designs, engine, progress, budget) if designs else (None, [])
+    return rank(done), run
 
 
-def screen(ctx: Context, candidates: Sequence[Candidate]) -> list[Score]:
+def screen(ctx: Context, candidates: Sequence[Candidate], budget: float | None = None) -> list[Score]:
     """The applicable candidates (those left out of ``--run`` too: a moving-horizon estimator on many samples) that
     blow up on the first part of the scenario (2 % of it, at least 20 samples; an NLP estimator its first 40 samples),
     run on the virtual machine: what "applies" promises without ``--run`` (the design runs on the file's
@@ -182,7 +179,7 @@ def screen(ctx: Context, candidates: Sequence[Candidate]) -> list[Score]:
     failed: list[Score] = []
     for group, t_end in ((light, t_pre), *(({k: d}, t_heavy) for k, d in heavy.items())):
         if group:
-            failed += _without_diverging(ctx, group, t_end, "vm", None)[2]
+            failed += _without_diverging(ctx, group, t_end, "vm", None, budget)[2]
     return failed
 
 
@@ -195,36 +192,32 @@ def demoted(candidates: Sequence[Candidate], scores: Sequence[Score], where: str
             for c in candidates]
 
 
-def _run_group(ctx: Context, designs: dict[str, Any], engine: str, progress: Any) -> tuple[Run | None, list[Score]]:
-    """One simulation of `designs` together; a design that blows up is reported and the rest run again without it."""
-    sc, rec = ctx.scenario, ctx.recording
-    failed: list[Score] = []
-    isolated = rec is None and bool(sc.delay) and any(v > 0 for v in sc.delay.values())   # each observer runs on its own
-    if rec is None and engine != "vm" and len(designs) > 1 and not isolated:
-        # candidates that blow up at the start (a filter unstable at its first step, a gain beyond the step), found on a
-        # short prefix on the virtual machine: the whole run then compiles its joint step once, instead of once more
-        # for every candidate that diverges (a C build of a dozen observers takes seconds)
-        period = sc.sample_period or sc.dt
-        t_pre = min(sc.t_final, max(0.02 * sc.t_final, 20 * period))
-        _, designs, failed = _without_diverging(ctx, designs, max(sc.dt, round(t_pre / period) * period), "vm", None)
-    run, designs, more = _without_diverging(ctx, designs, None, engine, progress)
-    return run, ([_score(run, k, ctx) for k in designs] if run is not None else []) + failed + more
+def _run_group(ctx: Context, designs: dict[str, Any], engine: str, progress: Any,
+               budget: float | None = None) -> tuple[Run | None, list[Score]]:
+    """One simulation of `designs` (each observer runs with its own copy of the plant, compiled and cached on its own,
+    side by side: :class:`nlobs.simulate.Simulation`); a design that fails is reported with its reason, the others
+    keep their results."""
+    run, designs, failed = _without_diverging(ctx, designs, None, engine, progress, budget)
+    return run, ([_score(run, k, ctx) for k in designs] if run is not None else []) + failed
 
 
 def _without_diverging(ctx: Context, designs: dict[str, Any], t_final: float | None, engine: str,
-                       progress: Any) -> tuple[Run | None, dict[str, Any], list[Score]]:
-    """Run `designs` together on the scenario (up to `t_final`; None: all of it) or the recording, dropping each one
-    that blows up (reported with the time) until a run completes; returns the run, the designs in it, the dropped."""
+                       progress: Any, budget: float | None = None) -> tuple[Run | None, dict[str, Any], list[Score]]:
+    """Run `designs` together on the scenario (up to `t_final`; None: all of it) or the recording, each within
+    `budget` seconds, dropping each one that blows up or fails (reported with the time and reason); returns the run,
+    the designs in it, the dropped."""
     sc, rec = ctx.scenario, ctx.recording
     failed: list[Score] = []
     while designs:
         try:
-            if rec is not None:
-                run = estimate(designs, rec, engine=engine)
-            else:
-                run = simulate(ctx.system, designs, t_final=sc.t_final if t_final is None else t_final, dt=sc.dt, x0=sc.x0,
-                               inputs=sc.inputs, noise=sc.noise, process_noise=sc.process_noise, sampling=sc.sampling,
-                               seed=sc.seed, engine=engine, progress=progress, delay=sc.delay)
+            # several observers: each gets its own budget (side by side); one alone: the whole run's budget
+            with observer_budget(budget), time_budget(budget if len(designs) == 1 else None):
+                if rec is not None:
+                    run = estimate(designs, rec, engine=engine)
+                else:
+                    run = simulate(ctx.system, designs, t_final=sc.t_final if t_final is None else t_final, dt=sc.dt,
+                                   x0=sc.x0, inputs=sc.inputs, noise=sc.noise, process_noise=sc.process_noise,
+                                   sampling=sc.sampling, seed=sc.seed, engine=engine, progress=progress, delay=sc.delay)
             # observers that failed while the others ran (see Run.failures): dropped with their measured reason
             failed += [Score(name, "diverged" if f.error == "FiniteEscapeError" else "failed", detail=f.reason)
                        for name, f in run.failures.items()]
@@ -235,12 +228,13 @@ def _without_diverging(ctx: Context, designs: dict[str, Any], t_final: float | N
                 raise
             failed.append(Score(name, "diverged", detail=f"blew up after t = {e.t:.4g}"))
             designs = {k: v for k, v in designs.items() if k != name}
+        except (TimeBudgetError, SolverError, EngineError, DataError) as e:   # the one observer of the run failed
+            if len(designs) != 1:
+                raise
+            name, d = next(iter(designs.items()))
+            failed.append(Score(name, "failed", detail=failure_of(name, d.method, e).reason))
+            return None, {}, failed
     return None, designs, failed
-
-
-def _merge(a: Run, b: Run) -> Run:
-    """The observers of two runs on the same measurements in one Run."""
-    return replace(a, observers={**a.observers, **b.observers})
 
 
 def _culprit(e: FiniteEscapeError, designs: Mapping[str, Any]) -> str | None:

@@ -6,7 +6,7 @@ import argparse
 import json
 from typing import Any
 
-from ._common import clean
+from ._common import clean, positive_float
 
 
 def add_parser(sub: Any) -> None:
@@ -23,6 +23,9 @@ def add_parser(sub: Any) -> None:
                    help="comma-separated parameters to estimate with the states (default: those marked unknown in the file)")
     d.add_argument("--xhat0", default=None, metavar="V1,V2,...", help="initial estimate shared by every candidate")
     d.add_argument("--engine", choices=("auto", "vm", "c"), default="auto", help="numeric backend of the run")
+    d.add_argument("--budget", type=positive_float, default=None, metavar="SECONDS",
+                   help="seconds each candidate may take in --run, compiling included (default 120); one that takes "
+                        "longer is reported as 'did not finish' and the others keep their results")
     d.add_argument("--toml", action="store_true", help="print the applicable designs as [observers.NAME] tables to paste in the file")
     d.add_argument("--json", action="store_true", help="print one JSON object")
     d.set_defaults(run=run)
@@ -47,8 +50,11 @@ def run(args: argparse.Namespace) -> int:
             xhat0 = [float(v) for v in args.xhat0.split(",")]
         except ValueError:
             raise ValueError(f"--xhat0 must be comma-separated numbers, got {args.xhat0!r}") from None
+    from ..advise._advise import BUDGET
+
     adv = advise(mf, unknown_params=unknown, recording=recording, kinds=args.kind, run=args.compare or bool(args.data),
-                 xhat0=xhat0, progress=not args.json, engine=args.engine)
+                 xhat0=xhat0, progress=not args.json, engine=args.engine,
+                 budget=args.budget if args.budget is not None else BUDGET)
     if args.json:
         print(json.dumps(clean(adv.to_dict())))
     elif args.toml:

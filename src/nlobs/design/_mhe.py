@@ -32,7 +32,8 @@ import sympy as sp
 
 from ..engine import compile_c, compile_system, compiled_nlpsol, defer_error, find_compiler, rk4_step
 from ..engine._codegen import COSTS, built_path, choose_backend, code_size, signature_of
-from ..errors import EngineError, PreconditionError, SolverError
+from ..engine._budget import check_time
+from ..errors import EngineError, PreconditionError, SolverError, TimeBudgetError
 from ..model import System
 from ..references import cite, work
 from ._base import Certificate, Check, ObserverDesign, check_vector
@@ -584,7 +585,7 @@ class _MHEUpdate(ca.Callback):
             return 0
         try:
             out[:] = self.solve(t, z, u, y, m)
-        except SolverError as e:
+        except (SolverError, TimeBudgetError) as e:
             defer_error(e)
             out[:] = np.nan
         return 0
@@ -599,6 +600,7 @@ class _MHEUpdate(ca.Callback):
                     and status[1] <= self.accept)
 
     def solve(self, t: np.ndarray, z: np.ndarray, u: np.ndarray, y: np.ndarray, m: np.ndarray) -> np.ndarray:
+        check_time("solving its window NLPs")   # a time budget (nlobs design --run) ends the run between two windows
         sqp_status = ""
         if self.solver == "sqp":
             with self._lock:

@@ -135,6 +135,10 @@ def output_symmetries(system: Any, *, samples: int = 4, seed: int = 0) -> list[t
     return found
 
 
+#: The most particle-state updates (particles × samples × states) `--run` gives a particle filter: about 3 s in C.
+PF_WORK_BUDGET = 2e8
+
+
 def tune_pf(ctx: Any) -> Tuning:
     late = {k: v for k, v in (getattr(ctx.scenario, "delay", None) or {}).items() if v > 0}
     if late:   # the filter runs its samples in one pass: a late sample cannot be put back where it was taken
@@ -144,6 +148,12 @@ def tune_pf(ctx: Any) -> Tuning:
                             "ekf, ukf or their square-root or iterated forms, or remove [simulation] delay")
     n = ctx.system.n_states
     particles = int(min(20000, 1000 * max(2, n)))
+    sc = ctx.scenario
+    work = particles * sc.samples * n if sc is not None else 0   # particle-state updates of the comparison run
+    runnable = work <= PF_WORK_BUDGET
+    note = "" if runnable else (f"left out of --run: {particles} particles over {sc.samples} samples of a {n}-state model "
+                                f"({work:.2g} particle-state updates, budget {PF_WORK_BUDGET:.0e}: tens of seconds); run it "
+                                "with `nlobs simulate --observer pf`")
     opts: dict[str, Any] = {"Q": square(ctx.Q), "R": square(ctx.R), "P0": square(4 * np.asarray(ctx.P0)), "particles": particles, "seed": 0}
     sym = output_symmetries(ctx.system)
     if sym:
@@ -159,7 +169,8 @@ def tune_pf(ctx: Any) -> Tuning:
         why = ("no sign symmetry of the output found: a Gaussian filter (EKF/UKF) is cheaper here; the particle filter fits "
                "multimodal or non-Gaussian posteriors")
     return Tuning.tuned(opts, f"{ctx.noise_note}; {particles} particles, systematic resampling when ESS < N/2, P(0) = 4·diag(σ₀²) "
-                        f"(a wide cloud), seed 0; {why}", choice=choice, choice_reason=why if choice else "", choice_rank=2)
+                        f"(a wide cloud), seed 0; {why}", choice=choice, choice_reason=why if choice else "", choice_rank=2,
+                        runnable=runnable, extra=note)
 
 
 @kind('pf', summary='particle filter (continuous-discrete): bootstrap or auxiliary, systematic resampling, seeded',

@@ -12,9 +12,11 @@ import re
 from collections.abc import Callable
 from typing import Any
 
+import casadi as ca
 import numpy as np
 import sympy as sp
 
+from ..engine import to_casadi
 from ..references import cite
 from ._constructions import evaluate, jacobians_at
 from ._kind import Tuning
@@ -90,6 +92,18 @@ def _singular_bases(e: sp.Expr) -> list[sp.Expr]:
     return out
 
 
+def _vectorised(expr: sp.Expr, sym: sp.Symbol) -> Callable[[np.ndarray], np.ndarray]:
+    """`expr` of the one symbol `sym` as a NumPy-vectorised function, through CasADi (never lambdify: nothing from a
+    model file is evaluated as Python)."""
+    x = ca.SX.sym("x")
+    fn = ca.Function("g", [x], [to_casadi([expr], {sym: x})])
+
+    def g(v: np.ndarray) -> np.ndarray:
+        v = np.atleast_1d(np.asarray(v, dtype=float))
+        return np.asarray(fn.map(v.size)(v.reshape(1, -1)), dtype=float).reshape(v.shape)
+    return g
+
+
 def _keep_away(g: Any, lo: float, hi: float, floor: float, sign: float, x_hat: float) -> tuple[float | None, float | None]:
     """The interval around the run's range [lo, hi] of one state on which g keeps `sign` and |g| ≥ `floor`: scanned
     outward in steps of 1 % of the range, up to 20 ranges (None: no bound on that side within it). None, None when
@@ -161,7 +175,7 @@ def domain_bounds(ctx: Any) -> dict[str, list[float | None]]:
         for b in mine:
             if b.free_symbols != {sym}:
                 continue
-            g = sp.lambdify(sym, b, "numpy")
+            g = _vectorised(b, sym)
             with np.errstate(all="ignore"):
                 v = np.asarray(g(col), dtype=float) * np.ones_like(col)
             if not (np.all(v > 0) or np.all(v < 0)):

@@ -29,6 +29,7 @@ import casadi as ca
 import numpy as np
 
 from ..errors import ConvergenceWarning, EngineError
+from ._budget import Watchdog, expired, remaining
 
 __all__ = ["Backend", "COSTS", "choose_backend", "code_size", "signature_of", "built_path", "CompiledBatch", "CompiledLoop", "cache_dir", "find_compiler", "compile_c", "resolve_backend"]
 
@@ -192,9 +193,10 @@ def built_path(tag: str, signature: str, template: str) -> Path | None:
 
 _DRIVER = r"""
 /* nlobs driver: s_{k+1}, o_k = step(s_k, a_k, c); states to out[k*ns ...], per-step outputs to obuf[k*no ...].
-   Returns 0, or k + 1 when step k failed, or -(k + 2) when the state after step k is not finite or exceeds bound. */
+   Returns 0, or k + 1 when step k failed, or -(k + 2) when the state after step k is not finite or exceeds bound,
+   or -(n_steps + 2 + k) when *stop was raised (a time budget) before step k. */
 long long nlobs_run(const casadi_real* s0, const casadi_real* a, const casadi_real* c,
-                    casadi_real* out, casadi_real* obuf, long long n_steps, casadi_real bound) {
+                    casadi_real* out, casadi_real* obuf, long long n_steps, casadi_real bound, const volatile int* stop) {
   casadi_int sz_arg = 0, sz_res = 0, sz_iw = 0, sz_w = 0;
   const casadi_real* arg[NLOBS_SZ_ARG];
   casadi_real* res[NLOBS_SZ_RES];
@@ -206,6 +208,7 @@ long long nlobs_run(const casadi_real* s0, const casadi_real* a, const casadi_re
   NLOBS_STEP_work(&sz_arg, &sz_res, &sz_iw, &sz_w);
   if (sz_arg > NLOBS_SZ_ARG || sz_res > NLOBS_SZ_RES || sz_iw > NLOBS_SZ_IW || sz_w > NLOBS_SZ_W) return -1;
   for (k = 0; k < n_steps; ++k) {
+    if (stop && *stop) return -(n_steps + 2 + k);
     arg[0] = s; arg[1] = a + k * NLOBS_NA; arg[2] = c;
     res[0] = out + k * NLOBS_NS;
     if (NLOBS_NO > 0) res[1] = obuf + k * NLOBS_NO;
@@ -324,7 +327,14 @@ def _build(code: str | Callable[[], str], tag: str, so: Path | None = None, n_in
             c_file.write_text(code)
             tmp_so = Path(tmp) / "gen.so"
             t0 = time.perf_counter()
-            proc = subprocess.run([cc, *CFLAGS, str(c_file), "-o", str(tmp_so), "-lm"], capture_output=True, text=True)
+            left = remaining()
+            if left is not None and left <= 0:
+                raise expired(f"compiling its C code ({tag})")
+            try:
+                proc = subprocess.run([cc, *CFLAGS, str(c_file), "-o", str(tmp_so), "-lm"], capture_output=True, text=True,
+                                      timeout=left)
+            except subprocess.TimeoutExpired:
+                raise expired(f"compiling its C code ({tag})") from None
             if proc.returncode != 0:
                 raise EngineError(f"the C compiler {cc} failed on the generated code for {tag}:\n{proc.stderr[-2000:]}")
             if n_instr:
@@ -369,21 +379,25 @@ class CompiledLoop:
         self.path, lib = _compile_driver(step, _DRIVER, "loop", self.no, sig)
         self._run = lib.nlobs_run
         dbl = ctypes.POINTER(ctypes.c_double)
-        self._run.argtypes = [dbl, dbl, dbl, dbl, dbl, ctypes.c_longlong, ctypes.c_double]
+        self._run.argtypes = [dbl, dbl, dbl, dbl, dbl, ctypes.c_longlong, ctypes.c_double, ctypes.c_void_p]
         self._run.restype = ctypes.c_longlong
         self._lib = lib
 
     def __call__(self, s0: np.ndarray, a: np.ndarray, c: np.ndarray, out: np.ndarray, obuf: np.ndarray | None = None,
                  bound: float = np.inf) -> int:
         """Run; returns the number of good steps: n, or k when the state after step k left `bound`
-        or became non-finite (that state is row k of `out`)."""
+        or became non-finite (that state is row k of `out`). Raises :class:`nlobs.TimeBudgetError` when
+        the time budget (:mod:`nlobs.engine._budget`) runs out."""
         n = out.shape[0]
         ptr = ctypes.POINTER(ctypes.c_double)
         o = obuf if obuf is not None else out
-        rc = self._run(s0.ctypes.data_as(ptr), a.ctypes.data_as(ptr), c.ctypes.data_as(ptr), out.ctypes.data_as(ptr),
-                       o.ctypes.data_as(ptr), n, bound)
+        with Watchdog() as dog:
+            rc = self._run(s0.ctypes.data_as(ptr), a.ctypes.data_as(ptr), c.ctypes.data_as(ptr), out.ctypes.data_as(ptr),
+                           o.ctypes.data_as(ptr), n, bound, dog.ref)
         if rc > 0:
             raise EngineError(f"the compiled step failed at step {rc - 1}")
+        if rc <= -(n + 2):
+            dog.raise_if_tripped("running its compiled loop")
         return n if rc == 0 else int(-rc - 2)
 
 
@@ -448,7 +462,7 @@ def _compile_driver(step: ca.Function, template: str, tag: str, no: int, sig: st
         return _generate(renamed) + driver
 
     so = built_path(tag, sig if sig is not None else signature_of(step), template)
-    path = _build(code, tag, so, n_instr=step.n_instructions() if step.is_a("SXFunction") else 0)
+    path = _build(code, tag, so, n_instr=code_size(step))
     return path, ctypes.CDLL(str(path))
 
 

@@ -8,13 +8,17 @@ preallocated NumPy array through :meth:`casadi.Function.buffer` (no intermediate
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Callable
 from typing import Any
 
 import casadi as ca
 import numpy as np
 
-from ._codegen import _BATCH, _DRIVER, COSTS, Backend, CompiledBatch, CompiledLoop, built_path, choose_backend, signature_of
+from ..errors import ConvergenceWarning, EngineError
+from ._codegen import (_BATCH, _DRIVER, COSTS, Backend, CompiledBatch, CompiledLoop, _forced, built_path, choose_backend,
+                       code_size, signature_of)
+from ._budget import check_time
 from ._deferred import raise_deferred
 from ._simd import _DRIVER as _SIMD_DRIVER
 from ._simd import _KERNEL_VERSION, LANES, CompiledSimdBatch, simd_supported
@@ -83,6 +87,9 @@ class StepRunner:
         ``(s[ns], a[na], c[nc]) -> s_next[ns]`` or ``-> (s_next[ns], o[no])``; `a` changes every
         step, `c` is constant; `o` (optional) is a per-step output computed from the state
         *before* the step (measurements, estimates).
+    step_c : casadi.Function, optional
+        The same step built for C (e.g. an MX graph calling the functions it would otherwise inline): what
+        the compiled loop is generated from. Default: `step`.
     backend : {"auto", "vm", "c"}
         Where to run; ``"auto"`` chooses by measured cost (see :func:`nlobs.engine.choose_backend`).
     chunk : int
@@ -90,17 +97,19 @@ class StepRunner:
         compiled C loop runs the whole horizon in one call.
     """
 
-    def __init__(self, step: ca.Function, *, backend: Backend = "auto", chunk: int = DEFAULT_CHUNK):
+    def __init__(self, step: ca.Function, *, backend: Backend = "auto", chunk: int = DEFAULT_CHUNK,
+                 step_c: ca.Function | None = None):
         if step.n_in() != 3 or step.n_out() not in (1, 2):
             raise ValueError("StepRunner needs step(s, a, c) -> s_next or -> (s_next, o)")
         self.step = step
+        self.step_c = step_c
         self.ns = step.size1_in(0)
         self.na = step.size1_in(1)
         self.nc = step.size1_in(2)
         self.no = step.size1_out(1) if step.n_out() == 2 else 0
         self.backend = backend
         self.chunk = int(chunk)
-        self._sig = _signature(step)
+        self._sig = _signature(step) + ("/c:" + _signature(step_c)[:16] if step_c is not None else "")
 
     def _vm_chunk(self, K: int) -> ca.Function:
         key = (self._sig, K)
@@ -118,7 +127,7 @@ class StepRunner:
     def _loop(self) -> CompiledLoop:
         loop = _LOOPS.get(self._sig)
         if loop is None:
-            loop = _LOOPS[self._sig] = CompiledLoop(self.step, self._sig)
+            loop = _LOOPS[self._sig] = CompiledLoop(self.step_c if self.step_c is not None else self.step, self._sig)
         return loop
 
     def backend_for(self, n_steps: int) -> str:
@@ -126,7 +135,7 @@ class StepRunner:
         if self.backend == "vm":
             return "vm"
         ready = self._sig in _LOOPS or (lambda p: p is not None and p.exists())(built_path("loop", self._sig, _DRIVER))
-        return choose_backend(self.backend, ready=ready, n_instr=self.step.n_instructions(),
+        return choose_backend(self.backend, ready=ready, n_instr=code_size(self.step_c if self.step_c is not None else self.step),
                               vm_instr=float(n_steps) * self.step.n_instructions(), signature=self._sig)
 
     def run(self, s0: np.ndarray, a: np.ndarray, c: np.ndarray, *,
@@ -160,8 +169,17 @@ class StepRunner:
             n = min(K, N - k)
             block, oblock = out[k:k + n], obuf[k:k + n]
             if backend == "c":
-                done = self._loop()(state, a[k:k + n], c, block, oblock if self.no else None, bound)
+                try:
+                    loop = self._loop()
+                except EngineError as e:   # the compiler refused: "auto" runs on the VM instead, "c" fails
+                    if _forced(self.backend) == "c":
+                        raise
+                    warnings.warn(f"{e}; running on CasADi's virtual machine instead", ConvergenceWarning, stacklevel=3)
+                    self.backend = backend = "vm"
+                    continue
+                done = loop(state, a[k:k + n], c, block, oblock if self.no else None, bound)
             else:
+                check_time("running on CasADi's virtual machine")
                 t_vm = time.perf_counter()
                 buf, ev = self._vm_chunk(n).buffer()
                 buf.set_arg(0, memoryview(state))

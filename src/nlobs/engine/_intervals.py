@@ -31,15 +31,18 @@ from __future__ import annotations
 
 import ctypes
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
 
-from ..errors import EngineError
+from ..errors import ConvergenceWarning, EngineError
+from ._budget import Watchdog, check_time
 from ._deferred import raise_deferred
-from ._codegen import COSTS, Backend, _build, _generate, _renamed, built_path, choose_backend, signature_of
+from ._codegen import (COSTS, Backend, _build, _forced, _generate, _renamed, built_path, choose_backend, code_size,
+                       signature_of)
 
 __all__ = ["IntervalRunner", "IntervalResult", "Schedule", "MAX_SUBSTEPS", "fastest_rate"]
 
@@ -53,10 +56,12 @@ _C_DRIVER = r"""
    With a schedule (ops != NULL, three entries per interval: load, store, emit), interval k starts from slot
    ops[3k] (its state and carried rate) when that is >= 0, else from the end of interval k - 1; its end state and
    the rate it passes on are written to slot ops[3k+1] when >= 0, and to row ops[3k+2] of out/obuf when >= 0.
-   Without one, interval k's end is row k. carry[k] (when carry != NULL) is the rate interval k passes on. */
+   Without one, interval k's end is row k. carry[k] (when carry != NULL) is the rate interval k passes on.
+   When *stop is raised (a time budget), returns -(k + 1) with need[0] = -1. */
 long long nlobs_intervals(const double* s0, const double* A, const double* nmin, double rate0, double target,
                           double reject, double max_sub, double* out, double* obuf, double* nsub, double* rate,
-                          long long n_int, double* need, const long long* ops, double* slots, double* carry) {
+                          long long n_int, double* need, const long long* ops, double* slots, double* carry,
+                          const volatile int* stop) {
   const double* arg[NLOBS_SZ_ARG];
   double* res[NLOBS_SZ_RES];
   casadi_int iw[NLOBS_SZ_IW + 1];
@@ -69,6 +74,7 @@ long long nlobs_intervals(const double* s0, const double* A, const double* nmin,
   for (j = 0; j < NS; ++j) start[j] = s0[j];
   for (k = 0; k < n_int; ++k) {
     const double* a = A + k * NA;
+    if (stop && *stop) { need[0] = -1; return -(k + 1); }
     if (ops && ops[3 * k] >= 0) {
       slot = slots + ops[3 * k] * (NS + 1);
       for (j = 0; j < NS; ++j) start[j] = slot[j];
@@ -88,6 +94,7 @@ long long nlobs_intervals(const double* s0, const double* A, const double* nmin,
       for (j = 0; j < NS; ++j) cur[j] = start[j];
       arg[1] = a; arg[2] = th; res[1] = &r;
       for (i = 0; i < ni; ++i) {
+        if ((i & 65535) == 65535 && stop && *stop) { need[0] = -1; return -(k + 1); }
         th[0] = t + i * h; th[1] = h;
         arg[0] = cur; res[0] = nxt;
         SUB(arg, res, iw, w, 0);
@@ -241,7 +248,21 @@ class IntervalRunner:
         self._ready = False
         self._vm: dict[tuple[int, bool], ca.Function] = {}
         self._progress: Callable[[float], None] | None = None  # during a VM run: called with the time reached
-        self._n_instr = (sub.n_instructions() + jump.n_instructions()) if self.compilable else 0
+        self._n_instr = (code_size(self.sub_c) + jump.n_instructions()) if self.compilable else 0
+
+    def _compiled(self) -> _CompiledIntervals | None:
+        """The compiled driver, built on first use; None when the compiler refused it and the backend is "auto" (the
+        VM runs instead, with a warning); with "c" the refusal is raised."""
+        if self._c is None:
+            try:
+                self._c = _CompiledIntervals(self.sub_c, self.jump, self._sig, self.idle)
+            except EngineError as e:
+                if _forced(self.backend) == "c":
+                    raise
+                warnings.warn(f"{e}; running on CasADi's virtual machine instead", ConvergenceWarning, stacklevel=4)
+                self.backend = "vm"
+                return None
+        return self._c
 
     def vm_instructions(self, substeps: float, intervals: float) -> float:
         """VM instructions of a run: every sub-step evaluates the flow, every interval the jump (the VM's rows of an
@@ -279,9 +300,7 @@ class IntervalRunner:
         rate0 = _finite_rate(rate0)
         # the work predicted from the first rate (a long gap needs many sub-steps although nmin is small there)
         backend = self.backend_for(float(np.maximum(nmin, np.ceil(A[:, 1] * rate0 / target)).sum()), N)
-        if backend == "c":
-            if self._c is None:
-                self._c = _CompiledIntervals(self.sub_c, self.jump, self._sig, self.idle)
+        if backend == "c" and self._compiled() is not None:
             res = self._c(s0, A, nmin, rate0, target, reject, max_substeps)
             if on_progress is not None and res.failed is None and res.refused is None:
                 on_progress(1.0)
@@ -320,9 +339,7 @@ class IntervalRunner:
         if sched.prior is not None:
             slots[sched.prior, :self.ns], slots[sched.prior, self.ns] = s0, rate0
         backend = self.backend_for(float(np.maximum(nmin, np.ceil(A[:, 1] * rate0 / target)).sum()), N)
-        if backend == "c":
-            if self._c is None:
-                self._c = _CompiledIntervals(self.sub_c, self.jump, self._sig, self.idle)
+        if backend == "c" and self._compiled() is not None:
             res = self._c(s0, A, nmin, rate0, target, reject, max_substeps, sched, slots)
         else:
             t0 = time.perf_counter()
@@ -346,6 +363,7 @@ class IntervalRunner:
         bounds = np.unique(np.r_[0, starts, N]).astype(np.int64)
         state, rho = s0, rate0
         for b0, b1 in zip(bounds[:-1], bounds[1:]):
+            check_time("running on CasADi's virtual machine")
             if b1 <= b0:
                 continue
             if sched.load[b0] >= 0:
@@ -503,6 +521,7 @@ class IntervalRunner:
         rfirst = np.full(counts.size, np.nan)
         state, i = start, 0
         while i < total:
+            check_time("running on CasADi's virtual machine")
             K = min(4096 if self.compilable else 256, total - i)   # an MX row (an NLP inside) holds much more
             K2 = 1 << (K - 1).bit_length()  # a power of two: few distinct VM functions
             r = np.arange(i, i + K)
@@ -609,13 +628,14 @@ class _CompiledIntervals:
                 driver = driver.replace(k, str(int(v)))
             return _generate(*fns) + "#include <math.h>\n" + driver
 
-        path = _build(code, "intervals", built_path("intervals", sig, _C_DRIVER), n_instr=sub.n_instructions() + jump.n_instructions())
+        path = _build(code, "intervals", built_path("intervals", sig, _C_DRIVER), n_instr=code_size(sub) + code_size(jump))
         self.path = path
         lib = ctypes.CDLL(str(path))
         self._fn = lib.nlobs_intervals
         dbl = ctypes.POINTER(ctypes.c_double)
         self._fn.argtypes = [dbl, dbl, dbl, ctypes.c_double, ctypes.c_double, ctypes.c_double, ctypes.c_double,
-                             dbl, dbl, dbl, dbl, ctypes.c_longlong, dbl, ctypes.POINTER(ctypes.c_longlong), dbl, dbl]
+                             dbl, dbl, dbl, dbl, ctypes.c_longlong, dbl, ctypes.POINTER(ctypes.c_longlong), dbl, dbl,
+                             ctypes.c_void_p]
         self._fn.restype = ctypes.c_longlong
         self._lib = lib
 
@@ -628,11 +648,14 @@ class _CompiledIntervals:
         p = ctypes.POINTER(ctypes.c_double)
         ops = None if sched is None else sched.ops()
         slots = None if sched is None else np.ascontiguousarray(slots, dtype=float)
-        rc = self._fn(s0.ctypes.data_as(p), A.ctypes.data_as(p), nmin.ctypes.data_as(p), rate0, target, reject,
-                      float(max_substeps), states.ctypes.data_as(p), outputs.ctypes.data_as(p), substeps.ctypes.data_as(p),
-                      rate.ctypes.data_as(p), N, need.ctypes.data_as(p),
-                      None if ops is None else ops.ctypes.data_as(ctypes.POINTER(ctypes.c_longlong)),
-                      None if slots is None else slots.ctypes.data_as(p), carry.ctypes.data_as(p))
+        with Watchdog() as dog:
+            rc = self._fn(s0.ctypes.data_as(p), A.ctypes.data_as(p), nmin.ctypes.data_as(p), rate0, target, reject,
+                          float(max_substeps), states.ctypes.data_as(p), outputs.ctypes.data_as(p),
+                          substeps.ctypes.data_as(p), rate.ctypes.data_as(p), N, need.ctypes.data_as(p),
+                          None if ops is None else ops.ctypes.data_as(ctypes.POINTER(ctypes.c_longlong)),
+                          None if slots is None else slots.ctypes.data_as(p), carry.ctypes.data_as(p), dog.ref)
+        if rc < 0 and need[0] == -1:
+            dog.raise_if_tripped("running its compiled loop")
         outputs = outputs[:, :self.no]
         if rc > 0:
             return IntervalResult(states, outputs, substeps, rate, failed=int(rc - 1), backend="c", carry=carry)

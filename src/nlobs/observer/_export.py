@@ -841,6 +841,27 @@ def _history_size(d: np.ndarray, min_interval: Any, history: Any) -> tuple[int, 
     return size, h
 
 
+def _fusion_setup(design: ObserverDesign, delays: Any, min_interval: Any, history: Any) -> tuple[Any, int, Any]:
+    """The checked delays of each output, the history's size and the smallest row interval (None, 0, None without
+    delays)."""
+    s = design.system
+    if delays is None:
+        if min_interval is not None or history is not None:
+            raise ValueError("export_c: `min_interval` and `history` size the history of the fusion filter, which is "
+                             "written only with measurement `delays`; give `delays` too, or leave them out")
+        return None, 0, None
+    d = _check_delays(delays, list(s.outputs))
+    if s.is_discrete:
+        raise ModelError(f"export_c: measurement delays on the discrete-time model {_shown_name(s.name)}: the fusion "
+                         "filter re-runs a flow between knots, which a map does not have; export without `delays`")
+    if not design.sampled:
+        raise ModelError(f"export_c: the {design.method!r} observer takes the output continuously; measurement delays "
+                         "are handled by the continuous-discrete observers (a flow between samples and an update at "
+                         "each: ekf, ukf, srekf, srukf, iekf, ...)")
+    n_hist, min_interval = _history_size(d, min_interval, history)
+    return d, n_hist, min_interval
+
+
 def export_c(observer: AbstractObserver | ObserverDesign, directory: str | os.PathLike[str], *, name: str | None = None,
              max_step: float | None = None, delays: Mapping[str, float] | None = None, min_interval: float | None = None,
              history: int | None = None) -> CExport:
@@ -948,19 +969,7 @@ def export_c(observer: AbstractObserver | ObserverDesign, directory: str | os.Pa
         max_step = check_positive(max_step, "max_step", "export_c")
     s = design.system
     fusion = delays is not None
-    if fusion:
-        d = _check_delays(delays, list(s.outputs))
-        if s.is_discrete:
-            raise ModelError(f"export_c: measurement delays on the discrete-time model {_shown_name(s.name)}: the fusion "
-                             "filter re-runs a flow between knots, which a map does not have; export without `delays`")
-        if not design.sampled:
-            raise ModelError(f"export_c: the {design.method!r} observer takes the output continuously; measurement delays "
-                             "are handled by the continuous-discrete observers (a flow between samples and an update at "
-                             "each: ekf, ukf, srekf, srukf, iekf, ...)")
-        n_hist, min_interval = _history_size(d, min_interval, history)
-    elif min_interval is not None or history is not None:
-        raise ValueError("export_c: `min_interval` and `history` size the history of the fusion filter, which is written "
-                         "only with measurement `delays`; give `delays` too, or leave them out")
+    d, n_hist, min_interval = _fusion_setup(design, delays, min_interval, history)
     out = Path(directory)
     fns = list(_functions(design, name)) + (list(_fusion_functions(design, name)) if fusion else [])
     body = _generate(fns, name, design.method)  # before writing anything: it may refuse

@@ -21,6 +21,7 @@ from ..errors import DataError, FiniteEscapeError, ModelError, ShapeError
 from ..model import System, input_signals
 from ..engine import Backend
 from ..observer import AbstractObserver, ParticleObserver, compiled_observer
+from ._isolate import each_observer, failure_of, observer_fault
 from ._options import Noise, ProcessNoise, Sampling
 from ._options import xhat0_for as _xhat0_for
 from ._results import ObserverTrace, Run
@@ -131,11 +132,22 @@ def simulate_map(plant: System, obs: Mapping[str, AbstractObserver], *, t_final:
     Y_true = np.asarray(h.map(N + 1)(t[None, :], X.T, U.T), dtype=float).T.reshape(N + 1, plant.n_outputs)
     Y = Y_true + V
     mask = np.ones_like(Y)
-    traces = {}
+    traces, failures = {}, {}
+    z0s = {name: o.initial_state(_xhat0_for(xhat0, name, o.system.n_states)) for name, o in obs.items()}
+    done = each_observer(list(obs), lambda name: run_map_observer(obs[name].design, t, U, Y, mask, z0s[name], name=name),
+                         alone=[k for k, o in obs.items() if o.design.needs_mx])
     for name, o in obs.items():
-        z0 = o.initial_state(_xhat0_for(xhat0, name, o.system.n_states))
-        Z, Xh = run_map_observer(o.design, t, U, Y, mask, z0, name=name)
-        prior = o.estimate(t[0], z0, U[0], Y[0])
+        res = done[name]
+        if isinstance(res, BaseException):   # one observer's failure: the others keep their results
+            if not observer_fault(res):
+                raise res
+            failures[name] = failure_of(name, o.design.method, res)
+            continue
+        Z, Xh = res
+        prior = o.estimate(t[0], z0s[name], U[0], Y[0])
         traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, Z, Xh, prior, covariance=o.design.covariance)
+    if failures and not traces:
+        raise done[next(iter(failures))]   # type: ignore[misc]
     return Run(plant.name, t, plant.states, plant.inputs, plant.outputs, U, Y, traces, x=X, y_true=Y_true,
-               info={**info, "units": dict(getattr(plant, "units", None) or {})}, estimated_params=plant.estimated_params)
+               info={**info, "units": dict(getattr(plant, "units", None) or {})}, estimated_params=plant.estimated_params,
+               failures=failures)

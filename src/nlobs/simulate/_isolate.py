@@ -11,6 +11,7 @@ failure).
 
 from __future__ import annotations
 
+import contextvars
 import os
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -19,7 +20,8 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from ..errors import FiniteEscapeError, SolverError
+from ..engine._budget import per_observer, time_budget
+from ..errors import FiniteEscapeError, SolverError, TimeBudgetError
 from ._results import ObserverFailure, Run
 
 __all__ = ["culprits", "isolate", "observer_fault", "failure_of", "each_observer", "WORKERS"]
@@ -36,7 +38,7 @@ _NOT_OBSERVERS = ("plant", "the plant's output", "measurement hold")
 
 def observer_fault(e: BaseException) -> bool:
     """Whether `e` is an observer's failure (not the plant's, not a wrong argument)."""
-    if isinstance(e, SolverError):
+    if isinstance(e, (SolverError, TimeBudgetError)):
         return True
     return isinstance(e, FiniteEscapeError) and e.where not in _NOT_OBSERVERS
 
@@ -57,6 +59,8 @@ def failure_of(name: str, method: str, e: BaseException, partial: Run | None = N
         reason = f"its optimisation failed on the data up to t = {t:.6g} ({e.status})"
     elif isinstance(e, FiniteEscapeError):
         t, reason = e.t, e.reason
+    elif isinstance(e, TimeBudgetError):
+        t, reason = None, f"did not finish within {e.seconds:g} s (it was {e.what})"
     else:   # a refusal that concerns this observer only (e.g. a delay it cannot handle)
         t, reason = None, str(e).split(";")[0]
     trace = None
@@ -98,10 +102,12 @@ def each_observer(names: Sequence[str], work: Callable[[str], T], *, alone: Sequ
     process-wide state) one after another first, the others on :data:`WORKERS` threads; each name's result, or the
     exception it raised (kept with that name: one observer's failure is not the others')."""
     out: dict[str, Any] = {}
+    budget = per_observer()   # each observer's own time budget (nlobs design --run), from when it starts
 
     def guarded(name: str) -> Any:
         try:
-            return work(name)
+            with time_budget(budget):
+                return work(name)
         except Exception as e:   # noqa: BLE001 - returned to the caller, who decides per observer
             return e
 
@@ -110,7 +116,9 @@ def each_observer(names: Sequence[str], work: Callable[[str], T], *, alone: Sequ
     rest = [n for n in names if n not in alone]
     if len(rest) > 1 and WORKERS > 1:
         with ThreadPoolExecutor(max_workers=WORKERS, thread_name_prefix="nlobs-observer") as pool:
-            out.update(zip(rest, pool.map(guarded, rest)))
+            # each task in a copy of this context: the budgets and deadlines set here reach the worker threads
+            futures = [pool.submit(contextvars.copy_context().run, guarded, n) for n in rest]
+            out.update(zip(rest, (f.result() for f in futures)))
     else:
         out.update((n, guarded(n)) for n in rest)
     return {n: out[n] for n in names}

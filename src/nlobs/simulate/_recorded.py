@@ -12,7 +12,8 @@ import numpy as np
 
 from ..design import check_positive
 from ..engine import Backend
-from ..errors import DataError, EngineError, FiniteEscapeError, ModelError, PreconditionError, ShapeError, SolverError
+from ..errors import (DataError, EngineError, FiniteEscapeError, ModelError, PreconditionError, ShapeError, SolverError,
+                      TimeBudgetError)
 from ..model import ModelFile, System
 from ..observer import AbstractObserver, ParticleObserver, compiled_observer
 from ._isolate import each_observer, failure_of
@@ -343,15 +344,27 @@ def estimate(
     if delay and any(float(v) > 0 for v in delay.values()):
         return _estimate_delayed(obs, recording, delay, mask, xhat0, max_step, smooth, engine)
     traces, integration, failures, first = {}, {}, {}, None
-    for i, (name, o) in enumerate(obs.items()):
-        part = progress if progress is None or isinstance(progress, bool) else (
-            lambda f, i=i: progress((i + f) / len(obs)))  # type: ignore[operator,misc]
-        try:
-            traces[name], integration[name] = _estimate_one(name, o, recording, xhat0, y0, mask, hold, max_step, engine,
-                                                            smooth, part)
-        except (FiniteEscapeError, SolverError) as e:  # the others still run; when all fail, the first error
-            failures[name] = failure_of(name, o.design.method, e)
-            first = first or e
+    names = list(obs)
+
+    reached = dict.fromkeys(names, 0.0)   # each observer's fraction: the mean never goes back (they run side by side)
+
+    def one(name: str) -> Any:
+        def moved(f: float) -> None:
+            reached[name] = f
+            progress(sum(reached.values()) / len(reached))   # type: ignore[operator,misc]
+        part = progress if progress is None or isinstance(progress, bool) else moved
+        return _estimate_one(name, obs[name], recording, xhat0, y0, mask, hold, max_step, engine, smooth, part)
+
+    done = each_observer(names, one, alone=[k for k, o in obs.items() if getattr(o.design, "needs_mx", False)])
+    for name, o in obs.items():
+        res = done[name]
+        if isinstance(res, BaseException):   # the others keep their results; when all fail, the first error
+            if not isinstance(res, (FiniteEscapeError, SolverError, DataError, EngineError, TimeBudgetError)):
+                raise res
+            failures[name] = failure_of(name, o.design.method, res)
+            first = first or res
+        else:
+            traces[name], integration[name] = res
     if not traces:
         raise first  # type: ignore[misc]
     system = next(iter(obs.values())).system
@@ -423,7 +436,7 @@ def _estimate_delayed(obs: Mapping[str, Any], rec: Recording, delay: Mapping[str
     for name, o in obs.items():
         res = done[name]
         if isinstance(res, BaseException):   # the others keep their results
-            if not isinstance(res, (FiniteEscapeError, SolverError, ModelError, DataError, EngineError)):
+            if not isinstance(res, (FiniteEscapeError, SolverError, ModelError, DataError, EngineError, TimeBudgetError)):
                 raise res
             failures[name] = failure_of(name, o.design.method, res)
             errors.append(res)

@@ -27,13 +27,13 @@ from .._progress import as_progress
 from ..design import ObserverDesign
 from ..design._pf import ParticleDesign
 from ..engine import Backend, StepRunner, compile_system, evaluate_many, rk4_step, rows
-from ..errors import DataError, EngineError, FiniteEscapeError, ModelError, ShapeError, SolverError
+from ..errors import DataError, EngineError, FiniteEscapeError, ModelError, ShapeError, SolverError, TimeBudgetError
 from ..model import ModelFile, ObserverConfig, System, input_signals
 from ..observer import AbstractObserver, Observer, ParticleObserver, as_observer
 from ._file import file_arguments, observers_of
 from ._options import Adaptive, Noise, ProcessNoise, Sampling
 from ._options import xhat0_for as _xhat0_for
-from ._isolate import culprits, isolate
+from ._isolate import culprits, each_observer, failure_of, isolate, observer_fault
 from ._results import ObserverTrace, Run
 from ._tables import table_range_notes
 
@@ -250,7 +250,7 @@ def _simulate_delayed(plant: System, observers: Any, delay: Mapping[str, float],
     for name, o in obs.items():
         res = done[name]
         if isinstance(res, BaseException):   # the others keep their results (ModelError: takes the output continuously)
-            if not isinstance(res, (FiniteEscapeError, SolverError, ModelError, DataError, EngineError)):
+            if not isinstance(res, (FiniteEscapeError, SolverError, ModelError, DataError, EngineError, TimeBudgetError)):
                 raise res
             failures[name] = failure_of(name, o.design.method, res)
             errors.append(res)
@@ -290,12 +290,23 @@ class Simulation:
                  params: Mapping[str, float] | None = None, noise: Noise | None = None,
                  process_noise: ProcessNoise | None = None, sampling: Sampling | None = None,
                  integrator: Adaptive | None = None, engine: Backend = "auto", _caller: str = "Simulation"):
-        self._prep = prepare(plant, observers, t_final=t_final, dt=dt, inputs=inputs, params=params, noise=noise,
-                             process_noise=process_noise, sampling=sampling, caller=_caller, integrator=integrator)
+        setup = dict(t_final=t_final, dt=dt, inputs=inputs, params=params, noise=noise, process_noise=process_noise,
+                     sampling=sampling, integrator=integrator, engine=engine, _caller=_caller)
+        obs = named_observers(observers) if isinstance(plant, System) else observers
+        # several observers: each runs with its own copy of the plant, as its own compiled step (fixed-step RK4 gives
+        # every copy the same trajectory and measurements: the noise depends only on the seed). So a step is compiled
+        # per observer and cached (another combination, an isolation or the advisor reuses it), the steps compile
+        # and run side by side on the cores, and one observer's failure is its own. (An adaptive integrator chooses
+        # its steps for the whole state: there the plant and the observers stay one step.)
+        self._parts: dict[str, Simulation] = {}
+        if integrator is None and isinstance(obs, Mapping) and len(obs) > 1:
+            self._parts = {name: Simulation(plant, {name: o}, **setup) for name, o in obs.items()}
+            self._prep = next(iter(self._parts.values()))._prep
+        else:
+            self._prep = prepare(plant, obs, t_final=t_final, dt=dt, inputs=inputs, params=params, noise=noise,
+                                 process_noise=process_noise, sampling=sampling, caller=_caller, integrator=integrator)
         # to run an observer on its own when another one fails (see :meth:`run`)
-        self._setup = (plant, dict(t_final=t_final, dt=dt, inputs=inputs, params=params, noise=noise,
-                                   process_noise=process_noise, sampling=sampling, integrator=integrator, engine=engine,
-                                   _caller=_caller))
+        self._setup = (plant, setup)
         self._alone: dict[str, Simulation] = {}
         self.engine = engine
         self._info = {"dt": dt, "sampling": None if sampling is None else sampling.period, "engine": engine,
@@ -324,6 +335,8 @@ class Simulation:
         An observer that fails (blows up, or its window problem cannot be solved) does not stop the others:
         each observer then runs on its own on the same measurements, and the failing ones are listed in
         :attr:`Run.failures` with what happened and when. A plant that blows up still raises."""
+        if self._parts:
+            return self._run_parts(x0, xhat0=xhat0, seed=seed, progress=progress, escape_bound=escape_bound)
         names = (*self._prep.obs, *self._prep.particle)
         methods = {k: o.design.method for k, o in {**self._prep.obs, **self._prep.particle}.items()}
 
@@ -333,6 +346,48 @@ class Simulation:
             return self._run_alone(only, x0, xhat0=xhat0, seed=seed, escape_bound=escape_bound)
 
         return isolate(run_with, names, methods)
+
+    def _run_parts(self, x0: Sequence[float], *, xhat0: Any, seed: int | None,
+                   progress: bool | Callable[[float], None] | None, escape_bound: float) -> Run:
+        """Each observer with its own copy of the plant, side by side (see ``__init__``); one Run of them all."""
+        names = list(self._parts)
+        report = as_progress(progress, f"simulate {self.plant.name}")
+        reached = dict.fromkeys(names, 0.0)
+
+        def one(name: str) -> Run:
+            part = self._parts[name]
+            mine = xhat0 if not isinstance(xhat0, Mapping) else ({name: xhat0[name]} if name in xhat0 else None)
+
+            def moved(fraction: float) -> None:
+                reached[name] = fraction
+                report(sum(reached.values()) / len(reached))   # type: ignore[misc]
+            return part._run_all(x0, xhat0=mine, seed=seed, progress=moved if report is not None else None,
+                                 escape_bound=escape_bound)
+
+        heavy = [k for k, p in self._parts.items() if any(o.design.needs_mx for o in p._prep.obs.values())]
+        done = each_observer(names, one, alone=heavy)
+        traces, failures, particles = {}, {}, {}
+        base: Run | None = None
+        first: BaseException | None = None
+        for name in names:
+            res = done[name]
+            if isinstance(res, BaseException):
+                # the plant's failure, or a wrong argument, is everyone's; a compile error of this part's step is its
+                # observer's (the plant's own code is in every part: were it at fault, every part would fail)
+                if not (observer_fault(res) or isinstance(res, EngineError)):
+                    raise res
+                part = self._parts[name]._prep
+                method = next(iter({**part.obs, **part.particle}.values())).design.method
+                failures[name] = failure_of(name, method, res, getattr(res, "partial", None))
+                first = first or res
+                continue
+            traces[name] = res.observers[name]
+            particles.update(res.info.get("particles", {}))
+            base = base or res
+        if base is None:   # every observer failed: nothing to show but the error (of the first one)
+            raise first   # type: ignore[misc]
+        info = dict(base.info, **({"particles": particles} if particles else {}))
+        return replace(base, observers=traces, failures=failures, info=info)
 
     def _run_alone(self, only: tuple[str, ...], x0: Sequence[float], *, xhat0: Any, seed: int | None,
                    escape_bound: float) -> Run:
@@ -623,13 +678,14 @@ class _Layout:
             self.out[name] = (zsl, xsl)
         self.no = k
         self.step: ca.Function | None = None
+        self.step_c: ca.Function | None = None   # the step as C is generated from (see _build_step)
         self.step_outputs: ca.Function | None = None
         self.designs: tuple[ObserverDesign, ...] = ()  # keeps the cached designs (and their ids) alive
         self._runners: dict[str, StepRunner] = {}
 
     def runner(self, engine: Backend) -> _Runner:
         if engine not in self._runners:
-            self._runners[engine] = StepRunner(self.step, backend=engine)
+            self._runners[engine] = StepRunner(self.step, backend=engine, step_c=self.step_c)
         return _Runner(self._runners[engine], self)
 
     def owner(self, col: int) -> tuple[str, slice, Sequence[str]]:
@@ -672,12 +728,17 @@ def _joint_step(plant: System, obs: Mapping[str, AbstractObserver], kind: _Kind)
     return layout.step, layout
 
 
-def _build_step(plant: System, obs: Mapping[str, AbstractObserver], kind: _Kind) -> _Layout:
+def _build_step(plant: System, obs: Mapping[str, AbstractObserver], kind: _Kind, sym: Any = None) -> _Layout:
     comp = compile_system(plant)
     n, ny = plant.n_states, plant.n_outputs
     layout = _Layout(plant, obs, kind)
     # designs whose functions are not SX (MHE embeds an NLP solver) need an MX graph (run on the VM)
     X = ca.MX if kind.adaptive is not None or any(o.design.needs_mx for o in obs.values()) else ca.SX
+    if sym is None and X is ca.SX:
+        # for C: the same step over MX, calling f, h and each observer's flow at the RK4 stages and its update (only at
+        # a sample) instead of inlining them: the same operations in a fraction of the code to compile
+        layout.step_c = _build_step(plant, obs, kind, ca.MX).step
+    X = sym or X
     s = X.sym("s", layout.size)
     a = X.sym("a", layout.na)
     c = X.sym("c", 3 + (0 if kind.folded is not None else plant.n_params))
