@@ -40,6 +40,7 @@ models) and bench_fusion.md (a summary table of the file).
 from __future__ import annotations
 
 import argparse
+import atexit
 import json
 import os
 import re
@@ -67,6 +68,8 @@ DESIGN_COLD, DESIGN_WARM, SIM_DELAY, SIM_STEP = 60.0, 20.0, 5.0, 50e-6
 DELAY_RATIO = 2.0
 WHOLE = "target, whole process on 2 cores"
 TMP = Path(tempfile.mkdtemp(prefix="nlobs-bench-fusion-"))
+# removed at exit too: registered before nlobs saves its cost model (atexit, into the cache of F5), so it runs after
+atexit.register(shutil.rmtree, TMP, ignore_errors=True)
 
 
 def _commit() -> str:
