@@ -22,7 +22,7 @@ from ..design._constructions import evaluate
 from ._context import Context, build_context, file_true_parameters, file_unknown_params
 from ._kinds import try_kind
 from ._present import model_text
-from ._rank import compare, demoted, screen
+from ._rank import compare, demoted, screen, unscreened
 
 __all__ = ["advise"]
 
@@ -286,8 +286,9 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
         if say:
             say(f"advise {system.name}: screening the applicable designs on the start of the simulation run ...")
         screened = screen(ctx, candidates, budget)
-        candidates = demoted(candidates, screened, "the start of the [simulation] run")
-        _reconcile_choice(ctx, candidates, screened, "the start of the [simulation] run")
+        candidates = unscreened(demoted(candidates, screened, "the start of the [simulation] run"), screened)
+        _reconcile_choice(ctx, candidates, [s for s in screened if s.status != "unscreened"],
+                          "the start of the [simulation] run")
     scores = runres = None
     scenario = ""
     refused = ""
@@ -303,8 +304,8 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
         candidates = demoted(candidates, scores, where)
         left_out = [c for c in candidates if c.applies and not c.runnable]   # not in the run: screened on its start
         screened = screen(ctx, left_out, budget)
-        candidates = demoted(candidates, screened, "the start of the [simulation] run")
-        _reconcile_choice(ctx, candidates, [*scores, *screened], where, scores)
+        candidates = unscreened(demoted(candidates, screened, "the start of the [simulation] run"), screened)
+        _reconcile_choice(ctx, candidates, [*scores, *(s for s in screened if s.status != "unscreened")], where, scores)
         scores = [s for s in scores if s.status != "diverged"]
         if scores and ctx.recording is None and ctx.scenario.process_std is None:
             ctx.notes.append("the comparison run has no process noise and the model is exact: estimators that lean on the "

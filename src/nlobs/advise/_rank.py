@@ -32,10 +32,16 @@ from ..simulate._isolate import failure_of
 from ._advice import Candidate, Score
 from ._context import Context
 
-__all__ = ["compare", "screen", "demoted", "rank", "residuals", "TIE"]
+__all__ = ["compare", "screen", "demoted", "unscreened", "rank", "residuals", "TIE"]
 
 #: Errors within this factor count as a tie, broken by the convergence time.
 TIE = 1.25
+
+#: Seconds each candidate's screening (the start of the run, on the VM) may take: one that takes longer is not
+#: demoted (the screening checks for a blow-up at the start; it did not see one), and says so.
+SCREEN_BUDGET = 20.0
+#: The same for an estimator that solves an NLP per sample (MHE), whose windows on the VM can take a second each.
+SCREEN_BUDGET_NLP = 5.0
 
 
 def _score(run: Run, name: str, ctx: Context) -> Score:
@@ -177,10 +183,24 @@ def screen(ctx: Context, candidates: Sequence[Candidate], budget: float | None =
     # (a screen that compiled its NLP would wait minutes for the compiler before the first window)
     t_heavy = min(t_pre, max(sc.dt, 40 * period))
     failed: list[Score] = []
-    for group, t_end in ((light, t_pre), *(({k: d}, t_heavy) for k, d in heavy.items())):
-        if group:
-            failed += _without_diverging(ctx, group, t_end, "vm", None, budget)[2]
+    for group, t_end, limit in ((light, t_pre, SCREEN_BUDGET), *(({k: d}, t_heavy, SCREEN_BUDGET_NLP)
+                                                                 for k, d in heavy.items())):
+        if not group:
+            continue
+        short = min(budget, limit) if budget is not None else limit   # a check of the start, not a run
+        for s in _without_diverging(ctx, group, t_end, "vm", None, short)[2]:
+            if s.status == "failed" and s.detail.startswith("did not finish"):   # no verdict: said, not demoted
+                s = replace(s, status="unscreened", detail=f"its start was not screened: it {s.detail.split(' (')[0]} "
+                                                              "on CasADi's virtual machine (no compiler is run for a "
+                                                              "screening)")
+            failed.append(s)
     return failed
+
+
+def unscreened(candidates: Sequence[Candidate], scores: Sequence[Score]) -> list[Candidate]:
+    """The candidates with the reason their start could not be screened (an "unscreened" score) added to `why`."""
+    left = {s.kind: s.detail for s in scores if s.status == "unscreened"}
+    return [replace(c, why=f"{c.why}; {left[c.kind]}") if c.kind in left and c.applies else c for c in candidates]
 
 
 def demoted(candidates: Sequence[Candidate], scores: Sequence[Score], where: str) -> list[Candidate]:

@@ -32,6 +32,7 @@ import sympy as sp
 
 from ..engine import compile_c, compile_system, compiled_nlpsol, defer_error, find_compiler, rk4_step
 from ..engine._codegen import COSTS, built_path, choose_backend, code_size, signature_of
+from ..engine._nlp import nlp_built, nlp_signature
 from ..engine._budget import check_time
 from ..errors import EngineError, PreconditionError, SolverError, TimeBudgetError
 from ..model import System
@@ -103,12 +104,28 @@ class _Solvers:
             self._fast = self.graph
         return self._fast
 
+    ipopt_spent: float = 0.0   # seconds IPOPT has run with its functions on the virtual machine in this process
+    _nlp_sig: str | None = None
+
     def ipopt_solver(self) -> ca.Function:
-        if self.ipopt is None:
+        """IPOPT (the fallback when the SQP does not converge) with its functions compiled when they are built (cached
+        on disk), or once its time on the virtual machine in this process reaches their predicted compile time (the
+        derivatives of the window's Lagrangian: several times the NLP's own size); before that, on the VM."""
+        if self.ipopt_compiled:
+            return self.ipopt
+        name = f"{self.tag}_ipopt"
+        if self.compiled and self._nlp_sig is None:
+            self._nlp_sig = nlp_signature(self.nlp)
+        worth = self.compiled and (nlp_built(name, self._nlp_sig, "ipopt") or
+                                   self.ipopt_spent >= COSTS.compile_seconds(4 * code_size(self.graph)))
+        if worth:
             try:
-                self.ipopt, self.ipopt_compiled = compiled_nlpsol(f"{self.tag}_ipopt", "ipopt", self.nlp, self.ipopt_opts)
+                self.ipopt, self.ipopt_compiled = compiled_nlpsol(name, "ipopt", self.nlp, self.ipopt_opts, sig=self._nlp_sig)
+                return self.ipopt
             except EngineError:
-                self.ipopt, self.ipopt_compiled = ca.nlpsol(f"{self.tag}_ipopt", "ipopt", self.nlp, self.ipopt_opts), False
+                self.compiled = False
+        if self.ipopt is None:
+            self.ipopt = ca.nlpsol(name, "ipopt", self.nlp, self.ipopt_opts)
         return self.ipopt
 
 
@@ -619,7 +636,10 @@ class _MHEUpdate(ca.Callback):
         s = self.solvers
         w0, par, lbx, ubx, lg0, carry = s.pre(t, z, u, y, m, self.consts)
         ipopt = s.ipopt_solver()
+        t0 = time.perf_counter()
         sol = ipopt(x0=w0, p=par, lbx=lbx, ubx=ubx, lbg=0, ubg=0, lam_g0=lg0)
+        if not s.ipopt_compiled:
+            s.ipopt_spent += time.perf_counter() - t0
         stats = ipopt.stats()
         zp_dm, status_dm = s.post(carry, sol["x"], sol["lam_g"], sol["lam_x"], par, lbx, ubx)
         zp, status = np.asarray(zp_dm, dtype=float).reshape(-1), np.asarray(status_dm, dtype=float).reshape(-1)

@@ -16,16 +16,34 @@ from typing import Any
 
 import casadi as ca
 
-from ._codegen import _build, find_compiler
+from ._codegen import _build, built_path, find_compiler, signature_of
 
-__all__ = ["compiled_nlpsol"]
+__all__ = ["compiled_nlpsol", "nlp_signature", "nlp_built"]
 
 
-def compiled_nlpsol(name: str, plugin: str, nlp: Mapping[str, Any], opts: Mapping[str, Any]) -> tuple[ca.Function, bool]:
-    """``casadi.nlpsol(name, plugin, nlp, opts)`` with its functions compiled; returns (solver, compiled)."""
+def nlp_signature(nlp: Mapping[str, Any]) -> str:
+    """A hash of the NLP's definition (its objective and constraints as one CasADi function)."""
+    keys = [k for k in ("x", "p") if k in nlp]
+    return signature_of(ca.Function("nlp", [nlp[k] for k in keys], [nlp[k] for k in ("f", "g") if k in nlp]))
+
+
+def nlp_built(name: str, sig: str, plugin: str) -> bool:
+    """Whether the compiled functions of the NLP of signature `sig` are in the cache."""
+    path = built_path(f"{name}_nlp", sig, plugin)
+    return path is not None and path.exists()
+
+
+def compiled_nlpsol(name: str, plugin: str, nlp: Mapping[str, Any], opts: Mapping[str, Any], *,
+                    sig: str | None = None) -> tuple[ca.Function, bool]:
+    """``casadi.nlpsol(name, plugin, nlp, opts)`` with its functions compiled; returns (solver, compiled). With `sig`
+    (:func:`nlp_signature`) the build is found in the cache by it, without generating the code."""
     solver = ca.nlpsol(name, plugin, dict(nlp), dict(opts))
     if find_compiler() is None:
         return solver, False
+    if sig is not None:
+        so = built_path(f"{name}_nlp", sig, plugin)
+        if so is not None and so.exists():
+            return ca.nlpsol(name, plugin, str(so), dict(opts)), True
     with tempfile.TemporaryDirectory(prefix="nlobs-nlp-") as tmp:
         cwd = os.getcwd()
         os.chdir(tmp)  # generate_dependencies writes into the working directory
@@ -34,5 +52,5 @@ def compiled_nlpsol(name: str, plugin: str, nlp: Mapping[str, Any], opts: Mappin
         finally:
             os.chdir(cwd)
         code = (Path(tmp) / f"{name}_nlp.c").read_text()
-    so = _build(code, f"{name}_nlp")
+    so = _build(code, f"{name}_nlp", built_path(f"{name}_nlp", sig, plugin) if sig is not None else None)
     return ca.nlpsol(name, plugin, str(so), dict(opts)), True
