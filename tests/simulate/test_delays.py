@@ -220,3 +220,15 @@ def test_the_particle_filter_does_not_apply_to_late_samples(tmp_path):
     assert pf.status == "fails" and "arrive late" in pf.why and "gps (0.15 s)" in pf.why
     model.write_text(MODEL.replace("delay = { gps = 0.15, wheel = 0.15 }\n", ""), encoding="utf-8")
     assert nlobs.advise(str(model), kinds=["pf"]).candidate("pf").applies
+
+
+def test_a_delayed_run_written_at_its_samples_keeps_its_first_row(tmp_path):
+    # `nlobs simulate --output` writes the rows where a sample arrived; the first row (t = 0, where the observers start
+    # and the wheel's first sample was taken) is kept although nothing arrived there yet (the gps fix of t = 0 arrives
+    # at 0.15 s): estimate() on the file starts where the run started
+    run = nlobs.simulate(CART, {"ekf": _ekf()}, t_final=2.0, delay={"gps": 0.15, "wheel": 0.15}, **KW)
+    path = tmp_path / "late.csv"
+    run.to_csv(path, every=10)
+    rec = nlobs.Recording.from_csv(path, CART)
+    assert rec.t[0] == 0.0 and np.all(np.isnan(rec.y[0]))
+    assert rec.t[1] == pytest.approx(0.15)

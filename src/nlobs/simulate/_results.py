@@ -421,8 +421,8 @@ class Run:
         if measured is not None:   # per-output clocks: each output in the rows where it was sampled, empty elsewhere
             y = np.where(measured, y, np.nan)
             y, measured = self._stamped_at_arrival(y, measured)
-            if every > 1:
-                keep = np.flatnonzero(measured.any(axis=1))
+            if every > 1:   # (and the first row: the run's start, where the observers start, even before anything arrived)
+                keep = np.flatnonzero(measured.any(axis=1) | (np.arange(self.t.size) == 0))
         blocks = [self.t[:, None], self.u, y]
         if self.x is not None:
             header += list(self.state_names[:self.x.shape[1]])  # recorded truth may lack the estimated parameters
