@@ -29,6 +29,7 @@ from ..engine import compile_system, rk4_step
 from ..errors import ModelError, PreconditionError
 from ._base import AbstractObserver, Observer
 from ._convert import as_observer
+from ._signals import delays_of
 
 __all__ = ["CExport", "export_c"]
 
@@ -798,20 +799,6 @@ def _shown_name(text: Any) -> str:
     return repr(_c_comment(text))
 
 
-def _check_delays(delays: Any, outputs: list[str]) -> np.ndarray:
-    """The delay of each output (0 for those not named), checked."""
-    if not isinstance(delays, Mapping):
-        raise ValueError(f"export_c: `delays` must be a mapping {{output: seconds}}, got {type(delays).__name__}")
-    d = np.zeros(len(outputs))
-    for k, v in delays.items():
-        if k not in outputs:
-            raise ValueError(f"export_c: `delays` names {k!r}, which is not an output; the outputs are {', '.join(outputs)}")
-        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not (np.isfinite(v) and v >= 0):
-            raise ValueError(f"export_c: the delay of {k!r} must be a finite number of seconds >= 0, got {v!r}")
-        d[outputs.index(k)] = float(v)
-    return d
-
-
 def _history_size(d: np.ndarray, min_interval: Any, history: Any) -> tuple[int, float | None]:
     """The knots the fusion filter must hold, and the row spacing it was sized for.
 
@@ -850,7 +837,7 @@ def _fusion_setup(design: ObserverDesign, delays: Any, min_interval: Any, histor
             raise ValueError("export_c: `min_interval` and `history` size the history of the fusion filter, which is "
                              "written only with measurement `delays`; give `delays` too, or leave them out")
         return None, 0, None
-    d = _check_delays(delays, list(s.outputs))
+    d = delays_of(delays, list(s.outputs), "export_c", "delays")
     if s.is_discrete:
         raise ModelError(f"export_c: measurement delays on the discrete-time model {_shown_name(s.name)}: the fusion "
                          "filter re-runs a flow between knots, which a map does not have; export without `delays`")

@@ -8,11 +8,14 @@ form (never silently re-ordered): ``step(z, t, dt, u, y)`` (now ``step(t, z, dt,
 from __future__ import annotations
 
 import warnings
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
-__all__ = ["signals_by_keyword", "time_first"]
+from ..errors import ShapeError
+
+__all__ = ["signals_by_keyword", "time_first", "delays_of"]
 
 
 def signals_by_keyword(where: str, args: tuple[Any, ...], u: Any, y: Any) -> tuple[Any, Any]:
@@ -34,3 +37,21 @@ def time_first(where: str, t: Any, z: Any) -> tuple[Any, Any]:
                       DeprecationWarning, stacklevel=3)
         return z, t
     return t, z
+
+
+def delays_of(delay: Any, outputs: Sequence[str], caller: str, param: str = "delay") -> np.ndarray:
+    """The known measurement delay of each of `outputs` in seconds (0 for those not named), checked: a mapping
+    {output: seconds} of outputs of the model, each a finite number >= 0."""
+    d = np.zeros(len(outputs))
+    if delay is None:
+        return d
+    if not isinstance(delay, Mapping):
+        raise ShapeError(f"{caller}: `{param}` must be a mapping {{output: seconds}}, got {type(delay).__name__}")
+    outputs = list(outputs)
+    for k, v in delay.items():
+        if k not in outputs:
+            raise ShapeError(f"{caller}: `{param}` names {k!r}, which is not an output; the outputs are {', '.join(outputs)}")
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not (np.isfinite(v) and v >= 0):
+            raise ShapeError(f"{caller}: the delay of {k!r} must be a finite number of seconds >= 0, got {v!r}")
+        d[outputs.index(k)] = float(v)
+    return d

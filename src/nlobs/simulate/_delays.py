@@ -34,26 +34,11 @@ import numpy as np
 
 from ..engine import Backend
 from ..engine._intervals import Schedule
-from ..errors import ModelError, ShapeError
+from ..errors import ModelError
 from ..observer import AbstractObserver
+from ..observer._signals import delays_of
 
 __all__ = ["delays_of", "Events", "Plan", "plan", "run_delayed", "latency_notes"]
-
-
-def delays_of(delay: Mapping[str, float] | None, outputs: Sequence[str], caller: str) -> np.ndarray:
-    """The delay of each of `outputs` (0 for those not named), checked."""
-    d = np.zeros(len(outputs))
-    if not delay:
-        return d
-    if not isinstance(delay, Mapping):
-        raise ShapeError(f"{caller}: `delay` must be a mapping {{output: seconds}}, got {type(delay).__name__}")
-    for k, v in delay.items():
-        if k not in outputs:
-            raise ShapeError(f"{caller}: `delay` names {k!r}, which is not an output; the outputs are {', '.join(outputs)}")
-        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not (np.isfinite(v) and v >= 0):
-            raise ShapeError(f"{caller}: the delay of {k!r} must be a finite number of seconds >= 0, got {v!r}")
-        d[outputs.index(k)] = float(v)
-    return d
 
 
 @dataclass

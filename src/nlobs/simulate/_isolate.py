@@ -24,7 +24,7 @@ from ..engine._budget import per_observer, time_budget
 from ..errors import FiniteEscapeError, SolverError, TimeBudgetError
 from ._results import ObserverFailure, Run
 
-__all__ = ["culprits", "isolate", "observer_fault", "failure_of", "each_observer", "WORKERS"]
+__all__ = ["culprits", "isolate", "merged", "observer_fault", "failure_of", "each_observer", "WORKERS"]
 
 T = TypeVar("T")
 
@@ -78,15 +78,30 @@ def isolate(run_with: Callable[[tuple[str, ...] | None], Run], names: Sequence[s
     except (FiniteEscapeError, SolverError) as e:
         if not observer_fault(e) or not names:
             raise
-    traces, failures, base, particles, first = {}, {}, None, {}, None
+    runs: dict[str, Run | BaseException] = {}
     for name in names:
         try:
-            r = run_with((name,))
+            runs[name] = run_with((name,))
         except (FiniteEscapeError, SolverError) as e:
-            if not observer_fault(e):
-                raise
-            failures[name] = failure_of(name, methods.get(name, "?"), e, getattr(e, "partial", None))
-            first = first or e
+            runs[name] = e
+    return merged(names, runs, methods)
+
+
+def merged(names: Sequence[str], runs: Mapping[str, Run | BaseException], methods: Mapping[str, str], *,
+           fault: Callable[[BaseException], bool] = observer_fault) -> Run:
+    """One Run of observers that each ran on their own on the same measurements (a Run per name holding its observer,
+    or the exception it raised): failures, per `fault`, listed with their reason; any other exception (the plant's, a
+    wrong argument: everyone's) raised; when every observer failed, the first one's error."""
+    traces, failures, particles = {}, {}, {}
+    base: Run | None = None
+    first: BaseException | None = None
+    for name in names:
+        r = runs[name]
+        if isinstance(r, BaseException):
+            if not fault(r):
+                raise r
+            failures[name] = failure_of(name, methods.get(name, "?"), r, getattr(r, "partial", None))
+            first = first or r
             continue
         traces[name] = r.observers[name]
         particles.update(r.info.get("particles", {}))

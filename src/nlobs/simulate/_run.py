@@ -33,7 +33,7 @@ from ..observer import AbstractObserver, Observer, ParticleObserver, as_observer
 from ._file import file_arguments, observers_of
 from ._options import Adaptive, Noise, ProcessNoise, Sampling
 from ._options import xhat0_for as _xhat0_for
-from ._isolate import culprits, each_observer, failure_of, isolate, observer_fault
+from ._isolate import culprits, each_observer, isolate, merged, observer_fault
 from ._results import ObserverTrace, Run
 from ._tables import table_range_notes
 
@@ -366,28 +366,11 @@ class Simulation:
 
         heavy = [k for k, p in self._parts.items() if any(o.design.needs_mx for o in p._prep.obs.values())]
         done = each_observer(names, one, alone=heavy)
-        traces, failures, particles = {}, {}, {}
-        base: Run | None = None
-        first: BaseException | None = None
-        for name in names:
-            res = done[name]
-            if isinstance(res, BaseException):
-                # the plant's failure, or a wrong argument, is everyone's; a compile error of this part's step is its
-                # observer's (the plant's own code is in every part: were it at fault, every part would fail)
-                if not (observer_fault(res) or isinstance(res, EngineError)):
-                    raise res
-                part = self._parts[name]._prep
-                method = next(iter({**part.obs, **part.particle}.values())).design.method
-                failures[name] = failure_of(name, method, res, getattr(res, "partial", None))
-                first = first or res
-                continue
-            traces[name] = res.observers[name]
-            particles.update(res.info.get("particles", {}))
-            base = base or res
-        if base is None:   # every observer failed: nothing to show but the error (of the first one)
-            raise first   # type: ignore[misc]
-        info = dict(base.info, **({"particles": particles} if particles else {}))
-        return replace(base, observers=traces, failures=failures, info=info)
+        methods = {name: next(iter({**p._prep.obs, **p._prep.particle}.values())).design.method
+                   for name, p in self._parts.items()}
+        # the plant's failure, or a wrong argument, is everyone's; a compile error of this part's step is its observer's
+        # (the plant's own code is in every part: were it at fault, every part would fail)
+        return merged(names, done, methods, fault=lambda e: observer_fault(e) or isinstance(e, EngineError))
 
     def _run_alone(self, only: tuple[str, ...], x0: Sequence[float], *, xhat0: Any, seed: int | None,
                    escape_bound: float) -> Run:
