@@ -613,25 +613,7 @@ failed:
 }}
 """
 
-_MAIN = """\
-/* main.c -- example: run the observer {name} on a CSV read from stdin.
- *
- * Input: one sample per line, "t,u1..u{nu},y1..y{ny}" in this order:
- *   t,{in_cols}
- * (a first line that does not start with a number is a header and is skipped; an empty
- * y field or "nan" marks a missing output). Output: "t,xhat..." per sample, on stdout.
- * Optional arguments: the initial estimate xhat0 ({nx} numbers; default: the design's).
- *
- * Build and run:  cc -std=c99 -O2 -o {name} {name}.c main.c -lm
- *                 ./{name} < data.csv > estimates.csv
- */
-#include <stdio.h>
-#include <stdlib.h>
-#include <string.h>
-#include <math.h>
-#include "{name}.h"
-
-#define NCOL (1 + {NAME}_NU + {NAME}_NY)
+_CSV_PARSE = """#define NCOL (1 + {NAME}_NU + {NAME}_NY)
 
 /* split a line at commas into v[0..NCOL-1]; empty or unparsable y fields become NaN */
 static int parse(char *line, double *v) {{
@@ -655,7 +637,27 @@ static int parse(char *line, double *v) {{
   }}
   return 0;
 }}
+"""
 
+_MAIN = """\
+/* main.c -- example: run the observer {name} on a CSV read from stdin.
+ *
+ * Input: one sample per line, "t,u1..u{nu},y1..y{ny}" in this order:
+ *   t,{in_cols}
+ * (a first line that does not start with a number is a header and is skipped; an empty
+ * y field or "nan" marks a missing output). Output: "t,xhat..." per sample, on stdout.
+ * Optional arguments: the initial estimate xhat0 ({nx} numbers; default: the design's).
+ *
+ * Build and run:  cc -std=c99 -O2 -o {name} {name}.c main.c -lm
+ *                 ./{name} < data.csv > estimates.csv
+ */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <math.h>
+#include "{name}.h"
+
+""" + _CSV_PARSE + """
 int main(int argc, char **argv) {{
   static char line[1 << 16];
   double v[NCOL], z[{NAME}_NZ], xhat[{NAME}_NX], xhat0[{NAME}_NX];
@@ -722,31 +724,7 @@ _MAIN_FUSION = """\
 #include <math.h>
 #include "{name}.h"
 
-#define NCOL (1 + {NAME}_NU + {NAME}_NY)
-
-/* split a line at commas into v[0..NCOL-1]; empty or unparsable y fields become NaN */
-static int parse(char *line, double *v) {{
-  char *p = line, *end;
-  int j;
-  for (j = 0; j < NCOL; ++j) {{
-    while (*p == ' ' || *p == '\\t') ++p;
-    if (*p == ',' || *p == '\\n' || *p == '\\r' || *p == '\\0') {{
-      if (j <= {NAME}_NU) return -1;   /* t and u may not be missing */
-      v[j] = NAN;
-    }} else {{
-      v[j] = strtod(p, &end);
-      if (end == p) return -1;
-      p = end;
-    }}
-    while (*p == ' ' || *p == '\\t') ++p;
-    if (j < NCOL - 1) {{
-      if (*p != ',') return -1;
-      ++p;
-    }}
-  }}
-  return 0;
-}}
-
+""" + _CSV_PARSE + """
 static const char *why(int rc) {{
   switch (rc) {{
     case {NAME}_EINPUT: return "bad row (time did not increase, or a value is infinite)";
