@@ -275,3 +275,26 @@ def test_completeness_counts_the_identifiability_fibre_only_when_needed(monkeypa
     funcs = [sp.sympify(c, locals={u: I.symbol(u) for u in U}) for c in chosen]
     assert I._complete(prep, eng, funcs, U, np.random.default_rng(1)) is True
     assert len(calls) == counts
+
+
+def test_the_command_line_gives_the_parameters_field_on_request(tmp_path, capsys):
+    # StructuralIdentifiability.jl's default is the field of the parameters (with_states = false): for the
+    # two-compartment model its documented answer is a01*a12 and a01 + a12 + a21 (its README's example)
+    import json
+
+    from nlobs.cli import main
+
+    model = tmp_path / "two.toml"
+    model.write_text('name = "two"\nstates = ["x0", "x1"]\noutputs = ["y"]\n[parameters]\na01 = 1.0\na21 = 2.0\n'
+                     'a12 = 3.0\n[dynamics]\nx0 = "-(a01 + a21)*x0 + a12*x1"\nx1 = "a21*x0 - a12*x1"\n[output]\ny = "x0"\n',
+                     encoding="utf-8")
+    assert main(["analyze", str(model), "--params", "all", "--params-only", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert sorted(d["identifiable_functions"]) == ["a01 + a12 + a21", "a01*a12"]
+    assert d["identifiable_functions_field"] == "parameters" and d["identifiable_functions_detail"]["with_states"] is False
+    assert main(["analyze", str(model), "--params", "all", "--identifiable-functions"]) == 0
+    text = capsys.readouterr().out
+    assert "identifiable functions of states and parameters" in text and "x0" in text.split("simplest first):")[1]
+    assert main(["analyze", str(model), "--params", "all", "--params-only"]) == 0
+    assert "identifiable functions of the parameters (generators, simplest first): a01*a12, a01 + a12 + a21" in \
+        capsys.readouterr().out

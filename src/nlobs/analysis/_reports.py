@@ -188,6 +188,7 @@ class ObservabilityReport:
             idf = self.identifiable_functions
             out["identifiable_functions"] = None if idf.refused else idf.to_list()
             out["identifiable_functions_detail"] = self.identifiable_functions.to_dict()
+            out["identifiable_functions_field"] = "parameters" if not idf.with_states else "states and parameters"
         if self.experiments is not None:
             out["experiments"] = self.experiments.to_dict()
         return out

@@ -41,7 +41,11 @@ def add_parser(sub: Any) -> None:
                    help=f"also decide global observability/identifiability ({cite('hong2019')}): globally, locally only "
                         "(with the number of solutions) or not")
     a.add_argument("--identifiable-functions", action="store_true",
-                   help="also list generators of the identifiable (observable) functions, simplest first")
+                   help="also list generators of the identifiable (observable) functions of the states and parameters, "
+                        "simplest first")
+    a.add_argument("--params-only", action="store_true",
+                   help="the identifiable functions of the parameters only (StructuralIdentifiability.jl's default, "
+                        "with_states = false); implies --identifiable-functions")
     a.add_argument("--experiments", type=int, default=None, metavar="N",
                    help="also analyse N experiments sharing the parameters (own initial states and inputs) and "
                         "count how many experiments are needed")
@@ -117,7 +121,8 @@ def run(args: argparse.Namespace) -> int:
     unknown = unknown_params_of(mf, args.params)
     inputs: Any = int(args.inputs) if args.inputs.strip().isdigit() else args.inputs.strip()
     options = dict(unknown_params=unknown, inputs=inputs, functions=args.function, seed=args.seed,
-                   global_check=args.global_check, identifiable_functions=args.identifiable_functions,
+                   global_check=args.global_check,
+                   identifiable_functions="parameters" if args.params_only else args.identifiable_functions,
                    experiments=args.experiments, engine=args.engine)
     choice = args.regime.strip()
     regimes: list[Any] = []

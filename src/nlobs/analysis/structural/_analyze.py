@@ -28,7 +28,7 @@ def analyze(system: System, *, unknown_params: Any = (), inputs: Any = "generic"
             unknown_inputs: Mapping[str, int] | None = None, functions: Sequence[ExprLike] = (),
             at: Mapping[str, float] | None = None, symmetries: bool = True, seed: int = 0,
             regime: Mapping[str, float] | None = None, global_check: bool = False,
-            identifiable_functions: bool = False, experiments: int | None = None,
+            identifiable_functions: bool | str = False, experiments: int | None = None,
             engine: str = "auto") -> ObservabilityReport:
     r"""Structural observability (and identifiability) of a model by the generic rank.
 
@@ -93,9 +93,11 @@ def analyze(system: System, *, unknown_params: Any = (), inputs: Any = "generic"
     global_check : bool, default False
         Also decide global identifiability/observability (SIAN, :func:`global_identifiability`):
         fills ``report.global_check``.
-    identifiable_functions : bool, default False
+    identifiable_functions : bool or "parameters", default False
         Also find generators of the identifiable functions (:func:`find_identifiable_functions`):
-        fills ``report.identifiable_functions``.
+        fills ``report.identifiable_functions``. True: the field of the states (initial values) and
+        parameters (observable functions); ``"parameters"``: the field of the parameters only,
+        StructuralIdentifiability.jl's default (``with_states = false``).
     experiments : int, optional
         Also analyse this many independent experiments sharing the parameters
         (:func:`multi_experiment`): fills ``report.experiments``.
@@ -186,7 +188,7 @@ def _map_report(system: System, *, unknown_params: Any, inputs: Any, unknown_inp
 
 
 def extend_report(report: Any, system: System, *, unknown_params: Any, inputs: Any, unknown_inputs: Any,
-                  functions: Sequence[ExprLike], seed: int, global_check: bool, identifiable_functions: bool,
+                  functions: Sequence[ExprLike], seed: int, global_check: bool, identifiable_functions: bool | str,
                   experiments: int | None, engine: str) -> Any:
     """The local report with the global parts requested from :func:`nlobs.analysis.analyze` filled in."""
     changes: dict[str, Any] = {}
@@ -196,8 +198,11 @@ def extend_report(report: Any, system: System, *, unknown_params: Any, inputs: A
             system, unknown_params=unknown_params, inputs=inputs, unknown_inputs=unknown_inputs, functions=functions,
             local=report, engine=eng if eng is not None else engine, seed=seed)
     if identifiable_functions:
+        if identifiable_functions not in (True, "parameters", "states"):
+            raise ValueError(f"analyze: `identifiable_functions` must be True, 'states' or 'parameters', got "
+                             f"{identifiable_functions!r}")
         changes["identifiable_functions"] = find_identifiable_functions(
-            system, unknown_params=unknown_params, inputs=inputs, local=report,
+            system, unknown_params=unknown_params, inputs=inputs, local=report, with_states=identifiable_functions != "parameters",
             engine=eng if eng is not None else engine, seed=seed)
     if experiments is not None:
         changes["experiments"] = multi_experiment(system, experiments, unknown_params=unknown_params or "all",
