@@ -4,7 +4,7 @@ generic points) makes the posterior multimodal, and the particle filter is marke
 import pytest
 
 import nlobs
-from nlobs.design._pf import output_symmetries
+from nlobs.design.kalman._pf import output_symmetries
 
 BIMODAL = """
 name = "bimodal"

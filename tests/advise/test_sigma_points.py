@@ -13,7 +13,7 @@ import nlobs
 from nlobs.advise import advise
 from nlobs.advise._context import build_context
 from nlobs.design import design_ukf
-from nlobs.design._srukf import design_srukf
+from nlobs.design.kalman._srukf import design_srukf
 from nlobs.design._tune import domain_bounds, prior_output_ratio, sigma_points
 from nlobs.model import SimulationConfig
 from nlobs.model._expr import parse_expression

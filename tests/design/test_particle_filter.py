@@ -11,7 +11,7 @@ import pytest
 from scipy import stats
 
 import nlobs
-from nlobs.design._pf import design_pf
+from nlobs.design.kalman._pf import design_pf
 from nlobs.errors import FiniteEscapeError, PreconditionError
 from nlobs.observer._particles import ParticleRunner
 

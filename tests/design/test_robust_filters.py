@@ -10,9 +10,9 @@ import pytest
 
 import nlobs
 from nlobs.design import design_ekf, design_ukf
-from nlobs.design._iekf import design_iekf
-from nlobs.design._srekf import design_srekf
-from nlobs.design._srukf import design_srukf
+from nlobs.design.kalman._iekf import design_iekf
+from nlobs.design.kalman._srekf import design_srekf
+from nlobs.design.kalman._srukf import design_srukf
 from nlobs.errors import FiniteEscapeError, PreconditionError
 
 LTI = nlobs.System.lti([[0.0, 1.0], [-2.0, -0.5]], None, [[1.0, 0.0]])

@@ -5,7 +5,7 @@ import pytest
 
 import nlobs
 from nlobs.design import design_ekf, design_ukf
-from nlobs.design._ukf import unscented_weights
+from nlobs.design.kalman._ukf import unscented_weights
 from nlobs.errors import PreconditionError
 
 LTI = nlobs.System.lti([[0.0, 1.0], [-2.0, -0.5]], None, [[1.0, 0.0]])

@@ -7,8 +7,14 @@ collected in :data:`KINDS`; the ``design_<kind>`` functions exported here and fr
 import warnings as _warnings
 
 # Importing a design module declares its kinds (the order here is the order of `nlobs kinds` and of the advisor).
-from . import _linear, _ekf, _augmented, _custom, _high_gain, _lipschitz, _kalman, _banks, _ukf, _mhe  # noqa: F401
-from . import _srukf, _srekf, _iekf, _pf, _regression, _gpebo, _pebo, _kkl, _cascade, _iandi  # noqa: F401
+# The Kalman family and the particle filter are in the sub-package `kalman`.
+from . import _linear  # noqa: F401
+from .kalman import _ekf  # noqa: F401
+from . import _augmented, _custom, _high_gain, _lipschitz, _kalman, _banks  # noqa: F401
+from .kalman import _ukf  # noqa: F401
+from . import _mhe  # noqa: F401
+from .kalman import _srukf, _srekf, _iekf, _pf  # noqa: F401
+from . import _regression, _gpebo, _pebo, _kkl, _cascade, _iandi  # noqa: F401
 from ._base import Certificate as Certificate
 from ._base import Check as Check
 from ._base import ObserverDesign as ObserverDesign
@@ -24,7 +30,7 @@ from ._kind import options_of as options_of
 from ._kind import register_design as register_design
 from ._kind import requires_model as requires_model
 from ._pebo import WindowedNLS as WindowedNLS
-from ._pf import ParticleDesign as ParticleDesign
+from .kalman._pf import ParticleDesign as ParticleDesign
 from ._regression import DREM as DREM
 from ._regression import GD as GD
 from ._regression import AbstractEstimator as AbstractEstimator

@@ -1,4 +1,4 @@
-"""Luenberger observer (LTI) and the error-linearisation / output-injection observer (Besançon (2010))."""
+"""Luenberger observer (LTI, and on linear maps with poles inside the unit circle) and the error-linearisation / output-injection observer (Besançon (2010))."""
 
 from __future__ import annotations
 
@@ -7,20 +7,21 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from ..analysis import kalman_rank
 from ..engine import to_casadi
 from ..errors import FormError, PreconditionError
 from ..model import LTI, TIME, OutputInjectionForm, System
 from ..references import cite, work
-from ._base import Certificate, Check, ObserverDesign, Symbols
-from ._checks import observer_gain
+from ._base import Certificate, Check, ObserverDesign, Symbols, check_vector
+from ._checks import check_matrix, observer_gain
 from ._common import require_system
-from ._discrete import discrete_luenberger
 from ._kind import Tuning, kind, renamed
 from ._tune import clean_message, fmt, poles_for
 
 __all__ = ["design_luenberger", "design_output_injection"]
 
 REF_LUENBERGER = f"{cite('002')}, 'Result [Luenberger]': x̂' = Ax̂ + Bu - K(Cx̂ - y), A - KC stable"
+REF_DLUEN = f"Discrete-time Luenberger observer ({cite('002', 'Result [Luenberger]')}, stated for maps)"
 REF_INJECTION = f"{cite('002')}, 'Result [Error linearization]': x̂' = Ax̂ + B(u, y) - K(Cx̂ - y)"
 
 
@@ -184,3 +185,60 @@ def design_output_injection(system: System, *, poles: Any = None, L: Any = None,
     return ObserverDesign.build("output_injection", system, s, z_names=[f"xhat_{v}" for v in system.states], flow=dz,
                                 xhat=xh, xhat0_sym=x0, z0=x0, xhat0=np.zeros(n) if xhat0 is None else xhat0,
                                 certificate=cert)
+
+
+def discrete_luenberger(system: System, *, poles: Any = None, L: Any = None, xhat0: Any = None,
+                        caller: str = "design_luenberger") -> ObserverDesign:
+    """The discrete-time Luenberger observer of a linear map (see the module's docstring)."""
+    import scipy.signal
+
+    try:
+        lti = LTI.from_system(system)
+    except FormError as e:
+        raise PreconditionError(f"{caller}: {e}") from e
+    A, B, C, D = (np.asarray(M, dtype=float) for M in (lti.A, lti.B, lti.C, lti.D))
+    n, p = A.shape[0], C.shape[0]
+    obs = kalman_rank(A, C)
+    if not obs.observable:
+        raise PreconditionError(f"{caller}: {obs}. Pole placement needs (A, C) observable")
+    if (poles is None) == (L is None):
+        raise PreconditionError(f"{caller}: give `poles` (inside the unit circle) or the gain `L`, one of the two")
+    if L is None:
+        want = np.asarray(poles, dtype=complex).ravel()
+        if want.size != n:
+            raise PreconditionError(f"{caller}: `poles` needs {n} values (one per state), got {want.size}")
+        outside = want[np.abs(want) >= 1]
+        if outside.size:
+            raise PreconditionError(f"{caller}: the pole {complex(outside[0]):.4g} is not inside the unit circle "
+                                    f"(|z| = {abs(outside[0]):.4g} ≥ 1); a discrete-time observer needs |z| < 1 "
+                                    "(e.g. 0.5 for an error that halves every step)")
+        try:
+            Lm = scipy.signal.place_poles(A.T, C.T, want).gain_matrix.T
+        except ValueError as e:
+            raise PreconditionError(f"{caller}: these poles cannot be placed: {e}") from e
+    else:
+        Lm = check_matrix(L, n, p, "L", caller)
+    ev = np.linalg.eigvals(A - Lm @ C)
+    if np.max(np.abs(ev)) >= 1:
+        raise PreconditionError(f"{caller}: A − LC has the eigenvalue {complex(ev[np.argmax(np.abs(ev))]):.4g} with |z| = "
+                                f"{np.max(np.abs(ev)):.4g} ≥ 1: the error does not decay")
+    x0v = check_vector(np.zeros(n) if xhat0 is None else xhat0, n, "xhat0", caller)
+    nu = system.n_inputs
+    s = Symbols.make(system, n + nu + p + 1)
+    x, u_prev, y_prev, started = s.z[:n], s.z[n:n + nu], s.z[n + nu:n + nu + p], s.z[n + nu + p]
+    Ad, Bd, Cd, Dd, Ld = (ca.DM(M) for M in (A, B, C, D, Lm))
+    step = Ad @ x + (Bd @ u_prev if nu else 0) + Ld @ (s.m * (y_prev - Cd @ x - (Dd @ u_prev if nu else 0)))
+    x_new = ca.if_else(started, step, x)
+    update = ca.vertcat(x_new, s.u, s.m * s.y, 1)
+    rate = float(np.max(np.abs(ev)))
+    checks = (Check("(A, C) observable (Kalman rank)", True, f"rank {obs.rank} = n"),
+              Check("eig(A − LC) inside the unit circle", True, f"max |z| = {rate:.4g}", "floating point"))
+    cert = Certificate("Luenberger observer (discrete time)", REF_DLUEN, checks,
+                       {"L": Lm, "eigenvalues": ev, "contraction per step": rate, "A": A, "C": C,
+                        "sample_time": system.sample_time})
+    x0 = ca.SX.sym("xhat0", n)
+    z0 = ca.vertcat(x0, ca.DM.zeros(nu + p), 0)
+    names = ([f"xhat_{v}" for v in system.states] + [f"u_prev_{v}" for v in system.inputs]
+             + [f"y_prev_{v}" for v in system.outputs] + ["started"])
+    return ObserverDesign.build("luenberger", system, s, z_names=names, flow=ca.SX.zeros(s.z.shape[0]), xhat=x,
+                                xhat0_sym=x0, z0=z0, xhat0=x0v, certificate=cert, update=update)

@@ -211,7 +211,7 @@ def gaussian_filter(ctx: Any, kind: str) -> Tuning:
 
 def sigma_points(ctx: Any) -> tuple[dict[str, float], str]:
     r"""α, β, κ of the UKF's and the square-root UKF's 2n + 1 sigma points :math:`\hat x,\ \hat x \pm \sqrt{c}\,L_i`
-    (:math:`c = n + \lambda = \alpha^2(n + \kappa)`, :func:`~nlobs.design._ukf.unscented_weights`), and the sentence
+    (:math:`c = n + \lambda = \alpha^2(n + \kappa)`, :func:`~nlobs.design.kalman._ukf.unscented_weights`), and the sentence
     that says why.
 
     - **Spread.** Julier & Uhlmann (2004)'s central weight W₀ = 1 − n/3 for a Gaussian prior (κ = 3 − n) matches some of

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from ..design._pf import ParticleDesign, square_roots
+from ..design.kalman._pf import ParticleDesign, square_roots
 from ._base import AbstractObserver
 from ._signals import signals_by_keyword
 from ..engine._codegen import _build, _generate, _renamed, built_path, signature_of

@@ -11,8 +11,6 @@ x̂[k|k] (filterpy's ``x`` after ``predict(); update(y)``).
   process noise per step.
 - UKF (Wan & van der Merwe (2000)): the scaled sigma points of filterpy's ``MerweScaledSigmaPoints``
   (α, β, κ), propagated through f; the update reuses the propagated points (as filterpy does).
-- Luenberger (linear maps): x̂[k+1] = A x̂[k] + B u[k] + L(y[k] − C x̂[k] − D u[k]), eig(A − LC) inside the
-  unit circle (the error e[k+1] = (A − LC) e[k]).
 """
 
 from __future__ import annotations
@@ -22,20 +20,18 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from ..analysis import kalman_rank
-from ..engine import compile_system
-from ..errors import FormError, PreconditionError
-from ..model import LTI, System
-from ..references import cite
-from ._base import Certificate, Check, ObserverDesign, Symbols, check_vector
-from ._checks import check_matrix
-from ._common import symmetric_part
+from ...engine import compile_system
+from ...errors import PreconditionError
+from ...model import System
+from ...references import cite
+from .._base import Certificate, Check, ObserverDesign, Symbols, check_vector
+from .._checks import check_matrix
+from .._common import symmetric_part
 
-__all__ = ["discrete_ekf", "discrete_ukf", "discrete_luenberger"]
+__all__ = ["discrete_ekf", "discrete_ukf"]
 
 REF_DEKF = f"Discrete-time extended Kalman filter ({cite('simon2006', '§13.2')}), Joseph-form update"
 REF_DUKF = f"Discrete-time unscented Kalman filter ({cite('wan2000')}), scaled sigma points"
-REF_DLUEN = f"Discrete-time Luenberger observer ({cite('002', 'Result [Luenberger]')}, stated for maps)"
 
 
 def _weights(system: System, Q: Any, R: Any, P0: Any, xhat0: Any, caller: str) -> tuple[np.ndarray, ...]:
@@ -161,60 +157,3 @@ def discrete_ukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any =
     names = _names(system, [f"xhat_{v}" for v in system.states] + [f"P_{i}_{j}" for j in range(n) for i in range(n)])
     return ObserverDesign.build("ukf", system, s, z_names=names, flow=ca.SX.zeros(s.z.shape[0]), xhat=x, xhat0_sym=x0,
                                 z0=z0, xhat0=x0v, certificate=cert, update=update, covariance=P)
-
-
-def discrete_luenberger(system: System, *, poles: Any = None, L: Any = None, xhat0: Any = None,
-                        caller: str = "design_luenberger") -> ObserverDesign:
-    """The discrete-time Luenberger observer of a linear map (see the module's docstring)."""
-    import scipy.signal
-
-    try:
-        lti = LTI.from_system(system)
-    except FormError as e:
-        raise PreconditionError(f"{caller}: {e}") from e
-    A, B, C, D = (np.asarray(M, dtype=float) for M in (lti.A, lti.B, lti.C, lti.D))
-    n, p = A.shape[0], C.shape[0]
-    obs = kalman_rank(A, C)
-    if not obs.observable:
-        raise PreconditionError(f"{caller}: {obs}. Pole placement needs (A, C) observable")
-    if (poles is None) == (L is None):
-        raise PreconditionError(f"{caller}: give `poles` (inside the unit circle) or the gain `L`, one of the two")
-    if L is None:
-        want = np.asarray(poles, dtype=complex).ravel()
-        if want.size != n:
-            raise PreconditionError(f"{caller}: `poles` needs {n} values (one per state), got {want.size}")
-        outside = want[np.abs(want) >= 1]
-        if outside.size:
-            raise PreconditionError(f"{caller}: the pole {complex(outside[0]):.4g} is not inside the unit circle "
-                                    f"(|z| = {abs(outside[0]):.4g} ≥ 1); a discrete-time observer needs |z| < 1 "
-                                    "(e.g. 0.5 for an error that halves every step)")
-        try:
-            Lm = scipy.signal.place_poles(A.T, C.T, want).gain_matrix.T
-        except ValueError as e:
-            raise PreconditionError(f"{caller}: these poles cannot be placed: {e}") from e
-    else:
-        Lm = check_matrix(L, n, p, "L", caller)
-    ev = np.linalg.eigvals(A - Lm @ C)
-    if np.max(np.abs(ev)) >= 1:
-        raise PreconditionError(f"{caller}: A − LC has the eigenvalue {complex(ev[np.argmax(np.abs(ev))]):.4g} with |z| = "
-                                f"{np.max(np.abs(ev)):.4g} ≥ 1: the error does not decay")
-    x0v = check_vector(np.zeros(n) if xhat0 is None else xhat0, n, "xhat0", caller)
-    nu = system.n_inputs
-    s = Symbols.make(system, n + nu + p + 1)
-    x, u_prev, y_prev, started = s.z[:n], s.z[n:n + nu], s.z[n + nu:n + nu + p], s.z[n + nu + p]
-    Ad, Bd, Cd, Dd, Ld = (ca.DM(M) for M in (A, B, C, D, Lm))
-    step = Ad @ x + (Bd @ u_prev if nu else 0) + Ld @ (s.m * (y_prev - Cd @ x - (Dd @ u_prev if nu else 0)))
-    x_new = ca.if_else(started, step, x)
-    update = ca.vertcat(x_new, s.u, s.m * s.y, 1)
-    rate = float(np.max(np.abs(ev)))
-    checks = (Check("(A, C) observable (Kalman rank)", True, f"rank {obs.rank} = n"),
-              Check("eig(A − LC) inside the unit circle", True, f"max |z| = {rate:.4g}", "floating point"))
-    cert = Certificate("Luenberger observer (discrete time)", REF_DLUEN, checks,
-                       {"L": Lm, "eigenvalues": ev, "contraction per step": rate, "A": A, "C": C,
-                        "sample_time": system.sample_time})
-    x0 = ca.SX.sym("xhat0", n)
-    z0 = ca.vertcat(x0, ca.DM.zeros(nu + p), 0)
-    names = ([f"xhat_{v}" for v in system.states] + [f"u_prev_{v}" for v in system.inputs]
-             + [f"y_prev_{v}" for v in system.outputs] + ["started"])
-    return ObserverDesign.build("luenberger", system, s, z_names=names, flow=ca.SX.zeros(s.z.shape[0]), xhat=x,
-                                xhat0_sym=x0, z0=z0, xhat0=x0v, certificate=cert, update=update)

@@ -7,14 +7,14 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from ..engine import compile_system
-from ..model import System
-from ..references import cite, work
-from ._base import Certificate, ObserverDesign, Symbols, check_vector
-from ._tune import robust_filter
-from ._kind import Tuning
-from ._kind import kind
-from ._common import require_system
+from ...engine import compile_system
+from ...model import System
+from ...references import cite, work
+from .._base import Certificate, ObserverDesign, Symbols, check_vector
+from .._tune import robust_filter
+from .._kind import Tuning
+from .._kind import kind
+from .._common import require_system
 from ._sqrt import covariance_inputs, lower_solve, lower_t_solve, sqrt_psd, tria
 
 __all__ = ["design_srekf"]

@@ -17,8 +17,8 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from ._base import Check
-from ._checks import check_matrix
+from .._base import Check
+from .._checks import check_matrix
 
 __all__ = ["tria", "lower_solve", "lower_t_solve", "phi", "sqrt_psd", "covariance_inputs", "unpack_lower", "pack_lower"]
 

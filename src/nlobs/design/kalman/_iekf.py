@@ -7,15 +7,15 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from ..engine import compile_system
-from ..errors import PreconditionError
-from ..model import System
-from ..references import cite, work
-from ._base import Certificate, Check, ObserverDesign, Symbols, check_vector
-from ._tune import robust_filter
-from ._kind import Tuning
-from ._kind import kind
-from ._common import require_system, symmetric_part
+from ...engine import compile_system
+from ...errors import PreconditionError
+from ...model import System
+from ...references import cite, work
+from .._base import Certificate, Check, ObserverDesign, Symbols, check_vector
+from .._tune import robust_filter
+from .._kind import Tuning
+from .._kind import kind
+from .._common import require_system, symmetric_part
 from ._sqrt import covariance_inputs
 
 __all__ = ["design_iekf"]

@@ -8,18 +8,18 @@ from typing import Any, Literal
 import casadi as ca
 import numpy as np
 
-from ..engine import compile_system
-from ..errors import PreconditionError
-from ..model import System
-from ..references import cite, work
-from ._base import Certificate, Check, ObserverDesign, Symbols, check_vector
-from ._tune import gaussian_filter
-from ._discrete import discrete_ekf
-from ._kind import Tuning
-from ._kind import kind
-from ._bounds import POLICY, bounds_check, check_start, clip_const, parse_bounds
-from ._checks import check_matrix
-from ._common import require_system, symmetric_part
+from ...engine import compile_system
+from ...errors import PreconditionError
+from ...model import System
+from ...references import cite, work
+from .._base import Certificate, Check, ObserverDesign, Symbols, check_vector
+from .._tune import gaussian_filter
+from ._maps import discrete_ekf
+from .._kind import Tuning
+from .._kind import kind
+from .._bounds import POLICY, bounds_check, check_start, clip_const, parse_bounds
+from .._checks import check_matrix
+from .._common import require_system, symmetric_part
 
 __all__ = ["design_ekf"]
 
