@@ -4,75 +4,81 @@ The data flow, one way: ``model`` (System, forms, model files) -> ``engine`` (Ca
 compilation, integrators, C) -> ``algebra`` -> ``analysis`` -> ``design`` (one function per method,
 returning an ObserverDesign with its evidence) -> ``observer`` (the runnable contract) ->
 ``simulate`` (plant + observers, noise, sampling, recorded data) -> ``report`` -> ``cli``.
+
+Every public name below is loaded when it is first used (PEP 562): ``import nlobs`` itself imports
+nothing heavy (SymPy, CasADi, SciPy and matplotlib load with the first model, run or plot), so
+that every ``nlobs`` command starts in a fraction of a second.
 """
 
-from . import analysis as analysis
-from . import design as design
-from . import engine as engine
-from . import model as model
-from . import observer as observer
-from .design import Certificate as Certificate
-from .design import ObserverDesign as ObserverDesign
-from .errors import ConvergenceWarning as ConvergenceWarning
-from .errors import DataError as DataError
-from .errors import FiniteEscapeError as FiniteEscapeError
-from .errors import SolverError as SolverError
-from .errors import TimeBudgetError as TimeBudgetError
-from .errors import FormError as FormError
-from .errors import ModelError as ModelError
-from .errors import ModelFileError as ModelFileError
-from .errors import NlobsError as NlobsError
-from .errors import PreconditionError as PreconditionError
-from .errors import ShapeError as ShapeError
-from .model import LTI as LTI
-from .model import StateAffine as StateAffine
-from .model import System as System
-from .model import load_model as load_model
-from .model import loads_model as loads_model
-from .observer import CompiledObserver as CompiledObserver
-from .observer import Observer as Observer
-from .observer import OnlineObserver as OnlineObserver
-from .simulate import Adaptive as Adaptive
-from .simulate import MonteCarloResult as MonteCarloResult
-from .simulate import Noise as Noise
-from .simulate import ProcessNoise as ProcessNoise
-from .simulate import Recording as Recording
-from .simulate import Run as Run
-from .simulate import Sampling as Sampling
-from .simulate import Simulation as Simulation
-from .simulate import estimate as estimate
-from .simulate import fit_parameters as fit_parameters
-from .simulate import LikelihoodFit as LikelihoodFit
-from .simulate import fit_likelihood as fit_likelihood
-from .simulate import log_likelihood as log_likelihood
-from .simulate import montecarlo as montecarlo
-from .simulate import simulate as simulate
-from .design import DREM as DREM
-from .design import GD as GD
-from .design import Gradient as Gradient
-from .design import LeastSquares as LeastSquares
-from .design import LinearRegression as LinearRegression
-from .design import WindowedNLS as WindowedNLS
-from .design import excitation_report as excitation_report
-from .design import KINDS as KINDS
-from .design import DESIGN_FUNCTIONS as _DESIGN_FUNCTIONS
+from __future__ import annotations
 
-# one public function per observer kind, read from the registry (nlobs.design_ekf is nlobs.design.KINDS["ekf"].design)
-globals().update(_DESIGN_FUNCTIONS)
+import importlib
+import sys
+import types
+from typing import Any
 
 from ._version import __version__ as __version__
-from .analysis import analyze as analyze  # noqa: E402
-from .observer import CExport as CExport  # noqa: E402
-from .observer import export_c as export_c  # noqa: E402
-from . import interop as interop  # noqa: E402
-from .interop import from_control as from_control  # noqa: E402
-from .interop import to_control as to_control  # noqa: E402
-from . import advise as _advise_pkg  # noqa: E402
-from .advise import Advice as Advice  # noqa: E402
-from .advise import advise as advise  # noqa: E402
+
+#: Public name -> (module, attribute); attribute None: the module itself.
+_LAZY: dict[str, tuple[str, str | None]] = {
+    **{name: (f".{name}", None) for name in ("analysis", "design", "engine", "model", "observer", "interop", "errors",
+                                             "references", "algebra")},
+    **{name: (".design", name) for name in ("Certificate", "ObserverDesign", "DREM", "GD", "Gradient", "LeastSquares",
+                                            "LinearRegression", "WindowedNLS", "excitation_report", "KINDS")},
+    **{name: (".errors", name) for name in ("ConvergenceWarning", "DataError", "FiniteEscapeError", "SolverError",
+                                            "TimeBudgetError", "FormError", "ModelError", "ModelFileError", "NlobsError",
+                                            "PreconditionError", "ShapeError", "EngineError")},
+    **{name: (".model", name) for name in ("LTI", "StateAffine", "System", "load_model", "loads_model")},
+    **{name: (".observer", name) for name in ("CompiledObserver", "Observer", "OnlineObserver", "CExport", "export_c")},
+    **{name: (".simulate", name) for name in ("Adaptive", "MonteCarloResult", "Noise", "ProcessNoise", "Recording", "Run",
+                                              "Sampling", "Simulation", "estimate", "fit_parameters", "LikelihoodFit",
+                                              "fit_likelihood", "log_likelihood", "montecarlo", "simulate")},
+    "analyze": (".analysis", "analyze"),
+    "from_control": (".interop", "from_control"),
+    "to_control": (".interop", "to_control"),
+    "Advice": (".advise", "Advice"),
+    "advise": (".advise", "advise"),
+}
+
+#: Functions whose name is also a subpackage's: the attribute stays the function when the subpackage is imported.
+_SHADOWED = frozenset(("simulate", "advise"))
 
 
-def __getattr__(name: str):  # PEP 562: renamed functions keep their old name for one release, with a DeprecationWarning
-    if name in design.RENAMED:
-        return getattr(design, name)
+def _load(name: str) -> Any:
+    module, attr = _LAZY[name]
+    mod = importlib.import_module(module, __name__)
+    value = mod if attr is None else getattr(mod, attr)
+    globals()[name] = value
+    return value
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return _load(name)
+    if name.startswith("design_"):   # one public function per observer kind, read from the registry
+        design = importlib.import_module(".design", __name__)
+        if name in design.DESIGN_FUNCTIONS:
+            globals()[name] = design.DESIGN_FUNCTIONS[name]
+            return globals()[name]
+        if name in design.RENAMED:   # renamed functions keep their old name for one release, with a DeprecationWarning
+            return getattr(design, name)
     raise AttributeError(f"module 'nlobs' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    from .design import DESIGN_FUNCTIONS
+
+    return sorted({*globals(), *_LAZY, *DESIGN_FUNCTIONS})
+
+
+class _Package(types.ModuleType):
+    """Importing the subpackage ``nlobs.simulate`` (or ``nlobs.advise``) sets the attribute of that name on the
+    package; here it stays the function of that name, as ``from nlobs import simulate`` has always given."""
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if name in _SHADOWED and isinstance(value, types.ModuleType):
+            return
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
