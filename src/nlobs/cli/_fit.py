@@ -108,7 +108,7 @@ def _likelihood(args: argparse.Namespace, mf: Any, rec: Any) -> int:
     """``nlobs fit --method likelihood``: the innovations likelihood of a configured EKF/UKF."""
     from ..design import design_from_config
     from ..simulate import fit_likelihood
-    from ..simulate._likelihood import LIKELIHOOD_KINDS
+    from ..simulate.learning._likelihood import LIKELIHOOD_KINDS
 
     unused = [flag for flag, given in (("--fit-x0", args.fit_x0), ("--x0", args.x0), ("--bound", args.bound),
                                        ("--output-std", args.output_std), ("--output", args.output))

@@ -39,13 +39,13 @@ from typing import Any, Literal
 import casadi as ca
 import numpy as np
 
-from ..design import ObserverDesign
-from ..engine import Backend, compile_system, rows
-from ..engine._integrate import rk4_step_rate
-from ..errors import DataError, ModelError, PreconditionError
-from ..references import cite
-from ._loop import Loop
-from ._recorded import Recording
+from ...design import ObserverDesign
+from ...engine import Backend, compile_system, rows
+from ...engine._integrate import rk4_step_rate
+from ...errors import DataError, ModelError, PreconditionError
+from ...references import cite
+from .._loop import Loop
+from .._recorded import Recording
 
 __all__ = ["log_likelihood", "fit_likelihood", "LikelihoodFit", "LIKELIHOOD_KINDS"]
 
@@ -101,7 +101,7 @@ class _Recursion:
         sym = lambda M: (M + M.T) / 2  # noqa: E731
         ukf = d.method == "ukf"
         if ukf:
-            from ..design._ukf import unscented_weights
+            from ...design._ukf import unscented_weights
 
             wm, wc, spread = unscented_weights(n, float(v["alpha"]), float(v["beta"]), float(v["kappa"]))
 
@@ -255,10 +255,10 @@ class _Problem:
         t, u = recording.t, recording.u
         y = np.where(mask > 0, recording.y, 0.0)
         # sub-steps: the filter's own rule, run at the initial guess (the most it takes in one interval)
-        from ..observer._compiled import compiled_observer
+        from ...observer._compiled import compiled_observer
 
         if system.is_discrete:   # a map: one step per sample, on the model's grid
-            from ._discrete import check_map_grid
+            from .._discrete import check_map_grid
 
             check_map_grid(system, t, f"{caller}: recording ({recording.source})")
             traj = None
