@@ -1,0 +1,12 @@
+"""Learning from recordings: model parameters (and noise levels) fitted to measured data.
+
+- :func:`fit_parameters`: simulation-error least squares (the model run open loop on the recorded input);
+- :func:`log_likelihood`, :func:`fit_likelihood`: the innovations likelihood of an EKF or UKF, which accounts
+  for process noise and can learn Q and R.
+"""
+
+from ._simulation_error import FitResult as FitResult
+from ._simulation_error import fit_parameters as fit_parameters
+from ._likelihood import LikelihoodFit as LikelihoodFit
+from ._likelihood import fit_likelihood as fit_likelihood
+from ._likelihood import log_likelihood as log_likelihood
