@@ -1,5 +1,5 @@
-"""The advisor on a discrete-time model: the kinds that run on maps are tuned and run, the others are refused as
-continuous-time only, and a linear map gets poles inside the unit circle."""
+"""The advisor on a discrete-time model: the kinds that run on maps (the Kalman family, the particle filter, MHE) are
+tuned and run, the others are refused as continuous-time only, and a linear map gets poles inside the unit circle."""
 
 from __future__ import annotations
 
@@ -36,13 +36,15 @@ def test_a_map_is_advised_with_the_kinds_that_run_on_maps(tmp_path):
     path.write_text(RICKER)
     adv = nlobs.advise(nlobs.load_model(path), run=True)
     applies = {c.kind for c in adv.candidates if c.applies}
-    assert applies == {"ekf", "ukf", "mhe"}
+    assert applies == {"ekf", "ukf", "mhe", "srukf", "srekf", "iekf", "pf"}
     assert adv.candidate("high_gain").why == "continuous-time only (the model is discrete-time)"
+    assert "mode" not in adv.candidate("ekf").options   # a map's EKF is the discrete-time filter
+    assert "bounds" not in adv.candidate("srukf").options
     est = {s.kind: s for s in adv.scores}
-    assert est["ekf"].status == "ok" and est["ekf"].convergence_time is not None
-    assert est["mhe"].status == "ok"                   # the moving horizon on the map runs in the advisor too
-    r_hat = adv.run.observers["ekf"].xhat[-1, 1]
-    assert abs(r_hat - 1.4) < 0.05                      # the growth rate recovered (true 1.4, guess 1.2)
+    for k in applies:
+        assert est[k].status == "ok" and est[k].convergence_time is not None, (k, est[k])
+        r_hat = adv.run.observers[k].xhat[-1, 1]
+        assert abs(r_hat - 1.4) < 0.05, (k, r_hat)     # the growth rate recovered (true 1.4, guess 1.2)
     assert adv.forms == ()                              # the ODE forms are not shown for a map
 
 

@@ -152,3 +152,71 @@ def test_unknown_options_are_rejected(case):
     if isinstance(model, System):
         with pytest.raises(ModelError, match=f"unknown option `not_an_option` for kind '{kind}'"):
             design_from_config(model, kind, {**copy.deepcopy(tuning), "not_an_option": 1})
+
+
+# -- discrete-time models (maps): every kind that runs on maps, on one map ---------------------------------------
+# a damped pendulum discretised by hand (Euler, its own map: no integrator between steps), angle measured
+T_MAP = 0.05
+PEND_MAP = System(states=["x1", "x2"], f=[f"x1 + {T_MAP}*x2", f"x2 + {T_MAP}*(-2*sin(x1) - 0.5*x2 + u)"], inputs=["u"],
+                  outputs=["y"], h=["x1"], time="discrete", sample_time=T_MAP, name="pend_map")
+LIN_MAP = System(states=["x1", "x2"], f=["0.9*x1 + 0.2*x2", "-0.1*x1 + 0.95*x2 + u"], inputs=["u"], outputs=["y"], h=["x1"],
+                 time="discrete", sample_time=0.1, name="lin_map")
+_QM, _RM = np.eye(2) * 1e-6, [[1e-4]]
+# kind -> (plant, tuning, x0, xhat0, t_final, final-error tolerance): noise-free runs from x̂(0) = 0
+MAP_CASES = {
+    "luenberger": (LIN_MAP, dict(poles=[0.5, 0.4]), [1.0, -1.0], [0.0, 0.0], 4.0, 1e-6),
+    "ekf": (PEND_MAP, dict(Q=_QM, R=_RM), [1.0, 0.0], [0.0, 0.0], 8.0, 1e-3),
+    "ukf": (PEND_MAP, dict(Q=_QM, R=_RM), [1.0, 0.0], [0.0, 0.0], 8.0, 1e-3),
+    "srukf": (PEND_MAP, dict(Q=_QM, R=_RM), [1.0, 0.0], [0.0, 0.0], 8.0, 1e-3),
+    "srekf": (PEND_MAP, dict(Q=_QM, R=_RM), [1.0, 0.0], [0.0, 0.0], 8.0, 1e-3),
+    "iekf": (PEND_MAP, dict(Q=_QM, R=_RM, iterations=3), [1.0, 0.0], [0.0, 0.0], 8.0, 1e-3),
+    "mhe": (PEND_MAP, dict(horizon=8, Q=_QM, R=_RM, P0=np.eye(2)), [1.0, 0.0], [0.0, 0.0], 4.0, 1e-3),
+    # a particle cloud: Monte Carlo error ~ σ/√ESS (σ = 0.01 from R)
+    "pf": (PEND_MAP, dict(Q=np.eye(2) * 1e-5, R=_RM, P0=np.eye(2) * 0.5, particles=2000), [1.0, 0.0], [0.0, 0.0], 8.0, 2e-2),
+}
+
+
+def test_every_kind_that_runs_on_maps_has_a_map_case_and_the_others_refuse_one():
+    on_maps = {k for k, v in KINDS.items() if v.runs_on("discrete")}
+    assert on_maps == set(MAP_CASES), f"map cases missing for {sorted(on_maps - set(MAP_CASES))}, extra {sorted(set(MAP_CASES) - on_maps)}"
+    with pytest.raises(Exception, match="continuous-time only"):
+        KINDS["high_gain"].design(PEND_MAP, theta=2.0)
+
+
+@pytest.fixture(params=sorted(MAP_CASES))
+def map_case(request):
+    return (request.param, *MAP_CASES[request.param])
+
+
+def test_map_designs_are_deterministic_and_leave_their_inputs_alone(map_case):
+    kind, model, tuning, x0, xhat0, *_ = map_case
+    given = copy.deepcopy(tuning)
+    d1, d2 = KINDS[kind].design(model, **given, xhat0=list(xhat0)), KINDS[kind].design(model, **copy.deepcopy(tuning), xhat0=xhat0)
+    for k, v in tuning.items():
+        assert np.array_equal(np.asarray(given[k], dtype=object), np.asarray(v, dtype=object))
+    t = np.arange(30) * model.sample_time
+    u, y = np.sin(t)[:, None], np.cos(t)[:, None]
+    if isinstance(d1, ParticleDesign):
+        r1, r2 = particle_runner(d1).run(t, u=u, y=y), particle_runner(d2).run(t, u=u, y=y)
+        assert r1.z.shape == (30, d1.n_z) and np.array_equal(r1.z, r2.z)
+    else:
+        assert d1.update is not None and d1.update.size1_out(0) == d1.n_z
+        z1, z2 = Observer(d1).initial_state(), Observer(d2).initial_state()
+        for k in range(5):   # the update of a map: predict from the previous step, correct with y
+            z1 = np.asarray(d1.update(t[k], z1, u[k], y[k], [1.0]), dtype=float).ravel()
+            z2 = np.asarray(d2.update(t[k], z2, u[k], y[k], [1.0]), dtype=float).ravel()
+        assert np.array_equal(z1, z2) and np.all(np.isfinite(z1))
+        assert "discrete time" in str(d1)
+    assert d1.certificate.reference
+    with pytest.raises(TypeError):
+        KINDS[kind].design(model, **copy.deepcopy(tuning), not_an_option=1)
+
+
+def test_map_designs_converge_on_their_plant_and_on_its_recording(map_case):
+    kind, model, tuning, x0, xhat0, t_final, tol = map_case
+    d = KINDS[kind].design(model, **copy.deepcopy(tuning), xhat0=xhat0)
+    run = simulate(model, {kind: d}, t_final=t_final, x0=x0, inputs={"u": "sin(t)"})
+    assert run.info["time"] == "discrete" and run.metrics(kind).final_error < tol
+    offline = estimate({kind: d}, Recording.from_run(run))
+    assert offline.metrics(kind).final_error < tol
+    np.testing.assert_allclose(offline.observers[kind].xhat, run.observers[kind].xhat, rtol=0, atol=1e-12)

@@ -279,7 +279,7 @@ def test_the_map_smoother_is_the_extended_rts_smoother():
     assert err(ukf.observers["ukf"].xhat) < err(ukf.observers["ukf"].filtered)
     lue = nlobs.design_luenberger(nlobs.System(states=["x"], outputs=["y"], f=["0.5*x"], h=["x"], time="discrete",
                                                sample_time=0.1), poles=[0.2])
-    with pytest.raises(PreconditionError, match="smoothers of a discrete-time model exist for its ekf and ukf"):
+    with pytest.raises(PreconditionError, match="smoothers of a discrete-time model exist for its ekf, srekf, iekf, ukf, srukf"):
         nlobs.estimate(lue, nlobs.Recording.from_arrays(lue.system, [0.0, 0.1], [[1.0], [0.5]]), smooth=True)
 
 

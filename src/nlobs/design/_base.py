@@ -234,7 +234,7 @@ class ObserverDesign:
         return self.update is not None
 
     def __str__(self) -> str:
-        kind = "continuous-discrete" if self.sampled else "continuous"
+        kind = "discrete time" if self.system.is_discrete else "continuous-discrete" if self.sampled else "continuous"
         return (f"{self.method} observer for {self.system.name!r} ({kind}, {self.n_z} internal states)\n"
                 + str(self.certificate))
 

@@ -191,7 +191,7 @@ def domain_bounds(ctx: Any) -> dict[str, list[float | None]]:
 
 def gaussian_filter(ctx: Any, kind: str) -> Tuning:
     opts: dict[str, Any] = {"Q": square(ctx.Q), "R": square(ctx.R), "P0": square(ctx.P0)}
-    if kind == "ekf":
+    if kind == "ekf" and not ctx.system.is_discrete:   # a map's EKF is the discrete-time filter: no mode
         opts["mode"] = "continuous-discrete"
     bounds = domain_bounds(ctx) if not ctx.system.is_discrete else {}
     if bounds:
@@ -307,7 +307,7 @@ def robust_filter(ctx: Any, kind: str) -> Tuning:
     if kind == "srukf":
         extra_opts, spread = sigma_points(ctx)
         opts.update(extra_opts)
-        bounds = domain_bounds(ctx)
+        bounds = domain_bounds(ctx) if not ctx.system.is_discrete else {}   # the map filters take no bounds yet
         if bounds:
             opts["bounds"] = bounds
             spread += ("; bounds " + ", ".join(f"{k} in [{'-inf' if v[0] is None else f'{v[0]:g}'}, "

@@ -1,7 +1,8 @@
 """The particle filter's compiled loop: CasADi-generated model functions called from a C loop over samples and particles.
 
 See :func:`nlobs.design.design_pf` for the filter. One call runs the whole recording: per sample, the particles'
-RK4 steps with process noise, the Gaussian log-likelihoods, normalisation, the weighted mean and covariance,
+RK4 steps with process noise (on a discrete-time model: one step of its map, then the noise of one step), the
+Gaussian log-likelihoods, normalisation, the weighted mean and covariance,
 the effective sample size and systematic resampling. Random numbers come from xoshiro256** (Blackman & Vigna)
 seeded by splitmix64 from the design's seed, so a run is reproducible bit for bit.
 """
@@ -153,10 +154,12 @@ static double loglik(const double* x, double t, const double* u, const double* y
   q = cst - 0.5 * q;
   return q == q ? q : -INFINITY;  /* outside the model's domain (NaN output): weight 0 */
 }
-/* move every particle over one interval: nsub RK4 steps of length h, each followed by sqrt(h) Lq xi */
+/* move every particle over one interval: nsub RK4 steps of length h, each followed by sqrt(h) Lq xi; on a map
+   (map != 0) one step of the map followed by Lq xi (Q is the covariance per step) */
 static double* nbuf;  /* M * NX standard normals, drawn in one tight loop per step */
-static void move(double* X, long long M, double t0, double h, long long nsub, const double* u, const double* Lq, int noise) {
-  double tmp[NX + 1], sq = sqrt(h);
+static void move(double* X, long long M, double t0, double h, long long nsub, const double* u, const double* Lq, int noise,
+                 long long map) {
+  double tmp[NX + 1], sq = map ? 1.0 : sqrt(h);
   long long i, s, j;
   int a, b;
   for (s = 0; s < nsub; ++s) {
@@ -209,7 +212,7 @@ static void gather(const double* X, const long long* idx, long long M, double* o
 
 static long long pf_loop(const double* t, const double* U, const double* Y, const double* W, const double* cst,
                    const double* nsub, const double* x0, const double* L0, const double* Lq, long long N, long long M,
-                   long long aux, double thresh, long long seed, double* X, double* Xb, double* lw, double* wk,
+                   long long aux, long long map, double thresh, long long seed, double* X, double* Xb, double* lw, double* wk,
                    double* mu, double* lmu, long long* idx, double* xhat, double* P, double* ess, double* resampled,
                    double* ll, double* xprior) {
   long long k, i;
@@ -231,7 +234,7 @@ static long long pf_loop(const double* t, const double* U, const double* Y, cons
       double h = (t[k] - t[k - 1]) / nsub[k - 1];
       if (aux) {  /* Pitt & Shephard: first stage on the noise-free moves mu_i */
         memcpy(mu, X, sizeof(double) * M * NX);
-        move(mu, M, t[k - 1], h, (long long)nsub[k - 1], u, Lq, 0);
+        move(mu, M, t[k - 1], h, (long long)nsub[k - 1], u, Lq, 0, map);
         wmean(mu, wk, M, xprior + k * NX);
         for (i = 0; i < M; ++i) { lmu[i] = loglik(mu + i * NX, t[k], U + k * NU, y, Wk, cst[k]); lw[i] += lmu[i]; }
         s = normalise(lw, wk, M);
@@ -239,7 +242,7 @@ static long long pf_loop(const double* t, const double* U, const double* Y, cons
         systematic(wk, M, idx);
         gather(X, idx, M, Xb);
         memcpy(X, Xb, sizeof(double) * M * NX);
-        move(X, M, t[k - 1], h, (long long)nsub[k - 1], u, Lq, 1);
+        move(X, M, t[k - 1], h, (long long)nsub[k - 1], u, Lq, 1, map);
         for (i = 0; i < M; ++i) lw[i] = loglik(X + i * NX, t[k], U + k * NU, y, Wk, cst[k]) - lmu[idx[i]];
         resampled[k] = 1;
         /* log p(y_k | y_1:k-1) ~ log sum_i w_i p(y|mu_i) + log mean_i of the second-stage weights */
@@ -248,7 +251,7 @@ static long long pf_loop(const double* t, const double* U, const double* Y, cons
         if (!(s == s)) return k + 1;
         ll[k] += s - log((double)M);
       } else {
-        move(X, M, t[k - 1], h, (long long)nsub[k - 1], u, Lq, 1);
+        move(X, M, t[k - 1], h, (long long)nsub[k - 1], u, Lq, 1, map);
         wmean(X, wk, M, xprior + k * NX);
       }
     } else {
@@ -295,10 +298,10 @@ static long long pf_loop(const double* t, const double* U, const double* Y, cons
 
 long long nlobs_pf(const double* t, const double* U, const double* Y, const double* W, const double* cst,
                    const double* nsub, const double* x0, const double* L0, const double* Lq, long long N, long long M,
-                   long long aux, double thresh, long long seed, double* X, double* Xb, double* lw, double* wk,
+                   long long aux, long long map, double thresh, long long seed, double* X, double* Xb, double* lw, double* wk,
                    double* mu, double* lmu, long long* idx, double* xhat, double* P, double* ess, double* resampled,
                    double* ll, double* xprior) {
-  long long rc = pf_loop(t, U, Y, W, cst, nsub, x0, L0, Lq, N, M, aux, thresh, seed, X, Xb, lw, wk, mu, lmu, idx, xhat, P,
+  long long rc = pf_loop(t, U, Y, W, cst, nsub, x0, L0, Lq, N, M, aux, map, thresh, seed, X, Xb, lw, wk, mu, lmu, idx, xhat, P,
                          ess, resampled, ll, xprior);
   free(nbuf);
   nbuf = 0;
@@ -372,7 +375,7 @@ class ParticleRunner:
         lib = ctypes.CDLL(str(path))
         fn = lib.nlobs_pf
         dbl, ll = ctypes.POINTER(ctypes.c_double), ctypes.c_longlong
-        fn.argtypes = [dbl] * 9 + [ll, ll, ll, ctypes.c_double, ll] + [dbl] * 6 + [ctypes.POINTER(ctypes.c_longlong)] + [dbl] * 6
+        fn.argtypes = [dbl] * 9 + [ll, ll, ll, ll, ctypes.c_double, ll] + [dbl] * 6 + [ctypes.POINTER(ctypes.c_longlong)] + [dbl] * 6
         fn.restype = ll
         lib.nlobs_normals.argtypes = [ll, ll, ctypes.POINTER(ctypes.c_double)]
         lib.nlobs_normals.restype = ll
@@ -425,7 +428,7 @@ class ParticleRunner:
         p = ctypes.POINTER(ctypes.c_double)
         rc = self._fn(t.ctypes.data_as(p), U.ctypes.data_as(p), y.ctypes.data_as(p), W.ctypes.data_as(p), cst.ctypes.data_as(p),
                       nsub.ctypes.data_as(p), x0.ctypes.data_as(p), L0.ctypes.data_as(p), Lq.ctypes.data_as(p), N, M,
-                      int(d.scheme == "auxiliary"), d.threshold, int(d.seed if seed is None else seed),
+                      int(d.scheme == "auxiliary"), int(d.system.is_discrete), d.threshold, int(d.seed if seed is None else seed),
                       X.ctypes.data_as(p), Xb.ctypes.data_as(p), lw.ctypes.data_as(p), wk.ctypes.data_as(p),
                       mu.ctypes.data_as(p), lmu.ctypes.data_as(p), idx.ctypes.data_as(ctypes.POINTER(ctypes.c_longlong)),
                       xhat.ctypes.data_as(p), P.ctypes.data_as(p), ess.ctypes.data_as(p), res.ctypes.data_as(p),

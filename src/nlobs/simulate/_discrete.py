@@ -1,9 +1,11 @@
 r"""Discrete-time models: the plant iterates its map, the observers update at every step.
 
 x[k+1] = f(x[k], u[k], t[k]) + w[k] (w[k] the process noise of the step), y[k] = h(x[k], u[k], t[k]) + v[k],
-t[k] = k·sample_time. The whole run is one CasADi ``mapaccum`` per plant and per observer (a loop in compiled code,
-not in Python): the plant's map, then each observer's update z[k] = U(t[k], z[k−1], u[k], y[k], m[k]) over the
-measurements, from the observer's prior state at k = 0.
+t[k] = k·sample_time. The plant is one CasADi ``mapaccum`` (a loop in compiled code, not in Python); each observer
+then runs over the measurements on its own (:func:`~nlobs.simulate._isolate.each_observer`: one observer's failure is
+its own), a Gaussian filter as its compiled update loop z[k] = U(t[k], z[k−1], u[k], y[k], m[k]) from its prior state
+at k = 0, a particle filter as its compiled particle loop. :func:`estimate_map` runs the same observers on a
+recording one row per step, with the fixed-interval smoothers of :mod:`._smooth_map`.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ import numpy as np
 
 from ..design import ObserverDesign
 from ..engine import compile_system
-from ..errors import DataError, FiniteEscapeError, ModelError, ShapeError
+from ..errors import DataError, FiniteEscapeError, ModelError, PreconditionError, ShapeError
 from ..model import System, input_signals
 from ..engine import Backend
 from ..observer import AbstractObserver, ParticleObserver, compiled_observer
@@ -26,7 +28,8 @@ from ._options import Noise, ProcessNoise, Sampling
 from ._options import xhat0_for as _xhat0_for
 from ._results import ObserverTrace, Run
 
-__all__ = ["simulate_map", "run_map_observer", "check_map_grid", "MAX_MAP_STEPS"]
+__all__ = ["simulate_map", "estimate_map", "map_trace", "run_map_observer", "check_map_grid", "MAX_MAP_STEPS",
+           "MAP_SMOOTHABLE"]
 
 #: The most steps a discrete-time simulation stores.
 MAX_MAP_STEPS = 10_000_000
@@ -100,9 +103,9 @@ def simulate_map(plant: System, obs: Mapping[str, AbstractObserver], *, t_final:
         raise ShapeError(f"{caller}: {plant.name!r} is a discrete-time model, measured at every step; `sampling` does "
                          "not apply")
     for name, o in obs.items():
-        if isinstance(o, ParticleObserver) or not o.system.is_discrete:
+        if not o.system.is_discrete:
             raise ModelError(f"{caller}: observer {name!r} is a continuous-time design; {plant.name!r} is a discrete-time "
-                             "model (design it on the discrete model: kinds ekf, ukf, luenberger)")
+                             "model (design it on the discrete model: the kinds of `nlobs kinds` that run on maps)")
     N = _steps(plant, t_final, dt, caller)
     Ts = plant.sample_time
     t = np.arange(N + 1) * Ts
@@ -131,11 +134,43 @@ def simulate_map(plant: System, obs: Mapping[str, AbstractObserver], *, t_final:
         raise err
     Y_true = np.asarray(h.map(N + 1)(t[None, :], X.T, U.T), dtype=float).T.reshape(N + 1, plant.n_outputs)
     Y = Y_true + V
-    mask = np.ones_like(Y)
-    traces, failures = {}, {}
+    traces, failures, extra = _observers_on(obs, t, U, Y, np.ones_like(Y), xhat0, innovations=False)
+    if extra:
+        info["particles"] = extra
+    return Run(plant.name, t, plant.states, plant.inputs, plant.outputs, U, Y, traces, x=X, y_true=Y_true,
+               info={**info, "units": dict(getattr(plant, "units", None) or {})}, estimated_params=plant.estimated_params,
+               failures=failures)
+
+
+def map_trace(name: str, o: AbstractObserver, t: np.ndarray, U: np.ndarray, Y: np.ndarray, mask: np.ndarray, z0: np.ndarray,
+              *, innovations: bool = True) -> tuple[ObserverTrace, dict[str, Any]]:
+    """One observer of a map over its samples (Y with 0 where `mask` is 0): its trace (with the innovations
+    y[k] − ŷ[k|k−1] when `innovations`) and, for a particle filter, its ESS and resampling counts."""
+    if isinstance(o, ParticleObserver):   # its compiled particle loop over the samples
+        pr, yp = o.trace_on(t, Y, U, mask=mask, xhat0=z0, name=name)
+        inn = np.where(mask > 0, Y - yp, np.nan) if innovations else None
+        trace = ObserverTrace(name, o.design.method, o.design.z_names, pr.z, pr.xhat, pr.xhat_prior[0],
+                              covariance=o.design.covariance, innovation=inn)
+        return trace, {"particles": o.design.particles, "samples": int(t.size), "min_ess": float(pr.ess.min()),
+                       "resampled": int(pr.resampled.sum())}
+    Z, Xh = run_map_observer(o.design, t, U, Y, mask, z0, name=name)
+    prior = o.estimate(t[0], z0, U[0], Y[0])
+    inn = _map_innovations(o.system, t, U, Y, mask, Xh, prior) if innovations else None
+    return ObserverTrace(name, o.design.method, o.design.z_names, Z, Xh, prior, covariance=o.design.covariance,
+                         innovation=inn), {}
+
+
+def _observers_on(obs: Mapping[str, AbstractObserver], t: np.ndarray, U: np.ndarray, Y: np.ndarray, mask: np.ndarray,
+                  xhat0: Any, *, innovations: bool) -> tuple[dict[str, ObserverTrace], dict[str, Any], dict[str, Any]]:
+    """Every observer on its own (:func:`each_observer`): the traces, the failures (an observer's blow-up or solver
+    failure is its own; anything else is raised; when all fail, the first error) and the particle filters' counts.
+    Particle filters and NLP estimators run one after another (their compiled loop and solver keep process-wide
+    state), the others side by side."""
     z0s = {name: o.initial_state(_xhat0_for(xhat0, name, o.system.n_states)) for name, o in obs.items()}
-    done = each_observer(list(obs), lambda name: run_map_observer(obs[name].design, t, U, Y, mask, z0s[name], name=name),
-                         alone=[k for k, o in obs.items() if o.design.needs_mx])
+    alone = [k for k, o in obs.items() if isinstance(o, ParticleObserver) or o.design.needs_mx]
+    done = each_observer(list(obs), lambda name: map_trace(name, obs[name], t, U, Y, mask, z0s[name],
+                                                           innovations=innovations), alone=alone)
+    traces, failures, extra = {}, {}, {}
     for name, o in obs.items():
         res = done[name]
         if isinstance(res, BaseException):   # one observer's failure: the others keep their results
@@ -143,11 +178,69 @@ def simulate_map(plant: System, obs: Mapping[str, AbstractObserver], *, t_final:
                 raise res
             failures[name] = failure_of(name, o.design.method, res)
             continue
-        Z, Xh = res
-        prior = o.estimate(t[0], z0s[name], U[0], Y[0])
-        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, Z, Xh, prior, covariance=o.design.covariance)
+        traces[name], more = res
+        if more:
+            extra[name] = more
     if failures and not traces:
         raise done[next(iter(failures))]   # type: ignore[misc]
-    return Run(plant.name, t, plant.states, plant.inputs, plant.outputs, U, Y, traces, x=X, y_true=Y_true,
-               info={**info, "units": dict(getattr(plant, "units", None) or {})}, estimated_params=plant.estimated_params,
-               failures=failures)
+    return traces, failures, extra
+
+
+#: The kinds whose run on a map has a fixed-interval smoother (:mod:`._smooth_map`): the extended RTS smoother for the
+#: EKF's prediction (ekf, and srekf and iekf, which predict as it does), the unscented one for the sigma-point filters.
+MAP_SMOOTHABLE = ("ekf", "srekf", "iekf", "ukf", "srukf")
+
+
+def estimate_map(obs: Mapping[str, AbstractObserver], recording: Any, t: np.ndarray, u: np.ndarray, y0: np.ndarray,
+                 mask: np.ndarray, xhat0: Any, smooth: bool) -> Run:
+    """Observers of a discrete-time model on a recording on its grid (one row per step; NaN: not measured), each on
+    its own; `smooth`: the fixed-interval smoother of each (see :data:`MAP_SMOOTHABLE`)."""
+    if not all(o.system.is_discrete for o in obs.values()):
+        raise ModelError("estimate: a discrete-time model's observers run alone (no continuous-time observers beside "
+                         "them)")
+    if smooth:
+        bad = [k for k, o in obs.items() if o.design.method not in MAP_SMOOTHABLE or o.design.covariance is None]
+        if bad:
+            pf = " (a particle filter's smoother, by backward simulation, is not available)" \
+                if obs[bad[0]].design.method == "pf" else ""
+            raise PreconditionError(f"smoothing: observer {bad[0]!r} is of kind {obs[bad[0]].design.method!r}; smoothers of "
+                                    f"a discrete-time model exist for its {', '.join(MAP_SMOOTHABLE)}{pf}")
+    for o in obs.values():
+        check_map_grid(o.system, t, f"recording ({recording.source})")
+    traces, failures, extra = _observers_on(obs, t, u, y0, mask, xhat0, innovations=True)
+    traces = {name: _smoothed(obs[name], tr, t, u) if smooth else tr for name, tr in traces.items()}
+    system = next(iter(obs.values())).system
+    info: dict[str, Any] = {"source": recording.source, "time": "discrete", "sample_time": system.sample_time}
+    if extra:
+        info["particles"] = extra
+    return Run(system.name, t, system.states, recording.input_names, recording.output_names, u,
+               np.where(mask > 0, recording.y, np.nan), traces, x=recording.x, info=info,
+               estimated_params=system.estimated_params, failures=failures)
+
+
+def _smoothed(o: AbstractObserver, tr: ObserverTrace, t: np.ndarray, u: np.ndarray) -> ObserverTrace:
+    """The trace with the smoothed means (Rauch-Tung-Striebel on the map, unscented for the sigma-point filters), the
+    filtered ones kept as `filtered`."""
+    from dataclasses import replace
+
+    from ..engine import evaluate_many
+    from ._smooth_map import rts_smooth_map
+
+    n = o.system.n_states
+    P = evaluate_many(o.design.covariance, tr.z).reshape(-1, n, n, order="F")
+    xs, Ps = rts_smooth_map(o.design, t, u, tr.xhat, P)
+    return replace(tr, xhat=xs, filtered=tr.xhat, smoothed_covariance=Ps)
+
+
+def _map_innovations(system: System, t: np.ndarray, u: np.ndarray, y: np.ndarray, mask: np.ndarray, X: np.ndarray,
+                     prior: np.ndarray) -> np.ndarray:
+    """y[k] − h(x̂[k|k−1]) of a map's filter: the prediction f(x̂[k−1|k−1], u[k−1]) from its previous estimate (the
+    prior x̂0 at k = 0); NaN where an output was not measured."""
+    f, h = compile_system(system).bind()
+    N = t.size
+    pred = np.empty_like(X)
+    pred[0] = prior
+    if N > 1:
+        pred[1:] = np.asarray(f.map(N - 1)(t[None, :-1], X[:-1].T, u[:-1].T), dtype=float).T
+    yp = np.asarray(h.map(N)(t[None, :], pred.T, u.T), dtype=float).T.reshape(N, -1)
+    return np.where(mask > 0, y - yp, np.nan)

@@ -12,7 +12,7 @@ import numpy as np
 
 from ..design import check_positive
 from ..engine import Backend
-from ..errors import (DataError, EngineError, FiniteEscapeError, ModelError, PreconditionError, ShapeError, SolverError,
+from ..errors import (DataError, EngineError, FiniteEscapeError, ModelError, ShapeError, SolverError,
                       TimeBudgetError)
 from ..model import ModelFile, System
 from ..observer import AbstractObserver, ParticleObserver, compiled_observer
@@ -482,62 +482,7 @@ def _non_finite(name: str, o: AbstractObserver, rec: Recording, err: FiniteEscap
 
 def _estimate_map(obs: Mapping[str, Any], recording: Recording, t: np.ndarray, u: np.ndarray, y0: np.ndarray,
                   mask: np.ndarray, xhat0: Any, smooth: bool) -> Run:
-    """Observers of a discrete-time model on a recording on its grid (one row per step; NaN: not measured)."""
-    from ._discrete import check_map_grid, run_map_observer
+    """Observers of a discrete-time model on a recording on its grid: :func:`nlobs.simulate._discrete.estimate_map`."""
+    from ._discrete import estimate_map
 
-    if not all(o.system.is_discrete for o in obs.values()):
-        raise ModelError("estimate: a discrete-time model's observers run alone (no continuous-time observers beside "
-                         "them)")
-    if smooth:
-        bad = [k for k, o in obs.items() if o.design.method not in ("ekf", "ukf") or o.design.covariance is None]
-        if bad:
-            raise PreconditionError(f"smoothing: observer {bad[0]!r} is of kind {obs[bad[0]].design.method!r}; smoothers of "
-                                    "a discrete-time model exist for its ekf and ukf")
-    traces, failures, errors = {}, {}, []
-    for name, o in obs.items():
-        check_map_grid(o.system, t, f"recording ({recording.source})")
-        z0 = o.initial_state(_xhat0_for(xhat0, name, o.system.n_states))
-        try:
-            Z, X = run_map_observer(o.design, t, u, y0, mask, z0, name=name)
-        except (FiniteEscapeError, SolverError) as e:   # the others still run; when all fail, the first error
-            failures[name] = failure_of(name, o.design.method, e)
-            errors.append(e)
-            continue
-        prior = o.estimate(t[0], z0, u[0], y0[0])
-        smoothed: dict[str, Any] = {}
-        if smooth:   # Rauch-Tung-Striebel on the map (unscented for the UKF), from the filter's means and covariances
-            from ..engine import evaluate_many
-            from ._smooth_map import rts_smooth_map
-
-            n = o.system.n_states
-            P = evaluate_many(o.design.covariance, Z).reshape(-1, n, n, order="F")
-            xs, Ps = rts_smooth_map(o.design, t, u, X, P)
-            smoothed = {"filtered": X, "smoothed_covariance": Ps}
-            X_out = xs
-        else:
-            X_out = X
-        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, Z, X_out, prior, covariance=o.design.covariance,
-                                     innovation=_map_innovations(o.system, t, u, recording.y, mask, X, prior), **smoothed)
-    if errors and not traces:
-        raise errors[0]
-    system = next(iter(obs.values())).system
-    return Run(system.name, t, system.states, recording.input_names, recording.output_names, u,
-               np.where(mask > 0, recording.y, np.nan), traces, x=recording.x,
-               info={"source": recording.source, "time": "discrete", "sample_time": system.sample_time},
-               estimated_params=system.estimated_params, failures=failures)
-
-
-def _map_innovations(system: System, t: np.ndarray, u: np.ndarray, y: np.ndarray, mask: np.ndarray, X: np.ndarray,
-                     prior: np.ndarray) -> np.ndarray:
-    """y[k] − h(x̂[k|k−1]) of a map's filter: the prediction f(x̂[k−1|k−1], u[k−1]) from its previous estimate (the
-    prior x̂0 at k = 0); NaN where an output was not measured."""
-    from ..engine import compile_system
-
-    f, h = compile_system(system).bind()
-    N = t.size
-    pred = np.empty_like(X)
-    pred[0] = prior
-    if N > 1:
-        pred[1:] = np.asarray(f.map(N - 1)(t[None, :-1], X[:-1].T, u[:-1].T), dtype=float).T
-    yp = np.asarray(h.map(N)(t[None, :], pred.T, u.T), dtype=float).T.reshape(N, -1)
-    return np.where(mask > 0, y - yp, np.nan)
+    return estimate_map(obs, recording, t, u, y0, mask, xhat0, smooth)

@@ -1,4 +1,5 @@
-r"""Fixed-interval smoothing of a discrete-time EKF or UKF run (a map x[k+1] = f(x[k], u[k], t[k]) + w[k]).
+r"""Fixed-interval smoothing of a discrete-time Gaussian filter's run (a map x[k+1] = f(x[k], u[k], t[k]) + w[k]): the
+EKF and the filters that predict as it does (square-root EKF, iterated EKF), the UKF and the square-root UKF.
 
 The filter gives the filtered mean and covariance (x̂_k, P_k) at every step. The Rauch–Tung–Striebel backward pass
 (Rauch, Tung & Striebel (1965); Simon (2006), §9.4.2 for the extended form)
@@ -11,9 +12,10 @@ The filter gives the filtered mean and covariance (x̂_k, P_k) at every step. Th
 with the one-step prediction :math:`\hat x^-_{k+1}, P^-_{k+1}` the filter made from step k, and C_k the
 cross-covariance of x[k] and x[k+1]:
 
-- EKF: :math:`\hat x^-_{k+1} = f(\hat x_k, u_k)`, :math:`F_k = \partial f/\partial x` there,
+- EKF, square-root EKF, iterated EKF: :math:`\hat x^-_{k+1} = f(\hat x_k, u_k)`, :math:`F_k = \partial f/\partial x` there,
   :math:`P^-_{k+1} = F_k P_k F_k^\top + Q`, :math:`C_k = P_k F_k^\top`;
-- UKF (the unscented RTS smoother of Särkkä (2008)): the filter's sigma points 𝒳ᵢ of (x̂_k, P_k) through f,
+- UKF and square-root UKF (the unscented RTS smoother of Särkkä (2008)): the filter's sigma points 𝒳ᵢ of (x̂_k, P_k)
+  through f (the square-root filter's factor is the Cholesky factor of P_k, so its points are the same),
   :math:`\hat x^-_{k+1} = \sum W^m_i f(𝒳_i)`, :math:`P^-_{k+1} = \sum W^c_i (f(𝒳_i) - \hat x^-)(\cdot)^\top + Q`,
   :math:`C_k = \sum W^c_i (𝒳_i - \hat x_k)(f(𝒳_i) - \hat x^-_{k+1})^\top`.
 
@@ -40,7 +42,7 @@ def _prediction(design: ObserverDesign) -> ca.Function:
     t, x, u = ca.SX.sym("t"), ca.SX.sym("x", n), ca.SX.sym("u", system.n_inputs)
     P = ca.SX.sym("P", n, n)
     Q = ca.DM(design.certificate.values["Q"])
-    if design.method == "ekf":
+    if design.method in ("ekf", "srekf", "iekf"):
         fx = f(t, x, u)
         F = ca.jacobian(fx, x)
         xp, Pp, C = fx, F @ P @ F.T + Q, P @ F.T

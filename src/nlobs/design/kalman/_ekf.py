@@ -95,6 +95,9 @@ def design_ekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
     if system.is_discrete:   # a map x[k+1] = f(x[k], u[k]): the discrete-time EKF (filterpy's semantics)
         if bounds is not None:
             raise PreconditionError(f"{caller}: `bounds` are not available for a discrete-time model yet")
+        if mode == "continuous":
+            raise PreconditionError(f"{caller}: mode='continuous' is a filter of an ODE; {system.name!r} is a discrete-time "
+                                    "model, whose EKF is the discrete-time filter: leave `mode` out")
         return discrete_ekf(system, Q=Q, R=R, P0=P0, xhat0=xhat0, caller=caller)
     if mode not in ("continuous", "continuous-discrete"):
         raise PreconditionError(f"{caller}: `mode` must be 'continuous' or 'continuous-discrete', got {mode!r}")

@@ -16,6 +16,7 @@ from .._tune import robust_filter
 from .._kind import Tuning
 from .._kind import kind
 from .._common import require_system, symmetric_part
+from ._robust_maps import discrete_iekf
 from ._sqrt import covariance_inputs
 
 __all__ = ["design_iekf"]
@@ -30,8 +31,8 @@ def tune_iekf(ctx: Any) -> Tuning:
     return robust_filter(ctx, "iekf")
 
 
-@kind('iekf', summary='iterated extended Kalman filter (continuous-discrete): Gauss-Newton iterations of the update',
-      references=(work("bell1993"),), tune=tune_iekf)
+@kind('iekf', summary='iterated extended Kalman filter (continuous-discrete, or on a map): Gauss-Newton iterations of the update',
+      references=(work("bell1993"),), time_base="both", tune=tune_iekf)
 def design_iekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None, iterations: int = 5,
                 tol: float = 1e-10) -> ObserverDesign:
     r"""Iterated extended Kalman filter (continuous-discrete; Bell & Cathey (1993)).
@@ -79,6 +80,8 @@ def design_iekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = 
         raise PreconditionError(f"{caller}: `iterations` must be an integer ≥ 1 (1 is the EKF), got {iterations!r}")
     if not (np.isfinite(tol) and tol >= 0):
         raise PreconditionError(f"{caller}: `tol` must be a non-negative number, got {tol!r}")
+    if system.is_discrete:   # a map: the map EKF's prediction, then the Gauss-Newton update
+        return discrete_iekf(system, Q=Q, R=R, P0=P0, xhat0=xhat0, iterations=int(iterations), tol=float(tol), caller=caller)
     n, p = system.n_states, system.n_outputs
     Qm, Rm, P0m, checks = covariance_inputs(Q, R, P0, n, p, caller)
     x0v = check_vector(np.zeros(n) if xhat0 is None else xhat0, n, "xhat0", caller)

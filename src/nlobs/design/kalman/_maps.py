@@ -11,6 +11,9 @@ x̂[k|k] (filterpy's ``x`` after ``predict(); update(y)``).
   process noise per step.
 - UKF (Wan & van der Merwe (2000)): the scaled sigma points of filterpy's ``MerweScaledSigmaPoints``
   (α, β, κ), propagated through f; the update reuses the propagated points (as filterpy does).
+
+The square-root UKF and EKF and the iterated EKF of a map are in :mod:`._robust_maps` (the same semantics); the particle
+filter of a map is :func:`nlobs.design.design_pf` with its compiled loop stepping the map.
 """
 
 from __future__ import annotations

@@ -1,7 +1,8 @@
-"""Particle filter, continuous-discrete: bootstrap (Gordon, Salmond & Smith (1993)) and auxiliary (Pitt & Shephard (1999)).
+"""Particle filter, continuous-discrete or on a map: bootstrap (Gordon, Salmond & Smith (1993)) and auxiliary (Pitt &
+Shephard (1999)).
 
 The design checks the options and builds the two model functions the particle loop calls (one RK4 step of the
-model, and the output map); :mod:`nlobs.observer._particles` runs them in a compiled C loop.
+model, or one step of a map, and the output map); :mod:`nlobs.observer._particles` runs them in a compiled C loop.
 """
 
 from __future__ import annotations
@@ -46,7 +47,7 @@ class ParticleDesign:
     xhat0 : numpy.ndarray
         Mean of the initial particles.
     P0, Q, R : numpy.ndarray
-        Initial covariance, process-noise intensity, measurement covariance.
+        Initial covariance, process-noise intensity (on a map: covariance per step), measurement covariance.
     particles : int
     scheme : {"bootstrap", "auxiliary"}
         Bootstrap (propagate, weight, resample below the threshold) or auxiliary (first-stage weights
@@ -62,7 +63,7 @@ class ParticleDesign:
     covariance : casadi.Function
         ``(z) -> P`` from a row of the trace.
     prop : casadi.Function
-        ``(x, t, h, u) -> x(t + h)``, one RK4 step of the model.
+        ``(x, t, h, u) -> x(t + h)``, one RK4 step of the model; on a map ``f(t, x, u)``, the next state (h unused).
     meas : casadi.Function
         ``(x, t, u) -> y``.
     certificate : Certificate
@@ -173,16 +174,20 @@ def tune_pf(ctx: Any) -> Tuning:
                         runnable=runnable, extra=note)
 
 
-@kind('pf', summary='particle filter (continuous-discrete): bootstrap or auxiliary, systematic resampling, seeded',
-      references=(work("gordon1993"), work("pitt1999", "auxiliary")), tune=tune_pf)
+@kind('pf', summary='particle filter (continuous-discrete, or on a map): bootstrap or auxiliary, systematic resampling, seeded',
+      references=(work("gordon1993"), work("pitt1999", "auxiliary")), time_base="both", tune=tune_pf)
 def design_pf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None, particles: int = 1000,
               scheme: Scheme = "bootstrap", threshold: float = 0.5, seed: int = 0,
               max_step: float | None = None) -> ParticleDesign:
-    r"""Particle filter (continuous-discrete): bootstrap or auxiliary, systematic resampling, seeded.
+    r"""Particle filter (continuous-discrete, or on a map): bootstrap or auxiliary, systematic resampling, seeded.
 
     The particles start from :math:`\mathcal N(\hat x_0, P_0)`. Between samples each particle follows
     the model in RK4 steps of length h (one per interval, or enough that h ≤ `max_step`), with
     :math:`\sqrt h\,Q^{1/2}\xi`, ξ ~ N(0, I), added after each step (process noise of intensity Q).
+    On a discrete-time model (a map x[k+1] = f(x[k], u[k], t[k]) + w[k]) each particle steps once per sample,
+    :math:`x_i \leftarrow f(x_i, u_{k-1}, t_{k-1}) + Q^{1/2}\xi` with Q the covariance of w per step, as the
+    bootstrap filters of filterpy, LowLevelParticleFilters.jl and ``particles`` are written; the first sample
+    weights the initial particles (the prior of x[0]), as the map EKF and UKF start.
     At a sample the weights are multiplied by the Gaussian likelihood
     :math:`\mathcal N(y; h(x_i), R)` of the measured outputs and normalised; the estimate is the weighted mean
     (and covariance), and the effective sample size :math:`\mathrm{ESS} = 1/\sum_i w_i^2` (Kong, Liu & Wong
@@ -203,7 +208,7 @@ def design_pf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = No
     ----------
     system : System
     Q : array_like of shape (n, n)
-        Process-noise intensity, positive semidefinite.
+        Process-noise intensity, positive semidefinite (on a map: the covariance of w[k] per step).
     R : array_like of shape (p, p)
         Covariance of one measurement sample, positive definite (Gaussian likelihood).
     P0 : array_like of shape (n, n), optional
@@ -216,7 +221,7 @@ def design_pf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = No
     seed : int
         Seed of the random numbers (a non-negative integer).
     max_step : float, optional
-        Largest RK4 step between samples.
+        Largest RK4 step between samples (continuous-time models only: a map steps once per sample).
 
     Other Parameters
     ----------------
@@ -239,23 +244,30 @@ def design_pf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = No
         raise PreconditionError(f"{caller}: `threshold` (of ESS / particles) must be in [0, 1], got {threshold!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**63:
         raise PreconditionError(f"{caller}: `seed` must be a non-negative integer, got {seed!r}")
+    if max_step is not None and system.is_discrete:
+        raise PreconditionError(f"{caller}: `max_step` does not apply to a discrete-time model ({system.name!r} steps once "
+                                f"per sample, sample_time = {system.sample_time:g} s): leave it out")
     if max_step is not None and not (np.isfinite(max_step) and max_step > 0):
         raise PreconditionError(f"{caller}: `max_step` must be a positive number, got {max_step!r}")
     x0v = check_vector(np.zeros(n) if xhat0 is None else xhat0, n, "xhat0", caller)
     f, h = compile_system(system).bind()
     x, t, hh, u = ca.SX.sym("x", n), ca.SX.sym("t"), ca.SX.sym("h"), ca.SX.sym("u", system.n_inputs)
-    prop = ca.Function("pf_prop", [x, t, hh, u], [rk4_step(lambda tt, xx, _k: f(tt, xx, u), t, x, hh)])
+    step = f(t, x, u) if system.is_discrete else rk4_step(lambda tt, xx, _k: f(tt, xx, u), t, x, hh)
+    prop = ca.Function("pf_prop", [x, t, hh, u], [step])
     meas = ca.Function("pf_meas", [x, t, u], [h(t, x, u)])
     checks.append(Check("particles and resampling", True,
                         f"{int(particles)} particles, {scheme}, systematic resampling"
                         + (f" when ESS < {threshold:g}·N" if scheme == "bootstrap" else " at every sample")))
-    checks.append(Check.assumed("the measurement noise is Gaussian with covariance R and the process noise white with intensity Q",
+    noise = "Gaussian with covariance Q per step" if system.is_discrete else "white with intensity Q"
+    checks.append(Check.assumed(f"the measurement noise is Gaussian with covariance R and the process noise {noise}",
                                 "the likelihood and the particles' noise are built on it"))
     values: dict[str, Any] = {"Q": Qm, "R": Rm, "P0": P0m, "particles": int(particles), "scheme": scheme,
                               "threshold": float(threshold), "seed": int(seed),
-                              "max_step": "one RK4 step per interval" if max_step is None else float(max_step),
+                              "max_step": ("one step of the map per sample" if system.is_discrete else "one RK4 step per interval"
+                                           if max_step is None else float(max_step)),
                               "random numbers": "xoshiro256** seeded by splitmix64; normals by the ziggurat of Marsaglia & Tsang (2000)"}
-    cert = Certificate(f"Particle filter ({scheme}, continuous-discrete)", REF, tuple(checks), values)
+    time = f"discrete time, sample_time = {system.sample_time:g} s" if system.is_discrete else "continuous-discrete"
+    cert = Certificate(f"Particle filter ({scheme}, {time})", REF, tuple(checks), values)
     names = ([f"xhat_{v}" for v in system.states] + [f"P_{i}_{j}" for j in range(n) for i in range(n)]
              + ["ess", "resampled", "loglik"])
     zs = ca.SX.sym("z", len(names))

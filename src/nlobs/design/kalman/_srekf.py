@@ -15,6 +15,7 @@ from .._tune import robust_filter
 from .._kind import Tuning
 from .._kind import kind
 from .._common import require_system
+from ._robust_maps import discrete_srekf
 from ._sqrt import covariance_inputs, lower_solve, lower_t_solve, sqrt_psd, tria
 
 __all__ = ["design_srekf"]
@@ -29,8 +30,8 @@ def tune_srekf(ctx: Any) -> Tuning:
     return robust_filter(ctx, "srekf")
 
 
-@kind('srekf', summary='square-root extended Kalman filter (continuous-discrete): the EKF carrying a square root of P (QR Joseph update)',
-      references=(work("kaminski1971", "square-root covariance, QR Joseph update"),), tune=tune_srekf)
+@kind('srekf', summary='square-root extended Kalman filter (continuous-discrete, or on a map): the EKF carrying a square root of P (QR Joseph update)',
+      references=(work("kaminski1971", "square-root covariance, QR Joseph update"),), time_base="both", tune=tune_srekf)
 def design_srekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None) -> ObserverDesign:
     r"""Square-root extended Kalman filter (continuous-discrete): the EKF of :func:`design_ekf` carrying a
     square root of P, rebuilt at each sample as a lower Cholesky factor S by QR triangularisation; P is never
@@ -77,6 +78,8 @@ def design_srekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any =
     """
     require_system(system, "design_srekf")
     caller = "design_srekf"
+    if system.is_discrete:   # a map x[k+1] = f(x[k], u[k]): the map EKF's semantics, in square-root form
+        return discrete_srekf(system, Q=Q, R=R, P0=P0, xhat0=xhat0, caller=caller)
     n, p = system.n_states, system.n_outputs
     Qm, Rm, P0m, checks = covariance_inputs(Q, R, P0, n, p, caller)
     x0v = check_vector(np.zeros(n) if xhat0 is None else xhat0, n, "xhat0", caller)

@@ -19,6 +19,7 @@ from .._kind import kind
 from .._bounds import POLICY, bounds_check, check_start, clip_const, parse_bounds
 from .._common import require_system
 from ._sqrt import covariance_inputs, lower_solve, lower_t_solve, sqrt_psd, tria
+from ._robust_maps import discrete_srukf
 from ._ukf import unscented_weights
 
 __all__ = ["design_srukf"]
@@ -33,8 +34,8 @@ def tune_srukf(ctx: Any) -> Tuning:
     return robust_filter(ctx, "srukf")
 
 
-@kind('srukf', summary='square-root unscented Kalman filter (continuous-discrete): P is never formed, its Cholesky factor is updated by QR',
-      references=(work("vandermerwe2001", "square root by QR"), work("arasaratnam2009")), tune=tune_srukf)
+@kind('srukf', summary='square-root unscented Kalman filter (continuous-discrete, or on a map): P is never formed, its Cholesky factor is updated by QR',
+      references=(work("vandermerwe2001", "square root by QR"), work("arasaratnam2009")), time_base="both", tune=tune_srukf)
 def design_srukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None, alpha: float = 1.0,
                  beta: float = 0.0, kappa: float = 0.0, bounds: Mapping[str, Any] | None = None) -> ObserverDesign:
     r"""Square-root unscented Kalman filter (continuous-discrete, van der Merwe & Wan (2001)): P is never formed;
@@ -94,6 +95,10 @@ def design_srukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any =
     """
     require_system(system, "design_srukf")
     caller = "design_srukf"
+    if system.is_discrete:   # a map: the map UKF's sigma points and semantics, in square-root form
+        if bounds is not None:
+            raise PreconditionError(f"{caller}: `bounds` are not available for a discrete-time model yet")
+        return discrete_srukf(system, Q=Q, R=R, P0=P0, xhat0=xhat0, alpha=alpha, beta=beta, kappa=kappa, caller=caller)
     n, p = system.n_states, system.n_outputs
     Qm, Rm, P0m, checks = covariance_inputs(Q, R, P0, n, p, caller)
     wm, wc, c = unscented_weights(n, float(alpha), float(beta), float(kappa))
