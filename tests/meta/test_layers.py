@@ -43,7 +43,7 @@ ROOMS: dict[str, tuple[frozenset[str], ...]] = {
     "analysis": (
         frozenset({"_reports"}),                      # the result types and number formatting the rooms share
         frozenset({"structural", "trajectory"}),      # from the equations / along one trajectory
-        frozenset({"forms"}),                         # structure for designs (augmentation checks a trajectory Gramian)
+        frozenset({"forms", "sensors"}),              # structure for designs; sensor selection (rank + Fisher information)
     ),
 }
 

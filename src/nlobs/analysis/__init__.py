@@ -1,8 +1,9 @@
 """Analysis: is it possible? Observability, excitation, forms, augmentation.
 
-Three rooms, one sub-package each: ``structural`` (from the equations: local rank, global identifiability,
-identifiable functions, reparametrisation, regimes), ``trajectory`` (along a run: Gramians, excitation) and
-``forms`` (structure: form recognition, linear tests, Banks' conditions, augmentation); the report types they share
+Four rooms, one sub-package each: ``structural`` (from the equations: local rank, global identifiability,
+identifiable functions, reparametrisation, regimes), ``trajectory`` (along a run: Gramians, excitation),
+``forms`` (structure: form recognition, linear tests, Banks' conditions, augmentation) and ``sensors`` (which
+candidate sensors to use: the structural and the trajectory rooms together); the report types they share
 are in ``_reports``. The exact and modular tools they compute with live one layer below, in :mod:`nlobs.algebra`.
 Every public name is re-exported here.
 
@@ -19,6 +20,7 @@ Observer forms (Besançon (2010)): :func:`recognise_forms`, :func:`state_affine_
 :func:`lipschitz_constant`, :func:`with_params_as_states`.
 Banks (1980): :func:`matrix_measure`, :func:`max_slope`, :func:`banks_condition`, :func:`lipschitz_bound`.
 Identities (exact, Schwartz-Zippel): :func:`decide_identity`, :func:`exact_generic_rank`.
+Sensor selection (Liu, Slotine & Barabási (2013); Krener & Ide (2009)): :func:`select_sensors` -> :class:`SensorSelection`.
 Augmentation (Viegas, Batista, Oliveira & Silvestre (2015)): :func:`check_mimicking`, :func:`injectivity`, :func:`left_inverse_bounds`,
 :func:`augmented_observability`, :func:`propose_augmentation`.
 """
@@ -95,3 +97,8 @@ from .forms import check_mimicking as check_mimicking
 from .forms import injectivity as injectivity
 from .forms import left_inverse_bounds as left_inverse_bounds
 from .forms import propose_augmentation as propose_augmentation
+from .sensors import Candidate as Candidate
+from .sensors import SensorSelection as SensorSelection
+from .sensors import SensorSet as SensorSet
+from .sensors import select_sensors as select_sensors
+from .sensors import sensor_pool as sensor_pool
