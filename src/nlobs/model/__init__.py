@@ -19,6 +19,7 @@ from ._system import System as System
 from ._system import symbol as symbol
 from ._toml import ModelFile as ModelFile
 from ._toml import ObserverConfig as ObserverConfig
+from ._toml import SensorConfig as SensorConfig
 from ._toml import SimulationConfig as SimulationConfig
 from ._toml import load_model as load_model
 from ._toml import loads_model as loads_model

@@ -36,6 +36,10 @@ The format (a contract other tools rely on)::
     [observers.ekf]           # named observer configurations: kind + tuning
     kind = "ekf"
     xhat0 = [0.0, 0.0]        # with unknown parameters: their initial guesses are appended
+    [sensors.level2]          # candidate sensors for `nlobs sensors` (default pool: every state and every output)
+    expr = "x2"               # any expression of states, inputs, parameters, t, tables and definitions
+    noise = 0.01              # standard deviation of its measurement noise (> 0)
+    cost = 3                  # optional (default 1, >= 0)
 
 A file that tries anything else is rejected with a :class:`~nlobs.errors.ModelFileError`
 naming the file, the key and the offending text (shortened).
@@ -68,13 +72,14 @@ from ._library import LibraryEntry, bundled_folder, bundled_names, bundled_path
 from ._system import _NAME, RESERVED, TIME, System, symbol
 from ._tables import Table, parse_table
 
-__all__ = ["ModelFile", "SimulationConfig", "ObserverConfig", "load_model", "loads_model", "library"]
+__all__ = ["ModelFile", "SimulationConfig", "ObserverConfig", "SensorConfig", "load_model", "loads_model", "library"]
 
 _TOP = ("name", "description", "time", "sample_time", "states", "inputs", "outputs", "parameters", "tables", "definitions",
-        "dynamics", "output", "units", "simulation", "observers")
+        "dynamics", "output", "units", "simulation", "observers", "sensors")
 _SIM = ("t_final", "dt", "x0", "inputs", "noise", "noise_bound", "process_noise", "sample_period", "delay", "true_parameters",
         "initial_std", "seed")
 _PARAM_KEYS = ("value", "unknown")
+_SENSOR_KEYS = ("expr", "noise", "cost")
 #: Observer names become JSON keys, CSV column prefixes and C file names: a conservative alphabet.
 _OBSERVER_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_-]{0,59}")
 
@@ -133,6 +138,30 @@ class ObserverConfig:
 
 
 @dataclass(frozen=True)
+class SensorConfig:
+    """One ``[sensors.NAME]`` table: a candidate sensor for ``nlobs sensors`` (:func:`nlobs.analysis.select_sensors`).
+
+    Attributes
+    ----------
+    name : str
+    expr : sympy.Expr
+        What it measures: an expression of the states, inputs, parameters, t (tables and definitions expanded).
+    noise : float
+        Standard deviation of its measurement noise (> 0), in the units of `expr`.
+    cost : float
+        Its cost (>= 0; default 1).
+    text : str
+        The expression as written.
+    """
+
+    name: str
+    expr: sp.Expr
+    noise: float
+    cost: float = 1.0
+    text: str = ""
+
+
+@dataclass(frozen=True)
 class ModelFile:
     """A parsed model file: the system, its simulation defaults and its observer configurations.
 
@@ -150,6 +179,8 @@ class ModelFile:
         The ``[definitions]``, each with the earlier ones substituted.
     units : mapping of str to str
         The ``[units]`` of states, inputs, outputs, parameters and ``t``.
+    sensors : mapping of name to SensorConfig
+        The candidate sensors of ``[sensors.NAME]`` tables, in file order (empty without them).
     """
 
     path: str
@@ -160,6 +191,7 @@ class ModelFile:
     unknown_params: tuple[str, ...] = ()
     definitions: Mapping[str, sp.Expr] = field(default_factory=dict)
     units: Mapping[str, str] = field(default_factory=dict)
+    sensors: Mapping[str, SensorConfig] = field(default_factory=dict)
 
     @property
     def observer_system(self) -> System:
@@ -214,6 +246,11 @@ def loads_model(text: str, *, path: str = "<string>", default_name: str = "model
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
+        twice = re.search(r"\('sensors', '([^']*)'\)", str(e))
+        if twice:   # a [sensors.NAME] table declared twice: say so with the table's name
+            raise ModelFileError(f"the candidate sensor `{twice.group(1)}` is declared twice ({str(e).rsplit('(', 1)[-1].rstrip(')')}); "
+                                 "give each [sensors.NAME] table its own name", path=path,
+                                 key=f"sensors.{twice.group(1)}") from None
         raise ModelFileError(f"not valid TOML: {e}", path=path) from None
     except RecursionError:
         raise ModelFileError("not valid TOML for nlobs: arrays or tables are nested too deeply", path=path) from None
@@ -319,8 +356,9 @@ class _Loader:
         observer_system = system.augmented(unknown_params)
         guesses = {k: params[k] for k in unknown_params}
         observers = self.observers(doc, definitions, observer_system, guesses)
+        sensors = self.sensors(doc, symbols)
         return ModelFile(self.path, system, simulation, observers, description, unknown_params,
-                         MappingProxyType(definitions), MappingProxyType(units))
+                         MappingProxyType(definitions), MappingProxyType(units), sensors)
 
     def parameters(self, doc: Mapping[str, Any]) -> tuple[dict[str, float], tuple[str, ...]]:
         params: dict[str, float] = {}
@@ -516,6 +554,44 @@ class _Loader:
                 raise self.err("`kind` is required and must be a string (e.g. \"ekf\", \"luenberger\")", f"{key}.kind", kind if kind is not None else "")
             options = {k: self.with_definitions(v, definitions, f"{key}.{k}") for k, v in table.items() if k != "kind"}
             out[name] = ObserverConfig(name, kind, MappingProxyType(options), system, MappingProxyType(dict(guesses)))
+        return MappingProxyType(out)
+
+    def sensors(self, doc: Mapping[str, Any], symbols: Mapping[str, sp.Expr]) -> Mapping[str, SensorConfig]:
+        """[sensors.NAME]: candidate sensors (expr, noise, optional cost) for ``nlobs sensors``."""
+        if "sensors" not in doc:
+            return MappingProxyType({})
+        table = self.table(doc, "sensors")
+        if not table:
+            raise self.err("declares no candidate sensor; add [sensors.NAME] tables with `expr` and `noise`, or remove "
+                           "[sensors] to use the default pool (every state and every output)", "sensors")
+        out = {}
+        for name, spec in table.items():
+            key = f"sensors.{name}"
+            if not _NAME.fullmatch(name):
+                raise self.err("a sensor's name starts with a letter and contains only letters, digits and underscores "
+                               "(it becomes a JSON key and a column name)", key, name)
+            if not isinstance(spec, dict):
+                raise self.err("must be a table with `expr` and `noise` (and optionally `cost`), e.g. "
+                               "[sensors.NAME] expr = \"x1\" noise = 0.01", key, spec)
+            extra = [k for k in spec if k not in _SENSOR_KEYS]
+            if extra:
+                raise self.err(f"unknown key `{shorten(extra[0], 40)[1:-1]}`; a sensor table has `expr`, `noise` and "
+                               "optionally `cost`", f"{key}.{extra[0]}")
+            for k in ("expr", "noise"):
+                if k not in spec:
+                    what = ("what it measures (an expression of the states, inputs, parameters and t)" if k == "expr" else
+                            "the standard deviation of its measurement noise (a positive number)")
+                    raise self.err(f"`{k}` is required: {what}", key)
+            expr = self.expr(spec["expr"], f"{key}.expr", symbols)
+            noise = self.number(spec["noise"], f"{key}.noise")
+            if noise <= 0:
+                raise self.err("must be positive (the standard deviation of the sensor's noise; a perfect sensor has no "
+                               "finite bound)", f"{key}.noise", spec["noise"])
+            cost = self.number(spec.get("cost", 1.0), f"{key}.cost")
+            if cost < 0:
+                raise self.err("must be non-negative", f"{key}.cost", spec["cost"])
+            text = spec["expr"] if isinstance(spec["expr"], str) else repr(spec["expr"])
+            out[name] = SensorConfig(name, expr, noise, cost, text)
         return MappingProxyType(out)
 
     def with_definitions(self, value: Any, definitions: Mapping[str, sp.Expr], key: str) -> Any:
