@@ -18,6 +18,9 @@ def add_parser(sub: Any) -> None:
     r.add_argument("--kind", action="append", metavar="KIND", help="only this observer kind (repeatable)")
     r.add_argument("--params", default=None, metavar="NAMES", help="comma-separated parameters to estimate with the states")
     r.add_argument("--no-run", action="store_true", help="verdicts and candidates only, no comparison run")
+    r.add_argument("--sensors", action="store_true",
+                   help="add the section 'What to measure' (nlobs sensors) with the default pool of candidates; it is "
+                        "added without this flag when the file has [sensors.NAME] tables")
     r.add_argument("--json", action="store_true", help="print one JSON object (the report's path and the ranking)")
     r.set_defaults(run=run)
 
@@ -36,7 +39,12 @@ def run(args: argparse.Namespace) -> int:
         recording = Recording.from_csv(args.data, system)
     adv = advise(mf, unknown_params=unknown, recording=recording, kinds=args.kind, run=not args.no_run,
                  progress=not args.json)
-    path = write_model_report(adv, args.out, source=mf.path + (f" with {args.data}" if args.data else ""))
+    sensors = None
+    if args.sensors or mf.sensors:
+        from ..analysis import select_sensors
+
+        sensors = select_sensors(mf, unknown_params=unknown)
+    path = write_model_report(adv, args.out, source=mf.path + (f" with {args.data}" if args.data else ""), sensors=sensors)
     if args.json:
         print(json.dumps({"report": str(path.resolve()), "ranking": list(adv.ranking or ()),
                           "applies": [c.kind for c in adv.applicable]}))

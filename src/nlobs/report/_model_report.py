@@ -112,8 +112,9 @@ def _errors_figure(adv: Advice, kinds: Sequence[str]) -> Figure:
     return fig
 
 
-def model_report(adv: Advice, *, source: str = "") -> str:
-    """The HTML text of the report of one :class:`~nlobs.advise.Advice` (with or without a run)."""
+def model_report(adv: Advice, *, source: str = "", sensors: Any = None) -> str:
+    """The HTML text of the report of one :class:`~nlobs.advise.Advice` (with or without a run); with `sensors` (a
+    :class:`~nlobs.analysis.SensorSelection`), its section "What to measure" after the observability verdicts."""
     rep = adv.observability
     body: list[str] = []
     cited_text: list[str] = [adv.description]
@@ -137,6 +138,11 @@ def model_report(adv: Advice, *, source: str = "") -> str:
         cited_text += list(adv.forms)
     body.append(f"<details><summary>Observability report</summary><pre>{_esc(rep)}</pre></details>")
     cited_text.append(str(rep))
+    if sensors is not None:   # -- what to measure
+        from ._sensors import sensors_section
+
+        body.append(sensors_section(sensors))
+        cited_text.append(str(sensors))
     # -- candidates
     counts = {s: sum(c.status == s for c in adv.candidates) for s in ("applies", "fails", "needs input", "not tuned")}
     body.append("<h2 id='candidates'>Observer kinds</h2>")
@@ -204,7 +210,9 @@ def model_report(adv: Advice, *, source: str = "") -> str:
     refs = bibliography(*cited_text)
     if refs:
         body.append("<h2 id='references'>References</h2><ol>" + "".join(f"<li>{_esc(r)}</li>" for r in refs) + "</ol>")
-    nav = ("<nav><ul><li><a href='#observability'>Observability</a></li><li><a href='#candidates'>Observer kinds</a></li>"
+    nav = ("<nav><ul><li><a href='#observability'>Observability</a></li>"
+           + ("<li><a href='#sensors'>What to measure</a></li>" if sensors is not None else "")
+           + "<li><a href='#candidates'>Observer kinds</a></li>"
            + ("<li><a href='#runs'>Comparison run</a></li>" if adv.scores is not None else "")
            + "<li><a href='#model'>Model</a></li></ul></nav>")
     subtitle = (f"nlobs {__version__} · {_esc(adv.model)} · {len(adv.applicable)} of {len(adv.candidates)} observer kinds apply"
@@ -222,11 +230,12 @@ def _status_table(rows: Sequence[dict[str, Any]]) -> str:
     return f"<table><thead>{head}</thead><tbody>{body}</tbody></table>"
 
 
-def write_model_report(adv: Advice, out_dir: str | Path = "nlobs-report", *, source: str = "") -> Path:
-    """Write ``out_dir/index.html`` (self-contained: plots embedded) and return its path."""
+def write_model_report(adv: Advice, out_dir: str | Path = "nlobs-report", *, source: str = "", sensors: Any = None) -> Path:
+    """Write ``out_dir/index.html`` (self-contained: plots embedded) and return its path; `sensors` as for
+    :func:`model_report`."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     path = out / "index.html"
-    path.write_text(model_report(adv, source=source), encoding="utf-8")
+    path.write_text(model_report(adv, source=source, sensors=sensors), encoding="utf-8")
     return path
 
