@@ -69,6 +69,7 @@ from ...algebra._modular import monomial_value as _mono_value
 from ...algebra._modular import monomial_values as _mono_values
 from ...algebra._modular import ratrec as _ratrec
 from ._global import IO_METHOD, NO_ENGINE, SIAN_METHOD, NotRational, _decide, _local_of, _prepare, _prepare_io, _System
+from ._rationalise import is_rational
 from ._budget import committed
 from ._inputs import require_system
 from ._io import NotApplicable
@@ -1041,7 +1042,7 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
     Parameters
     ----------
     system : System
-        A model with rational right-hand sides (others are refused, see ``refused``).
+        A model; exp, log, sin, cos, atan and non-integer powers are rewritten first (:mod:`._identifiable_rewrite`).
     unknown_params : sequence of str or "all", default "all"
         The unknown parameters.
     inputs : "generic", "constant" or int, optional
@@ -1056,10 +1057,9 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
         With ``with_states``, also rewrite the model in the generators found
         (:func:`nlobs.analysis.reparametrize`, ``reparametrization``).
     route : {"auto", "io", "sian"}, default "auto"
-        The system the search runs on, as for :func:`global_identifiability`: ``"io"`` the fibre of the
-        input-output equations' coefficients and the outputs' Lie derivatives (one output, generic inputs),
-        ``"sian"`` SIAN's system of output derivatives; ``"auto"`` the first where it applies (why not: in
-        ``notes``).
+        As for :func:`global_identifiability`: ``"io"`` the fibre of the input-output equations' coefficients and
+        the outputs' Lie derivatives (one output, generic inputs), ``"sian"`` SIAN's system of output derivatives,
+        ``"auto"`` the first where it applies (why not: in ``notes``).
 
     Other Parameters
     ----------------
@@ -1087,6 +1087,8 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
     eng = engine if isinstance(engine, GroebnerEngine) else get_engine(engine)
     if eng is None:
         return IdentifiableFunctions(with_states=with_states, refused=NO_ENGINE)
+    if not all(is_rational(e) for e in (*system.f, *system.h)):   # rewritten, the generators written back
+        return _non_rational(system, unknown_params, inputs, with_states, max_degree, engine, seed, route)
     if route not in ("auto", "io", "sian"):
         raise ModelError(f"`route` must be 'auto', 'io' or 'sian', got {route!r}")
     prep = None
@@ -1181,6 +1183,20 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
     return IdentifiableFunctions(functions=texts, with_states=with_states, complete=complete, local_checks=checks,
                                  notes=tuple(notes), seconds=time.perf_counter() - t0, engine_seconds=eng.seconds,
                                  reparametrization=rep, method=method)
+
+
+def _non_rational(system: System, unknown_params: Any, inputs: Any, with_states: bool, max_degree: int | None, engine: Any,
+                  seed: int, route: str) -> IdentifiableFunctions:
+    """A model with exp, log, sin, cos, atan or non-integer powers: rewritten into a rational one, the generators
+    written back in its names (:mod:`._identifiable_rewrite`); refused, with the reason, where that does not apply."""
+    from ._identifiable_rewrite import nonrational_functions
+
+    kw = dict(inputs=inputs, with_states=with_states, max_degree=max_degree, engine=engine, seed=seed, route=route)
+    unknown = list(system.param_names) if unknown_params == "all" else list(unknown_params or ())
+    try:
+        return nonrational_functions(system, unknown, find_identifiable_functions, kw, IdentifiableFunctions)
+    except NotRational as e:
+        return IdentifiableFunctions(with_states=with_states, refused=f"{e}; the local verdicts stand")
 
 
 def _race(system: System, kw: dict[str, Any]) -> IdentifiableFunctions:

@@ -158,17 +158,24 @@ def _mod_run(st: _Setup, system: System, rng: np.random.Generator) -> _ModResult
         try:
             x0, coef = _leaf_coefficients(st, system, F, rng, N, None, True)
             run = _jets(st, system, F, rng, N, x0, coef, [*st.prog.h, *st.prog.extra])
-            if st.prog.extra:
+            frows: list[np.ndarray] | None = []
+            if st.prog.extra and isinstance(run, SeriesRun):
+                # the functions' rows from the jets' own run, after its first step: the same values of the auxiliary
+                # series (exp, log, atan: free generic values; sin/cos: a random point of the circle) as the jets. A
+                # second run would draw others, and a function such as b*sin(c) would be checked against the jets
+                # of another angle (found not observable where it is)
+                frows = None
+            elif st.prog.extra:   # the affine shortcut has no auxiliary series: the functions' own are consistent
                 extra_run = SeriesRun(st.prog, F, M, x0, [st.node_of[s] for s in system.states], coef, rng, keep=st.prog.extra)
                 extra_run.step()
                 frows = [extra_run.row(e, 0)[1:].copy() for e in st.prog.extra]
-            else:
-                frows = []
             ech = RowEchelon(M, p)
             pivots: list[tuple[int, int]] = []
             degrees: list[int] = []
             for k in range(N + 1):
                 run.step()
+                if frows is None:
+                    frows = [run.row(e, 0)[1:].copy() for e in st.prog.extra]
                 for j, hj in enumerate(st.prog.h):
                     degrees.append(run.degree(hj, k))
                     if ech.add(run.row(hj, k)[1:]):
