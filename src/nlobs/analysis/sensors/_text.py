@@ -10,6 +10,9 @@ from ...references import cite
 
 __all__ = ["selection_text", "fmt_bound", "set_label"]
 
+#: Above this many unknowns the text shows each set's largest bound instead of one column per unknown.
+WIDE = 8
+
 
 def fmt_bound(v: float | None) -> str:
     """A bound for a table: 4 significant digits, ∞ when the run does not inform it."""
@@ -53,12 +56,14 @@ def _structural_lines(sel: Any) -> list[str]:
         out.append(f"No set of these candidates makes {', '.join(sel.targets)} locally observable: the whole pool does not "
                    f"(exact generic rank; {cite('sedoglavic2002')}). Add candidates.")
         return out
-    what = "every inclusion-minimal set" if s.complete else ("the minimum-size sets" if s.proven_minimum else "a set found greedily")
-    out.append(f"Sets that make {', '.join(sel.targets)} locally observable — {what} ({s.method}; {s.checked} rank checks, "
-               f"{s.pruned} sets ruled out by the graph):")
+    what = ("Minimal sets (every inclusion-minimal set" if s.complete else "Minimum-size sets (" + (
+        "proven minimum" if s.proven_minimum else "the minimum is not proven"))
+    out.append(f"{what} that makes {', '.join(sel.targets)} locally observable; exact generic rank, "
+               f"{cite('sedoglavic2002')}):")
     for m in sel.minimal_sets:
         st = sel.set_of(m)
         out.append(f"  {set_label(m)}  cost {st.cost:g}" + ("" if st.within_budget else "  (over the budget)"))
+    out.append(f"  searched: {s.method}; {s.checked} ranks taken, {s.pruned} sets ruled out by the influence graph")
     if s.error_probability > 0:
         out.append(f"  A set reported deficient is wrong with probability at most {s.error_probability:.1e} (two random points; "
                    "a full rank is a proof).")
@@ -70,17 +75,29 @@ def _quality_lines(sel: Any) -> list[str]:
     out = [f"Cramér–Rao bounds (σ) of the initial values on the [simulation] run (t in [0, {run['t_final']:g}], "
            f"{run['samples']} samples{'' if run['sample_period'] is None else ' every ' + format(run['sample_period'], 'g')}; "
            f"{cite('krener2009')} for the index):"]
-    head = ["set", "cost", "observable", "log det", *sel.unknowns, "unobs. index", "listed as"]
+    wide = len(sel.unknowns) > WIDE
+    head = ["set", "cost", "observable", "log det", *(["largest σ"] if wide else sel.unknowns), "unobs. index",
+            "listed as"]
     rows = []
     for s in sel.sets:
+        if wide:
+            worst = max(sel.unknowns, key=lambda u: s.crb[u])
+            bounds = [f"{fmt_bound(s.crb[worst])} ({worst})"]
+        else:
+            bounds = [fmt_bound(s.crb[u]) for u in sel.unknowns]
         rows.append([set_label(s.sensors), f"{s.cost:g}", "yes" if s.observable else "no", fmt_bound(s.log_det),
-                     *[fmt_bound(s.crb[u]) for u in sel.unknowns], fmt_bound(s.unobservability_index), ", ".join(s.roles)])
+                     *bounds, fmt_bound(s.unobservability_index), ", ".join(s.roles)])
     out += _table(rows, head)
+    if wide:
+        out.append(f"  (the bound of each of the {len(sel.unknowns)} unknowns is in --json)")
     out.append(f"Criterion: {sel.criterion}.")
     out.append(f"Ranking: {sel.ranking}.")
     if sel.pareto:
-        out.append("Cost–quality Pareto front: " + "  →  ".join(
-            f"{set_label(p)} (cost {sel.set_of(p).cost:g}, log det {fmt_bound(sel.set_of(p).log_det)})" for p in sel.pareto))
+        exact = sel.ranking.startswith("every")
+        out.append("Cost–quality Pareto front" + (" (no other set costs as little and scores higher):" if exact else
+                                                  " of the sets scored (not proven over every set):"))
+        out += [f"  cost {sel.set_of(p).cost:<6g} log det {fmt_bound(sel.set_of(p).log_det):<8} {set_label(p)}"
+                for p in sel.pareto]
     if sel.best is not None:
         within = "" if sel.budget is None else f" within the budget {sel.budget:g}"
         out.append(f"Best{within}: {set_label(sel.best.sensors)} (cost {sel.best.cost:g}, log det {fmt_bound(sel.best.log_det)}).")

@@ -373,15 +373,15 @@ def _exhaustive(jets: CandidateJets, seen: Sequence[int], cols: Sequence[int], n
                 pruned += 1
                 continue
             if checked >= budget:
-                return StructuralSearch(found, f"every subset up to {k - 1} candidates (then the budget of {budget} rank "
-                                        "checks ran out)", False, bool(found), checked, pruned,
+                return StructuralSearch(found, f"every subset of up to {k - 1} candidates (then the budget of {budget} "
+                                        "ranks ran out)", False, bool(found), checked, pruned,
                                         notes=[f"sets of {k} or more candidates were not all searched"])
             checked += 1
             if jets.observes(combo, cols):
                 found.append(combo)
                 masks.append(bits)
-    return StructuralSearch(found, f"every subset of the {n} candidates (supersets of a found set skipped; sets that "
-                            f"cannot see a target by the influence graph ruled out first)", True, True, checked, pruned)
+    return StructuralSearch(found, f"every subset of the {n} candidates by size, supersets of a found set skipped",
+                            True, True, checked, pruned)
 
 
 def _minimum_size(jets: CandidateJets, seen: Sequence[int], cols: Sequence[int], need: int,
@@ -403,8 +403,8 @@ def _minimum_size(jets: CandidateJets, seen: Sequence[int], cols: Sequence[int],
         if not ok:
             return _greedy(jets, cols, state, k)
         if hits:
-            return StructuralSearch(sorted(hits), f"minimum-size search (sizes 1 to {k}, depth-first with pruning by the "
-                                    "influence graph and by rank)", False, True, state["checked"], state["pruned"],
+            return StructuralSearch(sorted(hits), f"every set of 1 to {k} candidates, depth first, pruned by the influence "
+                                    "graph and by rank", False, True, state["checked"], state["pruned"],
                                     notes=[f"the pool has {n} candidates: only the minimum-size sets ({k} candidates) are "
                                            "listed; larger inclusion-minimal sets may exist"])
     raise AssertionError("the whole pool observes the targets, so some size has a set")
@@ -455,8 +455,8 @@ def _greedy(jets: CandidateJets, cols: Sequence[int], state: dict[str, int], k: 
         rest = [i for i in chosen if i != c]
         if jets.observes(rest, cols):
             chosen = rest
-    return StructuralSearch([tuple(sorted(chosen))], f"greedy rank gain, then reduced to an inclusion-minimal set (the "
-                            f"search of sets of {k} candidates ran over its budget)", False, False, state["checked"],
+    return StructuralSearch([tuple(sorted(chosen))], f"every set of up to {k - 1} candidates, then greedy rank gain "
+                            f"reduced to an inclusion-minimal set (sets of {k} ran over the budget)", False, False, state["checked"],
                             state["pruned"], notes=[f"no set of fewer than {k} candidates exists; the set listed has "
                                                     f"{len(chosen)}: the minimum is not proven"])
 
