@@ -1,4 +1,5 @@
-"""``nlobs fit``: unknown parameters of a model file from a recording, by simulation-error least squares."""
+"""``nlobs fit``: unknown parameters of a model file from a recording, by simulation-error least squares or by the
+innovations likelihood of an EKF/UKF."""
 
 from __future__ import annotations
 
@@ -34,7 +35,8 @@ def add_parser(sub: Any) -> None:
                    help="largest integration step (default: one RK4 step per sample interval; the report says how much "
                         "halving it changes the outputs)")
     f.add_argument("--hold", choices=("zoh", "linear"), default="zoh", help=HELP_HOLD)
-    f.add_argument("--output", metavar="CSV", help="write t, the recorded and the fitted outputs to this CSV")
+    f.add_argument("--output", metavar="CSV", help="write t, the recorded and the fitted outputs to this CSV (with --method "
+                                                  "likelihood: the filter's one-step predictions and their std)")
     f.add_argument("--method", choices=("simulation", "likelihood"), default="simulation",
                    help="'simulation' (default): simulation-error least squares; 'likelihood': maximise the innovations "
                         "likelihood of an EKF or UKF configured in the file (accounts for process noise; can learn Q and R)")
@@ -42,7 +44,21 @@ def add_parser(sub: Any) -> None:
                    help="with --method likelihood: the ekf or ukf observer of the file whose Q, R, P0, xhat0 are used "
                         "(its name, or its kind when the file configures one of that kind)")
     f.add_argument("--learn-noise", action="store_true",
-                   help="with --method likelihood: also estimate scalings of Q and R (Q = exp(ρ_Q) Q, R = exp(ρ_R) R)")
+                   help="with --method likelihood: also estimate scalings of Q and R (Q = exp(ρ_Q) Q, R = exp(ρ_R) R), "
+                        "named log_Q_scale, log_R_scale in --initial and --bound")
+    f.add_argument("--start", choices=("initial", "simulation"), default="initial",
+                   help="with --method likelihood: start from the initial guesses (default) or from the simulation-error "
+                        "fit (its initial states: --fit-x0, default all); a start that does not converge is followed by "
+                        "the simulation-error fit, then perturbed starts (--starts)")
+    f.add_argument("--starts", type=int, default=4, metavar="N",
+                   help="with --method likelihood: most starts (default 4)")
+    f.add_argument("--smoothing", type=float, default=1.0, metavar="FACTOR",
+                   help="with --method likelihood: factor on the widths over which abs/sign/min/max are smoothed for the "
+                        "filter (default 1: the distance their argument moves in one integration step; 0: exact, and "
+                        "the likelihood jumps where the filter crosses a switch)")
+    f.add_argument("--no-censor", action="store_true",
+                   help="with --method likelihood: do not read an output saturating at a known limit (min(x, 10)) as "
+                        "censored where the recording sits at the limit")
     f.add_argument("--skip-missing", action="store_true",
                    help="with --method likelihood: leave empty/NaN output samples out of the likelihood")
     f.add_argument("--json", action="store_true", help="print one JSON object")
@@ -78,7 +94,9 @@ def run(args: argparse.Namespace) -> int:
     if args.method == "likelihood":
         return _likelihood(args, mf, rec)
     for flag, given in (("--observer", args.observer), ("--learn-noise", args.learn_noise),
-                        ("--skip-missing", args.skip_missing)):
+                        ("--skip-missing", args.skip_missing), ("--start simulation", args.start != "initial"),
+                        ("--starts", args.starts != 4), ("--smoothing", args.smoothing != 1.0),
+                        ("--no-censor", args.no_censor)):
         if given:
             raise ValueError(f"{flag} is an option of --method likelihood (the simulation-error fit does not use it)")
     params, fit_x0 = _names(args.param), _names(args.fit_x0)
@@ -110,12 +128,13 @@ def _likelihood(args: argparse.Namespace, mf: Any, rec: Any) -> int:
     from ..simulate import fit_likelihood
     from ..simulate.learning._likelihood import LIKELIHOOD_KINDS
 
-    unused = [flag for flag, given in (("--fit-x0", args.fit_x0), ("--x0", args.x0), ("--bound", args.bound),
-                                       ("--output-std", args.output_std), ("--output", args.output))
-              if given] + (["--hold linear"] if args.hold != "zoh" else [])
+    unused = [flag for flag, given in (("--x0", args.x0), ("--output-std", args.output_std),
+                                       ("--fit-x0", args.fit_x0 and args.start != "simulation")) if given] + \
+        (["--hold linear"] if args.hold != "zoh" else [])
     if unused:
         raise ValueError(f"{', '.join(unused)}: not used by --method likelihood (the observer's xhat0 and P0 give the "
-                         "initial state, its R the measurement noise; inputs are held between samples)")
+                         "initial state, its R the measurement noise; inputs are held between samples; --fit-x0 only "
+                         "with --start simulation)")
     configured = mf.observers
     usable = {n: c for n, c in configured.items() if c.kind in LIKELIHOOD_KINDS}
     if not args.observer:
@@ -135,12 +154,26 @@ def _likelihood(args: argparse.Namespace, mf: Any, rec: Any) -> int:
                          f"kinds {', '.join(LIKELIHOOD_KINDS)}")
     design = design_from_config(mf.system, config.kind, config.options, where=f"{mf.path}: observers.{name}")
     params = _names(args.param)
-    initial = parse_assignments(args.initial or [], params + (["log_Q_scale", "log_R_scale"] if args.learn_noise else []),
-                                "--initial")
-    res = fit_likelihood(design, rec, params, learn_noise=args.learn_noise, initial=initial, max_step=args.max_step,
+    unknowns = params + (["log_Q_scale", "log_R_scale"] if args.learn_noise else [])
+    initial = parse_assignments(args.initial or [], unknowns, "--initial")
+    bounds = _bounds(args.bound)
+    bad = [k for k in bounds if k not in unknowns]
+    if bad:
+        raise ValueError(f"--bound {bad[0]}: not an unknown of this fit ({', '.join(unknowns)})")
+    res = fit_likelihood(design, rec, params, learn_noise=args.learn_noise, initial=initial, bounds=bounds,
+                         start=args.start, starts=args.starts, fit_x0=_names(args.fit_x0) or None,
+                         smoothing=args.smoothing, censor=not args.no_censor, max_step=args.max_step,
                          on_missing="skip" if args.skip_missing else "error")
+    if args.output:
+        from ..simulate._results import write_csv
+
+        outs = mf.system.outputs
+        header = ["t", *outs, *(f"{o}.predicted" for o in outs), *(f"{o}.predicted_std" for o in outs)]
+        write_csv(args.output, header, np.column_stack([rec.t, rec.y, *res.one_step]))
     if args.json:
         print(json.dumps(clean({"model": mf.system.name, "data": args.data, **res.to_dict()})))
     else:
         print(res.summary())
+        if args.output:
+            print(f"one-step predictions of the fitted filter: {args.output}")
     return 0 if res.success else 1

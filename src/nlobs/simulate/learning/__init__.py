@@ -7,6 +7,6 @@
 
 from ._simulation_error import FitResult as FitResult
 from ._simulation_error import fit_parameters as fit_parameters
-from ._likelihood import LikelihoodFit as LikelihoodFit
-from ._likelihood import fit_likelihood as fit_likelihood
+from ._fit_likelihood import LikelihoodFit as LikelihoodFit
+from ._fit_likelihood import fit_likelihood as fit_likelihood
 from ._likelihood import log_likelihood as log_likelihood
