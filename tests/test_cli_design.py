@@ -45,7 +45,7 @@ def test_design_toml_output_pastes_into_a_model_file(capsys):
     assert main(["design", "pendulum", "--toml", "--kind", "output_injection", "--kind", "kkl", "--kind", "ekf"]) == 0
     tables = tomllib.loads(capsys.readouterr().out)["observers"]
     system = load_model("pendulum").system
-    assert set(tables) == {"output_injection", "kkl", "ekf"}
+    assert set(tables) == {"output_injection", "kkl", "ekf_design"}     # the file has its own [observers.ekf]
     for name, table in tables.items():
         opts = {k: v for k, v in table.items() if k != "kind"}
         design_from_config(system, table["kind"], opts, where=name)         # the pasted table designs the same observer

@@ -4,7 +4,11 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
+from collections.abc import Mapping
 from typing import Any
+
+import numpy as np
 
 from ._common import clean, positive_float
 
@@ -58,33 +62,93 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(clean(adv.to_dict())))
     elif args.toml:
-        print(to_toml(adv))
+        print(to_toml(adv, existing=mf.observers))
     else:
         print(adv)
     return 0
 
 
-def _toml_value(v: Any) -> str:
-    if isinstance(v, bool):
+#: A number is written exactly (Python's shortest repr, which reads back bit for bit), unless a number of at most 12
+#: significant digits lies within :data:`ULPS` units in the last place of it: then it was that short number with the
+#: rounding noise of a computation in its last bits (0.0025000000000000005, σ² of 0.05; 2.2499999999999996e-08), and
+#: is written short (0.0025). Every other value keeps all its digits (0.3333333333333333, a learned map's region
+#: 129.99324999999664): a sigma-point weight at exactly 0, a least-squares fit to simulated data read it back as the
+#: same observer.
+ULPS = 4
+
+_BARE = set("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_-")
+
+
+def _toml_key(k: Any) -> str:
+    k = str(k)
+    return k if k and set(k) <= _BARE else json.dumps(k, ensure_ascii=False)
+
+
+def _toml_number(v: float) -> str:
+    """A float as TOML (see :data:`ULPS`); TOML's own inf, -inf and nan for the non-finite."""
+    if np.isnan(v):
+        return "nan"
+    if np.isinf(v):
+        return "inf" if v > 0 else "-inf"
+    text = repr(float(v))
+    for digits in range(1, 13):
+        short = float(f"{v:.{digits}g}")
+        if abs(short - v) <= ULPS * np.spacing(abs(v)):
+            text = repr(short)
+            break
+    return text if any(c in text for c in ".eEn") else text + ".0"
+
+
+def _toml_value(v: Any, key: str = "") -> str:
+    """One option's value as TOML. TOML has no null: a side of a bound without a limit (None) is written as TOML's
+    -inf (lower) or inf (upper), which the designs read as "no bound"."""
+    if isinstance(v, np.ndarray):
+        v = v.tolist()
+    if isinstance(v, (bool, np.bool_)):
         return "true" if v else "false"
-    if isinstance(v, (int, float)):
-        return repr(float(v)) if isinstance(v, float) else str(v)
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    if isinstance(v, (float, np.floating)):
+        return _toml_number(float(v))
     if isinstance(v, str):
         return json.dumps(v, ensure_ascii=False)
-    if isinstance(v, dict):
-        return "{ " + ", ".join(f"{k} = {_toml_value(x)}" for k, x in v.items()) + " }"
+    if isinstance(v, Mapping):
+        if key == "bounds":   # {state: (lo, hi)}: None is no bound on that side
+            v = {k: [-np.inf if pair[0] is None else pair[0], np.inf if pair[1] is None else pair[1]]
+                 if isinstance(pair, (list, tuple)) and len(pair) == 2 else pair for k, pair in v.items()}
+        items = [(k, x) for k, x in v.items() if x is not None]
+        return "{ " + ", ".join(f"{_toml_key(k)} = {_toml_value(x, str(k))}" for k, x in items) + " }"
     if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    return json.dumps(str(v))
+        if any(x is None for x in v):
+            raise ValueError(f"option `{key}` has an empty entry (None), which TOML cannot write: {v!r}")
+        return "[" + ", ".join(_toml_value(x, key) for x in v) + "]"
+    if isinstance(v, complex):
+        return _toml_value([v.real, v.imag], key)
+    return json.dumps(str(v), ensure_ascii=False)
 
 
-def to_toml(adv: Any) -> str:
-    """The applicable candidates as ``[observers.KIND]`` tables (kind + the options the design was made with)."""
-    from ..advise._advice import jsonable
+def to_toml(adv: Any, existing: Any = ()) -> str:
+    """The applicable candidates as ``[observers.NAME]`` tables (kind + the options the design was made with), written so
+    that the file they are pasted into loads and designs the same observers (numbers to :data:`DIGITS` significant
+    digits; no bound on a side: ±inf).
 
+    `existing` are the observer names the file already has: a table is named after its kind unless the file has that
+    name (then ``KIND_design``), and a candidate designed from one of the file's own tables is not repeated."""
+    taken = set(existing)
     out = [f"# observers for {adv.model!r} found by `nlobs design` (paste into the model file)"]
     for c in adv.applicable:
-        out.append(f"\n[observers.{c.kind}]\nkind = \"{c.kind}\"")
-        for k, v in jsonable(c.options).items():
-            out.append(f"{k} = {_toml_value(v)}")
+        own = re.match(r"designed from the file's \[observers\.([^\]]+)\]", c.why)   # advise._kinds._from_file
+        if own:
+            out.append(f"\n# {c.kind}: designed from the file's own [observers.{own.group(1)}], not repeated")
+            continue
+        name, k = c.kind, 1
+        while name in taken:
+            name = f"{c.kind}_design" + (str(k) if k > 1 else "")
+            k += 1
+        taken.add(name)
+        out.append(f"\n[observers.{name}]\nkind = \"{c.kind}\"")
+        for key, v in c.options.items():
+            if v is None:     # an option left at its default
+                continue
+            out.append(f"{_toml_key(key)} = {_toml_value(v, key)}")
     return "\n".join(out)
