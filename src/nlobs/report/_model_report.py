@@ -18,7 +18,7 @@ from ..advise import Advice
 from ..references import bibliography
 from ._html import equations, img, page, table
 
-__all__ = ["model_report", "write_model_report", "parameter_estimates"]
+__all__ = ["model_report", "write_model_report", "parameter_estimates", "kind_rows"]
 
 #: How many of the best-ranked candidates get their own states-vs-estimates plot.
 TOP = 3
@@ -148,11 +148,8 @@ def model_report(adv: Advice, *, source: str = "", sensors: Any = None) -> str:
     body.append("<h2 id='candidates'>Observer kinds</h2>")
     body.append("<p>" + ", ".join(f"{v} {k}" for k, v in counts.items() if v) + ". Each kind was tried with an automatic "
                 "tuning; the options column is what to paste into <code>[observers.NAME]</code>.</p>")
-    rows = []
-    refer = adv.text.refer if adv.text is not None else (lambda text: text)
-    for c in adv.candidates:
-        rows.append({"kind": c.kind, "status": c.status, "why": refer(c.why), "reference": c.reference})
-        cited_text += [c.why, c.reference]
+    rows = kind_rows(adv)
+    cited_text += [text for r in rows for text in (r["why"], r["reference"])]
     body.append(_status_table(rows))
     designs = [c for c in adv.candidates if c.design is not None]
     if designs:
@@ -219,6 +216,26 @@ def model_report(adv: Advice, *, source: str = "", sensors: Any = None) -> str:
                 + (f" · best: {_esc(adv.ranking[0])}" if adv.ranking else "") + f" · {adv.seconds:.1f} s · Python "
                 f"{platform.python_version()}")
     return page(f"nlobs — observers for {adv.model}", subtitle, [nav, *body])
+
+
+def kind_rows(adv: Advice) -> list[dict[str, Any]]:
+    """The rows of the report's table of observer kinds: one per kind that applies, or that fails (or needs input) for a
+    reason of its own, in the registry's order; then one row per reason shared by several kinds (every continuous-time
+    kind on a map, an unobservable state that blocks every full-state observer), naming them."""
+    refer = adv.text.refer if adv.text is not None else (lambda text: text)
+    shared: dict[tuple[str, str], list[str]] = {}
+    for c in adv.candidates:
+        if c.status != "applies":
+            shared.setdefault((c.status, c.why), []).append(c.kind)
+    rows, grouped = [], []
+    for c in adv.candidates:
+        kinds = shared.get((c.status, c.why), [c.kind])
+        if len(kinds) == 1:
+            rows.append({"kind": c.kind, "status": c.status, "why": refer(c.why), "reference": c.reference})
+        elif kinds[0] == c.kind:
+            grouped.append({"kind": f"{len(kinds)} kinds: {', '.join(kinds)}", "status": c.status, "why": refer(c.why),
+                            "reference": ""})
+    return rows + grouped
 
 
 def _status_table(rows: Sequence[dict[str, Any]]) -> str:
