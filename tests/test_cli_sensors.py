@@ -98,3 +98,13 @@ def test_bad_target_and_budget(model, capsys):
     assert "'Q' is not a state or an unknown parameter" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["sensors", str(model), "--budget", "-1"])
+
+
+def test_run_adds_the_filter_errors(model, tmp_path, capsys):
+    png = tmp_path / "run.png"
+    assert main(["sensors", str(model), "--run", "--draws", "2", "--json", "--plot", str(png)]) == 0
+    out = json.loads(capsys.readouterr().out)
+    first = out["filter"]["sets"][0]
+    assert first["sensors"] == out["best"]["sensors"] and set(first["rms_error"]) == {"A", "B", "C", "D", "E", "F", "k"}
+    assert all(v > 0 for v in first["rms_error"].values()) and out["filter"]["seeds"] == 2
+    assert png.stat().st_size > 10_000

@@ -381,3 +381,22 @@ def test_to_dict_has_the_issue_contract(nl6):
     first = out["sets"][0]
     assert {"sensors", "observable", "crb", "cost"} <= set(first) and set(first["crb"]) == set(nl6.unknowns)
     assert all(list(s) in [e["sensors"] for e in out["sets"]] for s in nl6.minimal_sets)
+
+
+# -- nlobs sensors --run: a smoothed filter beside the bound ------------------------------------------------------
+def test_a_smoothed_kalman_filter_reaches_the_posterior_bound_on_the_lti_model(lti):
+    """Linear and Gaussian: the RTS-smoothed x̂(0) of the EKF (here the Kalman filter) has the posterior covariance
+    (P0⁻¹ + F)⁻¹ exactly, so over 300 noise draws its RMS error is that bound within sampling error (±4 % one σ)."""
+    from nlobs.simulate._sensors import PRIOR_FACTOR, sensor_errors
+
+    mf = loads_model(_lti_text(), path="lti4.toml")
+    best = lti.best.sensors
+    out = sensor_errors(mf, lti, sets=[best], seeds=300)
+    crb = np.array([lti.best.crb[x] for x in ("x1", "x2", "x3", "x4")])
+    W = _lti_information(list(best))
+    want = np.sqrt(np.diag(np.linalg.inv(np.diag(1 / (PRIOR_FACTOR * crb) ** 2) + W)))
+    post = np.array([out.posterior[best][x] for x in ("x1", "x2", "x3", "x4")])
+    rms = np.array([out.rms[best][x] for x in ("x1", "x2", "x3", "x4")])
+    assert np.max(np.abs(post / want - 1)) < 1e-6
+    assert np.all(np.abs(rms / want - 1) < 0.12), rms / want      # 3 σ of the RMS of 300 draws
+    assert "RMS error of x̂(0)" in str(out) and out.to_dict()["sets"][0]["sensors"] == list(best)

@@ -2,7 +2,8 @@
 generic rank), and the Cramér–Rao bounds each set allows on the file's ``[simulation]`` run, ranked under a budget.
 
 The candidates are the file's ``[sensors.NAME]`` tables (expr, noise, optional cost), else every state and every
-output.
+output. ``--run`` also runs a smoothed extended Kalman filter with each listed set on the run (simulate layer:
+:func:`nlobs.simulate._sensors.sensor_errors`) and shows the error of its x̂(0) beside each bound.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ import json
 from typing import Any
 
 from ..references import cite
-from ._common import clean, positive_float
+from ._common import clean, positive_float, positive_int
 
 
 def add_parser(sub: Any) -> None:
@@ -36,6 +37,11 @@ def add_parser(sub: Any) -> None:
                    help="the inputs the structural verdict covers: 'generic' (default), 'constant', or N (polynomials of "
                         "degree N)")
     a.add_argument("--no-bounds", action="store_true", help="the structural part only (no run)")
+    a.add_argument("--run", dest="filter_run", action="store_true",
+                   help="also run a smoothed EKF with each listed set on the [simulation] run (noise draws with each "
+                        "sensor's σ) and show the RMS error of its x̂(0) beside the bounds")
+    a.add_argument("--draws", type=positive_int, default=20, metavar="N",
+                   help="noise draws per set with --run (default 20; the RMS of N draws is uncertain by about 1/√(2N))")
     a.add_argument("--plot", default=None, metavar="FILE",
                    help="save the bounds per state and set as a picture (PNG, SVG or PDF by the extension)")
     a.add_argument("--engine", default="auto", choices=["auto", "vm", "c"],
@@ -54,17 +60,28 @@ def run(args: argparse.Namespace) -> int:
     inputs: Any = int(args.inputs) if args.inputs.strip().isdigit() else args.inputs.strip()
     sel = select_sensors(mf, targets=args.target, budget=args.budget, unknown_params=unknown_params_of(mf, args.params),
                          inputs=inputs, quality_part=not args.no_bounds, seed=args.seed, engine=args.engine)
+    errors = None
+    if args.filter_run:
+        if sel.run is None:
+            raise ValueError(f"--run: {mf.path} has no [simulation] x0 to run (or --no-bounds was given)")
+        from ..simulate._sensors import sensor_errors
+
+        errors = sensor_errors(mf, sel, seeds=args.draws, engine=args.engine)
     if args.plot:
         from ..report._sensors import sensors_figure
 
-        sensors_figure(sel).savefig(args.plot, dpi=150)
+        sensors_figure(sel, errors=errors.rms if errors is not None else None).savefig(args.plot, dpi=150)
     if args.json:
         out = sel.to_dict()
+        if errors is not None:
+            out["filter"] = errors.to_dict()
         if args.plot:
             out["plot"] = args.plot
         print(json.dumps(clean(out)))
         return 0
     print(sel)
+    if errors is not None:
+        print(errors)
     if args.plot:
         print(f"plot: {args.plot}")
     return 0

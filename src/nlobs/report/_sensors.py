@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import html
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -35,10 +35,11 @@ def plotted_sets(sel: Any, max_sets: int = MAX_SETS) -> list[Any]:
     return out[:max_sets]
 
 
-def sensors_figure(sel: Any, *, max_sets: int = MAX_SETS, sets: Sequence[Any] | None = None) -> Figure:
+def sensors_figure(sel: Any, *, max_sets: int = MAX_SETS, sets: Sequence[Any] | None = None,
+                   errors: Mapping[tuple[str, ...], Mapping[str, float]] | None = None) -> Figure:
     """Grouped bars (log scale): the Cramér–Rao bound σ of each unknown's initial value, one bar per set; an unknown
-    the set leaves uninformed is a hatched bar to the top marked ∞. With ``--run``, a dot marks the error a filter
-    reached on the run (when the selection carries one)."""
+    the set leaves uninformed is a hatched bar to the top marked ∞. `errors` (``nlobs sensors --run``): per set, the
+    RMS error of a smoothed filter's x̂(0), a black dot on its bar."""
     chosen = list(sets) if sets is not None else plotted_sets(sel, max_sets)
     if not chosen:
         raise ValueError("no set has bounds to plot: the model has no [simulation] run (x0)")
@@ -52,6 +53,7 @@ def sensors_figure(sel: Any, *, max_sets: int = MAX_SETS, sets: Sequence[Any] | 
     top = hi * 30
     width = 0.8 / len(chosen)
     x = np.arange(len(names))
+    dots = False
     for j, s in enumerate(chosen):
         vals = np.array([s.crb[n] for n in names], dtype=float)
         inf = ~np.isfinite(vals)
@@ -62,10 +64,11 @@ def sensors_figure(sel: Any, *, max_sets: int = MAX_SETS, sets: Sequence[Any] | 
             ax.bar(pos[inf], np.full(inf.sum(), top), width * 0.92, color="none", edgecolor=f"C{j % 10}", hatch="//")
             for p in pos[inf]:
                 ax.text(p, top, "∞", ha="center", va="bottom", fontsize=9, color=f"C{j % 10}")
-        errors = getattr(s, "filter_error", None)
-        if errors:
-            ev = np.array([errors.get(n, np.nan) for n in names], dtype=float)
-            ax.plot(pos, ev, "k.", ms=6, label="filter RMS error on the run" if j == 0 else None)
+        err = (errors or {}).get(tuple(s.sensors))
+        if err:
+            ev = np.array([err.get(n, np.nan) for n in names], dtype=float)
+            ax.plot(pos, ev, "o", color="k", ms=4, label="RMS error of a smoothed EKF's x̂(0)" if not dots else None)
+            dots = True
     ax.set_yscale("log")
     ax.set_ylim(lo / 3, top * 3)
     ax.set_xticks(x, names)

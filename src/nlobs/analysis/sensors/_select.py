@@ -109,6 +109,9 @@ class SensorSelection:
         The run the bounds are computed on (t_final, dt, samples, sample period).
     notes : tuple of str
     seconds : float
+    criterion, reference : str
+    fisher : CandidateFisher or None
+        Each candidate's information (noise-weighted), the run's sample times, states and noise-free readings.
     """
 
     model: str
@@ -128,6 +131,7 @@ class SensorSelection:
     seconds: float = 0.0
     criterion: str = CRITERION
     reference: str = field(default_factory=lambda: f"{cite('sedoglavic2002')}; {cite('liu2013')}; {cite('krener2009')}")
+    fisher: CandidateFisher | None = field(default=None, repr=False)
 
     def set_of(self, names: Sequence[str]) -> SensorSet | None:
         """The listed set with exactly these sensors (None if it is not listed)."""
@@ -376,7 +380,7 @@ def _assemble(model: Any, system: System, pool: tuple[Candidate, ...], jets: Can
         system.name, tnames, jets.unknowns, pool, graph, search,
         tuple(tuple(names[i] for i in m) for m in search.minimal), sets,
         by_members.get(best) if best is not None else None, tuple(tuple(names[i] for i in m) for m in pareto),
-        budget, ranking, run, tuple(notes), time.perf_counter() - t0)
+        budget, ranking, run, tuple(notes), time.perf_counter() - t0, fisher=fisher)
 
 
 def _evaluate(members: tuple[int, ...], roles: list[str], names: Sequence[str], costs: np.ndarray, jets: CandidateJets,
