@@ -34,6 +34,7 @@ _LAZY: dict[str, tuple[str, str | None]] = {
                                               "Sampling", "Simulation", "estimate", "fit_parameters", "LikelihoodFit",
                                               "fit_likelihood", "log_likelihood", "montecarlo", "simulate")},
     "analyze": (".analysis", "analyze"),
+    "select_sensors": (".analysis", "select_sensors"),
     "from_control": (".interop", "from_control"),
     "to_control": (".interop", "to_control"),
     "Advice": (".advise", "Advice"),
