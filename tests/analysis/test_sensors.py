@@ -370,6 +370,18 @@ def test_bad_candidates_get_one_line_errors(candidates, message):
     assert "\n" not in str(e.value)
 
 
+def test_a_system_with_its_run_and_a_discrete_model():
+    from nlobs import System
+
+    s = System(states=["x", "v"], f=["v", "-x + u"], inputs=["u"], outputs=["y"], h=["x"])
+    sel = select_sensors(s, {"pos": {"expr": "x", "noise": 0.1}, "vel": {"expr": "v", "noise": 0.1}},
+                         simulation={"x0": [1, 0], "t_final": 5, "dt": 0.01, "sample_period": 0.1, "inputs": {"u": "sin(t)"}})
+    assert sel.minimal_sets == (("pos",), ("vel",)) and sel.run["samples"] == 51 and sel.best.sensors == ("pos", "vel")
+    d = System(states=["x"], f=["0.5*x"], outputs=["y"], h=["x"], time="discrete", sample_time=1.0)
+    with pytest.raises(ModelError, match="discrete-time model"):
+        select_sensors(d)
+
+
 def test_bad_target_is_named():
     with pytest.raises(ModelError, match="'z' is not a state or an unknown parameter"):
         select_sensors(loads_model(PLAIN, path="plain.toml"), targets="x,z", quality_part=False)

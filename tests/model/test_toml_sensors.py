@@ -47,6 +47,7 @@ def test_sensor_tables_are_read_in_order_with_definitions_expanded():
     (GOOD.replace("noise = 0.2", "noise = 0"), "sensors.B.noise", "must be positive"),            # non-positive noise
     (GOOD.replace("noise = 0.2", "noise = -1"), "sensors.B.noise", "must be positive"),
     (GOOD + '[sensors.A]\nexpr = "v"\nnoise = 1\n', "sensors.A", "declared twice"),            # duplicate name
+    (BASE + '[sensors]\nA = { expr = "x", noise = 1 }\nA = { expr = "v", noise = 2 }\n', "sensors.A", "declared twice"),
     (BASE + "[sensors]\n", "sensors", "declares no candidate sensor"),                            # empty pool
     (GOOD.replace("noise = 0.1\n", ""), "sensors.A", "`noise` is required"),
     (GOOD.replace('expr = "k*v"\n', ""), "sensors.B", "`expr` is required"),

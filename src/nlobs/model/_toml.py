@@ -246,11 +246,10 @@ def loads_model(text: str, *, path: str = "<string>", default_name: str = "model
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
-        twice = re.search(r"\('sensors', '([^']*)'\)", str(e))
-        if twice:   # a [sensors.NAME] table declared twice: say so with the table's name
-            raise ModelFileError(f"the candidate sensor `{twice.group(1)}` is declared twice ({str(e).rsplit('(', 1)[-1].rstrip(')')}); "
-                                 "give each [sensors.NAME] table its own name", path=path,
-                                 key=f"sensors.{twice.group(1)}") from None
+        twice = _sensor_twice(text, str(e))
+        if twice:   # a candidate sensor declared twice: say so with the table's name
+            raise ModelFileError(f"the candidate sensor `{twice}` is declared twice ({str(e).rsplit('(', 1)[-1].rstrip(')')}); "
+                                 "give each [sensors.NAME] table its own name", path=path, key=f"sensors.{twice}") from None
         raise ModelFileError(f"not valid TOML: {e}", path=path) from None
     except RecursionError:
         raise ModelFileError("not valid TOML for nlobs: arrays or tables are nested too deeply", path=path) from None
@@ -258,6 +257,22 @@ def loads_model(text: str, *, path: str = "<string>", default_name: str = "model
         raise ModelFileError(f"not valid TOML for nlobs: a value cannot be read ({shorten(str(e), 80)}); "
                              "numbers must be ordinary floats or integers", path=path) from None
     return _Loader(path).load(doc, default_name)
+
+
+def _sensor_twice(text: str, message: str) -> str | None:
+    """The name of a candidate sensor that tomllib refused as declared twice (``[sensors.A]`` twice, or ``A = {...}``
+    twice under ``[sensors]``), else None."""
+    m = re.search(r"\('sensors', '([^']*)'\)", message)
+    if m:
+        return m.group(1)
+    line = re.search(r"Cannot overwrite a value \(at line (\d+)", message)
+    if not line:
+        return None
+    lines = text.splitlines()
+    k = int(line.group(1)) - 1
+    key = re.match(r"\s*([A-Za-z][A-Za-z0-9_]*)\s*=", lines[k]) if 0 <= k < len(lines) else None
+    header = next((h.strip() for h in reversed(lines[:k]) if h.lstrip().startswith("[")), "")
+    return key.group(1) if key and re.fullmatch(r"\[\s*sensors\s*\](\s*#.*)?", header) else None
 
 
 def _names_in(text: str) -> set[str]:
