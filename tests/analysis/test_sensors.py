@@ -351,6 +351,13 @@ def test_default_pool_is_every_state_and_output():
     assert set(sel.minimal_sets) == {("v",), ("pos",)}      # the energy alone does not give the phase
 
 
+def test_process_noise_is_said_to_be_left_out():
+    sel = select_sensors(loads_model(PLAIN.replace("sample_period", "process_noise = { v = 0.1 }\nsample_period"),
+                                     path="plain.toml"))
+    assert any("process_noise is not in them" in n for n in sel.notes)
+    assert not any("process_noise" in n for n in select_sensors(loads_model(PLAIN, path="plain.toml")).notes)
+
+
 def test_without_x0_only_the_structural_part_with_a_note():
     sel = select_sensors(loads_model(PLAIN.replace("x0 = [2.0, 0.0]\n", ""), path="plain.toml"))
     assert sel.run is None and sel.best is None and all(s.crb is None for s in sel.sets)

@@ -203,6 +203,9 @@ def _fisher(system: System, pool: Sequence[Candidate], unknown: Sequence[str], c
         notes.append(f"the outputs have sample periods of their own: every candidate is taken every {fastest:g} (the "
                      "fastest)")
         period = fastest
+    if any(float(v) > 0 for v in (_get(cfg, "process_noise", {}) or {}).values()):
+        notes.append("the bounds are those of the deterministic model: the [simulation] process_noise is not in them "
+                     "(with process noise x(0) is less informative than they say)")
     t_final = float(_get(cfg, "t_final") or 10.0)
     dt = float(_get(cfg, "dt") or 1e-3)
     fi = candidate_fisher(plant, [c.expr for c in pool], np.ones(len(pool)), x0=_get(cfg, "x0"), t_final=t_final, dt=dt,
