@@ -73,6 +73,21 @@ def test_gallery_has_a_page_per_example_with_its_plots_and_rendered_maths(site):
         assert "FAILS" not in text or key == "cuk", f"{key}: a claim fails in the docs build"
 
 
+def test_gallery_has_a_page_per_practitioners_model_with_its_file_and_plots(site):
+    from nlobs.examples import PRACTICE
+
+    assert {"battery", "building", "vehicle"} <= set(PRACTICE)
+    for key in PRACTICE:
+        pages = list((site / "gallery" / "practice").glob(f"plot_*_{key}.html"))
+        assert len(pages) == 1, key
+        text = pages[0].read_text(encoding="utf-8")
+        assert "Claims checked" in text and "FAILS" not in text and "not checked" not in text, key
+        assert "sphx-glr-single-img" in text or "sphx-glr-multi-img" in text, key
+        assert "[simulation]" in text, f"{key}: the model file is not on its page"
+    index = (site / "gallery" / "index.html").read_text(encoding="utf-8")
+    assert "Practitioners" in index
+
+
 def test_no_page_names_an_internal_file_or_loads_anything_from_elsewhere(site):
     for page in site.rglob("*.html"):
         text = page.read_text(encoding="utf-8")

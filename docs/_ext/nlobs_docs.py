@@ -49,24 +49,29 @@ def _visit_displaymath(self: Any, node: nodes.Element) -> None:
 GALLERY_SRC = HERE / "_gallery_src"
 
 
-def _script(ex: Any) -> str:
+def _script(ex: Any, practice: bool = False) -> str:
     from nlobs.report import plain
 
     title = plain(ex.title)
+    if practice:
+        intro = (f"The practitioner's model registered as ``{ex.key}`` in ``nlobs.examples.PRACTICE``, run while these pages\n"
+                 "were built; its model file comes first: copy it to start your own.")
+        load = (f'from nlobs.examples import PRACTICE\nfrom nlobs.report import HTML, example_section\n\nresult = PRACTICE["{ex.key}"].run()'
+                "\n\n# %%\n# The model file.\nprint(result.model)")
+    else:
+        intro = (f"The example registered as ``{ex.key}`` in :mod:`nlobs.examples`, run while these pages were\n"
+                 f"built. ``nlobs demo --only {ex.key}`` runs the same function; so do the acceptance tests.")
+        load = f'from nlobs.examples import find_example\nfrom nlobs.report import HTML, example_section\n\nresult = find_example("{ex.key}").run()'
     return f'''"""
 {title}
 {"=" * len(title)}
 
-The example registered as ``{ex.key}`` in :mod:`nlobs.examples`, run while these pages were
-built. ``nlobs demo --only {ex.key}`` runs the same function; so do the acceptance tests.
+{intro}
 """
 
 # %%
 # Run the example: it builds the models, checks the claims with numbers and simulates the observers.
-from nlobs.examples import find_example
-from nlobs.report import HTML, example_section
-
-result = find_example("{ex.key}").run()
+{load}
 
 # %%
 # What is shown, the claims checked, the observability verdicts, the numbers, the model, the
@@ -82,8 +87,9 @@ figures += list(result.figures.values())
 
 
 def write_gallery_sources(app: Any = None) -> None:
-    """One script per registered example (the examples' order), and the gallery's header."""
-    from nlobs.examples import EXAMPLES
+    """One script per registered example (the examples' order), and the gallery's header; the practitioners' models
+    (:data:`nlobs.examples.PRACTICE`) in a second section, ``practice/``."""
+    from nlobs.examples import EXAMPLES, PRACTICE
 
     GALLERY_SRC.mkdir(exist_ok=True)
     for old in GALLERY_SRC.glob("*.py"):
@@ -96,6 +102,17 @@ def write_gallery_sources(app: Any = None) -> None:
     for i, ex in enumerate(sorted(EXAMPLES.values(), key=lambda e: e.order)):
         name = f"plot_{i:02d}_{ex.key.replace('-', '_')}.py"
         (GALLERY_SRC / name).write_text(_script(ex), encoding="utf-8")
+    section = GALLERY_SRC / "practice"
+    section.mkdir(exist_ok=True)
+    for old in section.glob("*.py"):
+        old.unlink()
+    (section / "GALLERY_HEADER.rst").write_text(
+        "Practitioners' models\n---------------------\n\n"
+        "Models of the kind an engineer brings — a battery with its OCV table, a building logged every few minutes as a\n"
+        "discrete-time model, a vehicle whose sensors run on clocks of their own, one of them late — each with its\n"
+        "model file, the claims checked with numbers while these pages were built, and its plots.\n", encoding="utf-8")
+    for i, ex in enumerate(sorted(PRACTICE.values(), key=lambda e: e.order)):
+        (section / f"plot_{i:02d}_{ex.key}.py").write_text(_script(ex, practice=True), encoding="utf-8")
 
 
 class FigureScraper:

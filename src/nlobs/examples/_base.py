@@ -14,7 +14,8 @@ from typing import Any
 from ..model import System
 from ..simulate import Run
 
-__all__ = ["Claim", "claim_from_global", "ExampleResult", "Example", "EXAMPLES", "ALIASES", "register", "find_example", "rows_from_run"]
+__all__ = ["Claim", "claim_from_global", "ExampleResult", "Example", "EXAMPLES", "ALIASES", "PRACTICE", "register", "practice",
+           "find_example", "rows_from_run"]
 
 
 @dataclass(frozen=True)
@@ -157,6 +158,22 @@ def register(key: str, title: str, order: int, *, aliases: Sequence[str] = ()) -
     def deco(fn: Callable[[], ExampleResult]) -> Callable[[], ExampleResult]:
         EXAMPLES[key] = Example(key, title, order, fn, tuple(aliases))
         ALIASES.update({a: key for a in aliases})
+        return fn
+
+    return deco
+
+
+#: Practitioners' models, by key, in the order of the docs' gallery: a battery with an OCV table, a discrete-time
+#: building, a multi-rate vehicle. They show features the papers do not (tables, maps, clocks and latencies) and are not
+#: part of ``nlobs demo``, which reproduces the papers.
+PRACTICE: dict[str, Example] = {}
+
+
+def practice(key: str, title: str, order: int) -> Callable[[Callable[[], ExampleResult]], Callable[[], ExampleResult]]:
+    """Decorator: register a practitioner's model under `key` in :data:`PRACTICE` (the gallery's second part)."""
+
+    def deco(fn: Callable[[], ExampleResult]) -> Callable[[], ExampleResult]:
+        PRACTICE[key] = Example(key, title, order, fn)
         return fn
 
     return deco
