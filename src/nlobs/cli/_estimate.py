@@ -29,8 +29,9 @@ def add_parser(sub: Any) -> None:
                         "(times the identity), one number per state (the diagonal) or a JSON matrix '[[..], [..]]'")
     e.add_argument("--smooth", action="store_true",
                    help="smooth the whole recording after filtering it (fixed-interval Rauch-Tung-Striebel smoother; "
-                        "unscented for ukf): estimates use the samples after them too; the CSV holds the smoothed values. "
-                        "For the continuous-discrete ekf and ukf")
+                        "unscented for ukf and srukf): estimates use the samples after them too; the CSV holds the smoothed "
+                        "values. For the continuous-discrete ekf and ukf, and on a discrete-time model for its ekf, srekf, iekf, "
+                        "ukf and srukf")
     e.add_argument("--skip-missing", action="store_true", help="leave empty/NaN output samples out of the update")
     e.add_argument("--hold", choices=("zoh", "linear"), default="zoh", help=HELP_HOLD)
     e.add_argument("--max-step", type=positive_float, metavar="SECONDS",
@@ -67,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
         print(run_.summary())
         for name, tr in run_.observers.items():
             if tr.smoothed:
-                print(f"{name}: smoothed (fixed-interval RTS{', unscented' if tr.method == 'ukf' else ''}); "
+                print(f"{name}: smoothed (fixed-interval RTS{', unscented' if tr.method in ('ukf', 'srukf') else ''}); "
                       "the estimates below and in the CSV are the smoothed ones")
             print(f"{name}: final estimate " + ", ".join(f"{s}={v:.6g}" for s, v in zip(run_.state_names, tr.xhat[-1])))
         if args.output:
