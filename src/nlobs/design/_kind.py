@@ -133,6 +133,7 @@ class Kind:
     time_base: str = "continuous"
     precheck: Callable[[Any], tuple[bool, str]] | None = None
     tune: Callable[[Any], Tuning] | None = None
+    map_smoother: str = ""                           # on a map: "extended" or "unscented" RTS smoother, "" none
 
     @property
     def options(self) -> dict[str, Any]:
@@ -164,7 +165,8 @@ KINDS: dict[str, Kind] = {}
 
 def kind(name: str, *, summary: str, references: tuple[tuple[str, str], ...] = (), time_base: str = "continuous",
          precheck: Callable[[Any], tuple[bool, str]] | None = None,
-         tune: Callable[[Any], Tuning] | None = None) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+         tune: Callable[[Any], Tuning] | None = None,
+         map_smoother: str = "") -> Callable[[Callable[..., Any]], Callable[..., Any]]:
     """Declare the observer kind `name`, designed by the decorated function (returned wrapped by
     :func:`requires_model`, so ``nlobs.design_x`` and ``KINDS["x"].design`` are the same object).
 
@@ -183,17 +185,22 @@ def kind(name: str, *, summary: str, references: tuple[tuple[str, str], ...] = (
         ``precheck(context) -> (ok, why)``: a quick refusal from the design's own checks.
     tune : callable, optional
         ``tune(context) -> Tuning``: options from the model and its run (the advisor's automatic tuning).
+    map_smoother : {"", "extended", "unscented"}
+        On a discrete-time model, the fixed-interval smoother of the kind's run: the extended RTS smoother (the kind
+        predicts as the EKF does) or the unscented one (it predicts by sigma points); "" when it has none.
     """
     if time_base not in TIME_BASES:
         raise ValueError(f"kind {name!r}: time_base must be one of {', '.join(TIME_BASES)}, got {time_base!r}")
     if any(not (isinstance(r, tuple) and len(r) == 2) for r in references):
         raise ValueError(f"kind {name!r}: references must be a tuple of (key, place) pairs, e.g. (work('kalman1961'),)")
+    if map_smoother not in ("", "extended", "unscented"):
+        raise ValueError(f"kind {name!r}: map_smoother must be '', 'extended' or 'unscented', got {map_smoother!r}")
     if name in KINDS:
         raise ValueError(f"observer kind {name!r} is declared twice ({KINDS[name].design.__module__} and another module)")
 
     def register(fn: Callable[..., Any]) -> Callable[..., Any]:
         wrapped = requires_model(fn, time_base=time_base)
-        KINDS[name] = Kind(name, wrapped, summary, tuple(references), time_base, precheck, tune)
+        KINDS[name] = Kind(name, wrapped, summary, tuple(references), time_base, precheck, tune, map_smoother)
         return wrapped
 
     return register

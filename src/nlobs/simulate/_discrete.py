@@ -17,7 +17,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from ..design import ObserverDesign
+from ..design import KINDS, ObserverDesign
 from ..engine import compile_system
 from ..errors import DataError, FiniteEscapeError, ModelError, PreconditionError, ShapeError
 from ..model import System, input_signals
@@ -29,7 +29,7 @@ from ._options import xhat0_for as _xhat0_for
 from ._results import ObserverTrace, Run
 
 __all__ = ["simulate_map", "estimate_map", "map_trace", "run_map_observer", "check_map_grid", "MAX_MAP_STEPS",
-           "MAP_SMOOTHABLE"]
+           "map_smoothable"]
 
 #: The most steps a discrete-time simulation stores.
 MAX_MAP_STEPS = 10_000_000
@@ -186,25 +186,28 @@ def _observers_on(obs: Mapping[str, AbstractObserver], t: np.ndarray, U: np.ndar
     return traces, failures, extra
 
 
-#: The kinds whose run on a map has a fixed-interval smoother (:mod:`._smooth_map`): the extended RTS smoother for the
-#: EKF's prediction (ekf, and srekf and iekf, which predict as it does), the unscented one for the sigma-point filters.
-MAP_SMOOTHABLE = ("ekf", "srekf", "iekf", "ukf", "srukf")
+def map_smoothable() -> tuple[str, ...]:
+    """The kinds whose run on a map has a fixed-interval smoother (:mod:`._smooth_map`), as their declarations say
+    (``@kind(..., map_smoother=...)``): the extended RTS smoother for the kinds that predict as the EKF does, the
+    unscented one for the sigma-point filters."""
+    return tuple(name for name, k in KINDS.items() if k.map_smoother)
 
 
 def estimate_map(obs: Mapping[str, AbstractObserver], recording: Any, t: np.ndarray, u: np.ndarray, y0: np.ndarray,
                  mask: np.ndarray, xhat0: Any, smooth: bool) -> Run:
     """Observers of a discrete-time model on a recording on its grid (one row per step; NaN: not measured), each on
-    its own; `smooth`: the fixed-interval smoother of each (see :data:`MAP_SMOOTHABLE`)."""
+    its own; `smooth`: the fixed-interval smoother of each (see :func:`map_smoothable`)."""
     if not all(o.system.is_discrete for o in obs.values()):
         raise ModelError("estimate: a discrete-time model's observers run alone (no continuous-time observers beside "
                          "them)")
     if smooth:
-        bad = [k for k, o in obs.items() if o.design.method not in MAP_SMOOTHABLE or o.design.covariance is None]
+        smoothable = map_smoothable()
+        bad = [k for k, o in obs.items() if o.design.method not in smoothable or o.design.covariance is None]
         if bad:
             pf = " (a particle filter's smoother, by backward simulation, is not available)" \
                 if obs[bad[0]].design.method == "pf" else ""
             raise PreconditionError(f"smoothing: observer {bad[0]!r} is of kind {obs[bad[0]].design.method!r}; smoothers of "
-                                    f"a discrete-time model exist for its {', '.join(MAP_SMOOTHABLE)}{pf}")
+                                    f"a discrete-time model exist for its {', '.join(smoothable)}{pf}")
     for o in obs.values():
         check_map_grid(o.system, t, f"recording ({recording.source})")
     traces, failures, extra = _observers_on(obs, t, u, y0, mask, xhat0, innovations=True)

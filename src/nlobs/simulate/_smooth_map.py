@@ -28,7 +28,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from ..design import ObserverDesign
+from ..design import KINDS, ObserverDesign
 from ..engine import compile_system, evaluate_many
 
 __all__ = ["rts_smooth_map"]
@@ -42,7 +42,7 @@ def _prediction(design: ObserverDesign) -> ca.Function:
     t, x, u = ca.SX.sym("t"), ca.SX.sym("x", n), ca.SX.sym("u", system.n_inputs)
     P = ca.SX.sym("P", n, n)
     Q = ca.DM(design.certificate.values["Q"])
-    if design.method in ("ekf", "srekf", "iekf"):
+    if KINDS[design.method].map_smoother == "extended":
         fx = f(t, x, u)
         F = ca.jacobian(fx, x)
         xp, Pp, C = fx, F @ P @ F.T + Q, P @ F.T

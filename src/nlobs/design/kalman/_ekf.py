@@ -35,7 +35,8 @@ def tune_ekf(ctx: Any) -> Tuning:
 
 @kind('ekf', summary='extended Kalman filter (continuous-discrete or continuous), exact Jacobians by automatic differentiation',
       references=(work("jazwinski1970", "continuous-discrete extended Kalman filter"), work("kalman1961"),
-                  work("simon2006", "§13.2, discrete time")), time_base="both", tune=tune_ekf)
+                  work("simon2006", "§13.2, discrete time")), time_base="both", tune=tune_ekf,
+      map_smoother="extended")
 def design_ekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None,
                mode: Literal["continuous", "continuous-discrete"] = "continuous-discrete",
                bounds: Mapping[str, Any] | None = None) -> ObserverDesign:

@@ -32,7 +32,7 @@ def tune_iekf(ctx: Any) -> Tuning:
 
 
 @kind('iekf', summary='iterated extended Kalman filter (continuous-discrete, or on a map): Gauss-Newton iterations of the update',
-      references=(work("bell1993"),), time_base="both", tune=tune_iekf)
+      references=(work("bell1993"),), time_base="both", tune=tune_iekf, map_smoother="extended")
 def design_iekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None, iterations: int = 5,
                 tol: float = 1e-10) -> ObserverDesign:
     r"""Iterated extended Kalman filter (continuous-discrete; Bell & Cathey (1993)).

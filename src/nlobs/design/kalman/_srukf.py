@@ -35,7 +35,8 @@ def tune_srukf(ctx: Any) -> Tuning:
 
 
 @kind('srukf', summary='square-root unscented Kalman filter (continuous-discrete, or on a map): P is never formed, its Cholesky factor is updated by QR',
-      references=(work("vandermerwe2001", "square root by QR"), work("arasaratnam2009")), time_base="both", tune=tune_srukf)
+      references=(work("vandermerwe2001", "square root by QR"), work("arasaratnam2009")), time_base="both", tune=tune_srukf,
+      map_smoother="unscented")
 def design_srukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None, alpha: float = 1.0,
                  beta: float = 0.0, kappa: float = 0.0, bounds: Mapping[str, Any] | None = None) -> ObserverDesign:
     r"""Square-root unscented Kalman filter (continuous-discrete, van der Merwe & Wan (2001)): P is never formed;

@@ -47,7 +47,7 @@ def tune_ukf(ctx: Any) -> Tuning:
 
 @kind('ukf', summary='unscented Kalman filter (continuous-discrete)',
       references=(work("julier2004"), work("wan2000", "discrete time")), time_base="both",
-      tune=tune_ukf)
+      tune=tune_ukf, map_smoother="unscented")
 def design_ukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None, alpha: float = 1.0,
                beta: float = 0.0, kappa: float = 0.0, bounds: Mapping[str, Any] | None = None) -> ObserverDesign:
     r"""Continuous-discrete unscented Kalman filter.
