@@ -3,25 +3,29 @@
 The negative log-likelihood of the filter (:mod:`._likelihood`) is a sum over samples of squared whitened
 innovations and log-determinants; its Fisher information (the Gauss-Newton matrix of both parts) and its exact
 gradient come from forward automatic differentiation through the filter. The optimiser is SciPy's trust-region
-method ``minimize(method="trust-constr")`` with that information as its Hessian model — Fisher scoring in a trust
+method ``minimize(method="trust-exact")`` with that information as its Hessian model — Fisher scoring in a trust
 region, the classical prediction-error method (Ljung (1999), ch. 7 and 10) globalised — on scaled unknowns:
 
 - a parameter whose initial guess is positive is fitted as log θ (it stays positive, and relative changes are what
   the steps measure), unless its bounds allow a non-positive value; others as θ/|θ₀|;
-- the noise scalings ρ_Q, ρ_R are already logarithms;
-- bounds (``bounds={"k5": (0, 1)}``) hold in the interior-point form of trust-constr (Byrd, Hribar & Nocedal
-  (1999)).
+- the noise scalings ρ_Q, ρ_R are already logarithms, kept within ±log 10⁶ unless bounded otherwise; they are fitted
+  alone first (far from the optimum the innovations are many standard deviations, where Gauss-Newton crawls);
+- bounds (``bounds={"k5": (0, 1)}``) by an active set: a step out of the box is rejected, an unknown that ends near a
+  bound its gradient pushes against (within two standard errors) is held there and the others fitted again, until
+  no unknown changes sides.
 
 It has **converged** when a further scoring step, g^T 𝓘^{-1} g with the gradient g and information 𝓘 over the
-unknowns not held at a bound, would move the estimate by less than 0.01 standard errors. Only then are the
-standard errors (from 𝓘^{-1}) reported; a fit that stops elsewhere reports none (they hold only at a stationary
-point) and says what to try next. When the first start does not converge, the fit starts again from the
-simulation-error fit (:func:`nlobs.fit_parameters`), then from perturbations of the best point so far.
+unknowns not held at a bound, would move the estimate by less than 0.01 standard errors (and no unknown drifted off
+by a factor e^12, where the information vanishes with the parameter). Only then are the standard errors (from
+𝓘^{-1}) reported; a fit that stops elsewhere reports none (they hold only at a stationary point) and says what to
+try next. When the first start does not converge, the fit starts again from the simulation-error fit
+(:func:`nlobs.fit_parameters`), then from perturbations of the best point so far.
 """
 
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -32,14 +36,12 @@ from ...engine import Backend
 from ...errors import DataError, ModelError
 from ...references import cite
 from .._recorded import Recording
-from ._likelihood import INFORMATION, MAX_SUBSTEPS, NOISE_NAMES, _Problem
+from ._likelihood import ACCURACY, INFORMATION, MAX_SUBSTEPS, NOISE_NAMES, _Problem
 
 __all__ = ["fit_likelihood", "LikelihoodFit"]
 
 #: Converged when a scoring step would move the estimate by less than this many standard errors (squared).
 DECREMENT_TOL = 1e-4
-#: Most iterations of the interior-point phase (it brings the unknowns near their bounds; the active set finishes).
-INTERIOR_ITER = 60
 #: An unknown within this (relative) distance of a bound its gradient pushes against is held there.
 HELD = 1e-3
 #: Default bounds ±log(10⁶) of the noise log-scalings ρ_Q, ρ_R (Q and R within a factor 10⁶ of the design's).
@@ -194,6 +196,10 @@ class LikelihoodFit:
                              f"{' (the data are explained without ' + ('measurement' if what == 'R' else 'process') + ' noise)' if self.estimate[self.names.index(n)] < 0 else ''}; "
                              "the other standard errors hold with it fixed there")
         lines += [f"filter model: {n}" for n in self.notes]
+        shift = self.info.get("smoothing_shift", 0.0)
+        if shift > ACCURACY:
+            lines.append(f"halving the smoothing widths (and the step) would move the estimate by {shift:.2g} standard "
+                         "errors: the smoothing is part of the model here (try smoothing=0.5, --smoothing 0.5)")
         if self.success:
             lines.append(f"std: from the {INFORMATION}; integration: RK4, {self.substeps} step(s) per sample interval")
         else:
@@ -227,13 +233,13 @@ class _Scaling:
         return np.where(self.log, self.theta(phi), self.scale)
 
     def inside(self, phi: np.ndarray) -> np.ndarray:
-        """φ moved strictly inside its bounds (the interior-point method starts there)."""
+        """φ moved strictly inside its bounds."""
         span = np.where(np.isfinite(self.hi - self.lo), self.hi - self.lo, 1.0)
         return np.clip(phi, self.lo + 1e-6 * span, self.hi - 1e-6 * span)
 
 
 class _Objective:
-    """−log p, its gradient and information in φ, memoised (trust-constr asks for them separately)."""
+    """−log p, its gradient and information in φ, memoised (the optimiser asks for them separately)."""
 
     def __init__(self, prob: _Problem, sc: _Scaling):
         self.prob, self.sc = prob, sc
@@ -249,7 +255,7 @@ class _Objective:
             ll, g, info = self.prob(theta)
             J = self.sc.dtheta(phi)
             if not np.isfinite(ll) or not np.all(np.isfinite(g)):
-                self.value = (1e300, np.zeros_like(phi), np.eye(phi.size), -np.inf, g, info)
+                self.value = (np.inf, np.zeros_like(phi), np.eye(phi.size), -np.inf, g, info)
             else:
                 self.value = (-ll, -g * J, info * np.outer(J, J), ll, g, info)
             self.key = key
@@ -284,18 +290,6 @@ class _Attempt:
     held: np.ndarray
 
 
-def _interior(obj: _Objective, phi: np.ndarray, max_iter: int) -> tuple[np.ndarray, int, str]:
-    """trust-constr with the bounds (interior point), stopped as soon as the scoring step is below DECREMENT_TOL."""
-    from scipy.optimize import Bounds, minimize
-
-    sc = obj.sc
-    sol = minimize(lambda ph: obj(ph)[:2], sc.inside(phi), jac=True, hess=lambda ph: obj(ph)[2], method="trust-constr",
-                   bounds=Bounds(sc.lo, sc.hi), callback=lambda xk, _r: bool(obj.decrement(xk)[0] < DECREMENT_TOL),
-                   options={"maxiter": max_iter, "gtol": 1e-10, "xtol": 1e-12, "initial_tr_radius": 0.5,
-                            "initial_barrier_parameter": 1e-4, "initial_barrier_tolerance": 1e-4})
-    return np.asarray(sol.x, dtype=float), int(sol.nit), str(sol.message)
-
-
 def _free(obj: _Objective, phi: np.ndarray, held: np.ndarray, max_iter: int) -> tuple[np.ndarray, int, str]:
     """SciPy's trust-exact on the unknowns not held (Fisher information as the Hessian; a step out of the bounds is
     rejected), stopped as soon as the scoring step is below DECREMENT_TOL."""
@@ -312,7 +306,7 @@ def _free(obj: _Objective, phi: np.ndarray, held: np.ndarray, max_iter: int) -> 
     def fun(x: np.ndarray) -> tuple[float, np.ndarray]:
         ph = put(x)
         if np.any(ph < sc.lo) or np.any(ph > sc.hi):
-            return 1e300, np.zeros(x.size)
+            return np.inf, np.zeros(x.size)
         f, g = obj(ph)[:2]
         return f, g[free]
 
@@ -324,8 +318,10 @@ def _free(obj: _Objective, phi: np.ndarray, held: np.ndarray, max_iter: int) -> 
         if obj.decrement(put(intermediate_result.x))[0] < DECREMENT_TOL:
             raise StopIteration
 
-    sol = minimize(fun, phi[free], jac=True, hess=hess, method="trust-exact", callback=stop,
-                   options={"maxiter": max_iter, "gtol": 1e-10, "initial_trust_radius": 0.5})
+    with warnings.catch_warnings():   # a rejected step (out of bounds, or the filter blew up) has f = inf
+        warnings.simplefilter("ignore", RuntimeWarning)
+        sol = minimize(fun, phi[free], jac=True, hess=hess, method="trust-exact", callback=stop,
+                       options={"maxiter": max_iter, "gtol": 1e-10, "initial_trust_radius": 0.5})
     return put(np.asarray(sol.x, dtype=float)), int(sol.nit), str(sol.message)
 
 
@@ -342,14 +338,17 @@ def _hold(obj: _Objective, phi: np.ndarray) -> np.ndarray:
 
 
 def _optimise(obj: _Objective, phi0: np.ndarray, start: str, max_iter: int) -> _Attempt:
-    """One start: with bounds, trust-constr's interior point, then an active set (unknowns near a bound their
-    gradient pushes against held there, the others polished by trust-exact) until no unknown changes sides."""
+    """One start: the noise levels alone, then all unknowns by trust-exact with an active set (unknowns near a bound
+    their gradient pushes against held there) until no unknown changes sides."""
     sc, t0 = obj.sc, time.perf_counter()
     bounded = bool(np.any(np.isfinite(sc.lo)) or np.any(np.isfinite(sc.hi)))
     phi, nit, msg = phi0.copy(), 0, "the start is already stationary"
-    if obj.decrement(phi)[0] >= DECREMENT_TOL:
-        if bounded:
-            phi, nit, msg = _interior(obj, phi, min(max_iter, INTERIOR_ITER))
+    noise = np.isin(obj.prob.names, NOISE_NAMES)
+    if not obj.decrement(phi)[0] < DECREMENT_TOL and noise.any() and not noise.all():
+        # the noise levels first, the parameters held: far from the optimum the innovations are many σ, and Fisher
+        # scoring (Gauss-Newton) crawls on such large residuals; scaled to them, the joint problem is well posed
+        phi, nit, msg = _free(obj, phi, ~noise, max_iter)
+    if not obj.decrement(phi)[0] < DECREMENT_TOL:
         held = _hold(obj, phi) if bounded else np.zeros(phi.size, dtype=bool)
         for _ in range(phi.size + 1):
             phi = np.where(held & (obj(phi)[1] > 0), sc.lo, np.where(held, sc.hi, phi)) if held.any() else phi
@@ -364,8 +363,12 @@ def _optimise(obj: _Objective, phi0: np.ndarray, start: str, max_iter: int) -> _
             held = again
     dec, held = obj.decrement(phi)
     ll = obj(phi)[3]
-    converged = bool(np.isfinite(ll) and dec < DECREMENT_TOL)
-    if converged:
+    drift = (np.abs(phi - phi0) > DRIFT) & ~held   # e.g. log a → −∞: the information vanishes with a, not the slope
+    converged = bool(np.isfinite(ll) and dec < DECREMENT_TOL and not drift.any())
+    if drift.any():
+        msg = (f"{msg.rstrip('.')}; {', '.join(obj.prob.names[i] for i in np.flatnonzero(drift))} drifted by more than "
+               f"a factor e^{DRIFT:g} (or {DRIFT:g} scales) from the start")
+    elif converged:
         msg = (f"a further scoring step would move the estimate by {np.sqrt(max(dec, 0.0)):.2g} standard errors"
                + (f", {int(held.sum())} unknown(s) held at a bound" if held.any() else ""))
     elif np.isfinite(dec):
@@ -520,16 +523,28 @@ def fit_likelihood(design: Any, recording: Recording, params: Sequence[str], *, 
             phi = best.phi + PERTURBATION * rng.standard_normal(best.phi.size)
             plan.append((f"perturbed start {len(attempts)}", sc.theta(sc.inside(phi))))
     best = next((a for a in attempts if a.converged), max(attempts, key=lambda a: a.loglik))
-    need = prob.needed_substeps(sc.theta(best.phi))
-    if need > prob.n_sub:   # the estimate's flow is stiffer than the start's: integrate finer and polish
+    if best.converged:
+        best, obj = _refine(prob, obj, best, max_iter)
+        attempts = [a for a in attempts if not a.converged] + [best]
+    return _result(prob, obj, attempts, theta0, ll0, tried_sim, set(bounds or {}))
+
+
+def _refine(prob: _Problem, obj: _Objective, best: _Attempt, max_iter: int) -> tuple[_Attempt, _Objective]:
+    """At a converged estimate: integrate finer while the flow's stiffness there asks for it (polishing each time)."""
+    sc = obj.sc
+    while best.converged:
+        need = prob.needed_substeps(sc.theta(best.phi))
+        if need <= prob.n_sub:
+            break
         if need > MAX_SUBSTEPS:
-            raise DataError(f"fit_likelihood: at the estimate the filter's flow needs {need} RK4 sub-steps per sample "
-                            f"interval (more than {MAX_SUBSTEPS}); bound the unknowns that make it stiff")
+            best.converged = False
+            best.message = (f"{best.message}; but the flow at the estimate needs {need} RK4 sub-steps per sample "
+                            f"interval, above the {MAX_SUBSTEPS} the recursion takes: bound the unknowns that make it stiff")
+            break
         prob.set_substeps(need)
         obj = _Objective(prob, sc)
-        attempts.append(_optimise(obj, best.phi, f"{best.start}, integrated with {need} sub-steps", max_iter))
-        attempts = [attempts[-1]]
-    return _result(prob, obj, attempts, theta0, ll0, tried_sim, set(bounds or {}))
+        best = _optimise(obj, best.phi, f"{best.start}, integrated with {need} sub-steps", max_iter)
+    return best, obj
 
 
 def _guesses_and_bounds(prob: _Problem, initial: Mapping[str, float] | None,
@@ -586,7 +601,8 @@ def _result(prob: _Problem, obj: _Objective, attempts: list[_Attempt], theta0: n
              "Q0": np.asarray(v["Q"], dtype=float), "R0": np.asarray(v["R"], dtype=float), "design_values": dict(v),
              "xhat0": np.asarray(prob.d.xhat0, dtype=float), "censored_samples": int(np.count_nonzero(prob.codes)),
              "smoothing_widths": {s.text: s.width for s in prob.model.smoothed}, "one_step": prob.one_step(theta),
-             "default_bounds": {n: n not in explicit for n in names if n in NOISE_NAMES}}
+             "default_bounds": {n: n not in explicit for n in names if n in NOISE_NAMES},
+             "smoothing_shift": prob.refinement_shift(theta) if best.converged and prob.model.smoothed else 0.0}
     if not best.converged:
         extra["advice"] = _advice(best, names, obj, tried_sim, sc.phi(theta0))
     att = tuple({"start": a.start, "loglik": a.loglik, "converged": a.converged, "iterations": a.iterations,

@@ -60,6 +60,9 @@ LIKELIHOOD_KINDS = ("ekf", "ukf")
 NOISE_NAMES = ("log_Q_scale", "log_R_scale")
 #: The most RK4 sub-steps per interval in the likelihood's recursion (all intervals take the same number).
 MAX_SUBSTEPS = 64
+#: A fit whose estimate would move by more than this many standard errors when the smoothing widths and the
+#: integration step are halved says so.
+ACCURACY = 0.5
 INFORMATION = ("Fisher information of the innovations (expected Hessian of −log-likelihood, exact derivatives by "
                "forward automatic differentiation through the filter)")
 
@@ -298,19 +301,46 @@ class _Problem:
         y = np.where(mask > 0, recording.y, 0.0)
         traj = self._substeps(t, u, y, mask, max_step)
         run = None if traj is None else {"x": traj.xhat, "u": u, "t": t}
-        self.model = filter_model(system, params, run, self.n_sub, smoothing, censor)
+        self.s0 = np.concatenate([np.asarray(d.xhat0, dtype=float).reshape(-1),
+                                  np.asarray(d.certificate.values["P0"], dtype=float).reshape(-1, order="F")])
+        self._args = (run, y, mask, smoothing, censor, learn_noise)
+        self.width_scale = 1.0
+        self._build(*self._args)
+        self.n_sub = min(max(self.n_sub, self.model.substeps), MAX_SUBSTEPS)
+        self.rec = _recursion(d, self.model, self.free, self.n_sub)
+
+    def _build(self, run: Any, y: np.ndarray, mask: np.ndarray, smoothing: float, censor: bool, learn_noise: bool) -> None:
+        """The filter model (widths for the current sub-steps), the unknowns' places in c, and the data rows."""
+        t, u, rec = self.t, self.recording.u, self.recording
+        self.model = filter_model(self.system, self.params, run, smoothing * self.width_scale, censor)
         fsys = self.model.system
         npar = fsys.n_params
-        self.free = [fsys.param_names.index(p) for p in params] + ([npar, npar + 1] if learn_noise else [])
-        self.names = tuple(params) + (NOISE_NAMES if learn_noise else ())
+        self.free = [fsys.param_names.index(p) for p in self.params] + ([npar, npar + 1] if learn_noise else [])
+        self.names = tuple(self.params) + (NOISE_NAMES if learn_noise else ())
         self.c = np.concatenate([np.asarray(fsys.param_values, dtype=float), [0.0, 0.0]])
-        self.codes, limits = self.model.censoring(recording.y, mask)
+        self.codes, limits = self.model.censoring(rec.y, mask)
         first = np.concatenate([[t[0], 0.0], u[0], u[0], y[0], mask[0], self.codes[0], limits[0]])
         rest = np.hstack([t[:-1, None], np.diff(t)[:, None], u[:-1], u[1:], y[1:], mask[1:], self.codes[1:], limits[1:]])
         self.A = np.vstack([first, rest])
-        self.s0 = np.concatenate([np.asarray(d.xhat0, dtype=float).reshape(-1),
-                                  np.asarray(d.certificate.values["P0"], dtype=float).reshape(-1, order="F")])
-        self.rec = _recursion(d, self.model, self.free, self.n_sub)
+
+    def refinement_shift(self, theta: np.ndarray) -> float:
+        """How far, in standard errors, halving the smoothing widths and the integration step would move the estimate
+        from θ: √(Δgᵀ 𝓘⁻¹ Δg) with Δg the change of the gradient of log p (a scoring step's worth)."""
+        if self.system.is_discrete:
+            return 0.0
+        ll, g, info, _ = self.evaluate(theta)
+        fine = _Problem.__new__(_Problem)
+        fine.__dict__.update(self.__dict__)
+        fine.width_scale = self.width_scale / 2
+        fine._build(*self._args)
+        fine.set_substeps(min(2 * self.n_sub, MAX_SUBSTEPS))
+        llf, gf, _, _ = fine.evaluate(theta)
+        if not (np.isfinite(ll) and np.isfinite(llf)):
+            return float("inf")
+        try:
+            return float(np.sqrt(max((gf - g) @ np.linalg.solve(info, gf - g), 0.0)))
+        except np.linalg.LinAlgError:
+            return float("inf")
 
     def _substeps(self, t: np.ndarray, u: np.ndarray, y: np.ndarray, mask: np.ndarray, max_step: float | None) -> Any:
         """Sub-steps per interval: the filter's own rule, run at the initial guess (the most it takes in one); the run."""
@@ -366,6 +396,7 @@ class _Problem:
         return np.asarray(out[5]).reshape(ny, self.N).T, np.sqrt(np.maximum(np.asarray(out[6]).reshape(ny, self.N).T, 0.0))
 
     def set_substeps(self, n_sub: int) -> None:
+        """Integrate with `n_sub` RK4 steps per interval."""
         self.n_sub = n_sub
         self.rec = _recursion(self.d, self.model, self.free, n_sub)
 

@@ -13,16 +13,18 @@ no derivative-based optimiser converges on it. Two regimes are therefore handled
    regime of such a sample is *observed*: below the limit it is on the unsaturated branch exactly
    (y = g + v, the filter updates with g); at (or beyond) the limit it is **censored**: it says only
    that g + v reached c, its likelihood is P(g + v ≥ c) = Φ((ŷ − c)/√S) (the Tobit model of Tobin
-   (1958); as a Kalman filter, Allik, Miller, Piovoso & Stewart-Ziegler (2016)), and the filter does
-   not update on it (as a missing sample). The regimes then no longer depend on the parameters.
+   (1958)), and the filter does not update on it, as on a missing sample (the Tobit Kalman filter of
+   Allik, Miller, Piovoso & Zurakowski (2016) updates with the truncated moments instead; skipping keeps the
+   filter the one :func:`nlobs.estimate` runs on the recording with those samples missing). The regimes then
+   no longer depend on the parameters.
 2. **Switches of the flow and of other outputs** (every other abs, sign, min, max) are smoothed over a
    width ε: max(a, b) ≈ (a + b + √((a − b)² + ε²))/2, min likewise, abs(g) ≈ √(g² + ε²) (the
    Chen-Harker-Kanzow-Smale smoothing; Chen & Mangasarian (1996): above the exact max, within ε/2 of it), and
-   sign(g) ≈ tanh(g/ε) (bounded, exponentially close to ±1 away from the switch). ε is
-   the largest distance the switch's argument moves in one RK4 sub-step of the filter's run at the
-   initial guess (times `smoothing`): each step then sees a resolved, continuous transition, and the
-   likelihood is smooth at the scale of the optimiser's steps. The width is a parameter of the filter
-   model, held fixed.
+   sign(g) ≈ tanh(g/ε) (bounded, exponentially close to ±1 away from the switch). ε is 1 % of the
+   range the switch's argument spans along the filter's run at the initial guess (times `smoothing`),
+   and the filter integrates with enough RK4 sub-steps that no sub-step moves the argument by more
+   than 2ε: each step sees a resolved, continuous transition, and the likelihood is smooth at the
+   scale of the optimiser's steps. The width is a parameter of the filter model, held fixed.
 
 The fitted parameters are those of the user's model; the likelihood maximised is that of this filter
 model, and the fit reports the widths and the censored samples.
@@ -41,12 +43,17 @@ import sympy as sp
 from ...errors import ModelError
 from ...model import TIME, System, symbol
 from ...model._translate import NUMPY, translate
+from ...references import cite
 
 __all__ = ["FilterModel", "Censored", "Smoothed", "filter_model", "log_ndtr"]
 
 _PIECEWISE = (sp.Min, sp.Max, sp.Abs, sp.sign)
 #: Relative tolerance for "at the limit": a saturated reading equals the limit up to rounding.
 AT_LIMIT = 1e-9
+#: A switch is smoothed over this fraction of the range its argument spans along the filter's run at the start.
+WIDTH = 0.01
+#: The most RK4 sub-steps per interval the smoothing may ask for (as the likelihood's recursion).
+MAX_SUBSTEPS = 64
 
 
 def _text(e: sp.Expr) -> str:
@@ -102,11 +109,14 @@ class FilterModel:
     censored : tuple of Censored or None
         One entry per output.
     smoothed : tuple of Smoothed
+    substeps : int
+        RK4 sub-steps per sample interval for which no sub-step moves a switch's argument by more than two widths.
     """
 
     system: System
     censored: tuple[Censored | None, ...]
     smoothed: tuple[Smoothed, ...]
+    substeps: int = 1
 
     @property
     def exact_switches(self) -> list[str]:
@@ -139,10 +149,11 @@ class FilterModel:
         for j, c in enumerate(self.censored):
             if c is not None:
                 n = 0 if codes is None else int(np.count_nonzero(codes[:, j]))
-                out.append(f"censored output: {c} (y = min(g + v, limit)); {n} sample(s) at the limit enter as "
-                           "P(g + v beyond the limit), without an update")
+                out.append(f"censored output: {c}, read as min(g + v, limit) ({cite('tobin1958')}); {n} sample(s) at "
+                           "the limit enter as P(g + v beyond the limit), without an update")
         if self.smoothed:
-            out.append("smoothed switches: " + "; ".join(str(s) for s in self.smoothed))
+            out.append(f"smoothed switches ({cite('chen1996')}; sign by tanh): "
+                       + "; ".join(str(s) for s in self.smoothed))
         return out
 
 
@@ -207,8 +218,8 @@ def _free_name(base: str, taken: set[str]) -> str:
     return name
 
 
-def filter_model(system: System, fitted: Sequence[str], run: Mapping[str, Any] | None, n_sub: int,
-                 smoothing: float, censor: bool = True) -> FilterModel:
+def filter_model(system: System, fitted: Sequence[str], run: Mapping[str, Any] | None, smoothing: float,
+                 censor: bool = True) -> FilterModel:
     """Build the :class:`FilterModel` of `system` (see the module docstring).
 
     Parameters
@@ -219,8 +230,6 @@ def filter_model(system: System, fitted: Sequence[str], run: Mapping[str, Any] |
     run : mapping, optional
         The filter's run at the initial guess: ``{"x": (N, n), "u": (N, m), "t": (N,)}``, for the widths; None
         (a discrete-time map): switches are left exact.
-    n_sub : int
-        RK4 sub-steps per sample interval.
     smoothing : float
         Factor on the widths; 0 leaves every switch exact.
     censor : bool
@@ -248,7 +257,7 @@ def filter_model(system: System, fitted: Sequence[str], run: Mapping[str, Any] |
         base = system if not any(censored) else system._copy(h=tuple(h))
         return FilterModel(base, tuple(censored), ())
     taken = set(system.params) | set(system.states) | set(system.inputs) | set(system.outputs)
-    widths = _widths(system, list(nodes), run, n_sub, smoothing)
+    widths, n_sub = _widths(system, list(nodes), run, smoothing)
     smoothed, params, eps = [], dict(system.params), {}
     for node, w in zip(nodes, widths):
         name = _free_name("smoothing_width", taken)
@@ -263,26 +272,32 @@ def filter_model(system: System, fitted: Sequence[str], run: Mapping[str, Any] |
         return _smoothed_expr(e.func, args, eps[e]) if isinstance(e, _PIECEWISE) else e.func(*args)
 
     f_new, h_new = tuple(swap(e) for e in system.f), tuple(swap(e) for e in h)
-    return FilterModel(system._copy(f=f_new, h=h_new, params=params), tuple(censored), tuple(smoothed))
+    return FilterModel(system._copy(f=f_new, h=h_new, params=params), tuple(censored), tuple(smoothed), n_sub)
 
 
-def _widths(system: System, nodes: list[sp.Expr], run: Mapping[str, Any], n_sub: int, factor: float) -> list[float]:
-    """Per switch: the largest change of its argument between samples of the run, per RK4 sub-step, times `factor`."""
+def _widths(system: System, nodes: list[sp.Expr], run: Mapping[str, Any], factor: float) -> tuple[list[float], int]:
+    """Per switch, `factor` × WIDTH × the range its argument spans along the run; and the RK4 sub-steps per interval
+    for which no sub-step moves an argument by more than two widths (at most MAX_SUBSTEPS: wider widths then)."""
     x, u, t = np.asarray(run["x"]), np.asarray(run["u"]), np.asarray(run["t"])
     N = t.size
     leaves: dict[sp.Symbol, Any] = {symbol(s): x[:, i] for i, s in enumerate(system.states)}
     leaves.update({symbol(s): u[:, i] if u.size else np.zeros(N) for i, s in enumerate(system.inputs)})
     leaves.update({symbol(k): np.full(N, float(v)) for k, v in system.params.items()})
     leaves[TIME] = t
-    out = []
+    widths, motions = [], []
     for node in nodes:
         with np.errstate(all="ignore"):
             g = np.broadcast_to(np.asarray(translate(_argument(node), leaves, NUMPY), dtype=float), (N,))
         g = g[np.isfinite(g)]
-        step = float(np.max(np.abs(np.diff(g)))) / max(n_sub, 1) if g.size > 1 else 0.0
+        span = float(np.ptp(g)) if g.size else 0.0
         scale = float(np.max(np.abs(g))) if g.size else 1.0
-        out.append(factor * max(step, 1e-6 * scale, 1e-12))
-    return out
+        widths.append(factor * max(WIDTH * span, 1e-6 * scale, 1e-12))
+        motions.append(float(np.max(np.abs(np.diff(g)))) if g.size > 1 else 0.0)
+    n_sub = max(1, *(int(np.ceil(m / (2 * w))) for m, w in zip(motions, widths)))
+    if n_sub > MAX_SUBSTEPS:
+        n_sub = MAX_SUBSTEPS
+        widths = [max(w, m / (2 * MAX_SUBSTEPS)) for m, w in zip(motions, widths)]
+    return widths, n_sub
 
 
 def log_ndtr(z: Any) -> Any:
@@ -291,8 +306,9 @@ def log_ndtr(z: Any) -> Any:
     For z ≥ −3, log(½(1 + erf(z/√2))); below, Laplace's continued fraction of the Mills ratio,
     Φ(−x) = φ(x)/(x + 1/(x + 2/(x + 3/(x + …)))), 60 terms (tested against SciPy's ``log_ndtr``).
     """
-    upper = ca.log(0.5 * (1 + ca.erf(ca.fmax(z, -3.0) / np.sqrt(2.0))))
-    x = ca.fmax(-z, 3.0)
+    # each branch is clamped away from where it is used (its clamp's kink would halve the derivative at z = −3)
+    upper = ca.log(0.5 * (1 + ca.erf(ca.fmax(z, -3.5) / np.sqrt(2.0))))
+    x = ca.fmax(-z, 2.5)
     cf = x
     for k in range(60, 0, -1):
         cf = x + k / cf

@@ -1,0 +1,172 @@
+"""The likelihood on piecewise models (issue 39): censored saturating outputs, smoothed switches, known truths.
+
+References are independent of the code under test: SciPy's ``log_ndtr`` and ``norm.logcdf``; a NumPy Kalman filter
+with the exact discretisation (matrix exponential) of a linear model whose sensor saturates; the smoothing formulas
+written out here in NumPy; plants simulated here by RK4 with Euler-Maruyama noise increments.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+import pytest
+from scipy.linalg import expm
+from scipy.special import log_ndtr as scipy_log_ndtr
+from scipy.stats import norm
+
+import nlobs
+from nlobs.simulate import Recording, fit_likelihood, log_likelihood
+from nlobs.simulate.learning._regimes import filter_model, log_ndtr
+
+
+def test_log_ndtr_matches_scipy_in_both_tails():
+    z = ca.SX.sym("z")
+    fn = ca.Function("f", [z], [log_ndtr(z), ca.gradient(log_ndtr(z), z)])
+    zs = np.r_[np.linspace(-40.0, 8.0, 1201), -3 - 1e-9, -3 + 1e-9]
+    val = np.array([float(fn(v)[0]) for v in zs])
+    grad = np.array([float(fn(v)[1]) for v in zs])
+    assert np.max(np.abs(val - scipy_log_ndtr(zs)) / np.maximum(1.0, np.abs(scipy_log_ndtr(zs)))) < 1e-13
+    mills = np.exp(norm.logpdf(zs) - scipy_log_ndtr(zs))  # d/dz log Φ = φ/Φ
+    assert np.max(np.abs(grad - mills) / np.maximum(1.0, mills)) < 1e-11
+
+
+SWITCHES = nlobs.System(states=["x", "z"], inputs=["u"], outputs=["y", "w"],
+                        f=["-max(x, 0) + u*sign(z - 1)", "-abs(z) + min(x, 2*u)"],
+                        h=["sat(x, 0, ymax)", "min(z, x)"], params={"ymax": 3.0, "k": 1.0})
+
+
+def test_censored_outputs_and_smoothed_switches_as_written_in_numpy():
+    N = 101
+    t = np.linspace(0, 10, N)
+    xs, zs = np.linspace(-1, 4, N), np.linspace(0, 2, N)
+    xs[60:] += 1.0   # one fast move of x between two samples
+    run = {"x": np.c_[xs, zs], "u": np.full((N, 1), 0.5), "t": t}
+    fm = filter_model(SWITCHES, ["k"], run, smoothing=1.0)
+    cy, cw = fm.censored
+    assert (cy.output, cy.lower, cy.upper, str(cy.branch)) == ("y", 0.0, 3.0, "x") and cw is None  # min(z, x): no limit
+    # widths: 1 % of the range each switch's argument spans along the run
+    spans = {"max(0, x)": 6.0, "sign(z - 1)": 2.0, "abs(z)": 2.0, "min(2*u, x)": 6.0, "min(x, z)": np.ptp(xs - zs)}
+    got = {s.text: s.width for s in fm.smoothed}
+    assert set(got) == set(spans), got
+    for k, span in spans.items():
+        assert got[k] == pytest.approx(0.01 * span, rel=1e-12), k
+    # x moves by 1.05 between two samples (x − z by 1.03): with widths 0.06 and 0.04, ceil(1.03 / 0.08) = 13 sub-steps
+    # move every argument by at most two widths each
+    assert fm.substeps == int(np.ceil(1.03 / (2 * 0.04))) == 13
+    e = {k: got[k] for k in spans}
+    cs = nlobs.engine.compile_system(fm.system)
+    x, z, u = 0.3, 0.9, 0.7
+
+    def smax(a, b, eps):   # Chen-Harker-Kanzow-Smale
+        return (a + b + np.sqrt((a - b) ** 2 + eps**2)) / 2
+
+    def smin(a, b, eps):
+        return (a + b - np.sqrt((a - b) ** 2 + eps**2)) / 2
+
+    f_ref = [-smax(0, x, e["max(0, x)"]) + u * np.tanh((z - 1) / e["sign(z - 1)"]),
+             -np.sqrt(z**2 + e["abs(z)"] ** 2) + smin(2 * u, x, e["min(2*u, x)"])]
+    h_ref = [x, smin(z, x, e["min(x, z)"])]   # y: the unsaturated branch (censored output)
+    p = np.asarray(fm.system.param_values)
+    assert np.allclose(np.asarray(cs.f(0, [x, z], [u], p)).ravel(), f_ref, rtol=1e-14, atol=1e-15)
+    assert np.allclose(np.asarray(cs.h(0, [x, z], [u], p)).ravel(), h_ref, rtol=1e-14, atol=1e-15)
+    codes, limits = fm.censoring(np.array([[3.0, 0.0], [2.9, 1.0], [0.0, 1.0], [np.nan, 1.0]]),
+                                 np.array([[1, 1], [1, 1], [1, 1], [0, 1]]))
+    assert codes[:, 0].tolist() == [1, 0, -1, 0] and limits[:, 0].tolist() == [3.0, 0.0, 0.0, 0.0]
+    assert not codes[:, 1].any()
+    # a limit that depends on a fitted parameter is not known: the output is then an ordinary switch
+    assert filter_model(SWITCHES, ["ymax"], run, smoothing=1.0).censored[0] is None
+
+
+# a first-order lag read by a sensor saturating at C: y = min(x + v, C)
+LAG = nlobs.System(states=["x"], inputs=["u"], outputs=["y"], f=["-a*x + b*u"], h=["min(x, c)"],
+                   params={"a": 0.5, "b": 1.0, "c": 1.5})
+
+
+def _numpy_censored_loglik(t, u, y, a, b, c, q, r, x0, p0):
+    """Kalman filter with the exact discretisation of x' = -a x + b u + w (zero-order hold); a sample at the limit c
+    contributes log Φ((x̂⁻ − c)/√S) and no update (as a missing sample); the others the Gaussian term."""
+    x, P, total = x0, p0, 0.0
+    for k in range(t.size):
+        if k:
+            h = t[k] - t[k - 1]
+            M = expm(np.array([[-a, b * u[k - 1], 1.0, 0.0], [0, 0, 0, 0], [0, 0, 0, 0], [0, 0, 0, 0]]) * h)
+            x = M[0, 0] * x + M[0, 1]   # e^{-ah} x + (1 − e^{-ah}) b u / a
+            P = np.exp(-2 * a * h) * P + q * (1 - np.exp(-2 * a * h)) / (2 * a)
+        S = P + r
+        if y[k] >= c:
+            total += norm.logcdf((x - c) / np.sqrt(S))
+            continue
+        total += -0.5 * (np.log(2 * np.pi * S) + (y[k] - x) ** 2 / S)
+        K = P / S
+        x, P = x + K * (y[k] - x), (1 - K) * P
+    return total
+
+
+def test_censored_likelihood_matches_a_numpy_filter():
+    rng = np.random.default_rng(3)
+    t = np.arange(200) * 0.05
+    u = 1.2 + np.sign(np.sin(0.8 * t))
+    x, xs = 0.2, []
+    for k in range(t.size):
+        xs.append(x)
+        x = x + 0.05 * (-0.5 * x + u[k]) + 0.05 * rng.standard_normal()
+    y = np.minimum(np.array(xs) + 0.05 * rng.standard_normal(t.size), 1.5)
+    assert 20 < np.sum(y >= 1.5) < 150
+    rec = Recording.from_arrays(LAG, t, y, u)
+    d = nlobs.design_ekf(LAG, Q=[[0.04]], R=[[0.0025]], P0=[[0.1]], xhat0=[0.2])
+    for a_, qs, rs in ((0.5, 1.0, 1.0), (0.7, 2.0, 0.5)):
+        ll, g = log_likelihood(d, rec, params=["a"], learn_noise=True, max_step=0.005,
+                               values={"a": a_, "log_Q_scale": np.log(qs), "log_R_scale": np.log(rs)})
+        ref = _numpy_censored_loglik(t, u, y, a_, 1.0, 1.5, 0.04 * qs, 0.0025 * rs, 0.2, 0.1)
+        assert abs(ll - ref) < 1e-8 * abs(ref), (ll, ref)
+        eps = 1e-6   # and the gradient against central differences of the NumPy filter (here only)
+        fd = (_numpy_censored_loglik(t, u, y, a_ + eps, 1.0, 1.5, 0.04 * qs, 0.0025 * rs, 0.2, 0.1)
+              - _numpy_censored_loglik(t, u, y, a_ - eps, 1.0, 1.5, 0.04 * qs, 0.0025 * rs, 0.2, 0.1)) / (2 * eps)
+        assert abs(g[0] - fd) < 1e-5 * max(1.0, abs(fd)), (g[0], fd)
+    # without censoring the filter linearises min(x, 1.5): another number (the EKF's on the saturated branch)
+    plain, _ = log_likelihood(d, rec, censor=False, max_step=0.005)
+    assert abs(plain - _numpy_censored_loglik(t, u, y, 0.5, 1.0, 1.5, 0.04, 0.0025, 0.2, 0.1)) > 1.0
+
+
+# two tanks, the lower one read by a sensor saturating at 10: the truth, and the model a user writes
+TA, TB, TK, SW, SV, YMAX = 0.5, 0.4, 0.3, 0.03, 0.05, 10.0
+TANKS = nlobs.System(states=["x1", "x2"], inputs=["u"], outputs=["y"],
+                     f=["-a*sqrt(max(x1, 0)) + k*u", "a*sqrt(max(x1, 0)) - b*sqrt(max(x2, 0))"],
+                     h=["min(x2, ymax)"], params={"a": TA, "b": TB, "k": TK, "ymax": YMAX})
+
+
+def _tanks(seed: int, N: int = 800, dt: float = 0.5, sub: int = 20):
+    rng = np.random.default_rng(seed)
+    t = np.arange(N) * dt
+    u = 3.7 + 0.8 * np.sin(0.03 * t) + 0.3 * np.sin(0.11 * t)
+
+    def f(x, uk):
+        q1 = TA * np.sqrt(max(x[0], 0))
+        return np.array([-q1 + TK * uk, q1 - TB * np.sqrt(max(x[1], 0))])
+
+    x, X, h = np.array([5.0, 8.0]), np.empty((N, 2)), dt / sub
+    for k in range(N):
+        X[k] = x
+        for _ in range(sub):
+            k1 = f(x, u[k])
+            k2 = f(x + h / 2 * k1, u[k])
+            k3 = f(x + h / 2 * k2, u[k])
+            k4 = f(x + h * k3, u[k])
+            x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4) + SW * np.sqrt(h) * rng.standard_normal(2)
+    return t, u, np.minimum(X[:, 1] + SV * rng.standard_normal(N), YMAX)
+
+
+def test_a_saturating_sensor_recovers_the_truth_within_two_sigma():
+    t, u, y = _tanks(0)
+    assert np.sum(y >= YMAX) > 100    # the sensor sits at its limit for a quarter of the record
+    rec = Recording.from_arrays(TANKS, t, y, u)
+    start = TANKS.with_params(a=0.8 * TA, b=1.2 * TB, k=0.8 * TK)
+    d = nlobs.design_ekf(start, Q=np.diag([SW**2, SW**2]), R=[[SV**2]], xhat0=[5.0, 8.0], P0=np.diag([1.0, 0.1]))
+    fit = fit_likelihood(d, rec, ["a", "b", "k"], learn_noise=True, engine="vm")
+    assert fit.success, fit.message
+    truth = np.array([TA, TB, TK, 0.0, 0.0])   # noise scalings: the design's Q and R are the true ones
+    assert np.all(np.abs(fit.estimate - truth) < 2 * fit.std), (fit.estimate, fit.std)
+    assert fit.info["censored_samples"] == int(np.sum(y >= YMAX))
+    # the EKF of min(x2, 10) as written (no censoring) is far off: its saturated branch sees no error
+    plain = fit_likelihood(d, rec, ["a", "b", "k"], learn_noise=True, censor=False, starts=1, engine="vm")
+    assert not np.all(np.abs(plain.estimate[:3] - truth[:3]) < 2 * np.where(np.isfinite(plain.std[:3]), plain.std[:3], 0))
