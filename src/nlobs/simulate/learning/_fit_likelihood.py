@@ -425,7 +425,7 @@ def _advice(att: _Attempt, names: Sequence[str], obj: _Objective, tried_simulati
                     "the filter's likelihood jumps where its estimate crosses one")
     if not drift:
         tips.append("bound the unknowns that drift (bounds={'k': (0, 1)}, --bound k=0:1)")
-    tips.append("more iterations or starts (max_iter, starts; --starts)")
+    tips.append("more iterations or starts (max_iter, starts; --max-iter, --starts)")
     return "; ".join(tips)
 
 
@@ -513,8 +513,8 @@ def fit_likelihood(design: Any, recording: Recording, params: Sequence[str], *, 
     while plan and len(attempts) < int(starts):
         label, th = plan.pop(0)
         attempts.append(_optimise(obj, sc.phi(np.clip(th, lo, hi)), label, max_iter))
-        if attempts[-1].converged:
-            break
+        if attempts[-1].converged or len(attempts) >= int(starts):
+            break   # (a start not taken is not planned: the simulation-error fit costs a fit of its own)
         if not tried_sim and not prob.system.is_discrete and prob.params:
             tried_sim = True
             plan.append(("simulation-error fit", _simulation_start(prob, names, theta0, bounds or {}, fit_x0, max_step)))
