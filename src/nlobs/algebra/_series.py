@@ -62,6 +62,12 @@ class Program:
     roots: frozenset[int]  # odd parts of the denominators of rational exponents
     notes: tuple[str, ...]
     rational: bool  # no division and no auxiliary series: a polynomial program
+    #: The largest power of two dividing a rational exponent's denominator (1: no square roots). Modulo p ≡ 3 (mod 4)
+    #: only half the elements are squares, so a random point has a square root of each of k radicands with
+    #: probability 2^-k (twelve tanks' sqrt(h_i): 1/4096); leaves drawn as this power of a random element make every
+    #: radicand that is a monomial of leaves (sqrt(x), sqrt(k*x), max(x, 0)**0.5) a square, and the points stay
+    #: generic (Schwartz-Zippel: a polynomial of degree d in r**e vanishes at a random r with probability <= e*d/p).
+    square_power: int = 1
 
 
 class _Builder:
@@ -77,6 +83,7 @@ class _Builder:
         self.exp_base: dict[sp.Expr, int] = {}
         self.trig_base: dict[sp.Expr, tuple[int, int]] = {}
         self.roots: set[int] = set()
+        self.square_power = 1
         self.notes: set[str] = set()
         self.polynomial = True
 
@@ -221,6 +228,11 @@ class _Builder:
             return self.scale(out, c)
         if e.is_Pow:
             b, ex = e.args
+            if b.has(sp.Abs, sp.sign, sp.Min, sp.Max):
+                # the branch first, then the power: sqrt(max(x, 0)) on the branch max = 0 is 0, not a root of 0
+                # (whose series has no derivative: every random point would be refused)
+                resolved = b.replace(lambda a: isinstance(a, (sp.Abs, sp.sign, sp.Min, sp.Max)), self._branch)
+                return self.build(sp.Pow(resolved, ex))
             if isinstance(ex, sp.Float):
                 ex = sp.Rational(repr(float(ex)))
             if ex.is_Integer:
@@ -232,6 +244,7 @@ class _Builder:
                     odd //= 2
                 if odd > 1:
                     self.roots.add(odd)
+                self.square_power = max(self.square_power, r // odd)
                 g = self.build(b)
                 v = self.aux("pow", g, sp.Rational(q, r))
                 self.nodes[v].w = self.scale(self.mul(v, self.recip(g)), sp.Rational(q, r))
@@ -345,7 +358,8 @@ def build_program(f: Sequence[sp.Expr], h: Sequence[sp.Expr], leaves: Mapping[sp
     idx = [b.build(e) for e in exprs]
     nf, nh = len(f), len(h)
     notes = tuple(sorted(b.notes))
-    return Program(b.nodes, idx[:nf], idx[nf:nf + nh], idx[nf + nh:], frozenset(b.roots), notes, b.polynomial)
+    return Program(b.nodes, idx[:nf], idx[nf:nf + nh], idx[nf + nh:], frozenset(b.roots), notes, b.polynomial,
+                   b.square_power)
 
 
 # ----------------------------------------------------------------------------------------------

@@ -96,8 +96,8 @@ def _leaf_coefficients(st: _Setup, system: System, field: Any, rng: np.random.Ge
     p = getattr(field, "p", None)
 
     def draw(real_default: float | None = None) -> Any:
-        if exact_field:
-            return int(rng.integers(1, p))
+        if exact_field:   # a power of a random element: monomial radicands are squares (Program.square_power)
+            return pow(int(rng.integers(1, p)), st.prog.square_power, p)
         return float(real_default) if real_default is not None else float(rng.uniform(0.5, 1.5))
 
     values = values or {}
@@ -121,7 +121,7 @@ def _leaf_coefficients(st: _Setup, system: System, field: Any, rng: np.random.Ge
             continue
         deg = N + 1 if cls.kind == "generic" else cls.degree
         if exact_field:
-            vals = [int(rng.integers(1, p)) for _ in range(deg + 1)]
+            vals = [pow(int(rng.integers(1, p)), st.prog.square_power if k == 0 else 1, p) for k in range(deg + 1)]
         else:
             vals = [float(rng.uniform(-1, 1)) for _ in range(deg + 1)]
         coef[st.node_of[name]] = (lambda kk, v=vals: (v[kk], -1, 1) if kk < len(v) else (0, -1, 0))
@@ -132,7 +132,7 @@ def _leaf_coefficients(st: _Setup, system: System, field: Any, rng: np.random.Ge
             c0 = field.num(nd.data)
             coef[i] = (lambda kk, c=c0: (c, -1, 0) if kk == 0 else (0, -1, 0))
         elif nd.op == "cfree":
-            c0 = int(rng.integers(1, p)) if exact_field else nd.data
+            c0 = pow(int(rng.integers(1, p)), st.prog.square_power, p) if exact_field else nd.data
             coef[i] = (lambda kk, c=c0: (c, -1, 1) if kk == 0 else (0, -1, 0))
     return x0, coef
 
@@ -147,6 +147,7 @@ class _ModResult:
     prime: int
     function_rows: list[np.ndarray]
     max_order: int
+    square_power: int = 1   # the leaves were drawn as this power of random elements (Program.square_power)
 
 
 def _mod_run(st: _Setup, system: System, rng: np.random.Generator) -> _ModResult:
@@ -182,7 +183,7 @@ def _mod_run(st: _Setup, system: System, rng: np.random.Generator) -> _ModResult
                         pivots.append((j, k))
                 if ech.rank == M:
                     break
-            return _ModResult(ech.rank, ech, pivots, degrees, run.extra_degree, p, frows, k)
+            return _ModResult(ech.rank, ech, pivots, degrees, run.extra_degree, p, frows, k, st.prog.square_power)
         except Resample:
             continue
     raise ModelError(f"{system.name!r}: the generic-rank test hit a zero denominator at 20 random points; "
@@ -485,7 +486,8 @@ def _analyze(system: System, unknown_params: Any, inputs: Any, unknown_inputs: M
 
 def _degree(res: _ModResult, M: int) -> int:
     top = sorted(res.row_degrees, reverse=True)[:M]
-    return int(sum(top)) * (1 + res.extra_degree)
+    # a leaf drawn as r**e multiplies the degree in the random elements by e (Schwartz-Zippel over r)
+    return int(sum(top)) * (1 + res.extra_degree) * res.square_power
 
 
 def _error_bound(res: _ModResult, M: int) -> float:
