@@ -21,6 +21,11 @@ finished children (``getrusage`` RUSAGE_SELF + RUSAGE_CHILDREN, user + system: t
 subprocesses), and peak RSS (``ru_maxrss`` of the process and of its largest child, MB; of the whole process,
 imports included; a child's figure includes the Python pages it had when forked, before exec). Also the verdicts, the route (``method``), notes and refusals. The parent records "timeout"
 when the wall-clock limit is hit and "error: <message>" (with the traceback's last lines) when the child fails.
+At the limit, before the kill, it records where the time went (``at_limit``: every process of the child's tree, the
+nlobs frames of each Python one read with ``py-spy dump`` when py-spy is installed beside the interpreter, the
+``route`` argument, and the engine processes with their age) and says it in words (``stage``: route and step, e.g.
+"SIAN: Gröbner basis and normal forms (msolve running for 540 s)"); the report prints it for every stopped row, with
+what SI.jl's own dated runs say of the model (``SI_OWN_RUNS``).
 
 Records go to the JSON (``{"machine": ..., "rows": [...]}``, via ``_common.write`` when the file is in
 ``benchmarks/results``), one row per (model, part), rewritten after every row; rows of models not run this time
@@ -62,6 +67,24 @@ PARTS = ("global", "functions")
 HEADER = ("| model | size | SI.jl functions s | nlobs global wall s (CPU s) | nlobs functions wall s (CPU s) "
           "| ratio functions CPU / SI.jl | route | status | same field as SI.jl's | machine: reference call CPU ms |")
 DEFAULT_JSON = RESULTS / "si_models.json"
+#: SI.jl's own runs of the models its published table leaves out: quoted from the dated result files beside that
+#: table (``benchmarking/IdentifiableFunctions/benchmark_result_<date>.md``, same commit), not rerun here. "-" in
+#: those files is a run that did not finish within the file's timeout.
+_SI_600 = ("SI.jl's own runs did not finish it within 600 s in any strategy (`benchmark_result_01-09-23.md`, "
+           "`07-09-23`, `13-09-23-I`)")
+_SI_LATER = "not in any of SI.jl's dated result files (added to benchmarks.jl after them): no SI.jl time exists"
+SI_OWN_RUNS = {
+    "qwwc": _SI_600 + "; with a 6000 s limit: with states 1,323-1,361 s, parameters only 764-824 s "
+                      "(`08-08-23`, `08-08-23-x2`)",
+    "tumor_hu": _SI_600 + ", nor within 6000 s (`08-08-23`, `08-08-23-x2`)",
+    "tumor_pillis": _SI_600 + ", nor within 6000 s (`08-08-23`, `08-08-23-x2`)",
+    "leukaemia_leon2021": _SI_600,
+    "clv1_1o": _SI_600,
+    "ovarian_follicle": _SI_LATER,
+    "chemotherapy": _SI_LATER,
+    "covid2": _SI_LATER,
+    "eaihrd": _SI_LATER,
+}
 #: From SI.jl's benchmarking/IdentifiableFunctions/benchmark_result.md (quoted, not measured here).
 SI_RUN = ("2023-09-15 (`benchmark_result.md` of SciML/StructuralIdentifiability.jl, "
           "`find_identifiable_functions` with states, `(:normalforms, 2)`, column \"Runtime\"), Intel Xeon "
@@ -154,12 +177,15 @@ def run_one(key: str, part: str, timeout: float) -> dict[str, Any]:
     try:
         stdout, stderr = proc.communicate(timeout=timeout)
     except subprocess.TimeoutExpired:
-        try:
-            os.killpg(proc.pid, signal.SIGKILL)   # the whole group: the Python child and its engine processes
-        except ProcessLookupError:
-            pass
+        row["process_wall"] = time.perf_counter() - t0
+        at_limit = _at_limit(proc.pid)       # where the time went: the processes and Python stacks, before the kill
+        for pid in [proc.pid, *[p["pid"] for p in at_limit]]:
+            try:   # the child's group, and the groups of the routes it forked (each leads its own: module _budget)
+                os.killpg(pid, signal.SIGKILL)
+            except (ProcessLookupError, PermissionError):
+                pass
         proc.communicate()
-        row.update(status="timeout", process_wall=time.perf_counter() - t0)
+        row.update(status="timeout", at_limit=at_limit, stage=_stage(at_limit))
         return row
     row["process_wall"] = time.perf_counter() - t0
     lines = [x for x in stdout.splitlines() if x.startswith("RESULT ")]
@@ -171,6 +197,125 @@ def run_one(key: str, part: str, timeout: float) -> dict[str, Any]:
         row["status"] = "error: " + (tail[-1] if tail else f"exit code {proc.returncode}, no output")
         row["traceback_tail"] = tail[-12:]
     return row
+
+
+def _descendants(root: int) -> list[tuple[int, int, str, float]]:
+    """(pid, parent pid, command line, seconds since start) of every process below `root` (Linux /proc)."""
+    hz, up = os.sysconf("SC_CLK_TCK"), float(Path("/proc/uptime").read_text().split()[0])
+    procs: dict[int, tuple[int, str, float]] = {}
+    for d in Path("/proc").iterdir():
+        if not d.name.isdigit():
+            continue
+        try:
+            stat = (d / "stat").read_text()
+            cmd = (d / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace").strip()
+        except OSError:
+            continue
+        fields = stat[stat.rindex(")") + 2:].split()
+        procs[int(d.name)] = (int(fields[1]), cmd, up - int(fields[19]) / hz)
+    out, todo = [], [root]
+    while todo:
+        parent = todo.pop()
+        for pid, (ppid, cmd, age) in sorted(procs.items()):
+            if ppid == parent:
+                out.append((pid, ppid, cmd, age))
+                todo.append(pid)
+    return out
+
+
+def _at_limit(root: int) -> list[dict[str, Any]]:
+    """At the time limit: every process of the child's tree, with the Python stack of each Python one (py-spy, when
+    installed beside this interpreter; the frames of nlobs only, outermost first, and the `route` argument of the
+    innermost frame that has one). The engine subprocesses (msolve, Singular) show as processes with their age."""
+    spy = Path(sys.executable).with_name("py-spy")
+    out = []
+    for pid, ppid, cmd, age in [(root, os.getpid(), "benchmark child", 0.0), *_descendants(root)]:
+        p: dict[str, Any] = {"pid": pid, "ppid": ppid, "cmd": cmd[:200], "age_s": round(age, 1)}
+        if pid == root or Path(cmd.split(" ")[0]).name.startswith("python"):
+            p["python"] = True
+            if spy.exists():
+                try:
+                    dump = subprocess.run([str(spy), "dump", "--pid", str(pid), "--json", "--locals"],
+                                          capture_output=True, text=True, timeout=30)
+                    frames = json.loads(dump.stdout)[0]["frames"] if dump.returncode == 0 else []
+                except (subprocess.TimeoutExpired, ValueError, IndexError, KeyError):
+                    frames = []
+                mine = [f for f in reversed(frames) if "nlobs" in f["filename"]]
+                p["stack"] = [f'{f["name"]} ({f["filename"].split("src/")[-1]}:{f["line"]})' for f in mine]
+                routes = [v["repr"].strip('"\'') for f in mine for v in (f.get("locals") or []) if v["name"] == "route"]
+                if routes:
+                    p["route"] = routes[-1]
+        out.append(p)
+    return out
+
+
+#: What the innermost nlobs function of a stack is doing, in words (the first match from the innermost frame on).
+STAGES = {
+    "_det": "a resultant's determinant (eliminating a state)",
+    "_factors": "factoring a resultant",
+    "_without_parameter_factor": "dividing a resultant by its factors in the parameters",
+    "io_equations": "eliminating the states",
+    "wronskian_corank": "the Wronskian of the equations' monomials",
+    "state_generators": "the outputs' Lie derivatives (with states)",
+    "fibre": "the fibre of the route's generators",
+    "_complete": "the completeness check (counting fibre points)",
+    "_completed_on_the_route": "the completeness check on the route's generators",
+    "_verified": "verifying candidate functions at fresh points",
+    "_select": "selecting generators among the candidates",
+    "_Search": "the search for identifiable functions (candidates at random points)",
+    "_decide_rewritten": "Gröbner bases and normal forms on the rewritten model",
+    "_decide": "Gröbner basis and normal forms",
+    "_sian_at_a_random_point": "SIAN's output jets at a random point",
+    "_prepare": "SIAN's output jets",
+    "_local_of": "the local analysis (ranks of the output jets)",
+}
+
+
+def _names(p: dict[str, Any]) -> list[str]:
+    return [s.split(" (")[0] for s in p.get("stack", [])]
+
+
+def _route_of(p: dict[str, Any], others: list[dict[str, Any]]) -> str:
+    """The `route` argument py-spy read; for rows taken without locals, the input-output route when its elimination is
+    on the stack, SIAN when another process of the same race is on that route."""
+    if p.get("route"):
+        return p["route"]
+    if any(n in ("_prepare_io", "io_equations") for n in _names(p)):
+        return "io"
+    racing = [q for q in others if q is not p and "race_routes" in _names(q) and _working(q)]
+    return "sian" if any(_route_of(q, []) == "io" for q in racing) else ""
+
+
+def _working(p: dict[str, Any]) -> bool:
+    names = _names(p)
+    return bool(names) and "guard_group" not in names[-1:] and names[-1:] != ["race"]  # watchers; a parent waiting
+
+
+def _phrase(p: dict[str, Any], engines: list[dict[str, Any]], others: list[dict[str, Any]]) -> str:
+    names = _names(p)
+    if not _working(p):
+        return ""
+    what = next((w for n in reversed(names) for k, w in STAGES.items() if n == k or n.startswith(k + ".")),
+                names[-1])
+    route = {"io": "input-output route", "sian": "SIAN"}.get(_route_of(p, others), "")
+    run = ", ".join(f'{Path(e["cmd"].split(" ")[0]).name} running for {e["age_s"]:.0f} s' for e in engines)
+    return f"{route + ': ' if route else ''}{what}" + (f" ({run})" if run else "")
+
+
+def _stage(at_limit: list[dict[str, Any]]) -> str:
+    """One line: what each working Python process was doing at the time limit (route and stage, from its stack),
+    with the engine processes it was waiting on and their age."""
+    def python(p: dict[str, Any]) -> bool:
+        return p["cmd"] == "benchmark child" or Path(p["cmd"].split(" ")[0]).name.startswith("python")
+
+    parts = []
+    for p in at_limit:
+        if python(p):
+            engines = [e for e in at_limit if e["ppid"] == p["pid"] and not python(e) and "py-spy" not in e["cmd"]]
+            ph = _phrase(p, engines, at_limit)
+            if ph:
+                parts.append(ph)
+    return "; ".join(dict.fromkeys(parts)) or "not recorded"
 
 
 @functools.lru_cache(maxsize=1)
@@ -376,7 +521,10 @@ def report(path: Path) -> Path:
                 errors.append((k, part, r))
                 s = "error"
             elif s == "timeout":
+                if r.get("at_limit"):   # the words of this file's version, for rows taken before
+                    r["stage"] = _stage(r["at_limit"])
                 timeouts.append((k, part, r))
+                s = f'stopped at {r["timeout_s"]:g} s in {r["stage"]}' if r.get("stage") else "stopped (stage not recorded)"
             elif r.get("refused"):
                 refusals.append((k, part, r))
                 s = "refused"
@@ -413,7 +561,11 @@ def report(path: Path) -> Path:
     L += [f"- {k} {p}: `{r['status'][7:][:300]}`" + ("\n  ```\n  " + "\n  ".join(r.get("traceback_tail", [])[-6:]) + "\n  ```"
                                                    if r.get("traceback_tail") else "") for k, p, r in errors] or ["None."]
     L += ["", "## Timeouts", ""]
-    L += [f"- {k} {p}: stopped after {r['timeout_s']:g} s" for k, p, r in timeouts] or ["None."]
+    L += ["Where the time went: the stacks of the child's processes at the limit (py-spy; `at_limit` in the JSON), "
+          "and the engine processes they were waiting on.", ""] if timeouts else []
+    L += [f"- {k} {p}: stopped after {r['timeout_s']:g} s (run {r.get('date', '?')}, code {r.get('commit', '?')}); "
+          f"at the limit: {r.get('stage') or 'not recorded (a run before the stacks were taken)'}"
+          + (f". {SI_OWN_RUNS[k]}" if k in SI_OWN_RUNS else "") for k, p, r in timeouts] or ["None."]
     L += ["", "## Refused", ""]
     L += [f"- {k} {p}: {r['refused']}" for k, p, r in refusals] or ["None."]
     L += ["", "## Identifiable functions to look at (complete not True, or a local check failed)", ""]
