@@ -871,8 +871,9 @@ def global_identifiability(system: System, *, unknown_params: Any = (), inputs: 
             prep = _prepare_io(system, unknown_params=unknown_params, inputs=inputs, unknown_inputs=unknown_inputs,
                                functions=functions, local=local, seed=seed, eng=eng)
         except (NotApplicable, NotRational) as e:
-            return GlobalResult(refused=f"the input-output route does not apply: {e}", method=IO_METHOD,
-                                seconds=time.perf_counter() - t_start)
+            spent = time.perf_counter() - t_start
+            return GlobalResult(refused=f"the input-output route does not apply: {e} (known after {spent:.1f} s)",
+                                method=IO_METHOD, seconds=spent)
         committed()  # under route="auto": the equations are known, the route finishes
         res = _decide(prep, eng, max_solutions)
         open_ = [lo.name for lo in res["locally_only"]] + [t for t, v, _ in res["functions"] if v == "locally"]

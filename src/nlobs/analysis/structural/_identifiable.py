@@ -1107,8 +1107,10 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
                 prep = _prepare_io(system, unknown_params=unknown_params, inputs=inputs, local=local, seed=seed,
                                    eng=eng)
             except NotApplicable as e:
-                return IdentifiableFunctions(with_states=with_states,
-                                             refused=f"the input-output route does not apply: {e}")
+                spent = time.perf_counter() - t0
+                return IdentifiableFunctions(with_states=with_states, seconds=spent,
+                                             refused=f"the input-output route does not apply: {e} (known after "
+                                                     f"{spent:.1f} s)")
             committed()  # under route="auto": the equations are known, the search runs to its end
         if prep is None:
             prep = _prepare(system, unknown_params=unknown_params, inputs=inputs, local=local, seed=seed)
