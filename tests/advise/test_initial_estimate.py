@@ -151,3 +151,34 @@ def test_a_bias_the_run_cannot_settle_is_named_in_the_ranking(tmp_path):
     assert "not converged within the run: b (" in s.detail
     adv = advise(_file(tmp_path, b0=0.2), kinds=["ekf"], run=True)      # x1' = b + u: b settles
     assert "not converged" not in adv.scores[0].detail
+
+
+@pytest.mark.parametrize("extra, k0, c0", [
+    ("", 1.0 * 1.3, 2.0 * 0.7),                                   # 30 % off, the first up, the second down
+    ("initial_std = { k = 0.2, c = 0.5 }", 1.0 + 0.2, 2.0 - 0.5),   # by σ₀ where initial_std names it
+])
+def test_an_unknown_parameter_whose_guess_is_its_truth_starts_off_it(tmp_path, extra, k0, c0):
+    """Without true_parameters the file's value is both the plant's and the guess: an estimate started there tests
+    nothing (issue 36's rule 'no default may start an estimate at the true value', found on a 12-tank model where
+    a and b 'converged' from their true values)."""
+    path = tmp_path / "p.toml"
+    path.write_text(BIAS.format(b0=0.2, T=5.0, extra=extra).replace(
+        '[dynamics]', '[parameters]\nk = { value = 1.0, unknown = true }\nc = { value = 2.0, unknown = true }\n[dynamics]')
+        .replace('"b + u"', '"b + k*u - c*x1"'))
+    ctx = _ctx(nlobs.load_model(path))
+    i, j = ctx.system.states.index("k"), ctx.system.states.index("c")
+    assert (ctx.truth["k"], ctx.truth["c"]) == (1.0, 2.0)                   # the plant runs the file's values
+    assert ctx.xhat0[i] == pytest.approx(k0, rel=1e-12)
+    assert ctx.xhat0[j] == pytest.approx(c0, rel=1e-12)
+    assert any("tests nothing" in n for n in ctx.notes)
+    # P(0) covers the offset (a one-σ error)
+    assert np.sqrt(ctx.P0[i, i]) >= abs(ctx.xhat0[i] - 1.0) * (1 - 1e-12)
+
+
+def test_a_parameter_with_a_true_value_of_its_own_starts_at_the_guess(tmp_path):
+    path = tmp_path / "p.toml"
+    path.write_text(BIAS.format(b0=0.2, T=5.0, extra="true_parameters = { k = 1.5 }").replace(
+        '[dynamics]', '[parameters]\nk = { value = 1.0, unknown = true }\n[dynamics]').replace('"b + u"', '"b + k*u"'))
+    ctx = _ctx(nlobs.load_model(path))
+    assert ctx.xhat0[ctx.system.states.index("k")] == 1.0
+    assert not any("tests nothing" in n for n in ctx.notes)

@@ -23,7 +23,8 @@ Automatic tuning rules (each one reported with the candidate that uses it):
 * **Initial estimate.** x̂(0) is x(0) moved by half of each state's local scale ℓ_i (no more than max(|x_i(0)|,
   s_i/10) for a state that travels far from where it starts), with alternating signs (a state that keeps its sign
   on the run keeps it: ×1.5 or ×0.5 where the move would flip it), inside the box the run visits; unknown parameters
-  start at the file's value (the initial guess). P(0) = diag(σ₀²), σ₀ = max(min(offset, ℓ_i), ℓ_i/10): the offset
+  start at the file's value (the initial guess) when ``[simulation] true_parameters`` gives the plant other values;
+  without it the file's value is also the truth, and they start 30 % off it (by σ₀ with ``initial_std``). P(0) = diag(σ₀²), σ₀ = max(min(offset, ℓ_i), ℓ_i/10): the offset
   is a one-σ error.
 * **States that do not move on the run** (a sensor bias, a constant: ẋ = 0 along it, so the box the run visits is a
   single point and clipping into it would start the estimate *at the true value*): x̂(0) = x(0) ± σ₀ (away from 0
@@ -528,6 +529,36 @@ def _xhat0(x0: np.ndarray, run: Run | None, scale: np.ndarray, estimated: Sequen
     return out
 
 
+#: An unknown parameter whose guess is its true value starts this fraction of it off (without an initial_std).
+PARAM_OFFSET = 0.3
+
+
+def _off_truth(xh0: np.ndarray, unknown: Sequence[str], first: int, guesses: Sequence[float], truth: Mapping[str, float],
+               sigma0: Mapping[int, float], local: np.ndarray) -> str:
+    """Move the unknown parameters whose guess is their true value (no ``true_parameters`` in the file: the file's
+    value is both) off it, in place: by their σ₀ from ``initial_std``, else by 30 % (a zero one by its local scale),
+    alternating up and down, keeping the sign. A run started at the true value would show a parameter "estimated"
+    that was never tested. Returns the note saying so ("" when none moved)."""
+    moved, sign = [], 1.0
+    for j, (k, g) in enumerate(zip(unknown, guesses)):
+        i = first + j
+        if g != truth[k]:
+            continue
+        d = float(sigma0[i]) if i in sigma0 else (PARAM_OFFSET * abs(g) if g != 0 else float(local[i]))
+        v = g + sign * d
+        if g != 0 and v * g <= 0:          # keep the sign of a rate, a gain, a mass
+            v = g + np.sign(g) * d
+        xh0[i] = v
+        moved.append(f"{k} = {v:.4g}")
+        sign = -sign
+    if not moved:
+        return ""
+    return (f"x̂(0) of the unknown parameters {', '.join(moved)}: the file's value is both the plant's and the guess, "
+            f"and an estimate started at the true value tests nothing, so it starts {int(PARAM_OFFSET * 100)} % off "
+            "(by σ₀ where [simulation] initial_std names it); give [simulation] true_parameters (the plant's values) "
+            "to start from the file's guess")
+
+
 def _blockers(ctx: Context, model: System, unknown: Sequence[str], rep: Any, rep_sig: Any, nominal: Run | None,
               recording: Recording | None) -> None:
     """What stops every observer (an unobservable state, a non-identifiable parameter) or the run (an input that does
@@ -682,7 +713,11 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
             raise ModelError(f"advise: `xhat0` must have {system.n_states} entries ({', '.join(system.states)}), got {xh0.size}")
     elif sc is not None and sc.x0 is not None:
         est = list(range(model.n_states, system.n_states))
-        xh0 = _xhat0(sc.x0, nominal, scale, est, [float(model.params[k]) for k in unknown], sigma0, local)
+        guesses = [float(model.params[k]) for k in unknown]
+        xh0 = _xhat0(sc.x0, nominal, scale, est, guesses, sigma0, local)
+        moved = _off_truth(xh0, unknown, model.n_states, guesses, truth, sigma0, local)
+        if moved:
+            notes.append(moved)
     else:
         xh0 = np.array([0.0] * model.n_states + [float(model.params[k]) for k in unknown])
     # P(0): the initial uncertainty, i.e. the offset of x̂(0) from x(0) chosen above, at least a tenth of the state's
