@@ -312,7 +312,8 @@ class _Problem:
     def _build(self, run: Any, y: np.ndarray, mask: np.ndarray, smoothing: float, censor: bool, learn_noise: bool) -> None:
         """The filter model (widths for the current sub-steps), the unknowns' places in c, and the data rows."""
         t, u, rec = self.t, self.recording.u, self.recording
-        self.model = filter_model(self.system, self.params, run, smoothing * self.width_scale, censor)
+        self.model = filter_model(self.system, self.params, run, smoothing * self.width_scale, censor,
+                                  readings=(rec.y, mask))
         fsys = self.model.system
         npar = fsys.n_params
         self.free = [fsys.param_names.index(p) for p in self.params] + ([npar, npar + 1] if learn_noise else [])

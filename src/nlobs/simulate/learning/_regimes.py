@@ -117,6 +117,8 @@ class FilterModel:
     censored: tuple[Censored | None, ...]
     smoothed: tuple[Smoothed, ...]
     substeps: int = 1
+    #: Saturating outputs left as switches because the recording reads beyond their limit (noise after the limit).
+    beyond: tuple[str, ...] = ()
 
     @property
     def exact_switches(self) -> list[str]:
@@ -151,6 +153,8 @@ class FilterModel:
                 n = 0 if codes is None else int(np.count_nonzero(codes[:, j]))
                 out.append(f"censored output: {c}, read as min(g + v, limit) ({cite('tobin1958')}); {n} sample(s) at "
                            "the limit enter as P(g + v beyond the limit), without an update")
+        for text in self.beyond:
+            out.append(f"not censored: {text}")
         if self.smoothed:
             out.append(f"smoothed switches ({cite('chen1996')}; sign by tanh): "
                        + "; ".join(str(s) for s in self.smoothed))
@@ -219,7 +223,7 @@ def _free_name(base: str, taken: set[str]) -> str:
 
 
 def filter_model(system: System, fitted: Sequence[str], run: Mapping[str, Any] | None, smoothing: float,
-                 censor: bool = True) -> FilterModel:
+                 censor: bool = True, readings: tuple[np.ndarray, np.ndarray] | None = None) -> FilterModel:
     """Build the :class:`FilterModel` of `system` (see the module docstring).
 
     Parameters
@@ -234,15 +238,23 @@ def filter_model(system: System, fitted: Sequence[str], run: Mapping[str, Any] |
         Factor on the widths; 0 leaves every switch exact.
     censor : bool
         Read outputs saturating at known limits as censored (else they are switches like the others).
+    readings : (y, mask), optional
+        The recording's outputs (N, p) and where they were measured. An output whose readings go beyond its limit
+        (by more than rounding) is not a sensor that clips its noisy value: its noise is added after the limit
+        (y = min(g, c) + v, as :func:`nlobs.simulate` draws it), so it is left a switch of the model as written
+        (smoothed), and the notes say so. Censoring it would take a reading of c − 2σ for an unsaturated level.
     """
     if not np.isfinite(smoothing) or smoothing < 0:
         raise ModelError(f"`smoothing` must be a number ≥ 0 (a factor on the automatic widths; 0: exact switches), "
                          f"got {smoothing!r}")
     known = {symbol(k): float(v) for k, v in system.params.items() if k not in fitted}
-    h, censored = list(system.h), []
+    h, censored, beyond = list(system.h), [], []
     for j, e in enumerate(system.h):
         sat = _saturation(e, known) if censor else None
-        if sat is None:
+        over = _beyond(sat, readings, j) if sat is not None else ""
+        if over:
+            beyond.append(f"{system.outputs[j]} = {_text(e)}: {over}")
+        if sat is None or over:
             censored.append(None)
             continue
         h[j] = sat[0]
@@ -255,7 +267,7 @@ def filter_model(system: System, fitted: Sequence[str], run: Mapping[str, Any] |
                     nodes.setdefault(node, None)
     if not nodes:
         base = system if not any(censored) else system._copy(h=tuple(h))
-        return FilterModel(base, tuple(censored), ())
+        return FilterModel(base, tuple(censored), (), beyond=tuple(beyond))
     taken = set(system.params) | set(system.states) | set(system.inputs) | set(system.outputs)
     widths, n_sub = _widths(system, list(nodes), run, smoothing)
     smoothed, params, eps = [], dict(system.params), {}
@@ -272,7 +284,25 @@ def filter_model(system: System, fitted: Sequence[str], run: Mapping[str, Any] |
         return _smoothed_expr(e.func, args, eps[e]) if isinstance(e, _PIECEWISE) else e.func(*args)
 
     f_new, h_new = tuple(swap(e) for e in system.f), tuple(swap(e) for e in h)
-    return FilterModel(system._copy(f=f_new, h=h_new, params=params), tuple(censored), tuple(smoothed), n_sub)
+    return FilterModel(system._copy(f=f_new, h=h_new, params=params), tuple(censored), tuple(smoothed), n_sub,
+                       tuple(beyond))
+
+
+def _beyond(sat: tuple[Any, float | None, float | None], readings: tuple[np.ndarray, np.ndarray] | None, j: int) -> str:
+    """Why output j's readings are not those of a sensor clipping its noisy value ("" when they are, or unknown)."""
+    if readings is None:
+        return ""
+    y, mask = readings
+    col = np.asarray(y, dtype=float)[:, j][np.asarray(mask)[:, j] > 0]
+    _, lower, upper = sat
+    for lim, side, sign in ((upper, "above", 1.0), (lower, "below", -1.0)):
+        if lim is None:
+            continue
+        n = int(np.sum(sign * (col - lim) > AT_LIMIT * max(1.0, abs(lim))))
+        if n:
+            return (f"{n} reading(s) lie {side} its limit {lim:g}, so its noise is added after the limit "
+                    f"(y = the saturated value + v), not clipped with it; read as the switch it is (no censoring)")
+    return ""
 
 
 def _widths(system: System, nodes: list[sp.Expr], run: Mapping[str, Any], factor: float) -> tuple[list[float], int]:
