@@ -254,7 +254,9 @@ class _Objective:
             theta = self.sc.theta(phi)
             ll, g, info = self.prob(theta)
             J = self.sc.dtheta(phi)
-            if not np.isfinite(ll) or not np.all(np.isfinite(g)):
+            if not np.isfinite(ll) or not np.all(np.isfinite(g)) or not np.all(np.isfinite(info)):
+                # a step where the filter's value, slope or information is not finite (a root at 0, a blow-up) is
+                # rejected like a step out of the bounds: the optimiser shrinks its trust region
                 self.value = (np.inf, np.zeros_like(phi), np.eye(phi.size), -np.inf, g, info)
             else:
                 self.value = (-ll, -g * J, info * np.outer(J, J), ll, g, info)

@@ -18,8 +18,11 @@ no derivative-based optimiser converges on it. Two regimes are therefore handled
    filter the one :func:`nlobs.estimate` runs on the recording with those samples missing). The regimes then
    no longer depend on the parameters.
 2. **Switches of the flow and of other outputs** (every other abs, sign, min, max) are smoothed over a
-   width ε: max(a, b) ≈ (a + b + √((a − b)² + ε²))/2, min likewise, abs(g) ≈ √(g² + ε²) (the
-   Chen-Harker-Kanzow-Smale smoothing; Chen & Mangasarian (1996): above the exact max, within ε/2 of it), and
+   width ε: max(g, 0) by its convolution with the density 3ε⁴/(4(τ² + ε²)^(5/2)), which is
+   (g + r)/2 − ε²/(4r) with r = √(g² + ε²) (one of the smoothings of Chen & Mangasarian (1996): analytic,
+   above max(g, 0) by ε/4 at the switch and by about ε⁴/(16|g|³) away from it, where the
+   Chen-Harker-Kanzow-Smale smoothing (g + r)/2 leaves ε²/(4|g|)), max(a, b) and min(a, b) through a − b,
+   abs(g) = r − ε²/(2r), and
    sign(g) ≈ tanh(g/ε) (bounded, exponentially close to ±1 away from the switch). ε is 1 % of the
    range the switch's argument spans along the filter's run at the initial guess (times `smoothing`),
    and the filter integrates with enough RK4 sub-steps that no sub-step moves the argument by more
@@ -156,7 +159,7 @@ class FilterModel:
         for text in self.beyond:
             out.append(f"not censored: {text}")
         if self.smoothed:
-            out.append(f"smoothed switches ({cite('chen1996')}; sign by tanh): "
+            out.append(f"smoothed switches ({cite('chen1996')}, the density 3ε⁴/(4(τ² + ε²)^(5/2)); sign by tanh): "
                        + "; ".join(str(s) for s in self.smoothed))
         return out
 
@@ -194,14 +197,22 @@ def _saturation(e: sp.Expr, known: Mapping[sp.Symbol, float]) -> tuple[sp.Expr, 
 
 
 def _smoothed_expr(func: Any, args: Sequence[sp.Expr], eps: sp.Symbol) -> sp.Expr:
+    """A switch smoothed over `eps`: max(g, 0) convolved with the density 3ε⁴/(4(τ² + ε²)^(5/2)) (Chen & Mangasarian
+    (1996)'s class; this one is (g + r)/2 − ε²/(4r), r = √(g² + ε²)): analytic, positive, increasing, above max(g, 0)
+    by ε/4 at g = 0 and by ε⁴/(4r(r + |g|)²) ≈ ε⁴/(16|g|³) away from it. The Chen-Harker-Kanzow-Smale density
+    ε²/(2(τ² + ε²)^(3/2)) leaves ε²/(4|g|) there: a bias on every switch the run passes near without crossing (a
+    rate 4.4 standard errors off on twelve tanks whose levels start at 6 widths from empty). min(a, b) = −max(−a, −b),
+    abs(g) = max(g, 0) + max(−g, 0) = r − ε²/(2r); sign by tanh(g/ε) (exponentially close to ±1 away from 0)."""
     if func is sp.Abs:
-        return sp.sqrt(args[0] ** 2 + eps**2)
+        r = sp.sqrt(args[0] ** 2 + eps**2)
+        return r - eps**2 / (2 * r)
     if func is sp.sign:   # bounded, and its tails vanish exponentially (a switch times a large gain leaks little)
         return sp.tanh(args[0] / eps)
     s = 1 if func is sp.Max else -1
     out = args[0]
     for b in args[1:]:
-        out = (out + b + s * sp.sqrt((out - b) ** 2 + eps**2)) / 2
+        r = sp.sqrt((out - b) ** 2 + eps**2)
+        out = (out + b + s * r) / 2 - s * eps**2 / (4 * r)
     return out
 
 
