@@ -198,3 +198,40 @@ def test_noise_added_after_the_limit_is_not_read_as_censoring():
     assert any("not censored: y = min(x2, ymax)" in n and "reading(s) lie above its limit 10" in n for n in fit.notes)
     truth = np.array([TA, TB, TK, 0.0, 0.0])
     assert np.all(np.abs(fit.estimate - truth) < 2.5 * fit.std), ((fit.estimate - truth) / fit.std)
+
+
+MOTOR = nlobs.System(states=["w", "i"], inputs=["v"], outputs=["enc", "amp"],
+                     f=["(Kt*i - b*w - Fc*sign(w))/J", "(v - R*i - Kt*w)/L"], h=["w", "sat(i, -2, 2)"],
+                     params={"J": 0.01, "b": 0.02, "Fc": 0.05, "Kt": 0.1, "R": 1.0, "L": 0.05})
+
+
+def test_coulomb_friction_that_chatters_as_written_is_fitted_on_its_smoothed_model():
+    """sign(w) at rest: on the model as written the filter's run chatters where w crosses 0 (115 RK4 sub-steps in one
+    10 ms interval: the fit refused the recording), while the smoothed model's own stiffness asks for fewer than 64. The plant: RK4 at 0.5 ms of the
+    exact equations, 10 ms samples with noise added to the clipped current."""
+    rng = np.random.default_rng(0)   # its noise draw makes the exact run chatter (93 sub-steps from t = 2.61)
+    J, b, Fc, Kt, R, L = 0.01, 0.02, 0.05, 0.1, 1.0, 0.05
+
+    def f(x, v):
+        return np.array([(Kt * x[1] - b * x[0] - Fc * np.sign(x[0])) / J, (v - R * x[1] - Kt * x[0]) / L])
+
+    t = np.arange(1001) * 0.01
+    V = lambda s: 3 * np.sin(1.3 * s) + 1.5 * np.sin(5.1 * s)  # noqa: E731
+    x, X, h = np.zeros(2), np.empty((t.size, 2)), 0.0005
+    for k in range(t.size):
+        X[k] = x
+        for j in range(20):
+            s = t[k] + j * h
+            k1 = f(x, V(s))
+            k2 = f(x + h / 2 * k1, V(s + h / 2))
+            k3 = f(x + h / 2 * k2, V(s + h / 2))
+            k4 = f(x + h * k3, V(s + h))
+            x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    y = np.c_[X[:, 0] + 0.05 * rng.standard_normal(t.size), np.clip(X[:, 1], -2, 2) + 0.02 * rng.standard_normal(t.size)]
+    rec = Recording.from_arrays(MOTOR, t, y, V(t)[:, None])
+    d = nlobs.design_ekf(MOTOR.with_params(b=0.03, Fc=0.02), Q=np.diag([1.0, 0.01]), R=np.diag([0.05**2, 0.02**2]),
+                         xhat0=[0.5, 0.0], P0=np.diag([1.0, 0.25]))
+    fit = fit_likelihood(d, rec, ["b", "Fc"], learn_noise=True, engine="vm")
+    assert fit.success, fit.message
+    assert np.all(np.abs(fit.estimate[:2] - [b, Fc]) < 2.5 * fit.std[:2]), ((fit.estimate[:2] - [b, Fc]) / fit.std[:2])
+    assert fit.substeps <= 64

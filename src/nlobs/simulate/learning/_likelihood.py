@@ -43,6 +43,7 @@ from typing import Any, Literal
 
 import casadi as ca
 import numpy as np
+import sympy as sp
 
 from ...design import ObserverDesign
 from ...engine import Backend, compile_system, rows
@@ -299,7 +300,8 @@ class _Problem:
         t, u = recording.t, recording.u
         self.t, self.N = t, t.size
         y = np.where(mask > 0, recording.y, 0.0)
-        traj = self._substeps(t, u, y, mask, max_step)
+        switches = smoothing > 0 and any(e.has(sp.Abs, sp.sign, sp.Min, sp.Max) for e in (*system.f, *system.h))
+        traj = self._substeps(t, u, y, mask, max_step, switches)
         run = None if traj is None else {"x": traj.xhat, "u": u, "t": t}
         self.s0 = np.concatenate([np.asarray(d.xhat0, dtype=float).reshape(-1),
                                   np.asarray(d.certificate.values["P0"], dtype=float).reshape(-1, order="F")])
@@ -308,6 +310,17 @@ class _Problem:
         self._build(*self._args)
         self.n_sub = min(max(self.n_sub, self.model.substeps), MAX_SUBSTEPS)
         self.rec = _recursion(d, self.model, self.free, self.n_sub)
+        if self.exact_stiff:   # the exact run chattered at a switch: the smoothed model's own stiffness decides
+            need = self.needed_substeps(self.theta0())
+            if need > MAX_SUBSTEPS:
+                n, k = self.exact_stiff
+                raise DataError(f"{caller}: the filter takes {n} RK4 sub-steps in the interval from t = {t[k]:g} to "
+                                f"{t[k + 1]:g} on the model as written, and {need} on its smoothed switches (its "
+                                f"fastest rate times the sample interval); the likelihood's recursion takes at most "
+                                f"{MAX_SUBSTEPS} per interval: give a wider smoothing (smoothing > 1, --smoothing), "
+                                "or a recording sampled faster")
+            if need > self.n_sub:
+                self.set_substeps(need)
 
     def _build(self, run: Any, y: np.ndarray, mask: np.ndarray, smoothing: float, censor: bool, learn_noise: bool) -> None:
         """The filter model (widths for the current sub-steps), the unknowns' places in c, and the data rows."""
@@ -343,8 +356,13 @@ class _Problem:
         except np.linalg.LinAlgError:
             return float("inf")
 
-    def _substeps(self, t: np.ndarray, u: np.ndarray, y: np.ndarray, mask: np.ndarray, max_step: float | None) -> Any:
-        """Sub-steps per interval: the filter's own rule, run at the initial guess (the most it takes in one); the run."""
+    def _substeps(self, t: np.ndarray, u: np.ndarray, y: np.ndarray, mask: np.ndarray, max_step: float | None,
+                  switches: bool = False) -> Any:
+        """Sub-steps per interval: the filter's own rule, run at the initial guess (the most it takes in one); the run.
+
+        With `switches` to be smoothed, a count above MAX_SUBSTEPS is not final: on the model as written the run
+        chatters where a switch's argument crosses zero (Coulomb friction, sign(w) at rest), which the smoothed
+        model does not; ``exact_stiff`` keeps it for the check on the smoothed model."""
         from ...observer._compiled import compiled_observer
 
         system, caller = self.system, self.caller
@@ -352,11 +370,15 @@ class _Problem:
             from .._discrete import check_map_grid
 
             check_map_grid(system, t, f"{caller}: recording ({self.source})")
-            self.n_sub = 1
+            self.n_sub, self.exact_stiff = 1, None
             return None
         traj = compiled_observer(self.d).run(t, u=u, y=y, mask=mask, max_step=max_step, engine=self.engine, name=caller)
         self.n_sub = max(1, int(traj.substeps.max()))
-        if self.n_sub > MAX_SUBSTEPS:
+        self.exact_stiff: tuple[int, int] | None = None
+        if self.n_sub > MAX_SUBSTEPS and switches:
+            self.exact_stiff = (self.n_sub, int(np.argmax(traj.substeps)))
+            self.n_sub = 1
+        elif self.n_sub > MAX_SUBSTEPS:
             k = int(np.argmax(traj.substeps))
             raise DataError(f"{caller}: the filter takes {self.n_sub} RK4 sub-steps in the interval from t = {t[k]:g} to "
                             f"{t[k + 1]:g} (the most in any interval); the likelihood's recursion takes the same number in "
