@@ -182,3 +182,16 @@ def test_a_parameter_with_a_true_value_of_its_own_starts_at_the_guess(tmp_path):
     ctx = _ctx(nlobs.load_model(path))
     assert ctx.xhat0[ctx.system.states.index("k")] == 1.0
     assert not any("tests nothing" in n for n in ctx.notes)
+
+
+def test_on_a_recording_the_parameters_start_at_the_guess(tmp_path):
+    """On recorded data the plant is the real one: the file's value is only a guess, and there is no truth to avoid."""
+    path = tmp_path / "p.toml"
+    path.write_text(BIAS.format(b0=0.2, T=5.0, extra="").replace(
+        '[dynamics]', '[parameters]\nk = { value = 1.0, unknown = true }\n[dynamics]').replace('"b + u"', '"b + k*u"'))
+    mf = nlobs.load_model(path)
+    t = np.linspace(0, 5, 101)
+    rec = nlobs.Recording.from_arrays(mf.system, t, (0.5 + 0.2 * t - np.cos(t) + 1)[:, None], np.sin(t)[:, None])
+    ctx = build_context(mf.system, model_file=mf, unknown_params=mf.unknown_params, recording=rec)
+    assert ctx.xhat0[ctx.system.states.index("k")] == 1.0
+    assert not any("tests nothing" in n for n in ctx.notes)

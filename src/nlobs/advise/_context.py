@@ -715,7 +715,8 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
         est = list(range(model.n_states, system.n_states))
         guesses = [float(model.params[k]) for k in unknown]
         xh0 = _xhat0(sc.x0, nominal, scale, est, guesses, sigma0, local)
-        moved = _off_truth(xh0, unknown, model.n_states, guesses, truth, sigma0, local)
+        # on a recording the plant is the real one: its parameters are unknown, and the file's value is only a guess
+        moved = _off_truth(xh0, unknown, model.n_states, guesses, truth, sigma0, local) if recording is None else ""
         if moved:
             notes.append(moved)
     else:
