@@ -305,3 +305,16 @@ def test_starting_the_command_line_does_not_import_scipy_stats():
     code = "import sys, nlobs.cli; print('scipy.stats' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "False"
+
+
+def test_estimate_plot_draws_the_estimates(tmp_path, capsys):
+    """nlobs estimate --plot FILE: the filtered and smoothed estimates as a picture (a PNG with one panel per state)."""
+    sim_csv, png = tmp_path / "sim.csv", tmp_path / "est.png"
+    assert main(["simulate", PEND, "--t-final", "2", "--output", str(sim_csv), "--json"]) == 0
+    capsys.readouterr()
+    assert main(["estimate", PEND, str(sim_csv), "--observer", "ekf", "--smooth", "--plot", str(png)]) == 0
+    assert f"plot: {png}" in capsys.readouterr().out
+    import matplotlib.image as mpimg
+
+    img = mpimg.imread(png)
+    assert img.shape[0] > 300 and img.shape[1] > 300 and img.std() > 0.05   # a drawn figure, not a blank page

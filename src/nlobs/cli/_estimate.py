@@ -40,6 +40,9 @@ def add_parser(sub: Any) -> None:
     e.add_argument("--output", metavar="FILE",
                    help="write t, the inputs, the outputs, the states (when recorded) and each observer's estimate "
                         "(NAME.STATE) to this CSV")
+    e.add_argument("--plot", metavar="FILE",
+                   help="save the estimates (filtered and, with --smooth, smoothed; the true states when the recording "
+                        "has them) to FILE (png/pdf/svg)")
     e.add_argument("--json", action="store_true", help="print one JSON object")
     e.set_defaults(run=run)
 
@@ -62,6 +65,8 @@ def run(args: argparse.Namespace) -> int:
                     delay=dict(mf.simulation.delay) or None)
     if args.output:
         run_.to_csv(args.output)
+    if args.plot:
+        run_.plot(args.plot, title=f"{system.name} on {args.data}")
     if args.json:
         print(json.dumps(clean(run_.summary_dict())))
     else:
@@ -73,4 +78,6 @@ def run(args: argparse.Namespace) -> int:
             print(f"{name}: final estimate " + ", ".join(f"{s}={v:.6g}" for s, v in zip(run_.state_names, tr.xhat[-1])))
         if args.output:
             print(f"estimates: {args.output}")
+        if args.plot:
+            print(f"plot: {args.plot}")
     return failed_status(run_)
