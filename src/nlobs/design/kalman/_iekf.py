@@ -16,7 +16,7 @@ from .._tune import robust_filter
 from .._kind import Tuning
 from .._kind import kind
 from .._common import require_system, symmetric_part
-from ._robust_maps import discrete_iekf
+from ._robust_maps import discrete_iekf, iterated_update
 from ._sqrt import covariance_inputs
 
 __all__ = ["design_iekf"]
@@ -92,25 +92,7 @@ def design_iekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = 
     fx = f(s.t, xh, s.u)
     F = ca.jacobian(fx, xh)
     dP = symmetric_part(F @ P + P @ F.T + ca.DM(Qm))
-    xv = ca.SX.sym("xv", n)
-    hv = h(s.t, xv, s.u)
-    Hv = ca.Function("h_and_H", [xv, s.t, s.u], [hv, ca.jacobian(hv, xv)])
-    Mdiag = ca.diag(s.m)
-    Rmask = Mdiag @ ca.DM(Rm) @ Mdiag + ca.diag(1 - s.m)  # unmeasured outputs: decoupled unit block, zero gain
-    xi, done = xh, ca.SX(0)
-    K = Hm = None
-    for _ in range(int(iterations)):
-        hi, Hi = Hv(xi, s.t, s.u)
-        Hi_m = Mdiag @ Hi
-        Ki = ca.solve(symmetric_part(Hi_m @ P @ Hi_m.T + Rmask), Hi_m @ P).T
-        x_next = xh + Ki @ (s.m * (s.y - hi - Hi @ (xh - xi)))
-        step = ca.mmax(ca.fabs(x_next - xi))
-        K = Ki if K is None else ca.if_else(done, K, Ki)
-        Hm = Hi_m if Hm is None else ca.if_else(done, Hm, Hi_m)
-        xi = ca.if_else(done, xi, x_next)
-        done = ca.logic_or(done, step < float(tol))
-    IKH = ca.DM.eye(n) - K @ Hm
-    P_plus = symmetric_part(IKH @ P @ IKH.T + K @ Rmask @ K.T)
+    xi, P_plus = iterated_update(h, s, xh, P, Rm, iterations, tol)
     x0 = ca.SX.sym("xhat0", n)
     checks.append(Check("Gauss-Newton iterations", True, f"at most {int(iterations)} per sample, stop below {tol:g}"))
     values: dict[str, Any] = {"Q": Qm, "R": Rm, "P0": P0m, "iterations": int(iterations), "tol": float(tol)}

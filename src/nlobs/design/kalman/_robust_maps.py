@@ -151,6 +151,33 @@ def discrete_srukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any
                                 update=ca.vertcat(x_new, ca.vec(S_new), s.u, 1), covariance=S @ S.T)
 
 
+def iterated_update(h: Any, s: Any, x_prior: Any, P_prior: Any, Rm: np.ndarray, iterations: int,
+                    tol: float) -> tuple[Any, Any]:
+    """The iterated EKF's measurement update (Bell & Cathey (1993): Gauss-Newton on the MAP cost, the gain and the
+    Joseph update at the last iterate), with the per-output mask ``s.m`` (an unmeasured output: a decoupled unit
+    block of R, zero gain); stops iterating once a step moves x̂ by less than `tol`. Returns (x̂⁺, P⁺)."""
+    n = x_prior.shape[0]
+    xv = ca.SX.sym("xv", n)
+    hv = h(s.t, xv, s.u)
+    h_and_H = ca.Function("h_and_H", [xv, s.t, s.u], [hv, ca.jacobian(hv, xv)])
+    Md = ca.diag(s.m)
+    Rmask = Md @ ca.DM(Rm) @ Md + ca.diag(1 - s.m)
+    xi, done = x_prior, ca.SX(0)
+    K = Hm = None
+    for _ in range(int(iterations)):
+        hi, Hi = h_and_H(xi, s.t, s.u)
+        Hi_m = Md @ Hi
+        Ki = ca.solve(symmetric_part(Hi_m @ P_prior @ Hi_m.T + Rmask), Hi_m @ P_prior).T
+        x_next = x_prior + Ki @ (s.m * (s.y - hi - Hi @ (x_prior - xi)))
+        step = ca.mmax(ca.fabs(x_next - xi))
+        K = Ki if K is None else ca.if_else(done, K, Ki)
+        Hm = Hi_m if Hm is None else ca.if_else(done, Hm, Hi_m)
+        xi = ca.if_else(done, xi, x_next)
+        done = ca.logic_or(done, step < float(tol))
+    IKH = ca.DM.eye(n) - K @ Hm
+    return xi, symmetric_part(IKH @ P_prior @ IKH.T + K @ Rmask @ K.T)
+
+
 def discrete_iekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None, iterations: int = 5,
                   tol: float = 1e-10, caller: str = "design_iekf") -> ObserverDesign:
     """The iterated EKF of a map (see the module's docstring); called by :func:`nlobs.design_iekf`."""
@@ -163,25 +190,7 @@ def discrete_iekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any 
     F = ca.jacobian(fx, x)
     xp = ca.if_else(started, fx, x)
     Pp = ca.if_else(started, symmetric_part(F @ P @ F.T + ca.DM(Qm)), P)
-    xv = ca.SX.sym("xv", n)
-    hv = h(s.t, xv, s.u)
-    h_and_H = ca.Function("h_and_H", [xv, s.t, s.u], [hv, ca.jacobian(hv, xv)])
-    Md = ca.diag(s.m)
-    Rmask = Md @ ca.DM(Rm) @ Md + ca.diag(1 - s.m)   # an unmeasured output: a decoupled unit block, zero gain
-    xi, done = xp, ca.SX(0)
-    K = Hm = None
-    for _ in range(int(iterations)):
-        hi, Hi = h_and_H(xi, s.t, s.u)
-        Hi_m = Md @ Hi
-        Ki = ca.solve(symmetric_part(Hi_m @ Pp @ Hi_m.T + Rmask), Hi_m @ Pp).T
-        x_next = xp + Ki @ (s.m * (s.y - hi - Hi @ (xp - xi)))
-        step = ca.mmax(ca.fabs(x_next - xi))
-        K = Ki if K is None else ca.if_else(done, K, Ki)
-        Hm = Hi_m if Hm is None else ca.if_else(done, Hm, Hi_m)
-        xi = ca.if_else(done, xi, x_next)
-        done = ca.logic_or(done, step < float(tol))
-    IKH = ca.DM.eye(n) - K @ Hm
-    P_new = symmetric_part(IKH @ Pp @ IKH.T + K @ Rmask @ K.T)
+    xi, P_new = iterated_update(h, s, xp, Pp, Rm, iterations, tol)
     x0 = ca.SX.sym("xhat0", n)
     z0 = ca.vertcat(x0, ca.DM(P0m.reshape(-1, order="F")), ca.DM.zeros(system.n_inputs), 0)
     checks = _checks(Qm, Rm, P0m) + [Check("Gauss-Newton iterations", True,
