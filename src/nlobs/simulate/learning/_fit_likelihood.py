@@ -514,7 +514,10 @@ def fit_likelihood(design: Any, recording: Recording, params: Sequence[str], *, 
     plan = [("simulation-error fit" if tried_sim else "initial guess", first)]
     while plan and len(attempts) < int(starts):
         label, th = plan.pop(0)
-        attempts.append(_optimise(obj, sc.phi(np.clip(th, lo, hi)), label, max_iter))
+        att = _optimise(obj, sc.phi(np.clip(th, lo, hi)), label, max_iter)
+        if att.converged:   # polished at the integration its estimate needs: a start that loses it there did not
+            att, obj = _refine(prob, obj, att, max_iter)   # converge, and the next one is tried (at that integration)
+        attempts.append(att)
         if attempts[-1].converged or len(attempts) >= int(starts):
             break   # (a start not taken is not planned: the simulation-error fit costs a fit of its own)
         if not tried_sim and not prob.system.is_discrete and prob.params:
@@ -524,10 +527,6 @@ def fit_likelihood(design: Any, recording: Recording, params: Sequence[str], *, 
             best = max(attempts, key=lambda a: a.loglik)
             phi = best.phi + PERTURBATION * rng.standard_normal(best.phi.size)
             plan.append((f"perturbed start {len(attempts)}", sc.theta(sc.inside(phi))))
-    best = next((a for a in attempts if a.converged), max(attempts, key=lambda a: a.loglik))
-    if best.converged:
-        best, obj = _refine(prob, obj, best, max_iter)
-        attempts = [a for a in attempts if not a.converged] + [best]
     return _result(prob, obj, attempts, theta0, ll0, tried_sim, set(bounds or {}))
 
 
