@@ -92,6 +92,7 @@ def test_a_fit_stopped_before_convergence_shows_no_standard_errors(tmp_path, cap
                               P0=np.diag([4.0, 0.04]))
     fit = fit_likelihood(design, rec, list(GUESS), learn_noise=True, starts=1, max_iter=2, engine="vm")
     assert not fit.success
+    assert fit.iterations <= 2      # the budget is per start, over its phases (noise levels first, then all)
     assert np.all(np.isnan(fit.std)) and np.all(np.isnan(fit.covariance))
     text = fit.summary()
     assert "NOT converged" in text and "standard errors are not shown" in text and "try next:" in text

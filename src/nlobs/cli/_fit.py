@@ -53,11 +53,11 @@ def add_parser(sub: Any) -> None:
     f.add_argument("--starts", type=int, default=4, metavar="N",
                    help="with --method likelihood: most starts (default 4)")
     f.add_argument("--max-iter", type=int, default=200, metavar="N",
-                   help="with --method likelihood: most trust-region iterations per start (default 200)")
+                   help="with --method likelihood: most trust-region iterations per start, over its phases (default 200)")
     f.add_argument("--smoothing", type=float, default=1.0, metavar="FACTOR",
                    help="with --method likelihood: factor on the widths over which abs/sign/min/max are smoothed for the "
-                        "filter (default 1: the distance their argument moves in one integration step; 0: exact, and "
-                        "the likelihood jumps where the filter crosses a switch)")
+                        "filter (default 1: 1 %% of the range each argument spans on the filter's run at the initial guess; 0: "
+                        "exact, and the likelihood jumps where the filter crosses a switch)")
     f.add_argument("--no-censor", action="store_true",
                    help="with --method likelihood: do not read an output saturating at a known limit (min(x, 10)) as "
                         "censored where the recording sits at the limit")

@@ -194,12 +194,14 @@ class LikelihoodFit:
                 lines.append(f"{n} is held at its default bound ({'−' if self.estimate[self.names.index(n)] < 0 else '+'}"
                              f"log 10⁶): the likelihood keeps rising as {what} {'shrinks' if self.estimate[self.names.index(n)] < 0 else 'grows'}"
                              f"{' (the data are explained without ' + ('measurement' if what == 'R' else 'process') + ' noise)' if self.estimate[self.names.index(n)] < 0 else ''}; "
-                             "the other standard errors hold with it fixed there")
+                             + ("the other standard errors hold with it fixed there" if self.success else
+                                "held there while the others are fitted"))
         lines += [f"filter model: {n}" for n in self.notes]
         shift = self.info.get("smoothing_shift", 0.0)
         if shift > ACCURACY:
             lines.append(f"halving the smoothing widths (and the step) would move the estimate by {shift:.2g} standard "
-                         "errors: the smoothing is part of the model here (try smoothing=0.5, --smoothing 0.5)")
+                         "errors: the smoothing is part of the model here (try narrower widths: --smoothing 0.5, or smoothing=0.5 "
+                         "in Python)")
         if self.success:
             lines.append(f"std: from the {INFORMATION}; integration: RK4, {self.substeps} step(s) per sample interval")
         else:
@@ -356,7 +358,10 @@ def _optimise(obj: _Objective, phi0: np.ndarray, start: str, max_iter: int) -> _
             phi = np.where(held & (obj(phi)[1] > 0), sc.lo, np.where(held, sc.hi, phi)) if held.any() else phi
             if obj.decrement(phi)[0] < DECREMENT_TOL or held.all():
                 break
-            phi, k, msg = _free(obj, phi, held, max_iter)
+            if nit >= max_iter:   # the budget is per start, over its phases
+                msg = f"the {max_iter} iterations of this start are spent"
+                break
+            phi, k, msg = _free(obj, phi, held, max_iter - nit)
             nit += k
             again = held | (_hold(obj, phi) if bounded else held)
             again &= ~(held & (obj.decrement(phi)[1] == 0))     # released: its gradient now points inside
