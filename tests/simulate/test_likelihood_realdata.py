@@ -1,5 +1,5 @@
 """The likelihood fit on a real recording (issue 39): the estimation record of the Cascaded Tanks benchmark
-(Schoukens, Mattsson, Wigren & Noël (2016), ../shared/data/cascaded_tanks_estimation.csv) with the grey-box model
+(Schoukens, Mattsson, Wigren & Noël (2016); tests/data/cascaded_tanks_estimation.csv, a copy of the shared record) with the grey-box model
 a user writes (Torricelli outflows, overflow through sign and max, a sensor saturating by min).
 
 The checks do not trust the fit's own numbers: the estimates are simulated by an independent NumPy RK4 of the
@@ -20,15 +20,13 @@ from nlobs.cli import main
 from nlobs.simulate.learning import fit_likelihood
 
 ROOT = Path(__file__).resolve().parents[2]
-DATA = ROOT.parent / "shared" / "data" / "cascaded_tanks_estimation.csv"
+DATA = ROOT / "tests" / "data" / "cascaded_tanks_estimation.csv"
 MODEL = ROOT / "benchmarks" / "models" / "cascaded_tanks_issue39.toml"
 #: The issue's data-derived guesses of a, k3, k4, k5.
 GUESS = {"a": 0.03, "k3": 0.03, "k4": 0.025, "k5": 0.5}
 #: The simulation-error fit the issue reports (nlobs fit --method simulation --fit-x0 x1; SciPy's least squares
 #: agrees to its 3-4 digits): a, k3, k4, k5.
 SIMFIT = {"a": 0.04855, "k3": 0.04906, "k4": 0.04116, "k5": 0.963}
-
-pytestmark = pytest.mark.skipif(not DATA.exists(), reason="the shared Cascaded Tanks record is not on this machine")
 
 
 def _record() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
