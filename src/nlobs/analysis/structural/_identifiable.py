@@ -1172,25 +1172,34 @@ def find_identifiable_functions(system: System, *, unknown_params: Any = "all", 
                                                          inputs=inputs, seed=seed)) if texts else ()
     if not all(checks):
         notes.append("a returned function failed the local check: " + ", ".join(t for t, c in zip(texts, checks) if not c))
-    if with_states or io_complete:
-        if complete is None and not io_complete:
-            complete = _complete(prep, eng, chosen, U, rng)
-        if complete is False:
-            notes.append(f"the generators found with numerators of degree <= {max_degree} and monomial denominators "
-                         "do not give every identifiable function")
-        elif complete is None:
-            notes.append("completeness NOT checked: the fibres have more points on the random cut than are counted "
-                         "(48); some identifiable functions may be missing")
-    else:
-        notes.append(f"completeness NOT checked: on SIAN's system it is checked with the states included "
-                     f"(with_states=True); numerators of degree <= {max_degree} were searched, and an identifiable "
-                     "function of the parameters that needs a higher degree may be missing (raise max_degree)")
+    complete = _completeness(prep, eng, chosen, U, rng, complete, with_states, io_complete, max_degree, notes)
     rep = None
     if with_states and reparametrize_model and texts and all(checks):
         rep = reparametrize(system, texts, unknown_params=prep.local.unknown_params, seed=seed)
     return IdentifiableFunctions(functions=texts, with_states=with_states, complete=complete, local_checks=checks,
                                  notes=tuple(notes), seconds=time.perf_counter() - t0, engine_seconds=eng.seconds,
                                  reparametrization=rep, method=method)
+
+
+def _completeness(prep: Any, eng: GroebnerEngine, chosen: Any, U: list[str], rng: np.random.Generator,
+                  complete: bool | None, with_states: bool, io_complete: bool, max_degree: int,
+                  notes: list[str]) -> bool | None:
+    """Whether the generators `chosen` give every identifiable function (checked where it can be: with the states, or
+    on the input-output route), with a note saying what was not checked; None when it was not."""
+    if not (with_states or io_complete):
+        notes.append(f"completeness NOT checked: on SIAN's system it is checked with the states included "
+                     f"(with_states=True); numerators of degree <= {max_degree} were searched, and an identifiable "
+                     "function of the parameters that needs a higher degree may be missing (raise max_degree)")
+        return complete
+    if complete is None and not io_complete:
+        complete = _complete(prep, eng, chosen, U, rng)
+    if complete is False:
+        notes.append(f"the generators found with numerators of degree <= {max_degree} and monomial denominators "
+                     "do not give every identifiable function")
+    elif complete is None:
+        notes.append("completeness NOT checked: the fibres have more points on the random cut than are counted "
+                     "(48); some identifiable functions may be missing")
+    return complete
 
 
 #: Unknowns up to which the search's numerators go to degree 3 by default (beyond: 2). Parameters only on SIAN's
