@@ -282,6 +282,10 @@ def _route_of(p: dict[str, Any], others: list[dict[str, Any]]) -> str:
         return p["route"]
     if any(n in ("_prepare_io", "io_equations") for n in _names(p)):
         return "io"
+    # race_routes writes `race(lambda: <io route>,` on its call's first line and `lambda: <SIAN>` on the next
+    lines = {s.split(" (")[0]: int(s.rsplit(":", 1)[1].rstrip(")")) for s in p.get("stack", [])}
+    if "race_routes" in lines and "race_routes.<locals>.<lambda>" in lines:
+        return {0: "io", 1: "sian"}.get(lines["race_routes.<locals>.<lambda>"] - lines["race_routes"], "")
     racing = [q for q in others if q is not p and "race_routes" in _names(q) and _working(q)]
     return "sian" if any(_route_of(q, []) == "io" for q in racing) else ""
 
@@ -523,6 +527,11 @@ def report(path: Path) -> Path:
             elif s == "timeout":
                 if r.get("at_limit"):   # the words of this file's version, for rows taken before
                     r["stage"] = _stage(r["at_limit"])
+                elif part == "functions" and g and g["status"] == "timeout" and g.get("at_limit") \
+                        and g["timeout_s"] >= r["timeout_s"]:
+                    r["stage"] = (f"no stacks taken (an older run); the functions begin with the global check's own "
+                                  f"work (the same route, the same Gröbner basis), which did not finish in "
+                                  f'{g["timeout_s"]:g} s: {_stage(g["at_limit"])}')
                 timeouts.append((k, part, r))
                 s = f'stopped at {r["timeout_s"]:g} s in {r["stage"]}' if r.get("stage") else "stopped (stage not recorded)"
             elif r.get("refused"):
