@@ -108,3 +108,17 @@ def test_a_fit_stopped_before_convergence_shows_no_standard_errors(tmp_path, cap
     out = json.loads(capsys.readouterr().out)
     assert out["success"] is False and out["std_valid"] is False and out["std_from"] is None
     assert all(v["std"] is None for v in out["parameters"].values()), out["parameters"]
+
+
+def test_fit_plot_draws_recorded_against_fitted_outputs(tmp_path, capsys):
+    """nlobs fit --plot FILE, both methods: the recorded outputs against the simulated fit, or against the fitted
+    filter's one-step predictions with their 2-sigma band (a figure, not a blank page)."""
+    import matplotlib.image as mpimg
+
+    for method, extra in (("simulation", ["--fit-x0", "x1"]),
+                          ("likelihood", ["--method", "likelihood", "--observer", "ekf", "--learn-noise"])):
+        png = tmp_path / f"{method}.png"
+        assert main(["fit", str(MODEL), str(DATA), "--param", "a,k3,k4,k5", *extra, "--plot", str(png)]) == 0
+        assert f"plot: {png}" in capsys.readouterr().out
+        img = mpimg.imread(png)
+        assert img.shape[0] > 300 and img.shape[1] > 600 and img.std() > 0.05

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -63,6 +64,9 @@ def add_parser(sub: Any) -> None:
                         "censored where the recording sits at the limit")
     f.add_argument("--skip-missing", action="store_true",
                    help="with --method likelihood: leave empty/NaN output samples out of the likelihood")
+    f.add_argument("--plot", metavar="FILE",
+                   help="save the recorded outputs against the fitted model's (--method simulation) or the fitted "
+                        "filter's one-step predictions with their ± 2σ band (--method likelihood) to FILE (png/pdf/svg)")
     f.add_argument("--json", action="store_true", help="print one JSON object")
     f.set_defaults(run=run)
 
@@ -115,12 +119,19 @@ def run(args: argparse.Namespace) -> int:
     if args.output:
         header = ["t", *(f"{o}" for o in res.output_names), *(f"{o}.fit" for o in res.output_names)]
         write_csv(args.output, header, np.column_stack([res.t, res.y, res.y_fit]))
+    if args.plot:
+        from ..simulate._plot import plot_outputs
+
+        plot_outputs(res.t, res.y, res.y_fit, list(res.output_names), args.plot, label="simulated, fitted",
+                     title=f"{system.name}: simulation-error fit on {Path(args.data).name}")
     if args.json:
         print(json.dumps(clean({"model": system.name, "data": args.data, **res.to_dict()})))
     else:
         print(res.summary())
         if args.output:
             print(f"fitted outputs: {args.output}")
+        if args.plot:
+            print(f"plot: {args.plot}")
     return 0 if res.success else 1
 
 
@@ -172,10 +183,19 @@ def _likelihood(args: argparse.Namespace, mf: Any, rec: Any) -> int:
         outs = mf.system.outputs
         header = ["t", *outs, *(f"{o}.predicted" for o in outs), *(f"{o}.predicted_std" for o in outs)]
         write_csv(args.output, header, np.column_stack([rec.t, rec.y, *res.one_step]))
+    if args.plot:
+        from ..simulate._plot import plot_outputs
+
+        pred, std = res.one_step
+        plot_outputs(rec.t, rec.y, pred, list(mf.system.outputs), args.plot, std=std, label="one-step ŷ⁻",
+                     title=f"{mf.system.name}: likelihood fit on {Path(args.data).name}"
+                           + ("" if res.success else " (NOT converged)"))
     if args.json:
         print(json.dumps(clean({"model": mf.system.name, "data": args.data, **res.to_dict()})))
     else:
         print(res.summary())
         if args.output:
             print(f"one-step predictions of the fitted filter: {args.output}")
+        if args.plot:
+            print(f"plot: {args.plot}")
     return 0 if res.success else 1

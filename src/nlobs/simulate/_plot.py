@@ -136,3 +136,33 @@ def plot_run(run: Run, path: str | None = None, *, observers: Sequence[str] | No
     if path is not None:
         fig.savefig(path, dpi=150)
     return fig
+
+
+def plot_outputs(t: np.ndarray, y: np.ndarray, fitted: np.ndarray, names: Sequence[str], path: str | None = None, *,
+                 std: np.ndarray | None = None, label: str = "fitted", width: float = 6.4,
+                 title: str | None = None) -> Figure:
+    """Recorded outputs (dots) against a model's (a line), one panel per output; with `std`, the band ± 2 std around
+    the model's (a filter's one-step predictions ŷ⁻ ± 2σ). NaN samples are left out. Saved to `path` if given."""
+    k = max(1, -(-t.size // MAX_POINTS))
+    p = len(names)
+    fig = Figure(figsize=(width, 1.9 * p + 0.9 + (0.3 if title else 0)))
+    axes = fig.subplots(p, 1, sharex=True, squeeze=False)[:, 0]
+    for j, name in enumerate(names):
+        ax = axes[j]
+        if std is not None:
+            lo, hi = fitted[::k, j] - 2 * std[::k, j], fitted[::k, j] + 2 * std[::k, j]
+            ax.fill_between(t[::k], lo, hi, color="C0", alpha=0.2, lw=0, label=f"{label} ± 2σ")
+        ax.plot(t[::k], y[::k, j], ".", color="k", ms=2.0, alpha=0.6, label="recorded", zorder=1)
+        ax.plot(t[::k], fitted[::k, j], color="C0", lw=1.2, label=label, zorder=2)
+        ax.set_ylabel(name)
+        style_axes(ax)
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 1 - (0.3 if title else 0.02) / fig.get_size_inches()[1]),
+               ncol=len(labels), fontsize=FONT["legend"], frameon=False)
+    axes[-1].set_xlabel("t")
+    if title:
+        fig.suptitle(title, fontsize=FONT["title"], y=1 - 0.08 / fig.get_size_inches()[1], va="top")
+    _layout(fig, p, True, bool(title))
+    if path is not None:
+        fig.savefig(path, dpi=150)
+    return fig
