@@ -179,6 +179,12 @@ class Recording:
                 return False
         return True
 
+    def check_columns(self, system: Any, where: str) -> None:
+        """ModelError unless the recording has `system`'s outputs and inputs, in its order (`where` opens the message)."""
+        if tuple(system.outputs) != tuple(self.output_names) or tuple(system.inputs) != tuple(self.input_names):
+            raise ModelError(f"{where} expects outputs {list(system.outputs)} and inputs {list(system.inputs)}; "
+                             f"the recording has {list(self.output_names)} and {list(self.input_names)}")
+
     def check_finite(self, on_missing: str) -> np.ndarray:
         """The mask of measured outputs (1 = measured), after rejecting what may not be missing."""
         for name, arr, names in (("u", self.u, self.input_names), ("x", self.x, self.state_names)):
@@ -324,10 +330,7 @@ def estimate(
     if not obs:
         raise ModelError("estimate: give at least one observer")
     for name, o in obs.items():
-        s = o.system
-        if tuple(s.outputs) != recording.output_names or tuple(s.inputs) != recording.input_names:
-            raise ModelError(f"estimate: observer {name!r} expects outputs {list(s.outputs)} and inputs {list(s.inputs)}; "
-                             f"the recording has {list(recording.output_names)} and {list(recording.input_names)}")
+        recording.check_columns(o.system, f"estimate: observer {name!r}")
     if smooth and not any(o.system.is_discrete for o in obs.values()):   # maps: checked by _estimate_map
         from ._smooth import check_smoothable
         for name, o in obs.items():

@@ -25,7 +25,7 @@ import numpy as np
 
 from .._progress import as_progress
 from ..design import ObserverDesign
-from ..design._pf import ParticleDesign
+from ..design.kalman._pf import ParticleDesign
 from ..engine import Backend, StepRunner, compile_system, evaluate_many, rk4_step, rows
 from ..errors import DataError, EngineError, FiniteEscapeError, ModelError, ShapeError, SolverError, TimeBudgetError
 from ..model import ModelFile, ObserverConfig, System, input_signals

@@ -66,7 +66,7 @@ def _linearisation(d: ObserverDesign, t: Any, z: Any, u: Any) -> Any:
     x = z[:n]
     if d.method == "ekf":
         return ca.jacobian(f(t, x, u), x)
-    from ..design._ukf import unscented_weights
+    from ..design.kalman._ukf import unscented_weights
 
     v = d.certificate.values
     wm, wc, c = unscented_weights(n, float(v["alpha"]), float(v["beta"]), float(v["kappa"]))

@@ -99,7 +99,7 @@ class _Filter:
         self.h = ca.Function("h", args, [cs.h_sx])
         self.hH = ca.Function("hH", args, [cs.h_sx, ca.jacobian(cs.h_sx, cs.x)])
         if self.ukf:
-            from ...design._ukf import unscented_weights
+            from ...design.kalman._ukf import unscented_weights
 
             v = d.certificate.values
             self.wm, self.wc, self.spread = unscented_weights(n, float(v["alpha"]), float(v["beta"]), float(v["kappa"]))
@@ -287,10 +287,7 @@ class _Problem:
         system = d.system
         if not isinstance(recording, Recording):
             raise TypeError(f"{caller}: `recording` must be an nlobs.Recording, got {type(recording).__name__}")
-        if tuple(recording.output_names) != tuple(system.outputs) or tuple(recording.input_names) != tuple(system.inputs):
-            raise ModelError(f"{caller}: the model {system.name!r} has outputs {list(system.outputs)} and inputs "
-                             f"{list(system.inputs)}; the recording has {list(recording.output_names)} and "
-                             f"{list(recording.input_names)}")
+        recording.check_columns(system, f"{caller}: the model {system.name!r}")
         params = check_names(system, params, learn_noise, caller)
         mask = recording.check_finite(on_missing)
         if not mask.any():

@@ -203,10 +203,7 @@ def fit_parameters(
         raise TypeError(f"fit_parameters: `system` must be an nlobs.System, got {type(system).__name__}")
     if not isinstance(recording, Recording):
         raise TypeError(f"fit_parameters: `recording` must be an nlobs.Recording, got {type(recording).__name__}")
-    if tuple(recording.output_names) != tuple(system.outputs) or tuple(recording.input_names) != tuple(system.inputs):
-        raise ModelError(f"fit_parameters: the model {system.name!r} has outputs {list(system.outputs)} and inputs "
-                         f"{list(system.inputs)}; the recording has {list(recording.output_names)} and "
-                         f"{list(recording.input_names)}")
+    recording.check_columns(system, f"fit_parameters: the model {system.name!r}")
     if hold not in ("zoh", "linear"):
         raise ValueError(f"fit_parameters: `hold` must be 'zoh' or 'linear', got {hold!r}")
     params, fit_x0 = list(params), list(fit_x0)
