@@ -39,7 +39,7 @@ static inline uint64_t next64(void) {
   rs[2] ^= rs[0]; rs[3] ^= rs[1]; rs[1] ^= rs[2]; rs[0] ^= rs[3]; rs[2] ^= t; rs[3] = rotl(rs[3], 45);
   return result;
 }
-static void seed_rng(uint64_t seed) {
+static void seed_stream(uint64_t seed) {
   int i;
   for (i = 0; i < 4; ++i) {
     uint64_t z = (seed += 0x9e3779b97f4a7c15ULL);
@@ -47,7 +47,14 @@ static void seed_rng(uint64_t seed) {
     rs[i] = z ^ (z >> 31);
   }
   seed_lanes(seed);
-  zigset();
+}
+static void seed_rng(uint64_t seed) { seed_stream(seed); zigset(); }
+/* the draws of sample k (its resampling uniform first, then its move's normals) come from a stream of their own,
+   seeded by (seed, k): a re-run from a saved cloud at sample k draws what the first pass drew there */
+static void seed_row(uint64_t seed, long long k) {
+  uint64_t z = seed ^ (0xd1b54a32d192ed03ULL * (uint64_t)(k + 1));
+  z = (z ^ (z >> 31)) * 0x7fb5d329728ea185ULL; z = (z ^ (z >> 27)) * 0x81dadef4bc2a0c4bULL;
+  seed_stream(z ^ (z >> 33));
 }
 static double unif(void) { return (next64() >> 11) * 0x1.0p-53; }
 static double unif_open(void) { return ((next64() >> 11) + 0.5) * 0x1.0p-53; }  /* in (0, 1) */
@@ -197,7 +204,7 @@ static double normalise(double* lw, double* wk, long long M) {
   return m;
 }
 /* systematic resampling (Kitagawa 1996): idx[i] = the particle whose cumulative weight first exceeds (i + U)/M */
-static void systematic(const double* wk, long long M, long long* idx, double u) {
+static void systematic(const double* wk, long long M, long long* idx, double u) {  /* u uniform in [0, 1) */
   double c = wk[0], step = 1.0 / M, p = u * step;
   long long i, j = 0;
   for (i = 0; i < M; ++i, p += step) {
@@ -220,22 +227,37 @@ static long long pf_loop(const double* t, const double* U, const double* Y, cons
                    const double* nsub, const double* x0, const double* L0, const double* Lq, long long N, long long M,
                    long long aux, long long map, double thresh, long long seed, double* X, double* Xb, double* lw, double* wk,
                    double* mu, double* lmu, long long* idx, double* xhat, double* P, double* ess, double* resampled,
-                   double* ll, double* xprior) {
-  long long k, i;
+                   double* ll, double* xprior, long long k0, const double* X_init, const double* lw_init,
+                   const double* keep, double* kept_X, double* kept_lw) {
+  long long k, i, nkept = 0;
   int a, b;
-  double xi[NX + 1], s, sw2;
-  seed_rng((uint64_t)seed);
+  double xi[NX + 1], s, sw2, urow = 0;
+  zigset();
   nbuf = (double*)malloc(sizeof(double) * M * NX);
   if (!nbuf) return -1;
-  ext_off = ext_n ? M * NX : 0;
-  for (i = 0; i < M; ++i) {
-    for (a = 0; a < NX; ++a) xi[a] = ext_n ? ext_n[i * NX + a] : gauss();
-    for (a = 0; a < NX; ++a) { double acc = 0; for (b = 0; b <= a; ++b) acc += L0[a * NX + b] * xi[b]; X[i * NX + a] = x0[a] + acc; }
-    lw[i] = -log((double)M); wk[i] = 1.0 / M;
+  ext_off = (ext_n && !X_init) ? M * NX : 0;
+  if (X_init) {  /* resume: the cloud after sample k0 (row 0 of this call), weights as log-weights */
+    double m = -INFINITY, sum = 0;
+    memcpy(X, X_init, sizeof(double) * M * NX);
+    for (i = 0; i < M; ++i) { lw[i] = lw_init[i]; if (lw[i] > m) m = lw[i]; }
+    for (i = 0; i < M; ++i) { wk[i] = exp(lw[i] - m); sum += wk[i]; }
+    for (i = 0; i < M; ++i) wk[i] /= sum;
+  } else {
+    seed_row((uint64_t)seed, k0);
+    urow = ext_u ? ext_u[0] : unif();
+    for (i = 0; i < M; ++i) {
+      for (a = 0; a < NX; ++a) xi[a] = ext_n ? ext_n[i * NX + a] : gauss();
+      for (a = 0; a < NX; ++a) { double acc = 0; for (b = 0; b <= a; ++b) acc += L0[a * NX + b] * xi[b]; X[i * NX + a] = x0[a] + acc; }
+      lw[i] = -log((double)M); wk[i] = 1.0 / M;
+    }
   }
-  for (k = 0; k < N; ++k) {
+  for (k = X_init ? 1 : 0; k < N; ++k) {
     const double* y = Y + k * NY; const double* Wk = W + k * NY * NY;
     resampled[k] = 0;
+    if (k > 0) {
+      seed_row((uint64_t)seed, k0 + k);
+      urow = ext_u ? ext_u[k] : unif();
+    }
     if (k > 0) {
       const double* u = U + (k - 1) * NU;
       double h = (t[k] - t[k - 1]) / nsub[k - 1];
@@ -246,7 +268,7 @@ static long long pf_loop(const double* t, const double* U, const double* Y, cons
         for (i = 0; i < M; ++i) { lmu[i] = loglik(mu + i * NX, t[k], U + k * NU, y, Wk, cst[k]); lw[i] += lmu[i]; }
         s = normalise(lw, wk, M);
         if (!(s == s)) return k + 1;
-        systematic(wk, M, idx, ext_u ? ext_u[k] : unif());
+        systematic(wk, M, idx, urow);
         gather(X, idx, M, Xb);
         memcpy(X, Xb, sizeof(double) * M * NX);
         move(X, M, t[k - 1], h, (long long)nsub[k - 1], u, Lq, 1, map);
@@ -293,11 +315,16 @@ static long long pf_loop(const double* t, const double* U, const double* Y, cons
     }
     ess[k] = 1 / sw2;
     if (!aux && ess[k] < thresh * M) {
-      systematic(wk, M, idx, ext_u ? ext_u[k] : unif());
+      systematic(wk, M, idx, urow);
       gather(X, idx, M, Xb);
       memcpy(X, Xb, sizeof(double) * M * NX);
       for (i = 0; i < M; ++i) { lw[i] = -log((double)M); wk[i] = 1.0 / M; }
       resampled[k] = 1;
+    }
+    if (keep && keep[k] > 0) {  /* save the cloud after this sample, to resume from it */
+      memcpy(kept_X + nkept * M * NX, X, sizeof(double) * M * NX);
+      memcpy(kept_lw + nkept * M, lw, sizeof(double) * M);
+      ++nkept;
     }
   }
   return 0;
@@ -307,11 +334,12 @@ long long nlobs_pf(const double* t, const double* U, const double* Y, const doub
                    const double* nsub, const double* x0, const double* L0, const double* Lq, long long N, long long M,
                    long long aux, long long map, double thresh, long long seed, double* X, double* Xb, double* lw, double* wk,
                    double* mu, double* lmu, long long* idx, double* xhat, double* P, double* ess, double* resampled,
-                   double* ll, double* xprior, const double* draws_n, const double* draws_u) {
+                   double* ll, double* xprior, const double* draws_n, const double* draws_u, long long k0,
+                   const double* X_init, const double* lw_init, const double* keep, double* kept_X, double* kept_lw) {
   long long rc;
   ext_n = draws_n; ext_u = draws_u;
   rc = pf_loop(t, U, Y, W, cst, nsub, x0, L0, Lq, N, M, aux, map, thresh, seed, X, Xb, lw, wk, mu, lmu, idx, xhat, P,
-                         ess, resampled, ll, xprior);
+               ess, resampled, ll, xprior, k0, X_init, lw_init, keep, kept_X, kept_lw);
   free(nbuf);
   nbuf = 0;
   ext_n = 0; ext_u = 0;
@@ -353,6 +381,8 @@ class ParticleRun:
     particles: np.ndarray
     weights: np.ndarray
     xhat_prior: np.ndarray
+    log_weights: np.ndarray | None = None
+    kept: tuple[np.ndarray, np.ndarray] | None = None   # the clouds (particles, log-weights) after the samples in `keep`
 
     @property
     def z(self) -> np.ndarray:
@@ -385,7 +415,8 @@ class ParticleRunner:
         lib = ctypes.CDLL(str(path))
         fn = lib.nlobs_pf
         dbl, ll = ctypes.POINTER(ctypes.c_double), ctypes.c_longlong
-        fn.argtypes = [dbl] * 9 + [ll, ll, ll, ll, ctypes.c_double, ll] + [dbl] * 6 + [ctypes.POINTER(ctypes.c_longlong)] + [dbl] * 8
+        fn.argtypes = [dbl] * 9 + [ll, ll, ll, ll, ctypes.c_double, ll] + [dbl] * 6 + [ctypes.POINTER(ctypes.c_longlong)] + [dbl] * 8 \
+            + [ll] + [dbl] * 5
         fn.restype = ll
         lib.nlobs_normals.argtypes = [ll, ll, ctypes.POINTER(ctypes.c_double)]
         lib.nlobs_normals.restype = ll
@@ -399,9 +430,14 @@ class ParticleRunner:
 
     def run(self, t: Any, *args: Any, u: Any = None, y: Any = None, mask: Any = None, xhat0: Any = None,
             seed: int | None = None, particles: int | None = None, name: str | None = None,
-            draws: tuple[np.ndarray, np.ndarray] | None = None) -> ParticleRun:
+            draws: tuple[np.ndarray, np.ndarray] | None = None, resume: tuple[np.ndarray, np.ndarray] | None = None,
+            k0: int = 0, keep: np.ndarray | None = None) -> ParticleRun:
         """Run the filter on samples: times `t` (N,), inputs `u` (N, m) and outputs `y` (N, p), held between samples:
         ``run(t, u=..., y=...)``.
+
+        Sample k's random numbers come from a stream seeded by (seed, k0 + k): `resume` = (particles, log-weights),
+        the cloud after the first sample of `t` (sample k0 of an earlier run), goes on from there with the draws that
+        run made (row 0's results are then NaN); `keep` (N bools) saves the cloud after those samples (``kept``).
 
         `mask` (N, p) marks measured outputs (1) and missing ones (0); `xhat0`, `seed` and `particles`
         override the design's. `draws` = (normals, uniforms) replaces the generator (to check another engine
@@ -430,6 +466,13 @@ class ParticleRunner:
         p = ctypes.POINTER(ctypes.c_double)
         null = ctypes.cast(None, p)
         d = self.design
+        Xi = Li = None
+        if resume is not None:
+            Xi = np.ascontiguousarray(resume[0], dtype=float).reshape(M, n)
+            Li = np.ascontiguousarray(resume[1], dtype=float).reshape(M)
+        kf = None if keep is None else np.ascontiguousarray(keep, dtype=float).reshape(N)
+        n_keep = 0 if kf is None else int(np.count_nonzero(kf > 0))
+        kX, kL = np.empty((n_keep, M, n)), np.empty((n_keep, M))
         rc = self._fn(job.t.ctypes.data_as(p), job.U.ctypes.data_as(p), job.y.ctypes.data_as(p), job.W.ctypes.data_as(p),
                       job.cst.ctypes.data_as(p), job.nsub.ctypes.data_as(p), job.x0.ctypes.data_as(p), job.L0.ctypes.data_as(p),
                       job.Lq.ctypes.data_as(p), N, M, int(d.scheme == "auxiliary"), int(d.system.is_discrete), d.threshold,
@@ -437,12 +480,15 @@ class ParticleRunner:
                       mu.ctypes.data_as(p), lmu.ctypes.data_as(p), idx.ctypes.data_as(ctypes.POINTER(ctypes.c_longlong)),
                       xhat.ctypes.data_as(p), P.ctypes.data_as(p), ess.ctypes.data_as(p), res.ctypes.data_as(p),
                       llk.ctypes.data_as(p), prior.ctypes.data_as(p),
-                      null if dn is None else dn.ctypes.data_as(p), null if du is None else du.ctypes.data_as(p))
+                      null if dn is None else dn.ctypes.data_as(p), null if du is None else du.ctypes.data_as(p), int(k0),
+                      null if Xi is None else Xi.ctypes.data_as(p), null if Li is None else Li.ctypes.data_as(p),
+                      null if kf is None else kf.ctypes.data_as(p), kX.ctypes.data_as(p), kL.ctypes.data_as(p))
         if rc < 0:
             raise MemoryError(f"{job.label}: no memory for {M} particles' random numbers")
         if rc:
             job.vanished(int(rc - 1), xhat)
-        return ParticleRun(job.t, xhat, P, ess, res > 0, llk, X.copy(), np.exp(lw), prior)
+        return ParticleRun(job.t, xhat, P, ess, res > 0, llk, X.copy(), np.exp(lw), prior, lw.copy(),
+                           None if kf is None else (kX, kL))
 
 
 def draws_needed(design: ParticleDesign, nsub: np.ndarray, N: int, M: int) -> int:

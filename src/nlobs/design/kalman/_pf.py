@@ -144,12 +144,6 @@ PF_WORK_BUDGET = 2e8
 
 
 def tune_pf(ctx: Any) -> Tuning:
-    late = {k: v for k, v in (getattr(ctx.scenario, "delay", None) or {}).items() if v > 0}
-    if late:   # the filter runs its samples in one pass: a late sample cannot be put back where it was taken
-        return Tuning.fails(f"the outputs {', '.join(f'{k} ({v:g} s)' for k, v in late.items())} arrive late, and the "
-                            "particle filter processes the samples in one pass: it cannot go back and apply a late sample "
-                            "at the time it was taken (the re-processing the Gaussian filters do from a saved state). Use "
-                            "ekf, ukf or their square-root or iterated forms, or remove [simulation] delay")
     n = ctx.system.n_states
     particles = int(min(20000, 1000 * max(2, n)))
     sc = ctx.scenario
