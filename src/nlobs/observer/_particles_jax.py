@@ -3,7 +3,7 @@
 For 10⁵–10⁶ particles, where a GPU pays. The model functions are the design's own CasADi ``prop`` and ``meas``,
 translated by :func:`nlobs.engine._jax.to_jax` and mapped over the particles; the sample loop is a
 ``lax.scan``. Same algorithm as the C loop (bootstrap: propagate with noise, weight, resample
-systematically (Kitagawa 1996) when ESS < threshold·M), so with the same draws the two agree to rounding
+systematically (Kitagawa (1996)) when ESS < threshold·M), so with the same draws the two agree to rounding
 (tests/observer/test_particles_jax.py). The draws themselves come from JAX's counter-based generator
 (threefry, keyed by the design's seed and the sample index): reproducible bit for bit on one machine,
 but not the C engine's xoshiro256** stream; ``draws=`` feeds both engines the same numbers.
@@ -18,7 +18,7 @@ import numpy as np
 from ..design.kalman._pf import ParticleDesign
 from ..engine._jax import _jax, to_jax
 from ..errors import ModelError, ShapeError
-from ._particles import ParticleRun, _Job, draws_needed
+from ._particle_runs import ParticleRun, _Job, draws_needed
 
 __all__ = ["JaxParticleRunner"]
 

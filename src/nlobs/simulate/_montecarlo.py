@@ -296,7 +296,7 @@ def montecarlo(
     seed : int
         Base seed; run j uses ``seeds[j]`` (see the result), exactly as ``simulate(seed=seeds[j])``.
     save_every : int, optional
-        Keep every k-th step (default: about 1,000 saved times); the final time is always kept.
+        Keep every k-th step (default: about a thousand saved times); the final time is always kept.
     tol : float, optional
         Absolute convergence tolerance (default: each run's band as in :meth:`Run.metrics`, the larger
         of 2 % of its initial error ‖x̂(0⁻) − x(0)‖ and twice its steady-state error, at most 20 % of
