@@ -47,15 +47,26 @@ BIASES_AND_SCALE = {"bgx", "bgy", "bgz", "bax", "bay", "baz", "ks"}
 TARGET = 1.5
 
 
+def _child_cpu() -> float:
+    """CPU seconds (user + system) of the finished child processes: on a machine shared with other work the wall
+    time of a command says more about the others than about nlobs."""
+    import resource
+
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
 def _cli(*args: str, timeout: int = LIMIT) -> dict[str, Any]:
     cmd = [sys.executable, "-m", "nlobs.cli", *args]
+    c0 = _child_cpu()
     t0 = time.perf_counter()
     try:
         out = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired:
         return {"cmd": "nlobs " + " ".join(args), "seconds": time.perf_counter() - t0, "rc": None,
                 "error": f"did not finish in {timeout} s"}
-    res: dict[str, Any] = {"cmd": "nlobs " + " ".join(args), "seconds": time.perf_counter() - t0, "rc": out.returncode}
+    res: dict[str, Any] = {"cmd": "nlobs " + " ".join(args), "seconds": time.perf_counter() - t0,
+                           "cpu_seconds": _child_cpu() - c0, "rc": out.returncode}
     if "--json" in args:
         try:
             res["json"] = json.loads(out.stdout)
@@ -165,14 +176,14 @@ def bench_model(name: str) -> dict[str, Any]:
     work.mkdir(parents=True, exist_ok=True)
     row: dict[str, Any] = {"model": str(model.relative_to(HERE.parent))}
     an = _cli("analyze", str(model), "--json")
-    row["analyze"] = {"seconds": an["seconds"], "observable": (an.get("json") or {}).get("observable"),
+    row["analyze"] = {"seconds": an["seconds"], "cpu_seconds": an.get("cpu_seconds"), "observable": (an.get("json") or {}).get("observable"),
                       "error": an.get("error")}
     print(f"{name}: analyze {an['seconds']:.1f} s, observable {row['analyze']['observable']}", flush=True)
     de = _cli("design", str(model), "--run", "--json")
     dj = de.get("json") or {}
     (work / "design.json").write_text(json.dumps(dj, indent=1))
     best = _best(dj)
-    row["design"] = {"seconds": de["seconds"], "error": de.get("error"),
+    row["design"] = {"seconds": de["seconds"], "cpu_seconds": de.get("cpu_seconds"), "error": de.get("error"),
                      "scores": [{"name": _who(s), **{k: s.get(k) for k in ("status", "normalised_rms", "rms_error", "detail", "parameters")}}
                                 for s in (dj.get("scores") or [])],
                      "best": None if best is None else {"name": _who(best), **{k: best.get(k) for k in ("normalised_rms", "rms_error", "parameters")}},
@@ -181,11 +192,11 @@ def bench_model(name: str) -> dict[str, Any]:
     rec = work / "rec.csv"
     plot_sim = RESULTS / f"bench_nav_{name}_hand_sim.png"
     si = _cli("simulate", str(model), "--observer", "hand", "--output", str(rec), "--plot", str(plot_sim), "--json")
-    row["simulate_hand"] = {"seconds": si["seconds"], "error": si.get("error")}
+    row["simulate_hand"] = {"seconds": si["seconds"], "cpu_seconds": si.get("cpu_seconds"), "error": si.get("error")}
     plot_est = RESULTS / f"bench_nav_{name}_hand_estimate.png"
     es = _cli("estimate", str(model), str(rec), "--observer", "hand", "--output", str(work / "est.csv"),
               "--plot", str(plot_est), "--json")
-    row["estimate_hand"] = {"seconds": es["seconds"], "error": es.get("error")}
+    row["estimate_hand"] = {"seconds": es["seconds"], "cpu_seconds": es.get("cpu_seconds"), "error": es.get("error")}
     print(f"{name}: simulate {si['seconds']:.1f} s, estimate {es['seconds']:.1f} s", flush=True)
     if rec.exists():
         row["hand_convergence_simulate"] = convergence(rec, "hand", CONSTANTS[name], model)
@@ -230,7 +241,7 @@ def markdown(rows: dict[str, Any], meta: dict[str, Any]) -> str:
          f"Target: best ≤ {TARGET}× hand.", "",
          "Hand EKF from its own x̂(0) and from the advisor's (the x̂(0) every candidate starts from). "
          "'Converged': every bias (and ks) ends within 20 % of its initial error over the last 20 % of the run.", "",
-         "| model | analyze | design --run | advisor's best (norm. RMS) | hand EKF (norm. RMS) | best / hand | "
+         "| model | analyze | design --run, wall (CPU) | advisor's best (norm. RMS) | hand EKF (norm. RMS) | best / hand | "
          "hand from the advisor's x̂(0) | best / that | hand: biases converged | simulate / estimate (hand) |",
          "|---|---|---|---|---|---|---|---|---|---|"]
     for n, r in rows.items():
@@ -240,7 +251,7 @@ def markdown(rows: dict[str, Any], meta: dict[str, Any]) -> str:
         h = r["hand"].get("normalised_rms")
         ratio = r["ratio_best_over_hand"]
         L.append(f"| {n} | {r['analyze']['seconds']:.1f} s, observable {r['analyze']['observable']} | "
-                 f"{r['design']['seconds']:.0f} s | {btxt} | {'—' if h is None else f'{h:.3g}'} | "
+                 f"{r['design']['seconds']:.0f} s (CPU {r['design'].get('cpu_seconds') or float('nan'):.0f} s) | {btxt} | {'—' if h is None else f'{h:.3g}'} | "
                  f"{'—' if ratio is None else f'{ratio:.2f}×'} | {_num(r['hand'].get('advisor_xhat0'))} | "
                  f"{_ratio_txt(r.get('ratio_best_over_hand_same_xhat0'))} | "
                  f"{r['hand_all_converged']} | "
