@@ -1,5 +1,6 @@
-"""The documentation site builds with warnings as errors (what `./dev.sh docs` runs), covers every
-public function and every paper example, cites no internal file, and its guides' code runs."""
+"""The documentation site builds with warnings as errors (what `./dev.sh docs` runs), its links and their
+anchors resolve, it covers every public function and every paper example, cites no internal file, and its
+guides' code runs."""
 
 from __future__ import annotations
 
@@ -7,7 +8,9 @@ import os
 import re
 import subprocess
 import sys
+from html.parser import HTMLParser
 from pathlib import Path
+from urllib.parse import unquote, urlsplit
 
 import pytest
 
@@ -44,6 +47,65 @@ def site(tmp_path_factory):
                 os.replace(partial, out)
     assert not failed.exists(), f"the documentation does not build cleanly:\n{failed.read_text(encoding='utf-8')}"
     return out
+
+
+class _Links(HTMLParser):
+    """The ids a page defines (``id=``, and ``name=`` of ``<a>``) and the links it holds (``href``, ``src``)."""
+
+    def __init__(self) -> None:
+        super().__init__(convert_charrefs=True)
+        self.ids: set[str] = set()
+        self.links: list[str] = []
+
+    def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
+        a = dict(attrs)
+        if a.get("id"):
+            self.ids.add(a["id"])
+        if tag == "a" and a.get("name"):
+            self.ids.add(a["name"])
+        for key in ("href", "src"):
+            if a.get(key) is not None and tag in ("a", "link", "img", "script", "source", "area"):
+                self.links.append(a[key])
+
+
+def dead_links(site: Path) -> list[str]:
+    """Every relative link of the built site whose file does not exist, or whose ``#anchor`` is no id of its page."""
+    pages: dict[Path, _Links] = {}
+
+    def parsed(page: Path) -> _Links:
+        if page not in pages:
+            parser = _Links()
+            parser.feed(page.read_text(encoding="utf-8"))
+            pages[page] = parser
+        return pages[page]
+
+    dead = []
+    for page in sorted(site.rglob("*.html")):
+        if page.relative_to(site).parts[0] == "_static":
+            continue   # the theme's assets (a Jinja macro file among them), not pages
+        for link in parsed(page).links:
+            parts = urlsplit(link)
+            if parts.scheme or parts.netloc or link.startswith("//"):
+                continue   # another site (the tests check no page loads anything from one)
+            target = (page.parent / unquote(parts.path)).resolve() if parts.path else page
+            if not target.exists():
+                dead.append(f"{page.relative_to(site)}: {link} (no such file)")
+            elif parts.fragment and target.suffix == ".html" and unquote(parts.fragment) not in parsed(target).ids:
+                dead.append(f"{page.relative_to(site)}: {link} (no anchor #{parts.fragment} in {target.name})")
+    return dead
+
+
+def test_every_link_of_the_site_reaches_its_page_and_anchor(site):
+    dead = dead_links(site)
+    assert not dead, f"{len(dead)} dead link(s):\n" + "\n".join(dead[:40])
+
+
+def test_the_link_check_finds_a_missing_anchor_and_a_missing_file(tmp_path):
+    (tmp_path / "a.html").write_text("<p id='here'><a href='#here'>ok</a> <a href='b.html#there'>ok</a>"
+                                     "<a href='b.html#ref-x'>gone</a> <a href='c.html'>gone</a>"
+                                     "<a href='https://example.org/#nowhere'>elsewhere</a></p>", encoding="utf-8")
+    (tmp_path / "b.html").write_text("<span id='there'></span>", encoding="utf-8")
+    assert dead_links(tmp_path) == ["a.html: b.html#ref-x (no anchor #ref-x in b.html)", "a.html: c.html (no such file)"]
 
 
 def test_api_reference_has_a_page_for_every_public_function_and_class(site):

@@ -62,6 +62,7 @@ def _script(ex: Any, practice: bool = False) -> str:
         intro = (f"The example registered as ``{ex.key}`` in :mod:`nlobs.examples`, run while these pages were\n"
                  f"built. ``nlobs demo --only {ex.key}`` runs the same function; so do the acceptance tests.")
         load = f'from nlobs.examples import find_example\nfrom nlobs.report import HTML, example_section\n\nresult = find_example("{ex.key}").run()'
+    up = "../../" if practice else "../"   # the page's way back to the site's root, where references.html is
     return f'''"""
 {title}
 {"=" * len(title)}
@@ -76,7 +77,7 @@ def _script(ex: Any, practice: bool = False) -> str:
 # %%
 # What is shown, the claims checked, the observability verdicts, the numbers, the model, the
 # evidence and the notes (the demo report's section, here without its plots, which follow).
-HTML(example_section(result, plots=False, level=3))
+HTML(example_section(result, plots=False, level=3, references="{up}references.html"))
 
 # %%
 # The simulations — true states (grey) against each observer's estimate, and the error norms —

@@ -148,16 +148,18 @@ def _observability(r: ExampleResult) -> list[str]:
     return out
 
 
-def _reference_links(text: str) -> str:
-    """The reference line, each cited work linked to its entry in the bibliography."""
+def _reference_links(text: str, references: str = "") -> str:
+    """The reference line, each cited work linked to its entry (anchor ``ref-KEY``) on the page `references`
+    ("": this page's bibliography)."""
     out = prose(text)
     for k in cited_keys(text):
         label = html.escape(REFERENCES[k].label)
-        out = out.replace(label, f"<a href='#ref-{k}'>{label}</a>", 1)
+        out = out.replace(label, f"<a href='{html.escape(references)}#ref-{k}'>{label}</a>", 1)
     return out
 
 
-def example_section(r: ExampleResult, seconds: float | None = None, *, level: int = 2, plots: bool = True) -> str:
+def example_section(r: ExampleResult, seconds: float | None = None, *, level: int = 2, plots: bool = True,
+                    references: str = "") -> str:
     """One example as an HTML section: claims, observability, the table, the plots, the model, the evidence, notes.
 
     Parameters
@@ -169,9 +171,13 @@ def example_section(r: ExampleResult, seconds: float | None = None, *, level: in
         Heading level of the title (2: ``<h2>``).
     plots : bool
         Include the run plots and the example's figures.
+    references : str
+        The page whose anchors ``ref-KEY`` list the cited works (the documentation's references page, as a
+        relative link); "" (default): the page the section is on, as the demo report, which ends with its
+        bibliography.
     """
     h = level + 1
-    sub = _reference_links(r.reference) + (f" · ran in {seconds:.1f} s" if seconds is not None else "")
+    sub = _reference_links(r.reference, references) + (f" · ran in {seconds:.1f} s" if seconds is not None else "")
     parts = [f"<p>{prose(r.summary)}</p>", f"<h{h}>Claims checked</h{h}><ul class='claims'>"]
     for c in r.claims:
         cls, word = {True: ("ok", "holds"), False: ("fail", "FAILS"), None: ("unchecked", "not checked")}[c.holds]
