@@ -108,6 +108,24 @@ def test_the_link_check_finds_a_missing_anchor_and_a_missing_file(tmp_path):
     assert dead_links(tmp_path) == ["a.html: b.html#ref-x (no anchor #ref-x in b.html)", "a.html: c.html (no such file)"]
 
 
+def test_aligned_equations_render_as_aligned_rows(site):
+    sys.path.insert(0, str(DOCS / "_ext"))
+    import nlobs_docs
+
+    # the same renderer the site uses: `&=` rows become a MathML table, one row per line, no literal "&"
+    html = nlobs_docs._mathml("a &= b + c \\\\\n d &= e", True)
+    assert html.count("<mtr>") == 2 and html.count("<mtd") == 4 and ">&<" not in html and "&amp;" not in html
+    assert nlobs_docs._mathml(r"\begin{aligned} a &= b \\ d &= e \end{aligned}", True).count("<mtr>") == 2
+    assert nlobs_docs.aligned(r"A = \begin{bmatrix} 1 & 2 \\ 3 & 4 \end{bmatrix}").startswith("A = ")  # a matrix only
+    # on the built pages: the grey-box model of the learning guide, the design_gpebo equations of the API
+    for page, rows in (("guide/learning.html", 3), ("api/generated/nlobs.design.design_gpebo.html", 2)):
+        text = (site / page).read_text(encoding="utf-8")
+        tables = re.findall(r"<div class='math-block'>(.*?)</div>", text, flags=re.S)
+        aligned = [t for t in tables if "columnalign=\"right\"" in t and t.count("<mtr>") == rows]
+        assert aligned, f"{page}: no displayed equation with {rows} aligned rows"
+        assert not any(">&<" in t for t in tables), f"{page}: a literal & in displayed maths"
+
+
 def test_api_reference_has_a_page_for_every_public_function_and_class(site):
     sys.path.insert(0, str(DOCS / "_ext"))
     import nlobs_docs

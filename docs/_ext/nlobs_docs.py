@@ -25,9 +25,28 @@ HERE = Path(__file__).resolve().parent.parent   # docs/
 # -- maths ----------------------------------------------------------------------------------
 
 
+# latex2mathml lays out `split` as a table of rows with its columns aligned (right, left), as LaTeX does; it
+# reads `aligned` as plain maths (a literal "&", one long line) and numbers the rows of `align`. Sphinx's own
+# renderers wrap every displayed equation in `split`; these pages do the same.
+_ALIGNED_ENV = re.compile(r"\\(begin|end)\{(?:aligned|align\*?)\}")
+_INNERMOST_ENV = re.compile(r"\\begin\{(\w+\*?)\}(?:(?!\\begin\{).)*?\\end\{\1\}", re.S)
+
+
+def aligned(latex: str) -> str:
+    """A displayed equation as latex2mathml lays it out in aligned rows: rows (``\\\\``) or alignment points
+    (``&``) outside any environment wrapped in ``split``, ``aligned`` and ``align`` read as ``split``."""
+    latex = _ALIGNED_ENV.sub(lambda m: rf"\{m.group(1)}{{split}}", latex.strip())
+    top, n = latex, 1
+    while n:   # what is outside every environment (the & and \\ of a matrix are its own)
+        top, n = _INNERMOST_ENV.subn("", top)
+    if "&" in top or "\\\\" in top:
+        latex = r"\begin{split}" + latex.removesuffix("\\\\") + r"\end{split}"
+    return latex
+
+
 def _mathml(latex: str, display: bool) -> str:
     try:
-        return convert(latex.strip(), display="block" if display else "inline")
+        return convert(aligned(latex) if display else latex.strip(), display="block" if display else "inline")
     except Exception:  # noqa: BLE001 - an expression latex2mathml does not know: show its source
         return f"<code class='latex'>{html.escape(latex)}</code>"
 
