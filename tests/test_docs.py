@@ -68,6 +68,33 @@ class _Links(HTMLParser):
                 self.links.append(a[key])
 
 
+class _Text(HTMLParser):
+    """The text a reader sees (MathML's tokens included), without code, scripts and styles."""
+
+    SKIP = {"script", "style", "pre", "code", "textarea"}
+
+    def __init__(self) -> None:
+        super().__init__(convert_charrefs=True)
+        self.parts: list[str] = []
+        self.depth = 0
+
+    def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
+        self.depth += tag in self.SKIP
+
+    def handle_endtag(self, tag: str) -> None:
+        self.depth -= tag in self.SKIP and self.depth > 0
+
+    def handle_data(self, data: str) -> None:
+        if not self.depth:
+            self.parts.append(data)
+
+
+def _visible_text(page: str) -> str:
+    parser = _Text()
+    parser.feed(page)
+    return "".join(parser.parts)
+
+
 def dead_links(site: Path) -> list[str]:
     """Every relative link of the built site whose file does not exist, or whose ``#anchor`` is no id of its page."""
     pages: dict[Path, _Links] = {}
@@ -126,6 +153,13 @@ def test_aligned_equations_render_as_aligned_rows(site):
         assert not any(">&<" in t for t in tables), f"{page}: a literal & in displayed maths"
 
 
+def test_guides_write_their_maths_as_maths(site):
+    for page in ("guide/recorded.html", "guide/learning.html"):
+        text = _visible_text((site / page).read_text(encoding="utf-8"))
+        for plain in ("ν_k", "ŷ_k⁻", "e^ρ", "Σ_k −½"):
+            assert plain not in text, f"{page}: {plain!r} as plain text"
+
+
 def test_api_reference_has_a_page_for_every_public_function_and_class(site):
     sys.path.insert(0, str(DOCS / "_ext"))
     import nlobs_docs
@@ -164,6 +198,7 @@ def test_gallery_has_a_page_per_practitioners_model_with_its_file_and_plots(site
         assert "Claims checked" in text and "FAILS" not in text and "not checked" not in text, key
         assert "sphx-glr-single-img" in text or "sphx-glr-multi-img" in text, key
         assert "[simulation]" in text, f"{key}: the model file is not on its page"
+        assert "`" not in _visible_text(text), f"{key}: Markdown backticks left in the text"
     index = (site / "gallery" / "index.html").read_text(encoding="utf-8")
     assert "Practitioners" in index
 

@@ -76,14 +76,16 @@ def expr(e: Any, *, display: bool = False) -> str:
 
 
 _DOLLARS = re.compile(r"\$([^$]+)\$")
+_MATHS_OR_CODE = re.compile(r"\$([^$]+)\$|`([^`]+)`")
 
 
 def prose(text: str) -> str:
-    """Escaped HTML of `text`, with the maths between dollar signs rendered."""
+    """Escaped HTML of `text`, with the maths between dollar signs rendered and the code between backticks (a
+    command, an option, a name) set as ``<code>``."""
     out, last = [], 0
-    for m in _DOLLARS.finditer(text):
+    for m in _MATHS_OR_CODE.finditer(text):
         out.append(html.escape(text[last:m.start()]))
-        out.append(maths(m.group(1)))
+        out.append(maths(m.group(1)) if m.group(1) is not None else f"<code>{html.escape(m.group(2))}</code>")
         last = m.end()
     out.append(html.escape(text[last:]))
     return "".join(out)
