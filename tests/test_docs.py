@@ -199,6 +199,9 @@ def test_gallery_has_a_page_per_practitioners_model_with_its_file_and_plots(site
         assert "sphx-glr-single-img" in text or "sphx-glr-multi-img" in text, key
         assert "[simulation]" in text, f"{key}: the model file is not on its page"
         assert "`" not in _visible_text(text), f"{key}: Markdown backticks left in the text"
+        assert "_table_" not in text, f"{key}: a lookup table shown by its internal name"
+    building = _visible_text(next((site / "gallery" / "practice").glob("plot_*_building.html")).read_text(encoding="utf-8"))
+    assert "[k+1]" in building.replace("\n", "") and "cop(" in building.replace("\n", "")   # a map, and its table by name
     index = (site / "gallery" / "index.html").read_text(encoding="utf-8")
     assert "Practitioners" in index
 
