@@ -160,6 +160,14 @@ def test_guides_write_their_maths_as_maths(site):
             assert plain not in text, f"{page}: {plain!r} as plain text"
 
 
+def test_the_sensors_guide_names_public_functions_only_and_draws_its_figure_at_build_time(site):
+    sensors = (site / "guide" / "sensors.html").read_text(encoding="utf-8")
+    assert "_sensors" not in _visible_text(sensors) and "nlobs.report._" not in sensors
+    assert re.search(r'<img[^>]+src="\.\./_images/sensors-enzyme-0\.png"', sensors)
+    assert (site / "_images" / "sensors-enzyme-0.png").stat().st_size > 10_000
+    assert not (DOCS / "_static" / "sensors_enzyme.png").exists()     # drawn by the build, not a committed picture
+
+
 def test_api_reference_has_a_page_for_every_public_function_and_class(site):
     sys.path.insert(0, str(DOCS / "_ext"))
     import nlobs_docs

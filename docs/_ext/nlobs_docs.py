@@ -6,7 +6,8 @@
   :mod:`nlobs.examples`, written at build time, plus a scraper for the library's matplotlib
   figures (they are not pyplot figures);
 - the API reference pages: every public name of every nlobs namespace, listed at build time;
-- the references page, from :data:`nlobs.references.REFERENCES`.
+- the references page, from :data:`nlobs.references.REFERENCES`;
+- the guides' figures (``.. nlobs-figure::``), drawn at build time from the code the page shows.
 """
 
 from __future__ import annotations
@@ -18,7 +19,9 @@ from pathlib import Path, PurePosixPath
 from typing import Any
 
 from docutils import nodes
+from docutils.parsers.rst import directives
 from latex2mathml.converter import convert
+from sphinx.util.docutils import SphinxDirective
 
 HERE = Path(__file__).resolve().parent.parent   # docs/
 
@@ -163,6 +166,50 @@ class FigureScraper:
         return "\n".join(parts)
 
 
+# -- figures of the guides, drawn at build time ------------------------------------------------
+
+GENERATED = HERE / "_generated"   # the figures drawn while the site is built (not in git)
+_PYTHON_BLOCK = re.compile(r"^\.\. code-block:: python\n\n((?:(?:   .*)?\n)+)", re.M)
+
+
+class FigureDirective(SphinxDirective):
+    """``.. nlobs-figure:: NAME`` draws a guide's figure while the site is built, from the code the page shows: it
+    runs the page's Python code blocks above it (in a scratch folder), then its own content (not shown, e.g. what a
+    command-line option adds), and puts each matplotlib Figure the content leaves in its names on the page, as
+    ``_generated/NAME-i.png``. Options: ``:alt:`` (the text of each image)."""
+
+    has_content = True
+    required_arguments = 1
+    option_spec = {"alt": directives.unchanged}
+
+    def run(self) -> list[nodes.Node]:
+        import contextlib
+        import io
+        import tempfile
+
+        from matplotlib.figure import Figure
+
+        source = Path(self.env.doc2path(self.env.docname)).read_text(encoding="utf-8")
+        above = "\n".join(source.splitlines()[: self.lineno - 1]) + "\n"
+        shown = "\n".join("\n".join(line[3:] for line in b.splitlines()) for b in _PYTHON_BLOCK.findall(above))
+        namespace: dict[str, Any] = {"__name__": "__nlobs_figure__"}
+        with tempfile.TemporaryDirectory() as scratch, contextlib.chdir(scratch), \
+                contextlib.redirect_stdout(io.StringIO()):   # what the page's code prints is on the page already
+            exec(compile(shown, f"{self.env.docname} (its code blocks)", "exec"), namespace)   # noqa: S102 - our own pages
+            before = {id(v) for v in namespace.values()}
+            exec(compile("\n".join(self.content), f"{self.env.docname} (nlobs-figure)", "exec"), namespace)  # noqa: S102
+        figures = [v for v in namespace.values() if isinstance(v, Figure) and id(v) not in before]
+        if not figures:
+            raise self.error(f"nlobs-figure {self.arguments[0]}: its code leaves no matplotlib Figure in its names")
+        GENERATED.mkdir(exist_ok=True)
+        out = []
+        for i, fig in enumerate(figures):
+            name = f"{self.arguments[0]}-{i}.png"
+            fig.savefig(GENERATED / name, dpi=110)
+            out.append(nodes.image(uri=f"/_generated/{name}", alt=self.options.get("alt", "")))
+        return out
+
+
 # -- the API reference -----------------------------------------------------------------------
 
 NAMESPACES = [
@@ -266,4 +313,5 @@ def write_kinds_page(app: Any = None) -> None:
 
 def setup(app: Any) -> dict[str, Any]:
     app.add_html_math_renderer("mathml", (_visit_math, None), (_visit_displaymath, None))
+    app.add_directive("nlobs-figure", FigureDirective)
     return {"parallel_read_safe": True, "parallel_write_safe": True}
