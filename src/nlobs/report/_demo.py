@@ -16,7 +16,7 @@ from typing import TextIO
 from .._version import __version__
 from .._display import Column, SummaryTable
 from ..analysis import analyze
-from ..examples import EXAMPLES, ExampleResult, find_example
+from ..examples import EXAMPLES, Claim, ExampleResult, find_example
 from ..examples._base import register_html_renderer
 from ..references import REFERENCES, cited_keys
 from ..simulate import CONVERGENCE_RULE
@@ -107,8 +107,11 @@ def _print_summary(results: Sequence[ExampleResult], failed: Sequence[tuple[str,
         w(f"{r.key:<{width}} {r.tally}" + ("" if r.ok else "  <-- see the report") + "\n")
         for c in r.claims:
             if c.holds is not True:
-                w(textwrap.fill(f"{c.word.upper()}: {plain(c.text)} ({plain(c.detail)})", width=88, initial_indent="    ",
-                            subsequent_indent="      ") + "\n")
+                text = (f'NOT TRUE, checked: the paper\'s claim "{plain(c.text)}"' if c.not_true else
+                        f"{c.word.upper()}: {plain(_claim_text(c))}") + (f" ({plain(c.detail)})" if c.detail else "")
+                if c.not_true and c.why:
+                    text += f". Why: {plain(c.why)}"
+                w(textwrap.fill(text, width=88, initial_indent="    ", subsequent_indent="      ") + "\n")
     for key, err in failed:
         w(f"{key:<{width}} CRASHED: {err.splitlines()[0]}\n")
     w(f"\nreport: {report.resolve()}\n"
@@ -148,6 +151,16 @@ def _observability(r: ExampleResult) -> list[str]:
     return out
 
 
+def _tally_class(r: ExampleResult) -> str:
+    """The colour of an example's tally: a claim fails (red), a claim of the paper is not true (amber), else green."""
+    return "fail" if not r.ok else "warn" if any(c.not_true for c in r.claims) else "ok"
+
+
+def _claim_text(c: Claim) -> str:
+    """A claim as shown: a claim of the paper says so."""
+    return f"paper: {c.text}" if c.paper else c.text
+
+
 def _reference_links(text: str, references: str = "") -> str:
     """The reference line, each cited work linked to its entry (anchor ``ref-KEY``) on the page `references`
     ("": this page's bibliography)."""
@@ -181,8 +194,11 @@ def example_section(r: ExampleResult, seconds: float | None = None, *, level: in
     parts = [f"<p>{prose(r.summary)}</p>", f"<h{h}>Claims checked</h{h}><ul class='claims'>"]
     for c in r.claims:
         cls, word = {True: ("ok", "holds"), False: ("fail", "FAILS"), None: ("unchecked", "not checked")}[c.holds]
-        parts.append(f"<li><span class='{cls}'>{word}</span> — {prose(c.text)}"
-                     + (f" <span class='note'>({prose(c.detail)})</span>" if c.detail else "") + "</li>")
+        if c.not_true:
+            cls, word = "warn", "not true"
+        parts.append(f"<li><span class='{cls}'>{word}</span> — {prose(_claim_text(c))}"
+                     + (f" <span class='note'>({prose(c.detail)})</span>" if c.detail else "")
+                     + (f"<br><span class='note'>Why: {prose(c.why)}</span>" if c.not_true and c.why else "") + "</li>")
     parts.append("</ul>")
     parts += _observability(r)
     if r.table:
@@ -219,7 +235,7 @@ def _extra_columns(r: ExampleResult) -> list[tuple[str, str]]:
 def _html(results: Sequence[ExampleResult], failed: Sequence[tuple[str, str]], timings: dict[str, float], seconds: float) -> str:
     nav = "<nav><h3>Examples</h3><ol>" + "".join(
         f"<li><a href='#{html.escape(r.key)}'>{prose(r.title)}</a> — "
-        f"<span class='{'ok' if r.ok else 'fail'}'>{r.tally}</span></li>"
+        f"<span class='{_tally_class(r)}'>{r.tally}</span></li>"
         for r in results) + "".join(f"<li><span class='fail'>{html.escape(k)} crashed</span></li>" for k, _ in failed) + "</ol></nav>"
     overview = [dict(row, example=r.key) for r in results for row in r.table]
     body = [nav]
