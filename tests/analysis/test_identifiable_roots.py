@@ -160,3 +160,17 @@ def test_a_root_of_a_parameter_used_elsewhere_is_solved_not_left_free():
     assert not r.refused and r.complete is True and all(r.local_checks)
     assert _same_rank(list(r.functions), ["k"], ["k"]) == (1, 1, 1)
     assert r.functions == ("sqrt(k)",)
+
+
+@needs_engine
+def test_a_number_under_the_root_and_a_root_that_cannot_be_solved():
+    # Torricelli's law as written from physics, k*sqrt(2*g*h) with g = 9.81: SymPy splits off sqrt(19.62), a number
+    tank = System(states=["h"], f=["(b*u - k*sqrt(2*9.81*h))/A"], inputs=["u"], outputs=["y"], h=["h"],
+                  params={"b": 1.0, "k": 0.5, "A": 2.0})
+    r = find_identifiable_functions(tank, with_states=False)
+    assert not r.refused and r.complete is True
+    assert _same_field(list(r.functions), ["b/A", "k/A"], ["b", "k", "A"]), r.functions
+    # w^2 = x^2 + 1 is linear in no unknown: refused, saying so, with the local verdicts standing
+    s = System(states=["x"], f=["-a*sqrt(x**2 + 1) + u"], inputs=["u"], outputs=["y"], h=["x"], params={"a": 1.0})
+    r = find_identifiable_functions(s, with_states=False)
+    assert "sqrt(x**2 + 1)" in r.refused and "linear in no unknown" in r.refused and "local verdicts stand" in r.refused

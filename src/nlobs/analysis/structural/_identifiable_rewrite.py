@@ -99,6 +99,10 @@ def _roots_solved(system: System, unknown: Sequence[str]) -> tuple[System, list[
     back: dict[sp.Symbol, sp.Expr] = {}
     roots: list[_Root] = []
     skip: set[sp.Expr] = set()
+    # roots of numbers (sqrt(2*h) is sqrt(2)*sqrt(h) to SymPy) are constants: their values, as a known parameter's
+    numbers = {a: sp.Float(a.evalf(20)) for a in _root_atoms(f + h) if not a.free_symbols and a.is_real}
+    if numbers:
+        f, h = [e.xreplace(numbers) for e in f], [e.xreplace(numbers) for e in h]
     for _ in range(100):
         atoms = _root_atoms(f + h)
         todo = [a for a in atoms if a.base not in skip and a.base.free_symbols and is_rational(a.base)
@@ -109,6 +113,9 @@ def _roots_solved(system: System, unknown: Sequence[str]) -> tuple[System, list[
         Q = lcm(*(int(a.exp.q) for a in atoms if a.base == g))
         free = g.free_symbols
         in_states = [symbol(x) for x in states if symbol(x) in free]
+        if TIME in free and not in_states:  # a root of parameters and t is no constant: left to steps 1-2
+            skip.add(g)
+            continue
         choices = in_states or [symbol(q) for q in unknown if symbol(q) in free]
         k = 1
         while f"r{k}" in taken:
@@ -142,7 +149,7 @@ def _roots_solved(system: System, unknown: Sequence[str]) -> tuple[System, list[
         h = [sp.cancel(e.xreplace({v: sol})) for e in h]
         back[w] = g.xreplace(back) ** sp.Rational(1, Q)
         roots.append(_Root(w, Q, back[w], f"{v} = {sol}", bool(in_states)))
-    if not roots:
+    if not roots and not numbers:
         return system, unknown, {}, []
     used = set().union(*(e.free_symbols for e in (*f, *h)))
     out = System(states=states, f=f, outputs=system.outputs, h=h, inputs=system.inputs,
@@ -271,8 +278,12 @@ def nonrational_functions(system: System, unknown: Sequence[str], search: Callab
         rw = rationalise(work, known)
         bound = [t for t in rw.ties if t.kind != "free"]
         if bound:
-            raise NotRational(f"{', '.join(f'{s} (a {t.kind} tie)' for t in bound for s in t.states)}: identifiable "
-                              "functions do not yet impose a polynomial tie; the global check does")
+            what = {a.name: a.definition.xreplace(back) for a in rw.added}
+            raise NotRational("; ".join(
+                f"{what[t.states[0]]}: its tie {t.states[0]}**{t.degree} = {t.argument} is linear in no unknown, so it "
+                "cannot be solved into the model" if t.kind == "root" else
+                f"{', '.join(str(what[x]) for x in t.states)} (a {t.kind} tie)" for t in bound)
+                + ": identifiable functions do not yet impose such a polynomial tie otherwise; the global check does")
         for a in rw.added:
             back[symbol(a.name)] = a.definition.xreplace(back)
         notes.append("functions of the states rewritten as new states (" + ", ".join(f"{a.name} = {a.definition}"
