@@ -8,7 +8,9 @@ simplest functions first (the role of StructuralIdentifiability.jl's
 
 Method (everything over GF(p), on the system of the global check: the fibre of the input-output route's generators
 where that route applies (``_io.py``; its tangent rows are the generators' differentials, and completeness is
-checked exactly: every generator lies in the field of the chosen functions), else SIAN's systems of ``_global.py``):
+checked exactly: every generator lies in the field of the chosen functions), else SIAN's systems of ``_global.py``;
+a route's fibre above ``_FEWER_ABOVE`` terms is rebuilt first on fewer of its coefficients that generate the same
+field, :func:`_fewer_generators`):
 
 0. *Unknowns set aside.* An unknown whose axis is itself a direction of the local kernel (no row of the output-jet
    Jacobian involves it: a state no output sees, a parameter only such a state uses) is in no identifiable function

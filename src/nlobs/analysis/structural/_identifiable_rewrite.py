@@ -24,13 +24,14 @@ names:
    branch may hide more, so completeness is *not decided*. A root whose tie is linear in no unknown
    (:math:`\sqrt{x^2 + 1}`) is left to step 2, which refuses it.
 1. *Constants of the parameters.* Each largest non-rational sub-expression of parameters only
-   (:math:`e^{b}`, :math:`\sin c`, a root of known parameters) becomes a new parameter :math:`q = \varphi(\theta)`. This is a
-   reparametrisation: the output depends on the parameters through the new ones, so a function of the new
-   parameters is identifiable in the rewritten model exactly when it is, written in the old ones, in the original
-   (the original fibre is the preimage of the rewritten one). When every replaced parameter occurs only inside its
-   :math:`\varphi`, the field found is the whole answer (its completeness carries over); when one also occurs
-   elsewhere (:math:`b e^{b}`), the search treats :math:`b` and :math:`e^{b}` as independent and the relation between
-   them is unused: the generators are identifiable, but completeness is *not decided*.
+   (:math:`e^{b}`, :math:`\sin c`, a root of known parameters) becomes a new parameter
+   :math:`q = \varphi(\theta)`. This is a reparametrisation: the output depends on the parameters through the new
+   ones, so a function of the new parameters is identifiable in the rewritten model exactly when it is, written in
+   the old ones, in the original (the original fibre is the preimage of the rewritten one). When every replaced
+   parameter occurs only inside its :math:`\varphi`, the field found is the whole answer (its completeness carries
+   over); when one also occurs elsewhere (:math:`b e^{b}`), the search treats :math:`b` and :math:`e^{b}` as
+   independent and the relation between them is unused: the generators are identifiable, but completeness is
+   *not decided*.
 2. *Functions of the states.* What is left (:math:`e^{x}`, :math:`\sin(x_1 - x_2)`) is rewritten by the global check's
    rule (:mod:`._rationalise`): new states with rational ODEs whose initial values are tied to the old unknowns.
    Only transcendental ties (exp, log, atan) are accepted here, left free: the rewritten fibre contains the
