@@ -174,3 +174,24 @@ def test_a_number_under_the_root_and_a_root_that_cannot_be_solved():
     s = System(states=["x"], f=["-a*sqrt(x**2 + 1) + u"], inputs=["u"], outputs=["y"], h=["x"], params={"a": 1.0})
     r = find_identifiable_functions(s, with_states=False)
     assert "sqrt(x**2 + 1)" in r.refused and "linear in no unknown" in r.refused and "local verdicts stand" in r.refused
+
+
+@needs_engine
+def test_branches_pinned_by_the_global_check():
+    # y = h + 1 is no power of the root, but determines h: the global check finds r1**2 (= h) globally identifiable
+    # and the branch is pinned; without it only (k/A)^2 would come back
+    tank = System(states=["h"], f=["(b*u - k*sqrt(h))/A"], inputs=["u"], outputs=["y"], h=["h + 1"],
+                  params={"b": 1.0, "k": 0.5, "A": 2.0})
+    r = find_identifiable_functions(tank, with_states=False)
+    assert r.complete is True and _same_field(list(r.functions), ["b/A", "k/A"], ["b", "k", "A"]), r.functions
+    assert any("branch fixed: its argument is globally identifiable" in n for n in r.notes)
+    # a root of a parameter: y' = -k y + sqrt(k) z + u, z' = 0 gives k (y'' = -k y' ...) and sqrt(k) z; over the
+    # complex numbers (sqrt(k), z) -> (-sqrt(k), -z) keeps them, on the real branch sqrt(k) > 0 and z is determined
+    s = System(states=["x", "z"], f=["-k*x + sqrt(k)*z + u", "0"], inputs=["u"], outputs=["y"], h=["x"],
+               params={"k": 2.0})
+    r = find_identifiable_functions(s, with_states=True)
+    assert r.complete is True and all(r.local_checks)
+    assert _same_rank(list(r.functions), ["x", "z", "k"], ["x", "z", "k"]) == (3, 3, 3)
+    w = {"k": "w_k"}
+    assert _same_field(_with_roots_as_variables(r.functions, w), _with_roots_as_variables(["x", "z", "sqrt(k)"], w),
+                       ["x", "z", "w_k"]), r.functions
