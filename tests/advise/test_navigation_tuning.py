@@ -1,10 +1,10 @@
 """The default tuning on models whose states do not all move on the run, the honest ranking, the file's own observers in
 the ranking, and a random walk on an unknown parameter (issue 42, items 2-4).
 
-Reference values come from independent computations in plain NumPy: the smallest offset of x_i(0) the run resolves,
-δ_i = 1/√(mean_t Σ_k (∂y_k(t)/∂x_i(0))²/σ_k²), is computed from finite differences of an RK4 simulation written here
-(not from the linearised sensitivities of nlobs.advise._context._resolvable), and the random walk's increments are
-checked against σ²·dt.
+Reference values come from independent computations in plain NumPy: the smallest offset of x_i(0) the run resolves
+with all initial values unknown, δ_i = √((M⁻¹)_ii), M = mean_t Σ_k (∂y_k(t)/∂x(0))ᵀ(∂y_k(t)/∂x(0))/σ_k², is computed from
+finite differences of an RK4 simulation written here (not from the linearised sensitivities of
+nlobs.advise._context._resolvable), and the random walk's increments are checked against σ²·dt.
 """
 
 import json
@@ -74,15 +74,18 @@ def _outputs(x0):
 
 
 def _resolvable_by_finite_differences(x0):
-    out = []
+    """δ_i = √((M⁻¹)_ii), M = mean_t Sᵀ Σ⁻¹ S with S = ∂y(t)/∂x(0) by central differences: the offsets the run resolves
+    with every initial value unknown together."""
+    cols = []
     for i in range(len(x0)):
         e = 1e-4 * max(1.0, abs(x0[i]))
         up, dn = np.array(x0, dtype=float), np.array(x0, dtype=float)
         up[i] += e
         dn[i] -= e
-        S = (_outputs(up) - _outputs(dn)) / (2 * e)                 # ∂y(t)/∂x_i(0), shape (N, 2)
-        out.append(1.0 / np.sqrt(np.mean(np.sum((S / SIG) ** 2, axis=1))))
-    return np.array(out)
+        cols.append((_outputs(up) - _outputs(dn)) / (2 * e) / SIG)   # ∂y(t)/∂x_i(0) / σ, shape (N, 2)
+    S = np.stack(cols, axis=2)                                        # (N, 2, n)
+    M = np.einsum("tki,tkj->ij", S, S) / S.shape[0]
+    return np.sqrt(np.diag(np.linalg.inv(M)))
 
 
 def _load(tmp_path, text, name="m.toml"):

@@ -4,14 +4,17 @@ observability verdict, the time scales, the region the state visits and the decl
 Automatic tuning rules (each one reported with the candidate that uses it):
 
 * **What the run resolves.** For every state and unknown parameter, δ_i is the smallest offset of x_i(0) that the run
-  resolves: the offset whose effect on the outputs, in RMS over the run, is one noise σ,
-  :math:`\delta_i = 1/\sqrt{\mathrm{mean}_t\sum_k (\partial y_k(t)/\partial x_i(0))^2/\sigma_k^2}`, the sensitivities
-  of the model linearised along the nominal run (:func:`_resolvable`; ∞ when the outputs do not depend on it). It is
-  √N times the Cramér–Rao bound of x_i(0) alone from N samples: a filter can do better than δ_i, but a prior, a range or a
-  random walk below δ_i is invisible to the sensors. It is the floor of every size below: a state that does not move
-  on the run (a height on a flat road, a vertical speed, a bias, a constant) has a range of zero, or of the rounding of
-  the integration, and that range says nothing about what a filter is uncertain about. (Before this floor, a flat
-  road's vertical speed, its range 1e-10, made ‖D⁻¹∂f/∂x D‖ — and with it ω_p, Q and P(0) — a million times off.)
+  resolves when all initial values are unknown together: :math:`\delta_i = \sqrt{(M^{-1})_{ii}}`,
+  :math:`M = \mathrm{mean}_t\, S(t)^\top C(t)^\top \Sigma^{-1} C(t) S(t)` the information per sample of the model
+  linearised along the nominal run (S = ∂x(t)/∂x(0), C = ∂h/∂x, Σ the output noise; :func:`_resolvable`). Alone, a state
+  would resolve to :math:`1/\sqrt{M_{ii}}` (its effect on the outputs one noise σ in RMS over the run); together, a
+  tilt and an accelerometer bias that the outputs nearly confuse each resolve far less well (at most
+  :data:`JOINT_CAP` times worse; ∞ when the outputs do not depend on the state). δ_i is √N times the Cramér–Rao bound
+  from N samples: a filter ends well below it, but a prior, a range or a random walk below it is invisible to the
+  sensors. It is the floor of every size below: a state that does not move on the run (a height on a flat road, a
+  vertical speed, a bias, a constant) has a range of zero, or of the rounding of the integration, and that range says
+  nothing about what a filter is uncertain about. (Before this floor, a flat road's vertical speed, its range 1e-10,
+  made ‖D⁻¹∂f/∂x D‖ — and with it ω_p, Q and P(0) — a million times off.)
 * **Time scale.** :math:`\omega_p` is the largest spectral radius of :math:`\partial f/\partial x`
   along the nominal (noise-free) run of the file's ``[simulation]``, at least :math:`0.2\|D^{-1}\partial f/\partial x\,D\|_2`
   with D = diag(s_i) the states' scales below (a nilpotent coupling still has a time scale; in the states' own units,
@@ -19,8 +22,8 @@ Automatic tuning rules (each one reported with the candidate that uses it):
   Observer error dynamics are placed at :math:`\omega_o = 3\omega_p`, capped so that the explicit RK4 step and
   the sample-and-hold of the measurements stay well inside their stability limits
   (:math:`\omega_o\,dt \le 0.5`, :math:`\omega_o T_s \le 0.5`).
-* **Region.** The box the nominal run visits (states, inputs, outputs), widened by 10 % of each range, and each moving
-  state's by at least δ_i.
+* **Region.** The box the nominal run visits (states, inputs, outputs), widened by 10 % of each range (not by δ_i: the
+  region is where designs bound their model's terms, and a square root's domain ends where it ends).
 * **Local scale.** A state's scale s_i is its range on the run (half its size when it moves by less than 5 % of it), at
   least δ_i; its local scale ℓ_i is that range, at most the distance its fastest rate on the run covers in 2/ω_p, at
   least δ_i (:math:`\ell_i = \max(\delta_i, \min(s_i, 2\max_t|\dot x_i|/\omega_p))`): for a state oscillating at the
@@ -396,18 +399,16 @@ def _detectability(model: System, bad: Sequence[str], obs: Sequence[str], nomina
                      "an error in the unobservable part need not decay")}
 
 
-def _region(system: System, run: Run, names_u: Sequence[str], floor: np.ndarray | None = None) -> dict[str, tuple[float, float]]:
-    """The box the run visits, widened by 10 % of each range (and each state by at least its `floor`: the offset the run
-    resolves, for a state that moves on the run)."""
+def _region(system: System, run: Run, names_u: Sequence[str]) -> dict[str, tuple[float, float]]:
     out: dict[str, tuple[float, float]] = {}
 
-    def put(name: str, v: np.ndarray, least: float = 0.0) -> None:
+    def put(name: str, v: np.ndarray) -> None:
         lo, hi = float(np.min(v)), float(np.max(v))
-        pad = max(0.1 * (hi - lo) + 1e-3 * max(1.0, abs(lo), abs(hi)), least)
+        pad = 0.1 * (hi - lo) + 1e-3 * max(1.0, abs(lo), abs(hi))
         out[name] = (lo - pad, hi + pad)
 
     for i, s in enumerate(system.states):
-        put(s, run.x[:, i], float(floor[i]) if floor is not None else 0.0)
+        put(s, run.x[:, i])
     for i, s in enumerate(names_u):
         put(s, run.u[:, i])
     for i, s in enumerate(system.outputs):
@@ -424,7 +425,20 @@ def _still(span: np.ndarray, mag: np.ndarray) -> np.ndarray:
     return span <= STILL * np.maximum(mag, 1.0)
 
 
-def _resolvable(system: System, run: Run, idx: Sequence[int], sig: np.ndarray, count: int = 1001) -> np.ndarray:
+#: The joint offset the run resolves (:func:`_resolvable` with ``joint=True``) is at most this many times the offset of
+#: the state alone: a direction the run barely excites (a symmetry, a nearly singular input) gets a large, finite prior,
+#: not the 1e8 of a numerically singular information matrix.
+JOINT_CAP = 1e3
+
+
+def _resolvable(system: System, run: Run, idx: Sequence[int], sig: np.ndarray, count: int = 1001,
+                joint: bool = False) -> np.ndarray:
+    """See :func:`_resolvable_both`: the offsets of the states alone, or (`joint`) together."""
+    return _resolvable_both(system, run, idx, sig, count, joint)[1 if joint else 0]
+
+
+def _resolvable_both(system: System, run: Run, idx: Sequence[int], sig: np.ndarray, count: int = 1001,
+                     joint: bool = True) -> tuple[np.ndarray, np.ndarray]:
     r"""For each state in `idx`: the initial offset δ whose effect on the outputs along the run is, in RMS over the run,
     one noise standard deviation:
     :math:`\delta_i = 1/\sqrt{\operatorname{mean}_t \sum_k (\partial y_k(t)/\partial x_i(0))^2/\sigma_k^2}`.
@@ -433,14 +447,20 @@ def _resolvable(system: System, run: Run, idx: Sequence[int], sig: np.ndarray, c
     vectors of `idx`, :math:`\partial y/\partial x(0) = C(t)S(t)`, with A = ∂f/∂x and C = ∂h/∂x at (up to) `count` points
     of the run (S stepped by exp of the trapezoidal mean of A over each interval; a map multiplies its Jacobians step by
     step). An offset smaller than δ_i moves the outputs less than their noise: a run cannot show it being estimated.
-    inf where the outputs do not depend on the state along the run."""
+    inf where the outputs do not depend on the state along the run.
+
+    With `joint`, the offset of each state when all of `idx` are unknown together:
+    :math:`\delta_i = \sqrt{(M^{-1})_{ii}}` with :math:`M = \operatorname{mean}_t \sum_k S_k^\top S_k/\sigma_k^2` (the
+    information per sample; √N times the Cramér–Rao bound of x(0) from N samples). A tilt and an accelerometer bias that
+    the outputs nearly confuse each resolve far less well together than alone. At most :data:`JOINT_CAP` times the
+    state's own δ."""
     import scipy.linalg
 
     from ..design._constructions import jacobians_at
 
     m = len(idx)
     if m == 0:
-        return np.zeros(0)
+        return np.zeros(0), np.zeros(0)
     N = run.t.size
     if system.is_discrete:
         k = np.arange(min(N, 5000))
@@ -451,6 +471,7 @@ def _resolvable(system: System, run: Run, idx: Sequence[int], sig: np.ndarray, c
     S = np.zeros((system.n_states, m))
     S[list(idx), np.arange(m)] = 1.0
     acc = np.zeros(m)
+    gram = np.zeros((m, m))
     used = 0
     with np.errstate(all="ignore"):
         for j in range(k.size):
@@ -458,6 +479,8 @@ def _resolvable(system: System, run: Run, idx: Sequence[int], sig: np.ndarray, c
             if not (np.all(np.isfinite(Y)) and np.all(np.isfinite(F[j]))):
                 break
             acc += np.sum(Y ** 2, axis=0)
+            if joint:
+                gram += Y.T @ Y
             used += 1
             if j + 1 < k.size:
                 S = F[j] @ S if system.is_discrete else scipy.linalg.expm(0.5 * (F[j] + F[j + 1]) * (t[j + 1] - t[j])) @ S
@@ -465,7 +488,18 @@ def _resolvable(system: System, run: Run, idx: Sequence[int], sig: np.ndarray, c
                     break
     mean = acc / max(used, 1)
     with np.errstate(divide="ignore"):
-        return np.where(mean > 0, 1.0 / np.sqrt(mean), np.inf)
+        alone = np.where(mean > 0, 1.0 / np.sqrt(mean), np.inf)
+    seen = np.flatnonzero(mean > 0)
+    if not joint or seen.size < 2:
+        return alone, alone
+    M = gram[np.ix_(seen, seen)] / max(used, 1)
+    d = np.sqrt(np.diag(M))
+    lam, V = np.linalg.eigh(M / np.outer(d, d))          # the correlation form: well scaled whatever the units
+    lam = np.maximum(lam, 1e-12 * max(float(lam.max()), 1e-300))
+    inv_diag = np.einsum("ij,j,ij->i", V, 1.0 / lam, V) / d ** 2
+    out = alone.copy()
+    out[seen] = np.minimum(np.sqrt(np.maximum(inv_diag, 0.0)), JOINT_CAP * alone[seen])
+    return alone, np.maximum(out, alone)
 
 
 def _initial_std(model: System, system: System, sc: Scenario, nominal: Run | None, still: np.ndarray,
@@ -692,7 +726,7 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
         still[model.n_states:] = False              # unknown parameters: their own rule below
         # the smallest offset of each state and unknown parameter that the run resolves (one noise σ in RMS on the
         # outputs): no scale, local scale or P(0) below it (see the module docstring)
-        delta = _resolvable(system, nominal, list(range(system.n_states)), sig)
+        delta = _resolvable(system, nominal, list(range(system.n_states)), sig, joint=True)
         seen = np.isfinite(delta) & (delta > 0)
         moving = ~still
         moving[model.n_states:] = False
@@ -710,7 +744,7 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
         for i, v in sigma0.items():     # a constant state: its uncertainty (at least δ), not its (zero) range
             if still[i]:
                 scale[i] = max(v, float(delta[i])) if seen[i] else v
-        region = _region(system, nominal, model.inputs, np.where(moving & seen, delta, 0.0))
+        region = _region(system, nominal, model.inputs)
         omega_p, scale_note = _time_scales(system, {key: v[k] for key, v in s.items()}, t_final, scale)
         # the local scale: the distance a state covers at its fastest rate in 2/ω_p, at most its range (a position that
         # travels a kilometre, an angle that winds five turns: their range is no measure of the uncertainty a filter

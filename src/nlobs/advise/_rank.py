@@ -97,9 +97,13 @@ def _unsettled(err: np.ndarray, tail: np.ndarray, ctx: Context, e_start: np.ndar
     their error over the last 20 % of the run above UNSETTLED of their initial error. '' when all settled.
 
     A run started from an offset of these states exists to show them converge; the error norm of all states together
-    (the convergence time) is dominated by the moving ones and cannot say it."""
+    (the convergence time) is dominated by the moving ones and cannot say it. A state with declared process noise is
+    left out: in the plant it wanders (a random walk), and a filter tracks it rather than settles it."""
     n_plant = ctx.model.n_states
     idx = sorted(set(getattr(ctx, "constant", ())) | set(range(n_plant, err.shape[1])))
+    sc = ctx.scenario
+    if sc is not None and sc.process_std is not None:   # a declared random walk: tracked, not settled
+        idx = [i for i in idx if i >= sc.process_std.size or not sc.process_std[i] > 0]
     out = []
     for i in idx:
         e0 = abs(float(e_start[i]))
