@@ -116,6 +116,29 @@ def test_states_that_do_not_move_get_p0_and_q_of_the_size_the_run_resolves(tmp_p
         assert ctx.Q[i, i] == pytest.approx((0.1 * min(delta[i], sigma0)) ** 2 / T, rel=0.06), s
     # the plant's rate is that of its moving states, not of the rounding in vh (it was ~5000 s⁻¹)
     assert ctx.omega_p < 1.0
+    # the Cramér–Rao bound of x(0) from the run's 100 samples of each output: F = 100·M, so δ/10
+    np.testing.assert_allclose(ctx.cramer_rao, delta / np.sqrt(T / 0.2), rtol=0.03)
+
+
+class _Ctx:
+    """What _unsettled reads of a context: one constant state."""
+
+    def __init__(self, bound):
+        self.model = nlobs.System(states=["c"], f=["0"], outputs=["y"], h=["c"], name="c")
+        self.system = self.model
+        self.constant = (0,)
+        self.scenario = None
+        self.cramer_rao = np.array([bound])
+
+
+@pytest.mark.parametrize("bound, settled", [(0.05, False), (0.1, True), (0.2, False)])
+def test_a_constant_within_three_cramer_rao_bounds_is_settled_where_the_run_can_show_it_halve(bound, settled):
+    from nlobs.advise._rank import _unsettled
+
+    err = np.full((10, 1), 0.25)          # 25 % of the initial error of 1 left at the end
+    tail = np.arange(10) >= 8
+    # 3·bound: 0.15 < 0.25 (not settled); 0.3 ≥ 0.25 and ≤ 0.5 (settled); 0.6 > 0.5: the run cannot show it halve
+    assert (_unsettled(err, tail, _Ctx(bound), np.array([1.0])) == "") is settled
 
 
 def test_a_run_where_no_candidate_converges_names_no_best(tmp_path, capsys):

@@ -301,7 +301,9 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
         if say:
             n_run = sum(c.applies and c.runnable for c in candidates)
             say(f"advise {system.name}: running {n_run} design(s) ...")
-        own, own_notes = own_observers(ctx, mf.observers, candidates) if mf is not None else ({}, [])
+        # the file's own observers of the kinds tried (all of them without --kind), beside the candidates
+        mine = {k: v for k, v in mf.observers.items() if v.kind in chosen} if mf is not None else {}
+        own, own_notes = own_observers(ctx, mine, candidates)
         ctx.notes.extend(own_notes)
         if own:
             ctx.notes.append("your own observer(s) " + ", ".join(f"[observers.{k.split(':', 1)[1]}]" for k in own)

@@ -173,6 +173,7 @@ class Context:
     constant: tuple[int, ...] = ()         # the states the nominal run leaves where they start (biases, constants)
     resolvable: np.ndarray | None = None   # δ per state: the smallest offset of x(0) the run resolves (inf: not seen)
     quiet: tuple[int, ...] = ()            # states that move on the run by less than δ (a height on a flat road)
+    cramer_rao: np.ndarray | None = None   # per state: the Cramér–Rao bound of x(0) from the run's samples (cramer_rao)
 
     @property
     def n(self) -> int:
@@ -437,8 +438,27 @@ def _resolvable(system: System, run: Run, idx: Sequence[int], sig: np.ndarray, c
     return _resolvable_both(system, run, idx, sig, count, joint)[1 if joint else 0]
 
 
+def _inverse_diagonal(M: np.ndarray, cap: np.ndarray) -> np.ndarray:
+    """√diag(M⁻¹) of a symmetric positive semidefinite M (inverted in its correlation form, eigenvalues clipped at 1e-12
+    of the largest), at most `cap` each."""
+    d = np.sqrt(np.diag(M))
+    lam, V = np.linalg.eigh(M / np.outer(d, d))          # the correlation form: well scaled whatever the units
+    lam = np.maximum(lam, 1e-12 * max(float(lam.max()), 1e-300))
+    inv_diag = np.einsum("ij,j,ij->i", V, 1.0 / lam, V) / d ** 2
+    return np.minimum(np.sqrt(np.maximum(inv_diag, 0.0)), cap)
+
+
+def cramer_rao(system: System, run: Run, sig: np.ndarray, counts: np.ndarray, count: int = 1001) -> np.ndarray:
+    r"""The Cramér–Rao bound of each state and unknown parameter's initial value from the run's samples:
+    :math:`\sqrt{(F^{-1})_{ii}}`, :math:`F = \sum_k N_k\,\mathrm{mean}_t (\partial y_k/\partial x(0))^	op
+    (\partial y_k/\partial x(0))/\sigma_k^2` with N_k the samples of output k over the run (the linearised sensitivities
+    of :func:`_resolvable_both`). A constant's error at the end of the run is its initial value's: no unbiased estimator
+    ends below this."""
+    return _resolvable_both(system, run, list(range(system.n_states)), sig, count, True, counts)[2]
+
+
 def _resolvable_both(system: System, run: Run, idx: Sequence[int], sig: np.ndarray, count: int = 1001,
-                     joint: bool = True) -> tuple[np.ndarray, np.ndarray]:
+                     joint: bool = True, counts: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     r"""For each state in `idx`: the initial offset δ whose effect on the outputs along the run is, in RMS over the run,
     one noise standard deviation:
     :math:`\delta_i = 1/\sqrt{\operatorname{mean}_t \sum_k (\partial y_k(t)/\partial x_i(0))^2/\sigma_k^2}`.
@@ -460,7 +480,7 @@ def _resolvable_both(system: System, run: Run, idx: Sequence[int], sig: np.ndarr
 
     m = len(idx)
     if m == 0:
-        return np.zeros(0), np.zeros(0)
+        return np.zeros(0), np.zeros(0), np.zeros(0)
     N = run.t.size
     if system.is_discrete:
         k = np.arange(min(N, 5000))
@@ -472,6 +492,8 @@ def _resolvable_both(system: System, run: Run, idx: Sequence[int], sig: np.ndarr
     S[list(idx), np.arange(m)] = 1.0
     acc = np.zeros(m)
     gram = np.zeros((m, m))
+    fisher = np.zeros((m, m))
+    w = None if counts is None else np.asarray(counts, dtype=float)
     used = 0
     with np.errstate(all="ignore"):
         for j in range(k.size):
@@ -481,6 +503,8 @@ def _resolvable_both(system: System, run: Run, idx: Sequence[int], sig: np.ndarr
             acc += np.sum(Y ** 2, axis=0)
             if joint:
                 gram += Y.T @ Y
+            if w is not None:
+                fisher += (Y * w[:, None]).T @ Y
             used += 1
             if j + 1 < k.size:
                 S = F[j] @ S if system.is_discrete else scipy.linalg.expm(0.5 * (F[j] + F[j + 1]) * (t[j + 1] - t[j])) @ S
@@ -490,16 +514,21 @@ def _resolvable_both(system: System, run: Run, idx: Sequence[int], sig: np.ndarr
     with np.errstate(divide="ignore"):
         alone = np.where(mean > 0, 1.0 / np.sqrt(mean), np.inf)
     seen = np.flatnonzero(mean > 0)
+    crlb = np.full(m, np.inf)
+    if w is not None and seen.size:
+        crlb[seen] = _inverse_diagonal(fisher[np.ix_(seen, seen)] / max(used, 1), np.inf)
     if not joint or seen.size < 2:
-        return alone, alone
-    M = gram[np.ix_(seen, seen)] / max(used, 1)
-    d = np.sqrt(np.diag(M))
-    lam, V = np.linalg.eigh(M / np.outer(d, d))          # the correlation form: well scaled whatever the units
-    lam = np.maximum(lam, 1e-12 * max(float(lam.max()), 1e-300))
-    inv_diag = np.einsum("ij,j,ij->i", V, 1.0 / lam, V) / d ** 2
+        return alone, alone, crlb
     out = alone.copy()
-    out[seen] = np.minimum(np.sqrt(np.maximum(inv_diag, 0.0)), JOINT_CAP * alone[seen])
-    return alone, np.maximum(out, alone)
+    out[seen] = _inverse_diagonal(gram[np.ix_(seen, seen)] / max(used, 1), JOINT_CAP * alone[seen])
+    return alone, np.maximum(out, alone), crlb
+
+
+def _sample_counts(system: System, sc: Scenario) -> np.ndarray:
+    """The samples of each output over the run (its own period, the common one, or every step)."""
+    step = system.sample_time if system.is_discrete else sc.dt
+    periods = [float((sc.periods or {}).get(k, sc.sample_period or step)) for k in system.outputs]
+    return np.array([max(1.0, np.floor(sc.t_final / p + 1e-9)) for p in periods])
 
 
 def _initial_std(model: System, system: System, sc: Scenario, nominal: Run | None, still: np.ndarray,
@@ -541,7 +570,7 @@ def _initial_std(model: System, system: System, sc: Scenario, nominal: Run | Non
         elif x0[i] != 0:                           # (c) its magnitude
             base, how = 0.5 * abs(float(x0[i])), "|x(0)|/2"
         elif fl_ok:                                # (d) at 0: the smallest offset the run resolves
-            base, how = fl, "x(0) = 0: the smallest offset the run resolves, its effect on the outputs one noise σ in RMS"
+            base, how = fl, "x(0) = 0: the smallest offset the run resolves, all initial values unknown together"
         else:
             base, how = 0.0, ""
         if not base > 0:                            # x(0) = 0 and the run does not show the state in the outputs at all
@@ -726,7 +755,8 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
         still[model.n_states:] = False              # unknown parameters: their own rule below
         # the smallest offset of each state and unknown parameter that the run resolves (one noise σ in RMS on the
         # outputs): no scale, local scale or P(0) below it (see the module docstring)
-        delta = _resolvable(system, nominal, list(range(system.n_states)), sig, joint=True)
+        counts = _sample_counts(system, sc)
+        _, delta, crlb = _resolvable_both(system, nominal, list(range(system.n_states)), sig, counts=counts)
         seen = np.isfinite(delta) & (delta > 0)
         moving = ~still
         moving[model.n_states:] = False
@@ -761,7 +791,7 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
         local = scale
         omega_p, scale_note = _time_scales(system, pts, t_final, scale, "at x = 0, u = 0")
         region = {}
-        delta = np.full(system.n_states, np.inf)
+        delta = crlb = np.full(system.n_states, np.inf)
         still = quiet = np.zeros(system.n_states, dtype=bool)
     limit = np.inf
     if sc is not None:
@@ -836,7 +866,8 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
     ctx = Context(model, system, unknown, truth, sc, nominal, rep, rep_sig, omega_p, omega_o, scale, region, xh0, R, R_rate, Q,
                   P0, noise_note, notes=notes, recording=recording, local_scale=np.asarray(local, dtype=float),
                   constant=tuple(int(i) for i in np.flatnonzero(still)) if nominal is not None else (),
-                  resolvable=np.asarray(delta, dtype=float), quiet=tuple(int(i) for i in np.flatnonzero(quiet)))
+                  resolvable=np.asarray(delta, dtype=float), quiet=tuple(int(i) for i in np.flatnonzero(quiet)),
+                  cramer_rao=np.asarray(crlb, dtype=float))
     _blockers(ctx, model, unknown, rep, rep_sig, nominal, recording)
     return ctx
 

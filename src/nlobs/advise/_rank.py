@@ -84,6 +84,13 @@ def _score(run: Run, name: str, ctx: Context) -> Score:
 UNSETTLED = 0.2
 
 
+#: ... unless it is within this many times its Cramér–Rao bound from the run's samples
+#: (:func:`nlobs.advise._context.cramer_rao`) and that is at most half its initial error: an offset only a few times
+#: the bound cannot fall to 20 % of itself, and a filter that ends where no unbiased estimator could do much better has
+#: settled it as far as the run allows (an offset below that, the run cannot show converge at all: named).
+CRAMER_RAO = 3.0
+
+
 def _initial_error(run: Run, name: str, err: np.ndarray) -> np.ndarray:
     """x̂(0) − x(0) before any measurement (the trace's first row may follow the first update)."""
     prior = getattr(run.observers[name], "xhat_prior", None)
@@ -94,7 +101,8 @@ def _initial_error(run: Run, name: str, err: np.ndarray) -> np.ndarray:
 
 def _unsettled(err: np.ndarray, tail: np.ndarray, ctx: Context, e_start: np.ndarray) -> str:
     """The constants (states that do not move on the run, unknown parameters) whose estimate did not settle: the RMS of
-    their error over the last 20 % of the run above UNSETTLED of their initial error. '' when all settled.
+    their error over the last 20 % of the run above UNSETTLED of their initial error, and above CRAMER_RAO times the
+    Cramér–Rao bound of the run. '' when all settled.
 
     A run started from an offset of these states exists to show them converge; the error norm of all states together
     (the convergence time) is dominated by the moving ones and cannot say it. A state with declared process noise is
@@ -105,10 +113,13 @@ def _unsettled(err: np.ndarray, tail: np.ndarray, ctx: Context, e_start: np.ndar
     if sc is not None and sc.process_std is not None:   # a declared random walk: tracked, not settled
         idx = [i for i in idx if i >= sc.process_std.size or not sc.process_std[i] > 0]
     out = []
+    bound = getattr(ctx, "cramer_rao", None)
     for i in idx:
         e0 = abs(float(e_start[i]))
         late = float(np.sqrt(np.mean(err[tail, i] ** 2)))
-        if e0 > 0 and late > UNSETTLED * e0:
+        floor = CRAMER_RAO * float(bound[i]) if bound is not None and i < len(bound) and np.isfinite(bound[i]) else np.inf
+        floor = floor if floor <= 0.5 * e0 else 0.0     # only where the run can show the error at least halve
+        if e0 > 0 and late > max(UNSETTLED * e0, floor):
             out.append(f"{ctx.system.states[i]} ({late / e0:.0%})")
     if not out:
         return ""
