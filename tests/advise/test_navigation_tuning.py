@@ -19,6 +19,7 @@ from nlobs.advise._context import build_context
 from nlobs.advise._rank import rank
 from nlobs.cli import main
 from nlobs.errors import ModelError, ModelFileError
+from nlobs.report import write_model_report
 
 # A cart on a flat road: p, v, pitch theta (0: flat), height h and vertical speed vh (moved only by a 1e-8 m/s²
 # vibration: their range on the run is rounding), accelerometer bias b. Before issue 42 the vertical speed's range
@@ -171,6 +172,8 @@ seed = 3
     assert "NO BEST" in str(adv) and "nlobs tune" in str(adv)
     d = adv.to_dict()
     assert d["best"] is None and "none is recommended" in d["none_converged"]
+    text = write_model_report(adv, tmp_path / "rep").read_text()
+    assert "no observer converged on the run: none is recommended" in text and "best:" not in text
     assert main(["design", str(tmp_path / "weak.toml"), "--run", "--json", "--kind", "ekf"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["best"] is None and "nlobs tune" in out["none_converged"]
@@ -218,6 +221,7 @@ def test_the_files_own_observer_is_ranked_beside_the_candidates(tmp_path):
     assert "file:mine" in adv.ranking and "ekf" in adv.ranking
     assert "file:mine" in str(adv)
     assert any(r.get("observer") == "mine" and r.get("from_file") for r in adv.to_dict()["scores"])
+    assert "file:mine (yours)" in write_model_report(adv, tmp_path / "rep").read_text()
 
 
 DRIFT = """
