@@ -73,15 +73,15 @@ seed = 3
 '''
 
 
-def _close(a, b, what):
+def _close(a, b, what, atol=1e-14):
     a, b = np.asarray(a), np.asarray(b)
     if np.iscomplexobj(a) or np.iscomplexobj(b):
-        _close(np.real(a), np.real(b), what)
+        _close(np.real(a), np.real(b), what, atol)
         a, b = np.imag(a), np.imag(b)
     a, b = a.astype(float), b.astype(float)
     assert a.shape == b.shape, what
     scale = np.maximum(np.abs(a), 1e-300)
-    bad = ~((np.abs(a - b) <= 1e-9 * scale + 1e-14) | (np.isnan(a) & np.isnan(b)))
+    bad = ~((np.abs(a - b) <= 1e-9 * scale + atol) | (np.isnan(a) & np.isnan(b)))
     assert not bad.any(), f"{what}: {a[bad][:3]} against {b[bad][:3]}"
 
 
@@ -126,7 +126,9 @@ def same_observer(a, b, what):
         _close(getattr(a, fn)(t, z, u, y), getattr(b, fn)(t, z, u, y), f"{what}: {fn} at z(0)")
     if a.update is not None:
         za, zb = a.update(t, z, u, y, m), b.update(t, z, u, y, m)
-        _close(za, zb, f"{what}: update at z(0)")
+        # the iterated EKF stops its Gauss-Newton steps below an absolute step of 1e-10 (design_iekf's tol): numbers
+        # written short (within 4 ulps, cli._design.ULPS) can stop it one step apart, within that tolerance
+        _close(za, zb, f"{what}: update at z(0)", atol=1e-10)
         _close(a.output(t, za, u, y), b.output(t, za, u, y), f"{what}: output after an update")
 
 

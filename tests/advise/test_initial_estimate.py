@@ -3,7 +3,7 @@
 The run's box of a constant is a single point: clipping x̂(0) into it started the estimate at the true value, and
 bias estimation looked solved when it was never tested. The reference values below come from the rule's definition
 computed by hand (σ_w·√t_final, |x(0)|/2, and for x(0) = 0 the offset the outputs resolve: for y = x1 + noise σ with
-x1' = b + u, ∂y(t)/∂b(0) = t, so the RMS over [0, T] is T/√3 and the offset is √3·σ/T).
+x1' = b + u, ∂y(t)/∂x(0) = (1, t), so with x1(0) unknown too the offset is √12·σ/T; see the test).
 """
 
 import numpy as np
@@ -75,7 +75,9 @@ def test_process_noise_sets_the_offset_of_a_constant(tmp_path):
 def test_a_constant_at_zero_is_offset_by_what_the_outputs_resolve(tmp_path):
     T = 20.0
     ctx = _ctx(_file(tmp_path, b0=0.0, T=T))
-    expected = np.sqrt(3.0) * 0.05 / T                                        # σ / RMS_t(∂y/∂b(0)) = σ/(T/√3)
+    # x1(0) and b unknown together (issue 42): sensitivities (1, t), information per sample M = [[1, T/2], [T/2, T²/3]]/σ²,
+    # (M⁻¹)_bb = 12σ²/T², so the offset is √12·σ/T (b alone: √3·σ/T)
+    expected = np.sqrt(12.0) * 0.05 / T
     assert abs(ctx.xhat0[1]) == pytest.approx(expected, rel=5e-3)
     assert abs(ctx.xhat0[1]) > 1e-6
     assert np.sqrt(ctx.P0[1, 1]) == pytest.approx(abs(ctx.xhat0[1]), rel=1e-12)

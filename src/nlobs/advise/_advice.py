@@ -15,7 +15,13 @@ from ..model import System
 from ..simulate import Run
 from ._present import ModelText
 
-__all__ = ["Candidate", "Score", "Advice", "STATUSES", "jsonable"]
+__all__ = ["Candidate", "Score", "Advice", "STATUSES", "jsonable", "WHAT_TO_TRY"]
+
+#: What to try when no candidate converged (in the text, the report and ``--json``).
+WHAT_TO_TRY = ("tune the noise covariances on the run's measurements (`nlobs tune MODEL DATA --observer ekf`, then paste "
+               "its [observers.NAME] table into the file), make the run longer ([simulation] t_final) so that the "
+               "constants have time to settle, excite them more (richer [simulation] inputs), or add sensors that see them "
+               "(`nlobs sensors MODEL`)")
 
 #: Candidate statuses: the design was made and its checks hold (`applies`); a precondition fails with its numbers
 #: (`fails`); the kind needs structure only the user can give (`needs input`); the kind exists but nlobs has no
@@ -118,10 +124,22 @@ class Score:
     #: RMS over the last 20 % of the error with each state divided by its scale on the run (its range): what the
     #: ranking uses, so that the state with the largest units does not decide it alone (None on a recording)
     normalised_rms: float | None = None
+    #: False when the run ends worse than it started (the per-state normalised error over the last 20 % above the
+    #: initial one) or a constant state or unknown parameter did not settle; True when neither; None when it cannot be
+    #: judged (a recording: no true state). A score that is not True-or-None is never named best
+    converged: bool | None = None
+    #: the model file's ``[observers.NAME]`` this score is of ("" for the advisor's candidates)
+    own: str = ""
+
+    @property
+    def eligible(self) -> bool:
+        """Whether it may be named best: it ran, and did not end worse than it started or leave a constant unsettled."""
+        return self.status == "ok" and self.converged is not False
 
     def to_dict(self) -> dict[str, Any]:
         return jsonable({"kind": self.kind, "status": self.status, "rms_error": self.rms_error,
-                         "normalised_rms": self.normalised_rms,
+                         "normalised_rms": self.normalised_rms, "converged": self.converged,
+                         **({"observer": self.own, "from_file": True} if self.own else {}),
                          "convergence_time": self.convergence_time, "final_error": self.final_error, "detail": self.detail,
                          **({"parameters": dict(self.parameters)} if self.parameters else {})})
 
@@ -193,6 +211,13 @@ class Advice:
             return None
         return tuple(s.kind for s in self.scores if s.status == "ok")
 
+    @property
+    def best(self) -> Score | None:
+        """The best-ranked run that converged (it did not end worse than it started and left no constant unsettled),
+        or None: without a run, or when none converged (then :attr:`ranking` still orders them, and nothing is
+        recommended)."""
+        return next((s for s in self.scores or () if s.eligible), None)
+
     def candidate(self, kind: str) -> Candidate:
         for c in self.candidates:
             if c.kind == kind:
@@ -212,6 +237,11 @@ class Advice:
             out["choice"] = {"kind": self.choice[0], "why": self.choice[1]}
         if self.scores is not None:
             out["ranking"] = list(self.ranking or ())
+            b = self.best
+            out["best"] = None if b is None else b.kind
+            if b is None and any(s.status == "ok" for s in self.scores):
+                out["none_converged"] = ("no observer converged on the run (each ended worse than it started or left a "
+                                         "constant unsettled): none is recommended; " + WHAT_TO_TRY)
             out["scores"] = [s.to_dict() for s in self.scores]
             out["scenario"] = self.scenario
             if self.run_refused:
@@ -264,14 +294,21 @@ class Advice:
                             and any(o.status == "ok" and o.convergence_time is not None for o in self.scores)
                             else f"converged at {MISSING if s.convergence_time is None else f'{s.convergence_time:.3g}'}")
                     rel = f"rel. {s.normalised_rms:.3g}  " if s.normalised_rms is not None else ""
-                    lines.append(f"  {i + 1:>2}. {s.kind:<24} {rel}RMS {s.rms_error:.3g}  {conv}  "
+                    mark = f"{i + 1:>2}." if s.eligible else " x."
+                    lines.append(f"  {mark} {s.kind:<24} {rel}RMS {s.rms_error:.3g}  {conv}  "
                                  f"final {s.final_error:.3g}" + (f"  {s.detail}" if s.detail else ""))
                     for k, v in s.parameters.items():  # unknown parameters: the estimate at the final time
                         est = f"{v['estimate']:.6g}" + ("" if v.get("std") is None else f" ± {2 * v['std']:.3g} (2σ)")
                         lines.append(f"      {k} = {est}" + ("" if v.get("true") is None else f", true {v['true']:.6g}"))
                 else:
                     lines.append(f"   -  {s.kind:<24} {s.status}: {s.detail}")
-            if not any(s.status == "ok" and s.convergence_time is not None for s in self.scores):
+            b = self.best
+            if b is not None:
+                lines.append(f"  best: {b.kind}" + (f" (your [observers.{b.own}])" if b.own else ""))
+            elif any(s.status == "ok" for s in self.scores):
+                lines.append("  NO BEST: no observer converged on the run (each ended worse than it started or left a "
+                             "constant unsettled), so none is recommended; try: " + WHAT_TO_TRY)
+            elif not any(s.status == "ok" and s.convergence_time is not None for s in self.scores):
                 lines.append("  none converged within the run (into its convergence band): see the report's plots")
             lines.append(f"  converged at: the time after which the error stays within its band ({MISSING}: not within the run)")
         lines.append(f"(advice in {self.seconds:.1f} s wall time, after start-up)")

@@ -22,7 +22,7 @@ from ..design._constructions import evaluate
 from ._context import Context, build_context, file_true_parameters, file_unknown_params
 from ._kinds import try_kind
 from ._present import model_text
-from ._rank import compare, demoted, screen, unscreened
+from ._rank import compare, demoted, own_observers, screen, unscreened
 
 __all__ = ["advise"]
 
@@ -134,9 +134,9 @@ def _reconcile_choice(ctx: Context, candidates: Sequence[Candidate], failed: Seq
     if not ctx.choice_notes:
         return
     bad = {s.kind: s for s in failed if s.status != "ok"}
-    ok = [s for s in (ranked or ()) if s.status == "ok"]
-    converged = [s for s in ok if s.convergence_time is not None]
-    best = (converged or ok or [None])[0]
+    ok = [s for s in (ranked or ()) if s.status == "ok" and not s.own]
+    converged = [s for s in ok if s.convergence_time is not None and s.eligible]
+    best = (converged or [s for s in ok if s.eligible] or [None])[0]
     for kind, note in list(ctx.choice_notes.items()):
         cand = next((c for c in candidates if c.kind == kind), None)
         mine = next((s for s in ok if s.kind == kind), None)
@@ -145,6 +145,8 @@ def _reconcile_choice(ctx: Context, candidates: Sequence[Candidate], failed: Seq
             problem = f"{'blew up' if s.status == 'diverged' else 'failed'} on {where} ({s.detail})"
         elif cand is not None and not cand.applies:
             problem = f"does not apply ({cand.why})"
+        elif mine is not None and not mine.eligible:
+            problem = f"ran on {where} but did not converge ({mine.detail})"
         elif mine is not None and mine.convergence_time is None and converged:
             problem = f"ran on {where} but did not converge within it"
         else:
@@ -299,7 +301,14 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
         if say:
             n_run = sum(c.applies and c.runnable for c in candidates)
             say(f"advise {system.name}: running {n_run} design(s) ...")
-        scores, runres = compare(ctx, candidates, engine=engine, budget=budget)
+        # the file's own observers of the kinds tried (all of them without --kind), beside the candidates
+        mine = {k: v for k, v in mf.observers.items() if v.kind in chosen} if mf is not None else {}
+        own, own_notes = own_observers(ctx, mine, candidates)
+        ctx.notes.extend(own_notes)
+        if own:
+            ctx.notes.append("your own observer(s) " + ", ".join(f"[observers.{k.split(':', 1)[1]}]" for k in own)
+                             + " run beside the candidates (as " + ", ".join(own) + ") and are ranked with them")
+        scores, runres = compare(ctx, candidates, engine=engine, budget=budget, own=own)
         where = "the comparison run" if ctx.recording is not None else "the [simulation] run"
         candidates = demoted(candidates, scores, where)
         left_out = [c for c in candidates if c.applies and not c.runnable]   # not in the run: screened on its start

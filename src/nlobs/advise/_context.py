@@ -3,46 +3,67 @@ observability verdict, the time scales, the region the state visits and the decl
 
 Automatic tuning rules (each one reported with the candidate that uses it):
 
+* **What the run resolves.** For every state and unknown parameter, δ_i is the smallest offset of x_i(0) that the run
+  resolves when all initial values are unknown together: :math:`\delta_i = \sqrt{(M^{-1})_{ii}}`,
+  :math:`M = \mathrm{mean}_t\, S(t)^\top C(t)^\top \Sigma^{-1} C(t) S(t)` the information per sample of the model
+  linearised along the nominal run (S = ∂x(t)/∂x(0), C = ∂h/∂x, Σ the output noise; :func:`_resolvable`). Alone, a state
+  would resolve to :math:`1/\sqrt{M_{ii}}` (its effect on the outputs one noise σ in RMS over the run); together, a
+  tilt and an accelerometer bias that the outputs nearly confuse each resolve far less well (at most
+  :data:`JOINT_CAP` times worse; ∞ when the outputs do not depend on the state). δ_i is √N times the Cramér–Rao bound
+  from N samples: a filter ends well below it, but a prior, a range or a random walk below it is invisible to the
+  sensors. It is the floor of every size below: a state that does not move on the run (a height on a flat road, a
+  vertical speed, a bias, a constant) has a range of zero, or of the rounding of the integration, and that range says
+  nothing about what a filter is uncertain about. (Before this floor, a flat road's vertical speed, its range 1e-10,
+  made ‖D⁻¹∂f/∂x D‖ — and with it ω_p, Q and P(0) — a million times off.)
 * **Time scale.** :math:`\omega_p` is the largest spectral radius of :math:`\partial f/\partial x`
-  along the nominal (noise-free) run of the file's ``[simulation]``, at least :math:`0.2\|\partial f/
-  \partial x\|_2` (a nilpotent coupling still has a time scale) and :math:`3/t_{final}`. Observer
-  error dynamics are placed at :math:`\omega_o = 3\omega_p`, capped so that the explicit RK4 step and
+  along the nominal (noise-free) run of the file's ``[simulation]``, at least :math:`0.2\|D^{-1}\partial f/\partial x\,D\|_2`
+  with D = diag(s_i) the states' scales below (a nilpotent coupling still has a time scale; in the states' own units,
+  each at least δ_i, so a state the run does not move cannot make the plant look fast) and :math:`3/t_{final}`.
+  Observer error dynamics are placed at :math:`\omega_o = 3\omega_p`, capped so that the explicit RK4 step and
   the sample-and-hold of the measurements stay well inside their stability limits
   (:math:`\omega_o\,dt \le 0.5`, :math:`\omega_o T_s \le 0.5`).
-* **Region.** The box the nominal run visits (states, inputs, outputs), widened by 10 % of each range.
-* **Local scale.** A state's scale s_i is its range on the run; its local scale ℓ_i is that range, at most the
-  distance its fastest rate on the run covers in 2/ω_p (:math:`\ell_i = \min(s_i, 2\max_t|\dot x_i|/\omega_p)`):
-  for a state oscillating at the plant's own rate the two agree; a position that travels a kilometre, or an angle that
-  winds five turns, has a range that says nothing of what a filter is uncertain about over one time scale.
+* **Region.** The box the nominal run visits (states, inputs, outputs), widened by 10 % of each range (not by δ_i: the
+  region is where designs bound their model's terms, and a square root's domain ends where it ends).
+* **Local scale.** A state's scale s_i is its range on the run (half its size when it moves by less than 5 % of it), at
+  least δ_i; its local scale ℓ_i is that range, at most the distance its fastest rate on the run covers in 2/ω_p, at
+  least δ_i (:math:`\ell_i = \max(\delta_i, \min(s_i, 2\max_t|\dot x_i|/\omega_p))`): for a state oscillating at the
+  plant's own rate the two agree; a position that travels a kilometre, or an angle that winds five turns, has a range
+  that says nothing of what a filter is uncertain about over one time scale. A state that moves on the run by less than
+  δ_i is *quiet* (a height on a flat road): its scale is δ_i, x̂(0) is moved from x(0) by ℓ_i/2 (never clipped into a
+  box it hardly leaves), and the sigma points' spread is not sized on its box.
 * **Noise.** A Gaussian output noise of standard deviation σ gives the sample covariance
   :math:`R = \sigma^2` (continuous-discrete filters) and the intensity :math:`R\,T_s` (continuous-time
   filters); a uniform bound b gives :math:`\sigma^2 = b^2/3`. Without declared noise, σ is 0.1 % of the
-  output's range (said so in the tuning). Declared process noise σ_w gives :math:`Q = \sigma_w^2`;
-  otherwise :math:`Q = (0.01\,\ell_i)^2\omega_p` per state, a small model-error allowance (1 % of the state's local
-  change per time scale).
+  output's range (said so in the tuning). Declared process noise σ_w (``[simulation] process_noise``, of a state or of
+  an unknown parameter: its random walk, in the plant and in the filters) gives :math:`Q = \sigma_w^2`; otherwise
+  :math:`Q = (0.01\,\ell_i)^2\omega_p` for a moving state, a small model-error allowance (1 % of the state's local change
+  per time scale), and for a constant (a state the run leaves where it starts, an unknown parameter) the random walk
+  :math:`Q = (0.1\,\min(\delta_i, \sigma_{0,i}))^2/t_{final}` (× T_s on a map): over the whole run it wanders by a
+  tenth of what the run resolves and of its initial uncertainty, so the filter keeps learning it without losing it.
+  (The plant's fastest rate says nothing about how a bias drifts: ω_p-scaled, it gave accelerometer biases a Q of 3.)
 * **Initial estimate.** x̂(0) is x(0) moved by half of each state's local scale ℓ_i (no more than max(|x_i(0)|,
   s_i/10) for a state that travels far from where it starts), with alternating signs (a state that keeps its sign
   on the run keeps it: ×1.5 or ×0.5 where the move would flip it), inside the box the run visits; unknown parameters
   start at the file's value (the initial guess) when ``[simulation] true_parameters`` gives the plant other values;
-  without it the file's value is also the truth, and they start 30 % off it (by σ₀ with ``initial_std``). P(0) = diag(σ₀²), σ₀ = max(min(offset, ℓ_i), ℓ_i/10): the offset
-  is a one-σ error.
+  without it the file's value is also the truth, and they start 30 % off it (by σ₀ with ``initial_std``).
+  P(0) = diag(σ₀²), σ₀ = max(min(offset, ℓ_i), ℓ_i/10, δ_i): the offset is a one-σ error, and P(0) is never smaller
+  than what the model and sensors can resolve (the file's ``initial_std`` is taken as written).
 * **States that do not move on the run** (a sensor bias, a constant: ẋ = 0 along it, so the box the run visits is a
   single point and clipping into it would start the estimate *at the true value*): x̂(0) = x(0) ± σ₀ (away from 0
-  for a nonzero state, never clipped onto the point) and P(0) = σ₀², with σ₀
+  for a nonzero state, never clipped onto the point) and P(0) = max(σ₀, δ_i)², with σ₀
 
   (a) the file's ``[simulation] initial_std`` for it (which also sets σ₀, offset and P(0), of any moving state or
       unknown parameter it names; a parameter keeps its guess);
   (b) else, with ``process_noise`` σ_w declared for it, :math:`\sigma_w\sqrt{t_{final}}`: the spread its own random
       walk reaches over the run, the uncertainty the model itself gives it;
   (c) else |x(0)|/2, its magnitude;
-  (d) else (x(0) = 0) the smallest offset the run resolves, :math:`1/\sqrt{\mathrm{mean}_t\sum_k
-      (\partial y_k(t)/\partial x_i(0))^2/\sigma_k^2}` (the sensitivities of the model linearised along the nominal
-      run): an offset whose effect on the outputs is one noise σ in RMS over the run. It is well above the error such a
-      run leaves (about that value over the square root of the number of samples), so the run shows whether the state
-      converges; 1 (said so) when the outputs do not depend on the state along the run at all.
+  (d) else (x(0) = 0) δ_i, the smallest offset the run resolves. It is well above the error such a run leaves (about
+      that value over the square root of the number of samples), so the run shows whether the state converges; 1
+      (said so) when the outputs do not depend on the state along the run at all.
 
-  A constant's scale and local scale are its σ₀ (as an unknown parameter's are its uncertainty). When the run cannot
-  settle a constant from its offset, the ranking says so (:func:`nlobs.advise._rank._unsettled`).
+  A constant's scale and local scale are max(σ₀, δ_i) (as an unknown parameter's are its uncertainty, at least δ_i).
+  When the run cannot settle a constant from its offset, the ranking says so (:func:`nlobs.advise._rank._unsettled`)
+  and does not call that candidate best.
 """
 
 from __future__ import annotations
@@ -150,6 +171,9 @@ class Context:
     choice_notes: dict[str, str] = field(default_factory=dict)  # kind -> the note in `notes` that names it as the choice
     local_scale: np.ndarray | None = None  # ℓ per state: its range, at most the distance its fastest rate covers in 2/ω_p
     constant: tuple[int, ...] = ()         # the states the nominal run leaves where they start (biases, constants)
+    resolvable: np.ndarray | None = None   # δ per state: the smallest offset of x(0) the run resolves (inf: not seen)
+    quiet: tuple[int, ...] = ()            # states that move on the run by less than δ (a height on a flat road)
+    cramer_rao: np.ndarray | None = None   # per state: the Cramér–Rao bound of x(0) from the run's samples (cramer_rao)
 
     @property
     def n(self) -> int:
@@ -249,7 +273,7 @@ class Context:
         raise KeyError(prefix)
 
 
-def _scenario(mf: ModelFile | None, simulation: Any, system: System) -> Scenario | None:
+def _scenario(mf: ModelFile | None, simulation: Any, system: System, unknown: Sequence[str] = ()) -> Scenario | None:
     cfg = simulation if simulation is not None else (mf.simulation if mf is not None else None)
     if cfg is None or getattr(cfg, "x0", None) is None:
         return None
@@ -264,7 +288,14 @@ def _scenario(mf: ModelFile | None, simulation: Any, system: System) -> Scenario
                         for k in outs])
     pstd = None
     if cfg.process_noise:
-        pstd = np.array([float(cfg.process_noise.get(k, 0.0)) for k in system.states])
+        names = [*system.states, *unknown]
+        bad = [k for k in cfg.process_noise if k not in names]
+        if bad:
+            what = ("a parameter this analysis does not estimate (add it to the unknown parameters, --params)"
+                    if bad[0] in system.params else "neither a state nor an unknown parameter")
+            raise ModelError(f"advise: [simulation] process_noise names {bad[0]!r}, {what} of {system.name!r}; states: "
+                             f"{', '.join(system.states)}" + (f"; unknown parameters: {', '.join(unknown)}" if unknown else ""))
+        pstd = np.array([float(cfg.process_noise.get(k, 0.0)) for k in names])
     periods = dict(cfg.sample_period) if isinstance(cfg.sample_period, Mapping) else None
     fastest = min(periods.values()) if periods else (float(cfg.sample_period) if cfg.sample_period else None)
     return Scenario(t_final, dt, np.asarray(cfg.x0, dtype=float), dict(cfg.inputs), noise, std, pstd, fastest, cfg.seed,
@@ -395,7 +426,39 @@ def _still(span: np.ndarray, mag: np.ndarray) -> np.ndarray:
     return span <= STILL * np.maximum(mag, 1.0)
 
 
-def _resolvable(system: System, run: Run, idx: Sequence[int], sig: np.ndarray, count: int = 1001) -> np.ndarray:
+#: The joint offset the run resolves (:func:`_resolvable` with ``joint=True``) is at most this many times the offset of
+#: the state alone: a direction the run barely excites (a symmetry, a nearly singular input) gets a large, finite prior,
+#: not the 1e8 of a numerically singular information matrix.
+JOINT_CAP = 1e3
+
+
+def _resolvable(system: System, run: Run, idx: Sequence[int], sig: np.ndarray, count: int = 1001,
+                joint: bool = False) -> np.ndarray:
+    """See :func:`_resolvable_both`: the offsets of the states alone, or (`joint`) together."""
+    return _resolvable_both(system, run, idx, sig, count, joint)[1 if joint else 0]
+
+
+def _inverse_diagonal(M: np.ndarray, cap: np.ndarray) -> np.ndarray:
+    """√diag(M⁻¹) of a symmetric positive semidefinite M (inverted in its correlation form, eigenvalues clipped at 1e-12
+    of the largest), at most `cap` each."""
+    d = np.sqrt(np.diag(M))
+    lam, V = np.linalg.eigh(M / np.outer(d, d))          # the correlation form: well scaled whatever the units
+    lam = np.maximum(lam, 1e-12 * max(float(lam.max()), 1e-300))
+    inv_diag = np.einsum("ij,j,ij->i", V, 1.0 / lam, V) / d ** 2
+    return np.minimum(np.sqrt(np.maximum(inv_diag, 0.0)), cap)
+
+
+def cramer_rao(system: System, run: Run, sig: np.ndarray, counts: np.ndarray, count: int = 1001) -> np.ndarray:
+    r"""The Cramér–Rao bound of each state and unknown parameter's initial value from the run's samples:
+    :math:`\sqrt{(F^{-1})_{ii}}`, :math:`F = \sum_k N_k\,\mathrm{mean}_t (\partial y_k/\partial x(0))^	op
+    (\partial y_k/\partial x(0))/\sigma_k^2` with N_k the samples of output k over the run (the linearised sensitivities
+    of :func:`_resolvable_both`). A constant's error at the end of the run is its initial value's: no unbiased estimator
+    ends below this."""
+    return _resolvable_both(system, run, list(range(system.n_states)), sig, count, True, counts)[2]
+
+
+def _resolvable_both(system: System, run: Run, idx: Sequence[int], sig: np.ndarray, count: int = 1001,
+                     joint: bool = True, counts: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     r"""For each state in `idx`: the initial offset δ whose effect on the outputs along the run is, in RMS over the run,
     one noise standard deviation:
     :math:`\delta_i = 1/\sqrt{\operatorname{mean}_t \sum_k (\partial y_k(t)/\partial x_i(0))^2/\sigma_k^2}`.
@@ -404,14 +467,20 @@ def _resolvable(system: System, run: Run, idx: Sequence[int], sig: np.ndarray, c
     vectors of `idx`, :math:`\partial y/\partial x(0) = C(t)S(t)`, with A = ∂f/∂x and C = ∂h/∂x at (up to) `count` points
     of the run (S stepped by exp of the trapezoidal mean of A over each interval; a map multiplies its Jacobians step by
     step). An offset smaller than δ_i moves the outputs less than their noise: a run cannot show it being estimated.
-    inf where the outputs do not depend on the state along the run."""
+    inf where the outputs do not depend on the state along the run.
+
+    With `joint`, the offset of each state when all of `idx` are unknown together:
+    :math:`\delta_i = \sqrt{(M^{-1})_{ii}}` with :math:`M = \operatorname{mean}_t \sum_k S_k^\top S_k/\sigma_k^2` (the
+    information per sample; √N times the Cramér–Rao bound of x(0) from N samples). A tilt and an accelerometer bias that
+    the outputs nearly confuse each resolve far less well together than alone. At most :data:`JOINT_CAP` times the
+    state's own δ."""
     import scipy.linalg
 
     from ..design._constructions import jacobians_at
 
     m = len(idx)
     if m == 0:
-        return np.zeros(0)
+        return np.zeros(0), np.zeros(0), np.zeros(0)
     N = run.t.size
     if system.is_discrete:
         k = np.arange(min(N, 5000))
@@ -422,6 +491,9 @@ def _resolvable(system: System, run: Run, idx: Sequence[int], sig: np.ndarray, c
     S = np.zeros((system.n_states, m))
     S[list(idx), np.arange(m)] = 1.0
     acc = np.zeros(m)
+    gram = np.zeros((m, m))
+    fisher = np.zeros((m, m))
+    w = None if counts is None else np.asarray(counts, dtype=float)
     used = 0
     with np.errstate(all="ignore"):
         for j in range(k.size):
@@ -429,6 +501,10 @@ def _resolvable(system: System, run: Run, idx: Sequence[int], sig: np.ndarray, c
             if not (np.all(np.isfinite(Y)) and np.all(np.isfinite(F[j]))):
                 break
             acc += np.sum(Y ** 2, axis=0)
+            if joint:
+                gram += Y.T @ Y
+            if w is not None:
+                fisher += (Y * w[:, None]).T @ Y
             used += 1
             if j + 1 < k.size:
                 S = F[j] @ S if system.is_discrete else scipy.linalg.expm(0.5 * (F[j] + F[j + 1]) * (t[j + 1] - t[j])) @ S
@@ -436,11 +512,27 @@ def _resolvable(system: System, run: Run, idx: Sequence[int], sig: np.ndarray, c
                     break
     mean = acc / max(used, 1)
     with np.errstate(divide="ignore"):
-        return np.where(mean > 0, 1.0 / np.sqrt(mean), np.inf)
+        alone = np.where(mean > 0, 1.0 / np.sqrt(mean), np.inf)
+    seen = np.flatnonzero(mean > 0)
+    crlb = np.full(m, np.inf)
+    if w is not None and seen.size:
+        crlb[seen] = _inverse_diagonal(fisher[np.ix_(seen, seen)] / max(used, 1), np.inf)
+    if not joint or seen.size < 2:
+        return alone, alone, crlb
+    out = alone.copy()
+    out[seen] = _inverse_diagonal(gram[np.ix_(seen, seen)] / max(used, 1), JOINT_CAP * alone[seen])
+    return alone, np.maximum(out, alone), crlb
+
+
+def _sample_counts(system: System, sc: Scenario) -> np.ndarray:
+    """The samples of each output over the run (its own period, the common one, or every step)."""
+    step = system.sample_time if system.is_discrete else sc.dt
+    periods = [float((sc.periods or {}).get(k, sc.sample_period or step)) for k in system.outputs]
+    return np.array([max(1.0, np.floor(sc.t_final / p + 1e-9)) for p in periods])
 
 
 def _initial_std(model: System, system: System, sc: Scenario, nominal: Run | None, still: np.ndarray,
-                 sig: np.ndarray) -> tuple[dict[int, float], str]:
+                 sig: np.ndarray, delta: np.ndarray | None = None) -> tuple[dict[int, float], str]:
     """σ₀ of the initial error for each state the rule fixes (the file's ``initial_std``, and every state constant on the
     run), by state index, with the sentence that says how (see the module docstring)."""
     given = dict(sc.initial_std or {})
@@ -462,8 +554,12 @@ def _initial_std(model: System, system: System, sc: Scenario, nominal: Run | Non
                + ", ".join(f"{v:.3g}" for v in given.values()) + ")") if given else ""
         return out, why
     x0 = sc.x0
-    at_zero = [i for i in const if x0[i] == 0]
-    floor = dict(zip(at_zero, _resolvable(system, nominal, at_zero, sig) if nominal is not None else [np.inf] * len(at_zero)))
+    if delta is None:
+        at_zero = [i for i in const if x0[i] == 0]
+        found = _resolvable(system, nominal, at_zero, sig) if nominal is not None else [np.inf] * len(at_zero)
+        floor = dict(zip(at_zero, found))
+    else:
+        floor = {i: float(delta[i]) for i in const}
     pstd = sc.process_std
     parts = []
     for j, i in enumerate(const):
@@ -473,8 +569,8 @@ def _initial_std(model: System, system: System, sc: Scenario, nominal: Run | Non
             base, how = float(pstd[i] * np.sqrt(sc.t_final)), "σ_w·√t_final"
         elif x0[i] != 0:                           # (c) its magnitude
             base, how = 0.5 * abs(float(x0[i])), "|x(0)|/2"
-        elif fl_ok:                                # (c) at 0: the smallest offset the run resolves
-            base, how = fl, "x(0) = 0: the smallest offset the run resolves, its effect on the outputs one noise σ in RMS"
+        elif fl_ok:                                # (d) at 0: the smallest offset the run resolves
+            base, how = fl, "x(0) = 0: the smallest offset the run resolves, all initial values unknown together"
         else:
             base, how = 0.0, ""
         if not base > 0:                            # x(0) = 0 and the run does not show the state in the outputs at all
@@ -607,7 +703,7 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
     truth = {k: float(model.params[k]) for k in unknown}
     truth.update({k: float(v) for k, v in (true_parameters or {}).items() if k in unknown})
     system = model.augmented(list(unknown)) if unknown else model
-    scen = _scenario(model_file, simulation, model)
+    scen = _scenario(model_file, simulation, model, unknown)
     notes: list[str] = []
     nominal = None
     if scen is not None:
@@ -616,7 +712,7 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
                              f"states ({', '.join(model.states)})")
         x0_plant = np.concatenate([scen.x0, [truth[k] for k in unknown]])
         scen = Scenario(scen.t_final, scen.dt, x0_plant, scen.inputs, scen.noise, scen.noise_std,
-                        None if scen.process_std is None else np.concatenate([scen.process_std, np.zeros(len(unknown))]),
+                        scen.process_std,   # per state and unknown parameter (a parameter's: its random walk)
                         scen.sample_period, scen.seed, scen.periods, scen.delay, scen.initial_std)
         try:
             nominal = simulate(system, None, t_final=scen.t_final, dt=scen.dt, x0=scen.x0, inputs=scen.inputs)
@@ -657,34 +753,46 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
         mag = np.abs(nominal.x).max(axis=0)
         still = _still(span, mag)
         still[model.n_states:] = False              # unknown parameters: their own rule below
-        # a state's scale: its range on the run; for a state that barely moves (< 5 % of its size), half its size
+        # the smallest offset of each state and unknown parameter that the run resolves (one noise σ in RMS on the
+        # outputs): no scale, local scale or P(0) below it (see the module docstring)
+        counts = _sample_counts(system, sc)
+        _, delta, crlb = _resolvable_both(system, nominal, list(range(system.n_states)), sig, counts=counts)
+        seen = np.isfinite(delta) & (delta > 0)
+        moving = ~still
+        moving[model.n_states:] = False
+        quiet = moving & seen & (span < delta)     # moves on the run, by less than the run can resolve
+        # a state's scale: its range on the run; for a state that barely moves (< 5 % of its size), half its size; at
+        # least the offset the run resolves
         scale = np.where(span > 0.05 * mag, span, 0.5 * mag)
+        scale = np.where(moving & seen, np.maximum(scale, delta), scale)
         scale = np.maximum(scale, 1e-6)
         for j, k_ in enumerate(unknown):  # a constant parameter: its uncertainty, not its (zero) range
             i = model.n_states + j
-            scale[i] = max(0.5 * abs(float(model.params[k_])), abs(truth[k_] - float(model.params[k_])), 1e-3)
-        sigma0, initial_note = _initial_std(model, system, sc, nominal, still, sig)
-        for i, v in sigma0.items():     # a constant state: its uncertainty, not its (zero) range
+            scale[i] = max(0.5 * abs(float(model.params[k_])), abs(truth[k_] - float(model.params[k_])), 1e-3,
+                           float(delta[i]) if seen[i] else 0.0)
+        sigma0, initial_note = _initial_std(model, system, sc, nominal, still, sig, delta)
+        for i, v in sigma0.items():     # a constant state: its uncertainty (at least δ), not its (zero) range
             if still[i]:
-                scale[i] = v
+                scale[i] = max(v, float(delta[i])) if seen[i] else v
         region = _region(system, nominal, model.inputs)
         omega_p, scale_note = _time_scales(system, {key: v[k] for key, v in s.items()}, t_final, scale)
         # the local scale: the distance a state covers at its fastest rate in 2/ω_p, at most its range (a position that
         # travels a kilometre, an angle that winds five turns: their range is no measure of the uncertainty a filter
-        # carries over one time scale); a constant's is its uncertainty
+        # carries over one time scale), at least the offset the run resolves; a constant's is its uncertainty
         local = scale.copy()
         if not system.is_discrete:
             rate = (np.max(np.abs(np.gradient(nominal.x, nominal.t, axis=0)), axis=0) if nominal.t.size > 1
                     else np.zeros(system.n_states))
-            moving = ~still
-            moving[model.n_states:] = False
             local[moving] = np.minimum(scale[moving], np.maximum(2.0 * rate[moving] / omega_p, 1e-6))
+            local = np.where(moving & seen, np.maximum(local, delta), local)
     else:
         pts = {"t": np.zeros(1), "x": np.zeros((1, system.n_states)), "u": np.zeros((1, system.n_inputs))}
         scale = np.ones(system.n_states)
         local = scale
         omega_p, scale_note = _time_scales(system, pts, t_final, scale, "at x = 0, u = 0")
         region = {}
+        delta = crlb = np.full(system.n_states, np.inf)
+        still = quiet = np.zeros(system.n_states, dtype=bool)
     limit = np.inf
     if sc is not None:
         limit = 0.5 / sc.dt
@@ -696,17 +804,6 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
     period = (sc.sample_period or sc.dt) if sc is not None else 1e-2
     R = np.diag(sig ** 2)
     R_rate = R * period
-    per_step = system.is_discrete   # a map's Q is the covariance of the noise of one step, not an intensity
-    allowance = (0.01 * local) ** 2 * (1.0 if per_step else omega_p)
-    if sc is not None and sc.process_std is not None and np.any(sc.process_std > 0):
-        q = np.where(sc.process_std > 0, sc.process_std ** 2, allowance)
-        noise_note += "; Q = σ_w² from the declared process noise"
-    else:
-        q = allowance
-        noise_note += ("; Q = (0.01·range)² per step and state (no process noise declared)" if per_step else
-                       "; Q = (0.01·ℓ)²·ω_p per state, ℓ its local scale (its range, at most the distance its fastest rate "
-                       "covers in 2/ω_p; no process noise declared)")
-    Q = np.diag(q)
     if xhat0 is not None:
         xh0 = np.asarray(xhat0, dtype=float).reshape(-1)
         if xh0.size != system.n_states:
@@ -714,7 +811,10 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
     elif sc is not None and sc.x0 is not None:
         est = list(range(model.n_states, system.n_states))
         guesses = [float(model.params[k]) for k in unknown]
-        xh0 = _xhat0(sc.x0, nominal, scale, est, guesses, sigma0, local)
+        # a state that moves by less than the run resolves is moved like a constant (by half its local scale, never
+        # clipped into the box the run visits, which is about a single point for it)
+        moved_by = {**{int(i): 0.5 * float(local[i]) for i in np.flatnonzero(quiet)}, **sigma0}
+        xh0 = _xhat0(sc.x0, nominal, scale, est, guesses, moved_by, local)
         # on a recording the plant is the real one: its parameters are unknown, and the file's value is only a guess
         moved = _off_truth(xh0, unknown, model.n_states, guesses, truth, sigma0, local) if recording is None else ""
         if moved:
@@ -730,12 +830,44 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
     given = {system.states.index(k) for k in (sc.initial_std or {})} if sc is not None else set()
     for i, v in sigma0.items():   # with an x̂(0) of the caller's, a constant's P(0) covers that offset too
         sd0[i] = v if xhat0 is None or i in given else max(v, float(offset[i]))
+    for i in range(system.n_states):   # never below the offset the run resolves (the file's initial_std is kept)
+        if np.isfinite(delta[i]) and delta[i] > 0 and i not in given:
+            sd0[i] = max(float(sd0[i]), float(delta[i]))
     P0 = np.diag(sd0 ** 2)
+    # Q: the declared process noise σ_w², else a small model-error allowance for a moving state, and for a constant (a
+    # state the run leaves where it starts, an unknown parameter) a random walk the run cannot resolve
+    per_step = system.is_discrete   # a map's Q is the covariance of the noise of one step, not an intensity
+    allowance = (0.01 * local) ** 2 * (1.0 if per_step else omega_p)
+    fixed = np.zeros(system.n_states, dtype=bool)
+    fixed[list(np.flatnonzero(still))] = True
+    fixed[model.n_states:] = True
+    off0 = np.array([sigma0.get(i, sd0[i]) for i in range(system.n_states)])   # the initial offset (σ₀) of each
+    drift = np.where(np.isfinite(delta) & (delta > 0), np.minimum(delta, off0), off0)
+    walk = (0.1 * drift) ** 2 / t_final * (system.sample_time if per_step else 1.0)
+    allowance = np.where(fixed, walk, allowance)
+    declared = sc is not None and sc.process_std is not None and np.any(sc.process_std > 0)
+    q = np.where(sc.process_std > 0, sc.process_std ** 2, allowance) if declared else allowance
+    parts = []
+    if declared:
+        parts.append("Q = σ_w² from the declared process noise" + (" (where declared)" if np.any(sc.process_std == 0) else ""))
+    if not declared or np.any(sc.process_std[~fixed] == 0):
+        parts.append("Q = (0.01·range)² per step for a moving state" if per_step else
+                     "Q = (0.01·ℓ)²·ω_p for a moving state, ℓ its local scale (its range, at most the distance its fastest "
+                     "rate covers in 2/ω_p, at least the offset the run resolves)")
+    if np.any(fixed & (q == walk)):
+        parts.append("a constant (a state the run leaves where it starts, an unknown parameter) gets the random walk "
+                     "(0.1 δ)²/t_final" + (" per unit time (× T_s per step)" if per_step else "")
+                     + ", δ the smaller of its initial offset σ₀ and the smallest offset the run resolves: over the run it "
+                     "wanders by a tenth of what the run can see, so the filter keeps learning it without losing it")
+    noise_note += "; " + "; ".join(parts)
+    Q = np.diag(q)
     if initial_note:
         notes.append(initial_note)
     ctx = Context(model, system, unknown, truth, sc, nominal, rep, rep_sig, omega_p, omega_o, scale, region, xh0, R, R_rate, Q,
                   P0, noise_note, notes=notes, recording=recording, local_scale=np.asarray(local, dtype=float),
-                  constant=tuple(int(i) for i in np.flatnonzero(still)) if nominal is not None else ())
+                  constant=tuple(int(i) for i in np.flatnonzero(still)) if nominal is not None else (),
+                  resolvable=np.asarray(delta, dtype=float), quiet=tuple(int(i) for i in np.flatnonzero(quiet)),
+                  cramer_rao=np.asarray(crlb, dtype=float))
     _blockers(ctx, model, unknown, rep, rep_sig, nominal, recording)
     return ctx
 

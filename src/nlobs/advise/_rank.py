@@ -13,6 +13,13 @@ candidates are then ranked by the RMS of their innovations y_k − h(x̂_k⁻) o
 
 A constant (a state the run leaves where it starts, such as a sensor bias, or an unknown parameter) whose error over
 the last 20 % is still above 20 % of its initial error is named in its score's detail: "not converged within the run".
+
+Honesty: such a candidate, and one whose run ends worse than it started (the per-state normalised error over the last
+20 % above its value at t = 0), is ranked after every candidate that converged, whatever its error, and is never named
+best (:attr:`Score.eligible`); when none converged, the ranking says so and what to try (:data:`WHAT_TO_TRY`). The
+scales the errors are divided by are the context's: a state that does not move on the run is divided by the offset
+the run resolves (or its initial uncertainty), never by its (zero) range. The model file's own ``[observers.NAME]``
+run beside the candidates (:func:`own_observers`), so a user's tuning is held against the advisor's.
 """
 
 from __future__ import annotations
@@ -29,10 +36,10 @@ from ..errors import DataError, EngineError, FiniteEscapeError, SolverError, Tim
 from ..model import System
 from ..simulate import Run, estimate, simulate
 from ..simulate._isolate import failure_of
-from ._advice import Candidate, Score
+from ._advice import WHAT_TO_TRY, Candidate, Score
 from ._context import Context
 
-__all__ = ["compare", "screen", "demoted", "unscreened", "rank", "residuals", "TIE"]
+__all__ = ["compare", "screen", "demoted", "unscreened", "rank", "best", "residuals", "own_observers", "TIE", "WHAT_TO_TRY", "OWN"]
 
 #: Errors within this factor count as a tie, broken by the convergence time.
 TIE = 1.25
@@ -55,10 +62,16 @@ def _score(run: Run, name: str, ctx: Context) -> Score:
         m = run.metrics(name)
         err = run.error(name)
         tail = run.t >= run.t[-1] - 0.2 * (run.t[-1] - run.t[0])
-        scaled = err[tail] / ctx.scale[:err.shape[1]]
+        scale = ctx.scale[:err.shape[1]]
+        scaled = err[tail] / scale
         nrms = float(np.sqrt(np.mean(scaled ** 2)))
+        e0 = _initial_error(run, name, err)
+        start = float(np.sqrt(np.mean((e0 / scale) ** 2)))
+        worse = (f"ends worse than it started: rel. error {nrms:.3g} over the last 20 % against {start:.3g} at t = 0"
+                 if start > 0 and nrms > start else "")
+        unsettled = _unsettled(err, tail, ctx, e0)
         return Score(name, "ok", m.rms_error, m.convergence_time, m.final_error, parameters=params, normalised_rms=nrms,
-                     detail=_unsettled(err, tail, ctx, _initial_error(run, name, err)))
+                     detail="; ".join(t for t in (worse, unsettled) if t), converged=not (worse or unsettled))
     resid, what = residuals(run, name, ctx.system)
     tail = run.t >= run.t[-1] - 0.2 * (run.t[-1] - run.t[0])
     ok = np.all(np.isfinite(resid), axis=1) & tail
@@ -71,6 +84,13 @@ def _score(run: Run, name: str, ctx: Context) -> Score:
 UNSETTLED = 0.2
 
 
+#: ... unless it is within this many times its Cramér–Rao bound from the run's samples
+#: (:func:`nlobs.advise._context.cramer_rao`) and that is at most half its initial error: an offset only a few times
+#: the bound cannot fall to 20 % of itself, and a filter that ends where no unbiased estimator could do much better has
+#: settled it as far as the run allows (an offset below that, the run cannot show converge at all: named).
+CRAMER_RAO = 3.0
+
+
 def _initial_error(run: Run, name: str, err: np.ndarray) -> np.ndarray:
     """x̂(0) − x(0) before any measurement (the trace's first row may follow the first update)."""
     prior = getattr(run.observers[name], "xhat_prior", None)
@@ -81,17 +101,25 @@ def _initial_error(run: Run, name: str, err: np.ndarray) -> np.ndarray:
 
 def _unsettled(err: np.ndarray, tail: np.ndarray, ctx: Context, e_start: np.ndarray) -> str:
     """The constants (states that do not move on the run, unknown parameters) whose estimate did not settle: the RMS of
-    their error over the last 20 % of the run above UNSETTLED of their initial error. '' when all settled.
+    their error over the last 20 % of the run above UNSETTLED of their initial error, and above CRAMER_RAO times the
+    Cramér–Rao bound of the run. '' when all settled.
 
     A run started from an offset of these states exists to show them converge; the error norm of all states together
-    (the convergence time) is dominated by the moving ones and cannot say it."""
+    (the convergence time) is dominated by the moving ones and cannot say it. A state with declared process noise is
+    left out: in the plant it wanders (a random walk), and a filter tracks it rather than settles it."""
     n_plant = ctx.model.n_states
     idx = sorted(set(getattr(ctx, "constant", ())) | set(range(n_plant, err.shape[1])))
+    sc = ctx.scenario
+    if sc is not None and sc.process_std is not None:   # a declared random walk: tracked, not settled
+        idx = [i for i in idx if i >= sc.process_std.size or not sc.process_std[i] > 0]
     out = []
+    bound = getattr(ctx, "cramer_rao", None)
     for i in idx:
         e0 = abs(float(e_start[i]))
         late = float(np.sqrt(np.mean(err[tail, i] ** 2)))
-        if e0 > 0 and late > UNSETTLED * e0:
+        floor = CRAMER_RAO * float(bound[i]) if bound is not None and i < len(bound) and np.isfinite(bound[i]) else np.inf
+        floor = floor if floor <= 0.5 * e0 else 0.0     # only where the run can show the error at least halve
+        if e0 > 0 and late > max(UNSETTLED * e0, floor):
             out.append(f"{ctx.system.states[i]} ({late / e0:.0%})")
     if not out:
         return ""
@@ -136,10 +164,10 @@ def _key(s: Score) -> float:
     return s.normalised_rms if s.normalised_rms is not None else s.rms_error
 
 
-def rank(scores: Sequence[Score]) -> list[Score]:
-    """Best first: finite errors (per-state normalised, :attr:`Score.normalised_rms`) grouped within a factor
-    :data:`TIE`, each group by convergence time; then the failures."""
-    ok = sorted((s for s in scores if s.status == "ok"), key=_key)
+def _ordered(scores: Sequence[Score]) -> list[Score]:
+    """Finite errors (per-state normalised, :attr:`Score.normalised_rms`) grouped within a factor :data:`TIE`, each
+    group by convergence time."""
+    ok = sorted(scores, key=_key)
     out: list[Score] = []
     i = 0
     while i < len(ok):
@@ -149,18 +177,72 @@ def rank(scores: Sequence[Score]) -> list[Score]:
         group = ok[i:j + 1]
         out += sorted(group, key=lambda s: (s.convergence_time is None, s.convergence_time or 0.0, _key(s)))
         i = j + 1
-    return out + [s for s in scores if s.status != "ok"]
+    return out
+
+
+def rank(scores: Sequence[Score]) -> list[Score]:
+    """Best first: the runs that may be named best (:attr:`Score.eligible`: they did not end worse than they started
+    and left no constant unsettled), by their error (:func:`_ordered`); then the other runs that finished, in the same
+    order, however small their error; then the failures."""
+    ok = [s for s in scores if s.status == "ok"]
+    return (_ordered([s for s in ok if s.eligible]) + _ordered([s for s in ok if not s.eligible])
+            + [s for s in scores if s.status != "ok"])
+
+
+def best(scores: Sequence[Score] | None) -> Score | None:
+    """The first score that may be named best (:attr:`Score.eligible`), or None when none converged."""
+    return next((s for s in scores or () if s.eligible), None)
+
+
+#: How the model file's own observers are named in the run and the ranking: ``file:NAME``.
+OWN = "file:{}"
+
+
+def own_observers(ctx: Context, configs: Mapping[str, Any], candidates: Sequence[Candidate]) -> tuple[dict[str, Any], list[str]]:
+    """The model file's ``[observers.NAME]`` designed on the advisor's system, to run beside the candidates: by label
+    (:data:`OWN`), with the sentences for those that do not design. A table already run as a candidate (a kind nlobs
+    cannot tune, designed from the file) is not repeated. Without its own ``xhat0`` an observer starts where the
+    candidates start (the same x̂(0), so that the tunings are compared from the same error)."""
+    from ..design import KINDS, design_from_config, options_of
+    from ..design._tune import clean_message
+    from ..errors import NlobsError
+
+    used = {c.why.split("]")[0].split("[observers.")[-1] for c in candidates if "designed from the file's [observers." in c.why}
+    designs: dict[str, Any] = {}
+    notes: list[str] = []
+    for name, cfg in configs.items():
+        if name in used:
+            continue
+        if cfg.kind not in KINDS:
+            notes.append(f"your [observers.{name}] (kind {cfg.kind!r}) is not run: not an observer kind nlobs knows")
+            continue
+        opts = dict(cfg.options)
+        xh = opts.get("xhat0")
+        if isinstance(xh, (list, tuple)) and ctx.unknown and len(xh) == ctx.model.n_states:   # the guesses go at the end
+            opts["xhat0"] = [*xh, *(float(ctx.model.params[k]) for k in ctx.unknown)]
+        elif "xhat0" not in opts and "xhat0" in options_of(KINDS[cfg.kind].design):
+            opts["xhat0"] = [float(v) for v in ctx.xhat0]
+        try:
+            designs[OWN.format(name)] = design_from_config(ctx.system, cfg.kind, opts)
+        except (NlobsError, ValueError, TypeError, ArithmeticError) as e:
+            notes.append(f"your [observers.{name}] is not run beside the candidates: it does not design on "
+                         f"{ctx.system.name!r} with the states {', '.join(ctx.system.states)} ({clean_message(e)})")
+    return designs, notes
 
 
 def compare(ctx: Context, candidates: Sequence[Candidate], *, progress: bool | Callable[[float], None] | None = None,
-            engine: str = "auto", budget: float | None = None) -> tuple[list[Score], Run | None]:
-    """Run every runnable applicable candidate on the context's scenario; return the ranked scores and the run.
+            engine: str = "auto", budget: float | None = None,
+            own: Mapping[str, Any] | None = None) -> tuple[list[Score], Run | None]:
+    """Run every runnable applicable candidate (and the file's own observers `own`, by label) on the context's
+    scenario; return the ranked scores and the run.
 
     Each candidate runs with its own copy of the plant (its compiled step cached per observer; an NLP estimator on
     its own, the others side by side) and gets `budget` seconds of its own: one that does not finish in time is
     reported as failed ("did not finish within N s"), the others keep their results."""
     designs = {c.kind: c.design for c in candidates if c.applies and c.runnable and c.design is not None}
+    designs.update(own or {})
     run, done = _run_group(ctx, designs, engine, progress, budget) if designs else (None, [])
+    done = [replace(s, own=s.kind[len(OWN.format("")):]) if own and s.kind in own else s for s in done]
     return rank(done), run
 
 

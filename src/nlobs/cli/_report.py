@@ -37,6 +37,8 @@ def run(args: argparse.Namespace) -> int:
     if args.data:
         system = mf.system.augmented(unknown) if unknown else mf.system
         recording = Recording.from_csv(args.data, system)
+    from ..advise._advice import WHAT_TO_TRY
+
     adv = advise(mf, unknown_params=unknown, recording=recording, kinds=args.kind, run=not args.no_run,
                  progress=not args.json)
     sensors = None
@@ -46,10 +48,16 @@ def run(args: argparse.Namespace) -> int:
         sensors = select_sensors(mf, unknown_params=unknown)
     path = write_model_report(adv, args.out, source=mf.path + (f" with {args.data}" if args.data else ""), sensors=sensors)
     if args.json:
-        print(json.dumps({"report": str(path.resolve()), "ranking": list(adv.ranking or ()),
-                          "applies": [c.kind for c in adv.applicable]}))
+        best = adv.best
+        out = {"report": str(path.resolve()), "ranking": list(adv.ranking or ()), "best": None if best is None else best.kind,
+               "applies": [c.kind for c in adv.applicable]}
+        if best is None and adv.ranking:
+            out["none_converged"] = "no observer converged on the run: none is recommended; " + WHAT_TO_TRY
+        print(json.dumps(out))
     else:
+        best = adv.best
         print(f"{len(adv.applicable)} of {len(adv.candidates)} observer kinds apply"
-              + (f"; best on the run: {', '.join((adv.ranking or ())[:3])}" if adv.ranking else ""))
+              + (f"; best on the run: {best.kind}" if best is not None else
+                 "; on the run NONE converged (none is recommended): try " + WHAT_TO_TRY if adv.ranking else ""))
         print(f"report: {path.resolve()}")
     return 0

@@ -228,7 +228,7 @@ def sigma_points(ctx: Any) -> tuple[dict[str, float], str]:
       :math:`[[P, C_{xy}], [C_{xy}^\top, S]] = \sum_{i\ge1}W_i z_iz_i^\top + \mathrm{diag}(0, R) \succeq 0` and
       :math:`P^+` is its Schur complement.
     - **Box.** α < 1 only where the points would leave half the box the run visits around x̂ (α√c σ_i ≤ width_i/2),
-      over the states that move on the run (a constant's and a parameter's box is the single value the simulation
+      over the states that move on the run by more than it resolves (a constant's and a parameter's box is the single value the simulation
       uses, not a range the estimate may take: sizing α on it gave α ≈ 1e-3 and a central weight of −10⁶).
       β then also keeps :math:`W^c_0 \ge 0` (at least 2, Wan & van der Merwe (2000)'s choice for a Gaussian).
 
@@ -244,6 +244,7 @@ def sigma_points(ctx: Any) -> tuple[dict[str, float], str]:
         moving = (x.max(axis=0) - x.min(axis=0)) > 1e-12 * np.maximum(np.abs(x).max(axis=0), 1.0)
         n_plant = len(ctx.system.states) - len(getattr(ctx.system, "estimated_params", ()) or ())
         moving[n_plant:] = False
+        moving[list(getattr(ctx, "quiet", ()))] = False   # moves by less than the run resolves (a flat road's height)
         if np.any(moving):
             width = np.array([ctx.region[s][1] - ctx.region[s][0] for s in ctx.system.states])
             sd = np.sqrt(np.diag(ctx.P0))

@@ -32,6 +32,7 @@ The format (a contract other tools rely on)::
     delay = { y = 0.15 }              # optional: known measurement delays (s), for simulate and estimate
     true_parameters = { k2 = 0.25 }   # the plant's values in a simulation (default: the values above)
     initial_std = { x2 = 0.5, k2 = 0.1 }  # optional: std of the initial estimation error per state or unknown parameter
+                                      # (process_noise may also name an unknown parameter: its random walk, σ per √s)
     seed = 1
     [observers.ekf]           # named observer configurations: kind + tuning
     kind = "ekf"
@@ -539,12 +540,18 @@ class _Loader:
                                    "the parameters and definitions built from those", key, v)
             inputs[k] = self.expr(v, key, sym_t)
         out["inputs"] = MappingProxyType(inputs)
-        for key, names in (("noise", system.outputs), ("noise_bound", system.outputs), ("process_noise", system.states),
-                           ("delay", system.outputs)):
+        for key, names in (("noise", system.outputs), ("noise_bound", system.outputs),
+                           ("process_noise", [*system.states, *unknown_params]), ("delay", system.outputs)):
             values = {}
             for k, v in self.table(sim, f"simulation.{key}").items():
+                if key == "process_noise" and k in system.params and k not in unknown_params:
+                    raise self.err(f"`{shorten(k, 40)[1:-1]}` is a known parameter: a random walk applies to the states and to "
+                                   f"parameters declared unknown ({k} = {{ value = ..., unknown = true }} in [parameters])",
+                                   f"simulation.{key}.{k}")
                 if k not in names:
-                    raise self.err(f"`{shorten(k, 40)[1:-1]}` is not one of {shorten_list(names)}", f"simulation.{key}.{k}")
+                    raise self.err(f"`{shorten(k, 40)[1:-1]}` is not one of {shorten_list(names)}"
+                                   + (" (the states and the unknown parameters)" if key == "process_noise" else ""),
+                                   f"simulation.{key}.{k}")
                 values[k] = self.number(v, f"simulation.{key}.{k}")
                 if values[k] < 0:
                     raise self.err("must be non-negative", f"simulation.{key}.{k}", v)

@@ -15,6 +15,7 @@ from matplotlib.figure import Figure
 
 from .._version import __version__
 from ..advise import Advice
+from ..advise._advice import WHAT_TO_TRY
 from ..references import bibliography
 from ._html import equations, img, page, table
 
@@ -162,8 +163,9 @@ def model_report(adv: Advice, *, source: str = "", sensors: Any = None) -> str:
         srows = []
         rank = 0
         for s in adv.scores:
-            rank += s.status == "ok"
-            srows.append({"rank": rank if s.status == "ok" else None, "kind": s.kind, "normalised": s.normalised_rms,
+            rank += s.eligible
+            srows.append({"rank": rank if s.eligible else None, "kind": s.kind + (" (yours)" if s.own else ""),
+                          "normalised": s.normalised_rms,
                           "rms_error": s.rms_error, "convergence_time": s.convergence_time, "final_error": s.final_error,
                           "status": s.status + (f": {s.detail}" if s.detail else "")})
         body.append(table(srows, [("rank", "rank"), ("kind", "observer"),
@@ -171,9 +173,17 @@ def model_report(adv: Advice, *, source: str = "", sensors: Any = None) -> str:
                                   ("rms_error", "RMS error (last 20 %)"), ("convergence_time", "convergence time"),
                                   ("final_error", "final error"), ("status", "status")]))
         body.append("<p class='note'>Ranked by the RMS error over the last 20 % of the run with each state divided by its "
-                    "range on the run (so that no state's units decide alone); errors within a factor 1.25 of each other are "
-                    "ordered by convergence time (— : never within the run). A kind whose auto-tuned design blew up is listed "
+                    "range on the run, at least the offset the run resolves (a state that does not move: that offset or "
+                    "its initial uncertainty), so that no state's units decide alone; errors within a factor 1.25 of each "
+                    "other are ordered by convergence time (— : never within the run). A run that ends worse than it "
+                    "started, or leaves a constant (a bias, an unknown parameter) unsettled, gets no rank and comes after "
+                    "those that converged. Rows marked (yours) are the model file's own [observers.NAME]. A kind whose "
+                    "auto-tuned design blew up is listed "
                     "above as not applying, with the time.</p>")
+        if adv.best is None and any(s.status == "ok" for s in adv.scores):
+            body.append("<p class='warn'><b>No observer converged on this run</b> (each ended worse than it started or "
+                        "left a constant state or parameter unsettled), so none is recommended. Try: "
+                        f"{_esc(WHAT_TO_TRY)}.</p>")
         ok = [s.kind for s in adv.scores if s.status == "ok"]
         run = adv.run
         if run is not None and adv.text is not None and adv.text.units:
@@ -213,7 +223,9 @@ def model_report(adv: Advice, *, source: str = "", sensors: Any = None) -> str:
            + ("<li><a href='#runs'>Comparison run</a></li>" if adv.scores is not None else "")
            + "<li><a href='#model'>Model</a></li></ul></nav>")
     subtitle = (f"nlobs {__version__} · {_esc(adv.model)} · {len(adv.applicable)} of {len(adv.candidates)} observer kinds apply"
-                + (f" · best: {_esc(adv.ranking[0])}" if adv.ranking else "") + f" · {adv.seconds:.1f} s · Python "
+                + (f" · best: {_esc(adv.best.kind)}" if adv.best is not None else
+                   " · no observer converged on the run: none is recommended" if adv.ranking else "")
+                + f" · {adv.seconds:.1f} s · Python "
                 f"{platform.python_version()}")
     return page(f"nlobs — observers for {adv.model}", subtitle, [nav, *body])
 

@@ -73,6 +73,13 @@ def file_arguments(mf: ModelFile, observers: Any = None, **given: Any) -> dict[s
         out["noise"] = Noise.per_output(dict(cfg.noise), dict(cfg.noise_bound))
     if "process_noise" not in out and cfg.process_noise:
         out["process_noise"] = ProcessNoise(dict(cfg.process_noise))
+        drifting = [k for k in cfg.process_noise if k in mf.unknown_params]
+        if drifting and "plant" not in given and len(out["x0"]) == mf.system.n_states:
+            # a random walk on an unknown parameter: the plant carries the unknown parameters as states (as the observers
+            # estimating them do), starting at their true values
+            unknown = list(mf.unknown_params)
+            out["plant"] = mf.true_system.augmented(unknown)
+            out["x0"] = (*out["x0"], *(float(mf.true_system.params[k]) for k in unknown))
     if "delay" not in out and cfg.delay:
         out["delay"] = dict(cfg.delay)
     if "sampling" not in out and cfg.sample_period:
