@@ -413,7 +413,11 @@ def _estimate_one(name: str, o: AbstractObserver, recording: Recording, xhat0: A
     xs = traj.xhat
     if smooth:
         from ._smooth import rts_smooth
-        xs, Ps, how = rts_smooth(o.design, traj, u, y0, mask, hold=hold, engine=engine)
+        try:
+            xs, Ps, how = rts_smooth(o.design, traj, u, y0, mask, hold=hold, engine=engine)
+        except FiniteEscapeError as e:  # a diverged backward pass: never smoothed numbers in a result
+            raise FiniteEscapeError(f"observer {name!r}", e.t, e.x, o.system.states, np.inf,
+                                    message=f"observer {name!r} on the recording {recording.source}: {e}") from None
         smoothed = {"filtered": traj.xhat, "smoothed_covariance": Ps}
         info.update(smoother="urts" if o.design.method == "ukf" else "rts", **how)
     return ObserverTrace(name, o.design.method, o.design.z_names, traj.z, xs, traj.xhat_prior, innovation=innovation,
