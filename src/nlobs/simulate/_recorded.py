@@ -165,10 +165,11 @@ class Recording:
 
     def clocked(self) -> bool:
         """Whether the missing outputs (NaN) are per-output clocks: each output is measured at regular times of its
-        own (a multi-rate recording: a GPS at 1 s beside a wheel encoder at 10 ms) and every row measures some output.
-        Such NaN cells mean "not measured at this row" and need no ``on_missing='skip'``."""
+        own (a multi-rate recording: a GPS at 1 s beside a wheel encoder at 10 ms; a 200 Hz input beside a 50 Hz
+        sensor, its rows between the sensor's samples carrying the input only). Such NaN cells mean "not measured at
+        this row" and need no ``on_missing='skip'``; a dropped sample breaks its output's clock."""
         finite = np.isfinite(self.y)
-        if not finite.any(axis=1).all():
+        if not finite.any():
             return False
         for j in np.flatnonzero(~finite.all(axis=0)):
             times = self.t[finite[:, j]]

@@ -405,24 +405,32 @@ class Run:
         Columns: ``t``, the inputs, the measured outputs, the true states (when known), then
         ``NAME.STATE`` for each observer's estimate. Numbers are written in their shortest form
         that reads back to the same double (Python's ``repr``); missing values as empty cells.
-        `every` keeps rows 0, k, 2k, ... (e.g. only the sample instants of a sampled run); with per-output sample
-        periods every output is written in the rows where it was sampled and left empty (NaN: not measured) in the
-        others, and `every` > 1 keeps the rows where any output was sampled. With measurement delays
+        `every` > 1 (a sampled run: `every` steps per sample) keeps the sample instants, rows 0, k, 2k, ... (with
+        per-output sample periods, the rows where any output was sampled), and every row where an input changes:
+        every input sample the run saw reaches the file (a 200 Hz input beside a 50 Hz sensor is written at
+        200 Hz), so ``estimate`` holding the inputs between rows drives its observers with the inputs of the run. An
+        output is written in the rows where it was sampled and left empty (NaN: not measured) in the others. With
+        measurement delays
         (``simulate(..., delay=...)``) a delayed output is written in the row where its sample arrived, as a logger
         records it: ``estimate`` with the same `delay` reads it back.
         """
         every = int(every)
         if every < 1:
             raise ValueError(f"to_csv: `every` must be a positive whole number of rows, got {every!r}")
-        keep = np.arange(0, self.t.size, every)
+        N = self.t.size
+        keep = np.arange(0, N, every)
         header = ["t", *self.input_names, *self.output_names]
         y = self.y
         measured = self.info.get("measured")
-        if measured is not None:   # per-output clocks: each output in the rows where it was sampled, empty elsewhere
+        if measured is None and every > 1:   # one clock: the rows 0, k, 2k, ... are the samples
+            measured = np.repeat((np.arange(N) % every == 0)[:, None], y.shape[1], axis=1)
+        if measured is not None:   # each output in the rows where it was sampled, empty elsewhere
             y = np.where(measured, y, np.nan)
             y, measured = self._stamped_at_arrival(y, measured)
             if every > 1:   # (and the first row: the run's start, where the observers start, even before anything arrived)
-                keep = np.flatnonzero(measured.any(axis=1) | (np.arange(self.t.size) == 0))
+                u = np.asarray(self.u, dtype=float).reshape(N, -1)
+                changed = np.r_[False, np.any(u[1:] != u[:-1], axis=1)] if N else np.zeros(0, dtype=bool)
+                keep = np.flatnonzero(measured.any(axis=1) | changed | (np.arange(N) == 0))
         blocks = [self.t[:, None], self.u, y]
         if self.x is not None:
             header += list(self.state_names[:self.x.shape[1]])  # recorded truth may lack the estimated parameters

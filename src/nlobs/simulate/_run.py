@@ -79,7 +79,8 @@ def stage_inputs(plant: System, inputs: Any, params: Mapping[str, float], t: np.
     """Inputs at the RK4 stages of each step: shape (N, 3·nu), blocks [u(t_k), u(t_k + dt/2), u(t_k + dt)].
 
     Held (piecewise-constant) signals use their left limit at t_k + dt, so a switch exactly
-    on the grid takes effect in the next step.
+    on the grid takes effect in the next step; a switch within 1e-9 dt of a grid time counts as on it (a
+    recorded input's 0.175 and the grid's 35 × 0.005 = 0.17500000000000002 are the same instant).
     """
     signals = input_signals(plant, inputs, params, grid=t)
     N, nu = t.size, plant.n_inputs
@@ -88,9 +89,10 @@ def stage_inputs(plant: System, inputs: Any, params: Mapping[str, float], t: np.
     # held signal switching at t_{k+1} would then leak its new value into the last stage of step k
     t_end = t + dt
     t_end[:-1] = np.where(np.abs(t_end[:-1] - t[1:]) <= 4 * np.spacing(np.abs(t[1:])), t[1:], t_end[:-1])
+    snap = 1e-9 * np.asarray(dt, dtype=float)
     for j, sig in enumerate(signals):
-        end = np.nextafter(t_end, -np.inf) if sig.held else t_end
-        for k, times in enumerate((t, t + dt / 2, end)):
+        start, end = (t + snap, t_end - snap) if sig.held else (t, t_end)
+        for k, times in enumerate((start, t + dt / 2, end)):
             v = sig(times)
             bad = np.flatnonzero(~np.isfinite(v))
             if bad.size:
