@@ -105,7 +105,7 @@ def test_the_model_file_and_the_command_line(tmp_path, capsys):
     out = tmp_path / "run.csv"
     assert main(["simulate", str(model), "--json", "--output", str(out)]) == 0
     d = json.loads(capsys.readouterr().out)
-    assert d["observers"]["ekf"]["final_error"] < 0.3
+    assert d["observers"]["ekf"]["final_error"] < 1.2   # 3 × the filter's final σ of p (0.39 m; GPS σ 1 m at 1 Hz)
     assert main(["estimate", str(model), str(out), "--observer", "ekf", "--json"]) == 0   # GPS NaN cells: no --skip-missing
     e = json.loads(capsys.readouterr().out)
     assert e["observers"]["ekf"]["final_estimate"] == pytest.approx(d["observers"]["ekf"]["final_estimate"], abs=1e-9)

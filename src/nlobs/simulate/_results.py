@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from .._display import MISSING, Column, SummaryTable, fmt_number, short_repr
-from ._metrics import CONVERGENCE_RULE, Metrics, error_metrics
+from ._metrics import CONVERGENCE_RULE, PER_STATE_RULE, Metrics, error_metrics, state_metrics
 from ._whiteness import Whiteness, ljung_box
 
 __all__ = ["ObserverFailure", "ObserverTrace", "Run", "write_csv"]
@@ -201,18 +201,22 @@ class Run:
     def metrics(self, name: str | None = None, *, tol: float | None = None, tail: float = 0.2) -> Metrics:
         """Convergence time, RMS and peak errors of one observer (see :class:`Metrics`).
 
-        The convergence band is `tol` when given, else the larger of 2 % of the initial error
-        before any measurement, ‖x̂(0⁻) − x(0)‖ (which filters updating at t = 0 cannot game),
-        and twice the steady-state error (the noise floor), at most 20 % of the initial error
-        (:data:`nlobs.simulate.CONVERGENCE_RULE`). It does not depend on the run length, beyond
-        the slow growth of the largest noise peak with it.
+        The convergence band is `tol` when given (on ‖x̂ − x‖), else judged per state in its own
+        units (:data:`nlobs.simulate._metrics.PER_STATE_RULE`): each state's band is the larger of
+        2 % of its initial error before any measurement, |x̂ᵢ(0⁻) − xᵢ(0)| (which filters updating
+        at t = 0 cannot game), and twice its steady-state error (the noise floor), at most 20 % of
+        its initial error unless that floor is zero-mean noise; the time is the latest state's and
+        ``set_by`` names those states. It does not depend on the run length, beyond the slow growth
+        of the largest noise peak with it.
         """
         trace = self._trace(name)
-        e = self.error_norm(name)
-        e0 = None
+        E = self.error(name)
+        e0 = E[0]
         if trace.xhat_prior is not None and self.x is not None:
-            e0 = float(np.linalg.norm(trace.xhat_prior[:self.x.shape[1]] - self.x[0]))
-        return error_metrics(self.t, e, tol=tol, e0=e0, tail=tail)
+            e0 = trace.xhat_prior[:self.x.shape[1]] - self.x[0]
+        if tol is None:  # each state in its own units (PER_STATE_RULE)
+            return state_metrics(self.t, E, e0, self.state_names[:E.shape[1]], tail=tail)
+        return error_metrics(self.t, np.linalg.norm(E, axis=1), tol=tol, e0=float(np.linalg.norm(e0)), tail=tail)
 
     def noise_gain(self, name: str | None = None, *, tail: float = 0.2) -> float:
         """RMS estimation error over the last `tail` of the run divided by the RMS of the
@@ -299,7 +303,9 @@ class Run:
                                 (*res.notes, *self._failure_lines(), *self._parameter_lines()))
         cols = [Column("observer", "observer", str, numeric=False), Column("final_error", "final err"),
                 Column("rms_error", "RMS (last 20%)"), Column("peak_error", "peak err"),
-                Column("convergence_time", "conv. time"), Column("tol", "band", lambda v: fmt_number(v, 2))]
+                Column("convergence_time", "conv. time")]
+        cols.append(Column("tol", "band", lambda v: fmt_number(v, 2)) if tol is not None else
+                    Column("set_by", "set by", lambda v: ", ".join(v) if v else MISSING, numeric=False))
         rows = [{"observer": n, **self.metrics(n, tol=tol).to_dict()} for n in self.observers]
         if self.failures:
             cols.append(Column("status", "status", str, numeric=False))
@@ -307,10 +313,13 @@ class Run:
                 r["status"] = "ok"
             rows += [{"observer": n, "status": f"FAILED after t = {f.t:.4g}" if f.t is not None else "FAILED"}
                      for n, f in self.failures.items()]
-        band = ("the tolerance given" if tol is not None else
-                "max(2 % of the initial error, 2 × steady-state error), at most 20 % of the initial error")
-        return SummaryTable(title, cols, rows, (f"band: {band}; conv. time: from then on the error stays within it "
-                                                f"({MISSING}: not within the run)", *self._failure_lines(),
+        first = (f"band: the tolerance given; conv. time: from then on ‖x̂ − x‖ stays within it ({MISSING}: not within "
+                 "the run)" if tol is not None else
+                 "conv. time: from then on every state's error stays within its own band, in its own units: max(2 % of "
+                 "its initial error, 2 × its steady-state error), at most 20 % of its initial error unless that floor "
+                 f"is zero-mean noise ({MISSING}: not within the run); set by: the states that settle last, or do not "
+                 "settle")
+        return SummaryTable(title, cols, rows, (first, *self._failure_lines(),
                                                 *self._parameter_lines(),
                                                 *(f"note: {n}" for n in self.info.get("notes", ()))))
 
@@ -394,7 +403,7 @@ class Run:
             out["failed"] = list(self.failures)
         if self.x is not None:
             given = "convergence time: the first time after which ‖x̂ − x‖ stays within `tol`"
-            out["convergence_rule"] = given if tol is not None else CONVERGENCE_RULE
+            out["convergence_rule"] = given if tol is not None else PER_STATE_RULE
         if self.info.get("notes"):
             out["notes"] = list(self.info["notes"])
         return out

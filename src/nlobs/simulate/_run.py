@@ -31,7 +31,7 @@ from ..errors import DataError, EngineError, FiniteEscapeError, ModelError, Shap
 from ..model import ModelFile, ObserverConfig, System, input_signals
 from ..observer import AbstractObserver, Observer, ParticleObserver, as_observer
 from ._file import file_arguments, observers_of
-from ._options import Adaptive, Noise, ProcessNoise, Sampling
+from ._options import Adaptive, Noise, ProcessNoise, Sampling, channel_generators
 from ._options import xhat0_for as _xhat0_for
 from ._isolate import culprits, each_observer, isolate, merged, observer_fault
 from ._results import ObserverTrace, Run
@@ -489,14 +489,17 @@ class Prepared:
         return np.concatenate([head, self.plant.param_values if params is None else np.asarray(params, dtype=float)])
 
     def inputs_for(self, seed: int | None) -> np.ndarray:
-        """The per-step inputs with the noise of `seed` (measurement noise drawn first, then process noise)."""
+        """The per-step inputs with the noise of `seed` (a generator per output and per state: the noise of a step does
+        not depend on the horizon)."""
         N, plant = self.n_steps, self.plant
         columns = [self.base]
-        rng = np.random.default_rng(seed)
+        root = np.random.SeedSequence(seed)
         if self.noise is not None:
-            columns.append(self.noise.draw(rng, N + 1, plant.outputs, self.dt))
+            columns.append(self.noise.draw(channel_generators(root, "measurement", plant.n_outputs), N + 1, plant.outputs,
+                                           self.dt))
         if self.process_noise is not None:
-            columns.append(np.vstack([self.process_noise.draw(rng, N, plant.states, self.dt), np.zeros((1, plant.n_states))]))
+            columns.append(np.vstack([self.process_noise.draw(channel_generators(root, "process", plant.n_states), N,
+                                                              plant.states, self.dt), np.zeros((1, plant.n_states))]))
         if self.kind.sampled:
             columns.append(self.sample_flags())
         return columns[0] if len(columns) == 1 else np.hstack(columns)
