@@ -76,6 +76,18 @@ __all__ = ["ModelFile", "SimulationConfig", "ObserverConfig", "SensorConfig", "l
 
 _TOP = ("name", "description", "time", "sample_time", "states", "inputs", "outputs", "parameters", "tables", "definitions",
         "dynamics", "output", "units", "simulation", "observers", "sensors")
+def period_multiple_problem(period: float, dt: float) -> str:
+    """Why a sample `period` is not a whole multiple of the integration step `dt` ("" when it is): the simulation
+    samples on its RK4 grid. The tolerance is the one of :meth:`nlobs.simulate.Sampling.every`."""
+    m = float(period) / float(dt)
+    if abs(m - round(m)) <= 1e-9 * max(1.0, m) and round(m) >= 1:
+        return ""
+    k = max(1, round(m))
+    return (f"the sample period {period:g} s must be a whole multiple of dt = {dt:g} s (the simulation samples on its "
+            f"integration grid; here {m:.6g} steps): choose a period of {k * dt:g} s, or a dt that divides it "
+            f"({period:g} / {math.ceil(m)} = {period / math.ceil(m):.6g} s)")
+
+
 _SIM = ("t_final", "dt", "x0", "inputs", "noise", "noise_bound", "process_noise", "sample_period", "delay", "true_parameters",
         "initial_std", "seed")
 _PARAM_KEYS = ("value", "unknown")
@@ -482,6 +494,13 @@ class _Loader:
                 raise self.err(f"no period for {', '.join(missing)}: give one per output ({shorten_list(system.outputs)}), or "
                                "one number for all", "simulation.sample_period")
             out["sample_period"] = MappingProxyType(periods)
+        if not system.is_discrete and "dt" in out and "sample_period" in out:  # at once, not at the run's first sample
+            sp_ = out["sample_period"]
+            for key, period in ({f"sample_period.{k}": v for k, v in sp_.items()} if isinstance(sp_, Mapping)
+                                else {"sample_period": sp_}).items():
+                why = period_multiple_problem(period, out["dt"])
+                if why:
+                    raise self.err(why, f"simulation.{key}", period)
         if system.is_discrete:
             for k in ("dt", "sample_period"):
                 if k in out:
