@@ -76,6 +76,16 @@ __all__ = ["ModelFile", "SimulationConfig", "ObserverConfig", "SensorConfig", "l
 
 _TOP = ("name", "description", "time", "sample_time", "states", "inputs", "outputs", "parameters", "tables", "definitions",
         "dynamics", "output", "units", "simulation", "observers", "sensors")
+def _depth(expr: sp.Expr) -> int:
+    """The nesting depth of an expression tree, level by level (iterative: the tree may be too deep for recursion;
+    a subtree shared by many parents is visited once per level)."""
+    depth, level = 0, {id(expr): expr}
+    while level:
+        depth += 1
+        level = {id(a): a for e in level.values() for a in getattr(e, "args", ())}
+    return depth
+
+
 def period_multiple_problem(period: float, dt: float) -> str:
     """Why a sample `period` is not a whole multiple of the integration step `dt` ("" when it is): the simulation
     samples on its RK4 grid. The tolerance is the one of :meth:`nlobs.simulate.Sampling.every`."""
@@ -378,6 +388,13 @@ class _Loader:
             system = System(states=states, f=f, outputs=outputs, h=h, inputs=inputs, params=params, name=name, **base)
         except ModelError as e:
             raise self.err(str(e)) from None
+        except RecursionError:  # SymPy walks trees recursively: a long chain of nested calls exhausts Python's stack
+            keys = [*(f"dynamics.{k}" for k in states), *(f"output.{k}" for k in outputs)]
+            depth = [_depth(e) for e in (*f, *h)]
+            i = max(range(len(depth)), key=depth.__getitem__)
+            raise self.err(f"the expression nests {depth[i]} levels deep (calls within calls): SymPy, which nlobs's symbolic "
+                           "steps use, ran out of Python's recursion depth on it. Replace an inner call by a new state "
+                           "(z = g(x) with its own equation) or simplify the chain", keys[i]) from None
         units = self.units(doc, system)
         simulation = self.simulation(doc, system, definitions, unknown_params)
         observer_system = system.augmented(unknown_params)
