@@ -125,7 +125,8 @@ def simulate_map(plant: System, obs: Mapping[str, AbstractObserver], *, t_final:
     sx, st, su, sw = ca.SX.sym("x", plant.n_states), ca.SX.sym("t"), ca.SX.sym("u", plant.n_inputs), ca.SX.sym("w", plant.n_states)
     F = ca.Function("plant_map", [sx, st, su, sw], [f(st, sx, su) + sw])
     X = np.vstack([x, np.asarray(F.mapaccum(N)(x, t[None, :-1], U[:-1].T, W.T), dtype=float).T])
-    info = {"dt": Ts, "sampling": Ts, "time": "discrete", "sample_time": Ts, "engine": "vm", "seed": seed}
+    info = {"dt": Ts, "sampling": Ts, "time": "discrete", "sample_time": Ts, "engine": "vm", "seed": seed,
+            "noisy": noise is not None or process_noise is not None}
     k = _first_escape(X, escape_bound)
     if k is not None:
         err = FiniteEscapeError("plant", float(t[k - 1]), X[k - 1], plant.states, escape_bound,

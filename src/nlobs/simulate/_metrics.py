@@ -18,6 +18,9 @@ larger: a state that started right and was pulled off by the others) and its own
 floor is noise — zero-mean over the tail (``|mean| <= NOISE_MEAN × RMS``): a state that started
 inside the noise of its sensor, or whose noise exceeds a fifth of its start, is inside its floor,
 while a constant bias or a state the observer cannot correct (mean ≈ RMS) still has not converged.
+On a run with noise, a state whose error rises as well as falls over the tail is taken to be at
+its floor even when the medians of the two last windows say it is still decreasing (a parameter's
+estimate wandering over a few dozen samples); noise-free, the classical 2 % band stays.
 The convergence time is the latest of the states' times, and the states that set it are named.
 
 Below the noise floor a fixed fraction of the initial error is crossed by every noise peak, so
@@ -224,13 +227,18 @@ class StateConvergence:
     set_by: tuple[int, ...]
 
 
-def state_convergence(t: np.ndarray, E: np.ndarray, e0: np.ndarray, *, tail: float = 0.2) -> StateConvergence:
+def state_convergence(t: np.ndarray, E: np.ndarray, e0: np.ndarray, *, tail: float = 0.2,
+                      noisy: bool = False) -> StateConvergence:
     """Convergence judged per state: `E` (N, n) the signed errors x̂ − x, `e0` (n,) the initial errors before any
-    measurement (see :data:`PER_STATE_RULE`)."""
+    measurement (states beyond its length: their first error), see :data:`PER_STATE_RULE`. `noisy`: the run had noise,
+    so a state's error that rises again over the tail is at its floor even when the medians of the two windows before
+    the end say it is still decreasing (a slowly wandering estimate of a parameter, over a few dozen samples)."""
     t = np.asarray(t, dtype=float)
     E = np.asarray(E, dtype=float).reshape(t.size, -1)
     e0 = np.abs(np.asarray(e0, dtype=float).reshape(-1))
     n = E.shape[1]
+    if e0.size < n:
+        e0 = np.concatenate([e0, np.abs(E[0, e0.size:])])
     last = t >= t[-1] - tail * (t[-1] - t[0])
     times, bands, basis = np.full(n, np.nan), np.zeros(n), []
     for i in range(n):
@@ -238,6 +246,15 @@ def state_convergence(t: np.ndarray, E: np.ndarray, e0: np.ndarray, *, tail: flo
         # the state's largest deviation: its initial error, or a later one when it started right and was disturbed
         ref = max(float(e0[i]), float(np.max(a)) if np.all(np.isfinite(a)) else np.inf)
         band = convergence_band(t, a, e0=ref, tail=tail)
+        if noisy and band.steady_error is None and band.basis == "initial":
+            up = np.diff(a[last])
+            if up.size and np.any(up > 0) and np.all(np.isfinite(a[last])):  # the tail rises as well as falls: its floor
+                steady = float(np.max(a[last]))
+                band = Band(band.tol, band.basis, band.initial_error, steady)
+                if FLOOR_FACTOR * steady > band.tol:
+                    band = Band(FLOOR_FACTOR * steady, "steady", band.initial_error, steady)
+                    if band.tol > MAX_BAND * ref:
+                        band = Band(MAX_BAND * ref, "cap", band.initial_error, steady)
         tol, why = band.tol, band.basis
         if why == "cap" and band.steady_error is not None:
             tail_e = E[last, i]
@@ -255,7 +272,7 @@ def state_convergence(t: np.ndarray, E: np.ndarray, e0: np.ndarray, *, tail: flo
 
 
 def state_metrics(t: np.ndarray, E: np.ndarray, e0: np.ndarray, names: tuple[str, ...] | list[str], *,
-                  tail: float = 0.2) -> Metrics:
+                  tail: float = 0.2, noisy: bool = False) -> Metrics:
     """:class:`Metrics` of the signed errors `E` (N, n) with the convergence judged per state (:func:`state_convergence`):
     the errors on the norm, ``tol`` the norm of the states' bands (‖x̂ − x‖ stays within it from the convergence time on,
     as every state stays within its own), ``bands`` each state's band and ``set_by`` the states that set the time."""
@@ -264,7 +281,7 @@ def state_metrics(t: np.ndarray, E: np.ndarray, e0: np.ndarray, names: tuple[str
     if not 0 < tail <= 1:
         raise ValueError(f"`tail` must be in (0, 1], got {tail}")
     e = np.linalg.norm(E, axis=1)
-    sc = state_convergence(t, E, e0, tail=tail)
+    sc = state_convergence(t, E, e0, tail=tail, noisy=noisy)
     start = np.searchsorted(t, t[-1] - tail * (t[-1] - t[0]), side="left")
     tc, after = sc.time, None
     if tc is not None:
@@ -272,6 +289,6 @@ def state_metrics(t: np.ndarray, E: np.ndarray, e0: np.ndarray, names: tuple[str
         tc = float(tc - t[0])
     steady = steady_state_error(t, e, tail=tail)
     return Metrics(float(e[-1]), float(np.sqrt(np.mean(e[start:] ** 2))), float(np.max(e)), tc, after,
-                   float(np.linalg.norm(sc.bands)), "per state", float(np.linalg.norm(e0)), steady,
+                   float(np.linalg.norm(sc.bands)), "per state", float(np.linalg.norm(np.asarray(e0, dtype=float))), steady,
                    {names[i]: float(b) for i, b in enumerate(sc.bands)}, tuple(names[i] for i in sc.set_by),
                    {names[i]: b for i, b in enumerate(sc.basis)})

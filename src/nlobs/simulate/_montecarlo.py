@@ -58,6 +58,7 @@ class ObserverStats:
     tol: float | None = None  #: an absolute convergence tolerance replacing the rule (see ``Run.metrics``)
     #: (M,) runs in which this observer failed while the plant and the other observers completed (None: none)
     failed: np.ndarray | None = field(default=None, repr=False)
+    noisy: bool = False  #: the runs had noise (see :func:`nlobs.simulate._metrics.state_convergence`)
 
     @functools.cached_property
     def error_norm(self) -> np.ndarray:
@@ -73,7 +74,7 @@ class ObserverStats:
             if self.tol is not None:  # the tolerance on ‖x̂ − x‖, as in Run.metrics
                 tc = convergence_time(t, row, convergence_band(t, row, e0=float(np.linalg.norm(e0)), tol=self.tol).tol)
             else:  # each state in its own units, as in Run.metrics (PER_STATE_RULE)
-                tc = state_convergence(t, self.xhat[j] - self.x[j], e0).time
+                tc = state_convergence(t, self.xhat[j] - self.x[j], e0, noisy=self.noisy).time
             out[j] = np.nan if tc is None else tc
         return out
 
@@ -507,7 +508,7 @@ def _result(spec: _Spec, S: np.ndarray, O: np.ndarray, status: np.ndarray, tol: 
                                   np.zeros(prep.plant.n_inputs), np.zeros(prep.plant.n_outputs))
             return prior - spec.x0
 
-        stats[name] = ObserverStats(name, xhats[name], t, x, initial_errors, tol, observer_failed[name])
+        stats[name] = ObserverStats(name, xhats[name], t, x, initial_errors, tol, observer_failed[name], prep.seeded)
     return MonteCarloResult(prep.plant.name, t, x, spec.seeds, status, stats, failures, N, info, spec, inputs)
 
 

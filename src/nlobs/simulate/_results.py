@@ -215,7 +215,8 @@ class Run:
         if trace.xhat_prior is not None and self.x is not None:
             e0 = trace.xhat_prior[:self.x.shape[1]] - self.x[0]
         if tol is None:  # each state in its own units (PER_STATE_RULE)
-            return state_metrics(self.t, E, e0, self.state_names[:E.shape[1]], tail=tail)
+            noisy = bool(self.info.get("noisy", True))  # a simulation says; recorded data has noise
+            return state_metrics(self.t, E, e0, self.state_names[:E.shape[1]], tail=tail, noisy=noisy)
         return error_metrics(self.t, np.linalg.norm(E, axis=1), tol=tol, e0=float(np.linalg.norm(e0)), tail=tail)
 
     def noise_gain(self, name: str | None = None, *, tail: float = 0.2) -> float:

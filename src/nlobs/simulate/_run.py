@@ -312,6 +312,7 @@ class Simulation:
         self._alone: dict[str, Simulation] = {}
         self.engine = engine
         self._info = {"dt": dt, "sampling": None if sampling is None else sampling.period, "engine": engine,
+                      "noisy": self._prep.seeded,
                       "integrator": "rk4" if integrator is None else
                       f"cvodes ({integrator.method}, rtol={integrator.rtol:g}, atol={integrator.atol:g})"}
         self._c = self._prep.constants()
