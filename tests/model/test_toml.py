@@ -164,3 +164,19 @@ def test_without_dt_the_default_step_is_checked_before_the_run_naming_file_and_k
     assert main(["simulate", str(p)]) == 1
     err = capsys.readouterr().err
     assert str(p) in err and "key `simulation.sample_period`" in err and "dt = 0.001" in err and "not set" in err
+
+
+@pytest.mark.parametrize("where", ["expression", "parameter"])
+def test_a_4301_digit_integer_is_refused_in_nlobs_own_words(where):
+    """Issue 44, item 8c: Python refuses integer literals of more than 4300 digits with a hint to call
+    sys.set_int_max_str_digits; the model parser says it in its own words, with the key or the line."""
+    big = "1" * 4301
+    text = ('name = "b"\nstates = ["x"]\noutputs = ["y"]\n' +
+            (f'[dynamics]\nx = "-x + {big}"\n' if where == "expression" else
+             f'[parameters]\nk = {big}\n[dynamics]\nx = "-k*x"\n') + '[output]\ny = "x"\n')
+    with pytest.raises(ModelFileError) as err:
+        loads_model(text, path="b.toml")
+    msg = str(err.value)
+    assert "set_int_max_str_digits" not in msg and "hexadecimal" not in msg
+    assert "an integer of 4,301 digits" in msg and "at most 1e300 in magnitude" in msg
+    assert ("key `dynamics.x`" in msg) if where == "expression" else ("(line 5)" in msg)

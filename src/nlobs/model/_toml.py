@@ -67,7 +67,7 @@ import sympy as sp
 from .._text import LabelError, check_label, shorten, shorten_list
 from ..errors import ModelError, ModelFileError
 from ._budget import check_tree
-from ._expr import CONSTANTS, FUNCTIONS, ExpressionError, parse_expression
+from ._expr import CONSTANTS, FUNCTIONS, ExpressionError, huge_integer, parse_expression
 from ._library import LibraryEntry, bundled_folder, bundled_names, bundled_path
 from ._system import _NAME, RESERVED, TIME, System, symbol
 from ._tables import Table, parse_table
@@ -276,6 +276,11 @@ def loads_model(text: str, *, path: str = "<string>", default_name: str = "model
     except RecursionError:
         raise ModelFileError("not valid TOML for nlobs: arrays or tables are nested too deeply", path=path) from None
     except ValueError as e:  # e.g. an integer of more than 4300 digits
+        huge = huge_integer(str(e))
+        if huge:
+            line = next((i + 1 for i, ln in enumerate(text.splitlines()) if re.search(r"\d{4301}", ln)), None)
+            raise ModelFileError(f"not valid TOML for nlobs: {huge}" + (f" (line {line})" if line else ""),
+                                 path=path) from None
         raise ModelFileError(f"not valid TOML for nlobs: a value cannot be read ({shorten(str(e), 80)}); "
                              "numbers must be ordinary floats or integers", path=path) from None
     return _Loader(path).load(doc, default_name)
