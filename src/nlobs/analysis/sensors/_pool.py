@@ -21,6 +21,8 @@ __all__ = ["Candidate", "sensor_pool", "DEFAULT_RELATIVE_NOISE"]
 #: The noise of a default candidate that the file gives none (a state, or an output without ``[simulation] noise``):
 #: this fraction of the largest magnitude it reads at the samples of the ``[simulation]`` run (of 1 when it reads 0).
 DEFAULT_RELATIVE_NOISE = 0.01
+#: A candidate whose readings stay within this fraction of the largest state magnitude on the run reads 0 (rounding).
+ROUNDING = 1e-12
 
 _NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
 
@@ -166,17 +168,24 @@ def sensor_pool(model: ModelFile | System, candidates: Any = None) -> tuple[Cand
     return _default_pool(system, mf.simulation if mf is not None else None)
 
 
-def with_default_noise(pool: Sequence[Candidate], readings: np.ndarray) -> tuple[Candidate, ...]:
+def with_default_noise(pool: Sequence[Candidate], readings: np.ndarray, states: np.ndarray | None = None) -> tuple[Candidate, ...]:
     """The pool with every missing noise set to :data:`DEFAULT_RELATIVE_NOISE` of the largest magnitude the candidate
-    reads at the run's samples (`readings`, one column per candidate)."""
+    reads at the run's samples (`readings`, one column per candidate). A candidate that reads 0 — or only rounding,
+    at most :data:`ROUNDING` × the largest magnitude of the run's `states` (a vertical speed of 1e-13 on a level
+    run) — gets :data:`DEFAULT_RELATIVE_NOISE` in its own units: 1 % of a rounding error would make it the most precise
+    sensor of the pool by twelve orders of magnitude and swamp every other candidate's information."""
+    run_scale = float(np.max(np.abs(states))) if states is not None and np.size(states) else 0.0
+    run_scale = run_scale if math.isfinite(run_scale) else 0.0
     out = []
     for j, c in enumerate(pool):
         if c.noise is not None:
             out.append(c)
             continue
         peak = float(np.max(np.abs(readings[:, j]))) if readings.size else 0.0
-        scale = peak if peak > 0 and math.isfinite(peak) else 1.0
-        src = (f"default: {DEFAULT_RELATIVE_NOISE:g} × max |{c.name}| at the samples" if peak > 0
-               else f"default: {DEFAULT_RELATIVE_NOISE:g} (it reads 0 on the run)")
+        zero = not (peak > ROUNDING * run_scale and math.isfinite(peak))
+        scale = 1.0 if zero else peak
+        src = (f"default: {DEFAULT_RELATIVE_NOISE:g} × max |{c.name}| at the samples" if not zero
+               else f"default: {DEFAULT_RELATIVE_NOISE:g} (it reads 0 on the run" +
+               (f", to rounding: max {peak:.2g}" if peak > 0 else "") + "; give its noise)")
         out.append(Candidate(c.name, c.expr, DEFAULT_RELATIVE_NOISE * scale, c.cost, c.text, c.origin, src))
     return tuple(out)

@@ -211,7 +211,7 @@ def _fisher(system: System, pool: Sequence[Candidate], unknown: Sequence[str], c
     fi = candidate_fisher(plant, [c.expr for c in pool], np.ones(len(pool)), x0=_get(cfg, "x0"), t_final=t_final, dt=dt,
                           inputs=dict(_get(cfg, "inputs", {}) or {}), sample_period=period, unknown_params=unknown,
                           names=[c.name for c in pool], engine=engine)
-    pool = with_default_noise(pool, fi.outputs)
+    pool = with_default_noise(pool, fi.outputs, fi.states)
     sigma = np.array([c.noise for c in pool], dtype=float)
     fi = CandidateFisher(fi.names, fi.unknowns, fi.information / sigma[:, None, None] ** 2, fi.times, fi.dt, fi.states,
                          fi.outputs, None, fi.method)
