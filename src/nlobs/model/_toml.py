@@ -101,7 +101,7 @@ def period_multiple_problem(period: float, dt: float) -> str:
 _SIM = ("t_final", "dt", "x0", "inputs", "noise", "noise_bound", "process_noise", "sample_period", "delay", "true_parameters",
         "initial_std", "seed")
 _PARAM_KEYS = ("value", "unknown")
-_SENSOR_KEYS = ("expr", "noise", "cost")
+_SENSOR_KEYS = ("expr", "noise", "cost", "period")
 #: Observer names become JSON keys, CSV column prefixes and C file names: a conservative alphabet.
 _OBSERVER_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_-]{0,59}")
 
@@ -174,6 +174,9 @@ class SensorConfig:
         Its cost (>= 0; default 1).
     text : str
         The expression as written.
+    period : float or None
+        Its own sample period on the ``[simulation]`` run (default: the run's ``sample_period``, the fastest one
+        when there is one per output).
     """
 
     name: str
@@ -181,6 +184,7 @@ class SensorConfig:
     noise: float
     cost: float = 1.0
     text: str = ""
+    period: float | None = None
 
 
 @dataclass(frozen=True)
@@ -632,7 +636,7 @@ class _Loader:
             extra = [k for k in spec if k not in _SENSOR_KEYS]
             if extra:
                 raise self.err(f"unknown key `{shorten(extra[0], 40)[1:-1]}`; a sensor table has `expr`, `noise` and "
-                               "optionally `cost`", f"{key}.{extra[0]}")
+                               "optionally `cost` and `period`", f"{key}.{extra[0]}")
             for k in ("expr", "noise"):
                 if k not in spec:
                     what = ("what it measures (an expression of the states, inputs, parameters and t)" if k == "expr" else
@@ -646,8 +650,9 @@ class _Loader:
             cost = self.number(spec.get("cost", 1.0), f"{key}.cost")
             if cost < 0:
                 raise self.err("must be non-negative", f"{key}.cost", spec["cost"])
+            period = self.number(spec["period"], f"{key}.period", positive=True) if "period" in spec else None
             text = spec["expr"] if isinstance(spec["expr"], str) else repr(spec["expr"])
-            out[name] = SensorConfig(name, expr, noise, cost, text)
+            out[name] = SensorConfig(name, expr, noise, cost, text, period)
         return MappingProxyType(out)
 
     def with_definitions(self, value: Any, definitions: Mapping[str, sp.Expr], key: str) -> Any:

@@ -135,7 +135,12 @@ def _set_errors(mf: ModelFile, sel: Any, members: Sequence[int], seeds: int, eng
     t = fi.times
     sigs = input_signals(mf.system, dict(mf.simulation.inputs), mf.system.params)
     u = np.array([np.broadcast_to(np.asarray(s(t), dtype=float), t.shape) for s in sigs]).reshape(len(sigs), t.size).T
-    y_true = fi.outputs[:, list(members)]
+    y_true = fi.outputs[:, list(members)].copy()
+    periods = sel.run.get("periods")
+    if periods and sel.run.get("sample_period"):  # each sensor at its own rate: not measured (NaN) between its samples
+        for j, name in enumerate(names):
+            k = int(round(periods[name] / sel.run["sample_period"]))
+            y_true[np.arange(t.size) % k != 0, j] = np.nan
     errors = []
     rng = np.random.default_rng(mf.simulation.seed if mf.simulation.seed is not None else 0)
     for draw in range(seeds):

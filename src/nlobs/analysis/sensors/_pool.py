@@ -45,6 +45,9 @@ class Candidate:
         ``"file"`` ([sensors.NAME]), ``"given"`` (the API), ``"state"`` or ``"output"`` (the default pool).
     noise_source : str
         Where the noise comes from.
+    period : float or None
+        Its own sample period on the run (``[sensors.NAME] period``, or an output's own ``[simulation] sample_period``);
+        None: the run's.
     """
 
     name: str
@@ -54,6 +57,7 @@ class Candidate:
     text: str = ""
     origin: str = "given"
     noise_source: str = ""
+    period: float | None = None
 
 
 def _symbols(system: System, definitions: Mapping[str, sp.Expr]) -> dict[str, sp.Expr]:
@@ -136,7 +140,9 @@ def _default_pool(system: System, simulation: Any) -> tuple[Candidate, ...]:
             sigma, src = float(bound[o]) / math.sqrt(3.0), "[simulation] noise_bound / √3"
         else:
             sigma, src = None, ""
-        out.append(Candidate(o, h, sigma, 1.0, str(h), "output", src))
+        per = getattr(simulation, "sample_period", None)
+        out.append(Candidate(o, h, sigma, 1.0, str(h), "output", src,
+                             float(per[o]) if isinstance(per, Mapping) and o in per else None))
     return tuple(out)
 
 
@@ -163,8 +169,8 @@ def sensor_pool(model: ModelFile | System, candidates: Any = None) -> tuple[Cand
     if candidates is not None:
         return _given(system, candidates, dict(mf.definitions) if mf is not None else {})
     if mf is not None and mf.sensors:
-        return tuple(Candidate(c.name, c.expr, c.noise, c.cost, c.text, "file", f"[sensors.{c.name}]")
-                     for c in mf.sensors.values())
+        return tuple(Candidate(c.name, c.expr, c.noise, c.cost, c.text, "file", f"[sensors.{c.name}]",
+                               getattr(c, "period", None)) for c in mf.sensors.values())
     return _default_pool(system, mf.simulation if mf is not None else None)
 
 
@@ -187,5 +193,5 @@ def with_default_noise(pool: Sequence[Candidate], readings: np.ndarray, states: 
         src = (f"default: {DEFAULT_RELATIVE_NOISE:g} × max |{c.name}| at the samples" if not zero
                else f"default: {DEFAULT_RELATIVE_NOISE:g} (it reads 0 on the run" +
                (f", to rounding: max {peak:.2g}" if peak > 0 else "") + "; give its noise)")
-        out.append(Candidate(c.name, c.expr, DEFAULT_RELATIVE_NOISE * scale, c.cost, c.text, c.origin, src))
+        out.append(Candidate(c.name, c.expr, DEFAULT_RELATIVE_NOISE * scale, c.cost, c.text, c.origin, src, c.period))
     return tuple(out)
