@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from ..design import design_ekf
-from ..errors import FiniteEscapeError, NlobsError
+from ..errors import DataError, FiniteEscapeError, NlobsError
 from ..model import ModelFile, input_signals
 from ..references import cite
 from ._recorded import Recording, estimate
@@ -149,7 +149,7 @@ def _set_errors(mf: ModelFile, sel: Any, members: Sequence[int], seeds: int, eng
         try:
             run = estimate({"ekf": design}, rec, smooth=True, xhat0=start, engine=engine, hold="linear",
                            max_step=fi.dt * (1 + 1e-12))
-        except (FiniteEscapeError, NlobsError) as e:
+        except (FiniteEscapeError, DataError) as e:  # non-finite, or rates so large an interval needs 1e8 steps
             what = "the smoother, going backwards," if "smoother diverged" in str(e) else "the filter"
             raise _Diverged(f"diverged: {what} on draw {draw + 1}: {_plain(str(e).splitlines()[0], renames)} (a prior "
                             f"σ₀ = {PRIOR_FACTOR:g} × bound too wide for the EKF's linearisation?)") from None
