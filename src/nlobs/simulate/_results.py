@@ -203,7 +203,7 @@ class Run:
 
         The convergence band is `tol` when given (on ‖x̂ − x‖), else judged per state in its own
         units (:data:`nlobs.simulate._metrics.PER_STATE_RULE`): each state's band is the larger of
-        2 % of its initial error before any measurement, |x̂ᵢ(0⁻) − xᵢ(0)| (which filters updating
+        2 % of its initial error before any measurement, ``|x̂ᵢ(0⁻) − xᵢ(0)|`` (which filters updating
         at t = 0 cannot game), and twice its steady-state error (the noise floor), at most 20 % of
         its initial error unless that floor is zero-mean noise; the time is the latest state's and
         ``set_by`` names those states. It does not depend on the run length, beyond the slow growth
