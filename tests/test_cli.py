@@ -116,14 +116,16 @@ def test_errors_under_json_are_one_json_object(capsys):
 
 
 def test_simulate_output_round_trips_through_estimate(tmp_path, capsys):
-    """simulate --output writes what a data logger would record (the sample instants of a sampled run), with the true
-    states; estimate reads it back and gets nearly the same estimates and metrics (nearly: the simulation saw the
-    input sin(t) continuously, the recording holds it between samples)."""
+    """simulate --output writes what a data logger would record: the outputs at the sample instants of a sampled run,
+    and every input sample (the input sin(t) changes at every step of 1 ms: every row, the outputs empty between
+    their samples; issue 44, item 3), with the true states; estimate reads it back and gets nearly the same estimates
+    and metrics (nearly: the simulation's RK4 saw sin(t) inside each step, the recording holds it over the step)."""
     sim_csv = tmp_path / "sim.csv"
     assert main(["simulate", PEND, "--t-final", "4", "--output", str(sim_csv), "--json"]) == 0
     sim = json.loads(capsys.readouterr().out)
     lines = sim_csv.read_text().splitlines()
-    assert lines[0] == "t,u,y,x1,x2,injection.x1,injection.x2,ekf.x1,ekf.x2" and len(lines) == 1 + 401  # 100 Hz samples
+    assert lines[0] == "t,u,y,x1,x2,injection.x1,injection.x2,ekf.x1,ekf.x2" and len(lines) == 1 + 4001  # every step
+    assert sum(line.split(",")[2] != "" for line in lines[1:]) == 401  # 100 Hz samples
     assert "e+" not in lines[1] and "000000000" not in lines[2]  # shortest exact floats, not %.18e
     assert main(["estimate", PEND, str(sim_csv), "--observer", "ekf", "--json"]) == 0
     est = json.loads(capsys.readouterr().out)

@@ -108,3 +108,93 @@ def test_run_adds_the_filter_errors(model, tmp_path, capsys):
     assert first["sensors"] == out["best"]["sensors"] and set(first["rms_error"]) == {"A", "B", "C", "D", "E", "F", "k"}
     assert all(v > 0 for v in first["rms_error"].values()) and out["filter"]["seeds"] == 2
     assert png.stat().st_size > 10_000
+
+
+REACTOR = """
+name = "reactor6"
+states = ["A", "B", "C", "D", "E", "F"]
+outputs = ["yF"]
+[parameters]
+k = { value = 0.8, unknown = true }
+[dynamics]
+A = "1 - 5*A - k*A*B"
+B = "2 - 4*B - k*A*B"
+C = "k*A*B - 6*C + 3*D"
+D = "5*C - 8*D"
+E = "4*D - 7*E + F"
+F = "3*E - 9*F"
+[output]
+yF = "F"
+[simulation]
+t_final = 10.0
+dt = 0.01
+x0 = [0.2, 0.5, 0.1, 0.0, 0.0, 0.0]
+sample_period = 0.1
+[sensors.sA]
+expr = "A"
+noise = 0.01
+[sensors.sB]
+expr = "B"
+noise = 0.01
+[sensors.sC]
+expr = "C"
+noise = 0.005
+[sensors.sD]
+expr = "D"
+noise = 0.005
+[sensors.E]
+expr = "E"
+noise = 0.005
+[sensors.F]
+expr = "F"
+noise = 0.005
+[sensors.sAB]
+expr = "A + B"
+noise = 0.01
+[sensors.sCD]
+expr = "C + D"
+noise = 0.005
+[sensors.sEF]
+expr = "E*F"
+noise = 0.001
+"""
+
+
+def test_run_on_a_stiff_reactor_prints_no_diverged_smoother_as_an_error(tmp_path, capsys):
+    """Issue 44, item 1: a reactor network whose fast modes (rates 4..9 per unit time, samples every 0.1) make the RTS
+    gain with Q = 0 the inverse flow, e^{~0.9} per sample: the smoothed x̂(0) was 1e135 or NaN and printed as an RMS
+    error. Now every error figure is finite and near its posterior bound (within a factor 3 over 4 draws, whose RMS is
+    uncertain by about 35 %), and a set whose filter or smoother diverges says so in the sensors' own names (a sensor
+    named like a state is not shown under the observer's internal rename E_)."""
+    p = tmp_path / "reactor6.toml"
+    p.write_text(REACTOR, encoding="utf-8")
+    png = tmp_path / "run.png"
+    assert main(["sensors", str(p), "--run", "--draws", "4", "--json", "--plot", str(png)]) == 0
+    out = json.loads(capsys.readouterr().out)["filter"]
+    assert len(out["sets"]) >= 4
+    for s in out["sets"]:
+        for u, v in s["rms_error"].items():
+            assert v is not None and 0 < v < 3 * s["posterior_bound"][u], (s["sensors"], u, v)
+    for f in out["failures"]:
+        assert f["status"] == "diverged" and f["error"].startswith("diverged")
+        assert "E_" not in f["error"] and "F_" not in f["error"] and "observer 'ekf'" not in f["error"]
+    assert main(["sensors", str(p), "--run", "--draws", "2"]) == 0
+    text = capsys.readouterr().out.split("Smoothed EKF")[1]
+    assert "nan" not in text and "inf" not in text and "e+1" not in text
+
+
+def test_the_plot_lists_only_the_dots_it_draws():
+    from nlobs.analysis import select_sensors
+    from nlobs.model import loads_model
+    from nlobs.report._sensors import plotted_sets, sensors_figure
+
+    sel = select_sensors(loads_model(MODEL))
+    first = plotted_sets(sel)[0]
+    label = "RMS error of a smoothed EKF's x̂(0)"
+    nan = {tuple(first.sensors): {u: float("nan") for u in sel.unknowns}}
+    assert label not in sensors_figure(sel, errors=nan).axes[0].get_legend_handles_labels()[1]
+    some = {tuple(first.sensors): {u: (0.01 if u == "A" else float("nan")) for u in sel.unknowns}}
+    ax = sensors_figure(sel, errors=some).axes[0]
+    assert ax.get_legend_handles_labels()[1].count(label) == 1
+    dots = [ln for ln in ax.get_lines() if ln.get_label() == label]
+    assert len(dots) == 1 and dots[0].get_xydata().shape[0] == 1

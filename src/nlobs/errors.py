@@ -22,6 +22,7 @@ __all__ = [
     "ModelError",
     "ModelFileError",
     "SymbolicBudgetError",
+    "ResourceError",
     "FormError",
     "ShapeError",
     "PreconditionError",
@@ -183,6 +184,23 @@ class TimeBudgetError(NlobsError, RuntimeError):
         super().__init__(f"did not finish within {seconds:g} s (its time budget; it was {what}). Give it more time "
                          "(nlobs design --run --budget SECONDS) or run it alone with nlobs simulate")
         self.seconds, self.what = float(seconds), what
+
+
+class ResourceError(NlobsError, MemoryError):
+    """A computation ran out of memory or of Python's recursion depth (a MemoryError, so code that catches those still
+    does); the message says which, where, and what to change.
+
+    Attributes
+    ----------
+    resource : str
+        ``"memory"`` or ``"recursion depth"``.
+    stage : str
+        What was running.
+    """
+
+    def __init__(self, resource: str, stage: str, advice: str):
+        super().__init__(f"ran out of {resource} during {stage}" + (f". {advice}" if advice else ""))
+        self.resource, self.stage = resource, stage
 
 
 class ConvergenceWarning(UserWarning):

@@ -419,3 +419,82 @@ def test_a_smoothed_kalman_filter_reaches_the_posterior_bound_on_the_lti_model(l
     assert np.max(np.abs(post / want - 1)) < 1e-6
     assert np.all(np.abs(rms / want - 1) < 0.12), rms / want      # 3 σ of the RMS of 300 draws
     assert "RMS error of x̂(0)" in str(out) and out.to_dict()["sets"][0]["sensors"] == list(best)
+
+
+LEVEL = """
+name = "level"
+states = ["px", "vx", "th", "vz", "b"]
+inputs = ["ax"]
+outputs = ["gx"]
+[dynamics]
+px = "vx"
+vx = "ax - b"
+th = "0.3"
+vz = "vx*(sin(th)**2 + cos(th)**2 - 1)"
+b = "0"
+[output]
+gx = "px"
+[simulation]
+t_final = 20.0
+dt = 0.01
+x0 = [0.0, 1.0, 0.0, 0.0, 0.05]
+inputs = { ax = "sin(t)" }
+sample_period = 0.1
+"""
+
+
+def test_a_default_candidate_that_reads_only_rounding_gets_a_noise_in_its_own_units():
+    """Issue 44, item 2: the vertical speed of a level run is sin² + cos² − 1 times the speed, rounding only (about
+    1e-16 on the run). Its default noise was 1 % of that (about 1e-18): the most precise sensor of the pool by twelve
+    orders of magnitude, whose information swamps every other's. It now gets 0.01 in its own units, said so, and
+    the whole pool is at least as informative as each of its subsets (F_pool >= F_S, so log det too)."""
+    sel = select_sensors(loads_model(LEVEL))
+    run_max = float(np.max(np.abs(sel.fisher.outputs[:, [c.name for c in sel.pool].index("vz")])))
+    assert run_max < 1e-12   # rounding, not a speed
+    vz = next(c for c in sel.pool if c.name == "vz")
+    assert vz.noise == 0.01 and "reads 0 on the run" in vz.noise_source
+    pool = next(s for s in sel.sets if "pool" in s.roles)
+    assert all(math.isfinite(v) for v in pool.crb.values())
+    assert all(pool.log_det >= s.log_det - 1e-9 for s in sel.sets if s.log_det is not None and math.isfinite(s.log_det))
+
+
+RATES = """
+name = "cart2"
+states = ["p", "v", "b"]
+inputs = ["a"]
+outputs = ["gps", "wheel"]
+[dynamics]
+p = "v"
+v = "a - 0.1*v"
+b = "0"
+[output]
+gps = "p"
+wheel = "v + b"
+[simulation]
+t_final = 10.0
+dt = 0.01
+x0 = [0.0, 1.0, 0.3]
+inputs = { a = "sin(t)" }
+noise = { gps = 1.0, wheel = 0.1 }
+sample_period = { gps = 1.0, wheel = 0.1 }
+"""
+
+
+def test_each_candidate_is_sampled_at_its_own_rate():
+    """Issue 44, item 2: with a GPS at 1 s beside a wheel encoder at 0.1 s, the GPS candidate's information is that of
+    its 11 samples (the same as on a run sampled every 1 s), not of 101 samples at the fastest clock; a [sensors] table
+    sets its own `period`."""
+    mixed = select_sensors(loads_model(RATES))
+    alone = select_sensors(loads_model(RATES.replace("sample_period = { gps = 1.0, wheel = 0.1 }", "sample_period = 1.0")))
+    fast = select_sensors(loads_model(RATES.replace("sample_period = { gps = 1.0, wheel = 0.1 }", "sample_period = 0.1")))
+    i = [c.name for c in mixed.pool].index("gps")
+    j = [c.name for c in mixed.pool].index("wheel")
+    F_gps, F_alone = mixed.fisher.information[i], alone.fisher.information[[c.name for c in alone.pool].index("gps")]
+    assert np.allclose(F_gps, F_alone, rtol=1e-9, atol=1e-12 * np.abs(F_alone).max())
+    assert np.allclose(mixed.fisher.information[j], fast.fisher.information[[c.name for c in fast.pool].index("wheel")],
+                       rtol=1e-9, atol=0)
+    assert mixed.run["periods"]["gps"] == pytest.approx(1.0) and mixed.run["periods"]["wheel"] == pytest.approx(0.1)
+    table = RATES + '[sensors.gnss]\nexpr = "p"\nnoise = 1.0\nperiod = 1.0\n[sensors.odo]\nexpr = "v + b"\nnoise = 0.1\n'
+    sel = select_sensors(loads_model(table))
+    assert np.allclose(sel.fisher.information[0], F_alone, rtol=1e-9, atol=1e-12 * np.abs(F_alone).max())
+    assert any("odo" in n and "fastest" in n for n in sel.notes)

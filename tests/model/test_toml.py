@@ -123,3 +123,60 @@ def test_parameters_usable_in_simulation_inputs():
 
     sig = as_signal(mf.simulation.inputs["u"], name="u", params=mf.system.params)
     assert np.allclose(sig(np.array([0.3])), np.sin(0.6))
+
+
+PERIOD = """
+name = "bp"
+states = ["x"]
+outputs = ["y", "gps"]
+[dynamics]
+x = "-x"
+[output]
+y = "x"
+gps = "2*x"
+[simulation]
+t_final = 2.0
+dt = 0.005
+x0 = [1.0]
+"""
+
+
+@pytest.mark.parametrize("line, key", [("sample_period = 0.0123", "simulation.sample_period"),
+                                       ("sample_period = { y = 0.01, gps = 0.0123 }", "simulation.sample_period.gps")])
+def test_a_sample_period_off_the_integration_grid_is_refused_at_load_naming_file_and_key(tmp_path, line, key):
+    """Issue 44, item 8a: the period 0.0123 is 2.46 steps of dt = 0.005; said at once by load_model, with the file and
+    the key (before: "Sampling: the period 0.0123 must be a whole multiple of dt = 0.005" after the run had started)."""
+    p = tmp_path / "bp.toml"
+    p.write_text(PERIOD + line + "\n", encoding="utf-8")
+    with pytest.raises(ModelFileError) as err:
+        load_model(p)
+    msg = str(err.value)
+    assert str(p) in msg and f"key `{key}`" in msg and "whole multiple of dt = 0.005" in msg and "2.46 steps" in msg
+    p.write_text(PERIOD + line.replace("0.0123", "0.015") + "\n", encoding="utf-8")  # 3 steps: fine
+    assert load_model(p).simulation.sample_period is not None
+
+
+def test_without_dt_the_default_step_is_checked_before_the_run_naming_file_and_key(tmp_path, capsys):
+    from nlobs.cli import main
+
+    p = tmp_path / "bp.toml"
+    p.write_text(PERIOD.replace("dt = 0.005\n", "") + "sample_period = 0.0123\n", encoding="utf-8")
+    assert main(["simulate", str(p)]) == 1
+    err = capsys.readouterr().err
+    assert str(p) in err and "key `simulation.sample_period`" in err and "dt = 0.001" in err and "not set" in err
+
+
+@pytest.mark.parametrize("where", ["expression", "parameter"])
+def test_a_4301_digit_integer_is_refused_in_nlobs_own_words(where):
+    """Issue 44, item 8c: Python refuses integer literals of more than 4300 digits with a hint to call
+    sys.set_int_max_str_digits; the model parser says it in its own words, with the key or the line."""
+    big = "1" * 4301
+    text = ('name = "b"\nstates = ["x"]\noutputs = ["y"]\n' +
+            (f'[dynamics]\nx = "-x + {big}"\n' if where == "expression" else
+             f'[parameters]\nk = {big}\n[dynamics]\nx = "-k*x"\n') + '[output]\ny = "x"\n')
+    with pytest.raises(ModelFileError) as err:
+        loads_model(text, path="b.toml")
+    msg = str(err.value)
+    assert "set_int_max_str_digits" not in msg and "hexadecimal" not in msg
+    assert "an integer of 4,301 digits" in msg and "at most 1e300 in magnitude" in msg
+    assert ("key `dynamics.x`" in msg) if where == "expression" else ("(line 5)" in msg)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from nlobs import Noise, ShapeError, System, design_ekf, design_output_injection, montecarlo, simulate
-from nlobs.simulate import error_metrics
+from nlobs.simulate._metrics import state_metrics
 
 PEND = System(states=["x1", "x2"], f=["x2", "-a*sin(x1) - 0.5*x2 + u"], inputs=["u"], outputs=["y"], h=["x1"],
               params={"a": 9.81}, name="pend")
@@ -35,9 +35,8 @@ def test_each_run_is_the_simulation_with_its_seed(mc):
 def test_statistics_match_the_per_run_numbers(mc):
     o = mc.observers["inj"]
     assert o.error_norm.shape == (12, 401) and mc.t[-1] == pytest.approx(4.0)
-    e0 = np.linalg.norm(X0, axis=1)  # x̂(0) = 0
-    for j in range(12):  # the band of each run as in Run.metrics (the same rule, on the saved grid)
-        tc = error_metrics(mc.t, o.error_norm[j], e0=e0[j]).convergence_time
+    for j in range(12):  # each run judged as in Run.metrics (per state, the same rule, on the saved grid; x̂(0) = 0)
+        tc = state_metrics(mc.t, o.xhat[j] - mc.x[j], -X0[j], ["x1", "x2"], noisy=True).convergence_time
         assert (np.isnan(o.convergence_time[j]) and tc is None) or o.convergence_time[j] == tc
     # a run that starts on the true state has converged at t = 0, which is not "never" (NaN)
     exact = montecarlo(PEND, {"ekf": EKF}, t_final=1.0, dt=1e-3, x0=X0[:3], xhat0=X0[:3], inputs={"u": "sin(t)"}, seed=5)
@@ -105,8 +104,8 @@ def test_metrics_are_computed_only_when_read(monkeypatch):
     mcm = importlib.import_module("nlobs.simulate._montecarlo")
 
     calls = []
-    real = mcm.convergence_time
-    monkeypatch.setattr(mcm, "convergence_time", lambda *a, **k: calls.append(1) or real(*a, **k))
+    real = mcm.state_convergence
+    monkeypatch.setattr(mcm, "state_convergence", lambda *a, **k: calls.append(1) or real(*a, **k))
     sys_ = System(states=["x"], f=["-x"], outputs=["y"], h=["x"], name="decay")
     obs = design_output_injection(sys_, poles=[-3])
     mc = montecarlo(sys_, {"o": obs}, t_final=2.0, dt=0.01, x0=np.linspace(-1, 1, 12)[:, None], engine="vm")

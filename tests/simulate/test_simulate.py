@@ -289,3 +289,31 @@ class TestInputArrays:
             self._run({"u": np.zeros(1000)})
         with pytest.raises(nlobs.ShapeError, match="as many values as times"):
             self._run({"u": ([0.0, 1.0, 2.0], [0.0, 2.0])})
+
+
+@pytest.mark.parametrize("sampling, hold", [(None, None), (Sampling(0.05), None), (None, 0.03)])
+def test_a_seed_fixes_the_noise_of_every_sample_whatever_the_horizon(sampling, hold):
+    """Issue 44, item 6: a 10 s run's measurement noise and process noise equal the first 10 s of a 20 s run's with the
+    same seed (before, one generator drew every output's noise, then the process noise, so each depended on t_final);
+    the measurement noise does not change when process noise is added; another seed gives other noise."""
+    plant = System(states=["p", "v"], f=["v", "-p - 0.2*v"], outputs=["y1", "y2"], h=["p", "v"])
+    noise = Noise.per_output({"y1": 0.1}, {"y2": 0.05}, hold=hold)
+    kw = dict(dt=0.01, x0=[1.0, 0.0], noise=noise, process_noise=ProcessNoise([0.01, 0.02]), sampling=sampling)
+    short, long_ = (simulate(plant, None, t_final=T, seed=7, **kw) for T in (10.0, 20.0))
+    n = short.t.size
+    v_short, v_long = short.y - short.y_true, long_.y - long_.y_true
+    assert np.std(v_short[:, 0]) > 0.05 and np.array_equal(v_short, v_long[:n])
+    assert np.std(np.diff(short.x[:, 1])) > 0 and np.array_equal(short.x, long_.x[:n])   # the same process noise path
+    quiet = simulate(plant, None, t_final=10.0, seed=7, **{**kw, "process_noise": None})
+    at = slice(None, None, 5) if sampling else slice(None)  # a sampled output is held between its samples
+    assert np.allclose((quiet.y - quiet.y_true)[at], v_short[at], rtol=0, atol=1e-12)  # (y = y_true + v, rounded)
+    other = simulate(plant, None, t_final=10.0, seed=8, **kw)
+    assert not np.allclose(other.y - other.y_true, v_short)
+
+
+def test_a_discrete_time_run_keeps_its_noise_when_the_horizon_grows():
+    plant = System(states=["x"], f=["0.9*x"], outputs=["y"], h=["x"], time="discrete", sample_time=0.1)
+    kw = dict(x0=[1.0], noise=Noise.gaussian(0.1), process_noise=ProcessNoise(0.05), seed=3)
+    short, long_ = simulate(plant, None, t_final=5.0, **kw), simulate(plant, None, t_final=9.0, **kw)
+    n = short.t.size
+    assert np.array_equal(short.y, long_.y[:n]) and np.array_equal(short.x, long_.x[:n])

@@ -236,3 +236,29 @@ def test_plot_of_a_smoothed_run_shows_the_filtered_estimate_too():
     ys = [ln.get_ydata() for ln in fig.axes[1].get_lines()]
     assert np.allclose(ys[1], run.observers["ekf"].filtered[:, 1]) and np.allclose(ys[2], run.observers["ekf"].xhat[:, 1])
     assert len(fig.axes[2].get_lines()) == 2  # error norms: filtered (dotted) and smoothed
+
+
+STIFF = nlobs.System(states=["a", "b", "c"], f=["-30*a + b", "-40*b + c", "-50*c"], outputs=["y"], h=["a + b + c"])
+
+
+def _stiff_recording(N: int = 100, dt: float = 0.1) -> Recording:
+    rng = np.random.default_rng(1)
+    t = np.arange(N) * dt
+    return Recording.from_arrays(STIFF, t, 0.01 * rng.standard_normal((N, 1)))
+
+
+def test_a_diverged_backward_pass_is_refused_not_returned():
+    """Issue 44, item 1: with Q = 0 on a contracting flow the RTS gain is Φ⁻¹ (growth e^{3..5} per sample here), so the
+    backward pass amplifies rounding beyond any bound. A smoothed variance never exceeds the filtered one (Rauch,
+    Tung & Striebel 1965), so the result is refused with where it failed instead of returned as numbers."""
+    d = nlobs.design_ekf(STIFF, Q=np.zeros((3, 3)), R=[[1e-4]], P0=np.eye(3), xhat0=[1.0, 1.0, 1.0])
+    with pytest.raises(nlobs.errors.FiniteEscapeError, match=r"smoother diverged going backwards: at t = .* \(row \d+\)"):
+        nlobs.estimate({"ekf": d}, _stiff_recording(), smooth=True)
+
+
+def test_with_a_small_process_noise_the_same_smoother_stays_below_the_filter():
+    d = nlobs.design_ekf(STIFF, Q=np.eye(3) * 1e-10, R=[[1e-4]], P0=np.eye(3), xhat0=[1.0, 1.0, 1.0])
+    tr = nlobs.estimate({"ekf": d}, _stiff_recording(), smooth=True).observers["ekf"]
+    Ps, zf = tr.smoothed_covariance, tr.z[:, 3:].reshape(-1, 3, 3)
+    vs, vf = np.einsum("kii->ki", Ps), np.einsum("kii->ki", zf)
+    assert np.isfinite(tr.xhat).all() and np.all(vs <= vf * (1 + 1e-6) + 1e-15)

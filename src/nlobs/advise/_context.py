@@ -298,6 +298,15 @@ def _scenario(mf: ModelFile | None, simulation: Any, system: System, unknown: Se
         pstd = np.array([float(cfg.process_noise.get(k, 0.0)) for k in names])
     periods = dict(cfg.sample_period) if isinstance(cfg.sample_period, Mapping) else None
     fastest = min(periods.values()) if periods else (float(cfg.sample_period) if cfg.sample_period else None)
+    if not system.is_discrete and cfg.sample_period:  # at once, before any trial run, with the file and the key
+        from ..model._toml import period_multiple_problem
+
+        for key, period in ({f"sample_period.{k}": v for k, v in periods.items()} if periods
+                            else {"sample_period": cfg.sample_period}).items():
+            why = period_multiple_problem(period, dt)
+            if why:
+                where = f"{mf.path}, key `simulation.{key}`" if mf is not None else f"[simulation] {key}"
+                raise ModelError(f"{where}: {why}" + ("" if cfg.dt else " ([simulation] dt is not set: the default 1e-3)"))
     return Scenario(t_final, dt, np.asarray(cfg.x0, dtype=float), dict(cfg.inputs), noise, std, pstd, fastest, cfg.seed,
                     periods, dict(getattr(cfg, "delay", None) or {}) or None,
                     dict(getattr(cfg, "initial_std", None) or {}) or None)

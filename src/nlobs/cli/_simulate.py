@@ -37,8 +37,9 @@ def add_parser(sub: Any) -> None:
     s.add_argument("--seed", type=int, help="noise seed (default: the file's)")
     s.add_argument("--engine", choices=("auto", "vm", "c"), default="auto", help=HELP_ENGINE)
     s.add_argument("--tol", type=positive_float,
-                   help="absolute convergence tolerance on ‖x̂ − x‖ (default: the band max(2%% of the initial error, "
-                        "2 × the steady-state error), at most 20%% of the initial error)")
+                   help="absolute convergence tolerance on ‖x̂ − x‖ (default: each state judged in its own units, "
+                        "its band max(2%% of its initial error, 2 × its steady-state error), at most 20%% of its initial "
+                        "error unless that floor is zero-mean noise; the summary names the states that set the time)")
     s.add_argument("--output", metavar="CSV",
                    help="write t, inputs, outputs, true states and each observer's estimate (NAME.STATE) to a CSV that "
                         "`nlobs estimate` reads back; a sampled run writes its sample instants")

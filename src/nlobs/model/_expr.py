@@ -21,6 +21,7 @@ from typing import Any
 
 import ast
 import math
+import re
 from collections.abc import Callable, Mapping
 
 import sympy as sp
@@ -199,16 +200,26 @@ def _sum_chunks(text: str) -> list[str]:
     return [text[a:b] for a, b in zip(bounds, bounds[1:])]
 
 
+def huge_integer(message: str) -> str | None:
+    """nlobs's own words for Python's refusal of an integer literal of more than 4300 digits (whose message points to
+    ``sys.set_int_max_str_digits``), else None."""
+    m = re.search(r"integer string conversion: value has (\d+) digits", message)
+    if not m:
+        return None
+    return (f"an integer of {int(m.group(1)):,} digits: a number in a model must be finite and at most 1e300 in "
+            "magnitude (a double's range); check the number")
+
+
 def _parse(text: str) -> ast.expr:
     try:
         tree = ast.parse(text.strip(), mode="eval")
     except SyntaxError as e:
-        raise ExpressionError(f"not a valid expression ({e.msg})") from None
+        raise ExpressionError(huge_integer(str(e.msg)) or f"not a valid expression ({e.msg})") from None
     except RecursionError:
         raise ExpressionError("the expression is nested too deeply (or is too long a chain) for Python's parser; "
                               "split it into shorter expressions") from None
     except (ValueError, MemoryError, OverflowError) as e:
-        raise ExpressionError(f"cannot be parsed ({type(e).__name__})") from None
+        raise ExpressionError(huge_integer(str(e)) or f"cannot be parsed ({type(e).__name__})") from None
     return tree.body
 
 

@@ -68,7 +68,7 @@ import sympy as sp
 from .._text import LabelError, check_label, shorten, shorten_list
 from ..errors import ModelError, ModelFileError
 from ._budget import check_tree
-from ._expr import CONSTANTS, FUNCTIONS, ExpressionError, parse_expression
+from ._expr import CONSTANTS, FUNCTIONS, ExpressionError, huge_integer, parse_expression
 from ._library import LibraryEntry, bundled_folder, bundled_names, bundled_path
 from ._system import _NAME, RESERVED, TIME, System, symbol
 from ._tables import Table, parse_table
@@ -77,10 +77,32 @@ __all__ = ["ModelFile", "SimulationConfig", "ObserverConfig", "SensorConfig", "l
 
 _TOP = ("name", "description", "time", "sample_time", "states", "inputs", "outputs", "parameters", "tables", "definitions",
         "dynamics", "output", "units", "simulation", "observers", "sensors")
+def _depth(expr: sp.Expr) -> int:
+    """The nesting depth of an expression tree, level by level (iterative: the tree may be too deep for recursion;
+    a subtree shared by many parents is visited once per level)."""
+    depth, level = 0, {id(expr): expr}
+    while level:
+        depth += 1
+        level = {id(a): a for e in level.values() for a in getattr(e, "args", ())}
+    return depth
+
+
+def period_multiple_problem(period: float, dt: float) -> str:
+    """Why a sample `period` is not a whole multiple of the integration step `dt` ("" when it is): the simulation
+    samples on its RK4 grid. The tolerance is the one of :meth:`nlobs.simulate.Sampling.every`."""
+    m = float(period) / float(dt)
+    if abs(m - round(m)) <= 1e-9 * max(1.0, m) and round(m) >= 1:
+        return ""
+    k = max(1, round(m))
+    return (f"the sample period {period:g} s must be a whole multiple of dt = {dt:g} s (the simulation samples on its "
+            f"integration grid; here {m:.6g} steps): choose a period of {k * dt:g} s, or a dt that divides it "
+            f"({period:g} / {math.ceil(m)} = {period / math.ceil(m):.6g} s)")
+
+
 _SIM = ("t_final", "dt", "x0", "inputs", "noise", "noise_bound", "process_noise", "sample_period", "delay", "true_parameters",
         "initial_std", "seed")
 _PARAM_KEYS = ("value", "unknown")
-_SENSOR_KEYS = ("expr", "noise", "cost")
+_SENSOR_KEYS = ("expr", "noise", "cost", "period")
 #: Observer names become JSON keys, CSV column prefixes and C file names: a conservative alphabet.
 _OBSERVER_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_-]{0,59}")
 
@@ -153,6 +175,9 @@ class SensorConfig:
         Its cost (>= 0; default 1).
     text : str
         The expression as written.
+    period : float or None
+        Its own sample period on the ``[simulation]`` run (default: the run's ``sample_period``, the fastest one
+        when there is one per output).
     """
 
     name: str
@@ -160,6 +185,7 @@ class SensorConfig:
     noise: float
     cost: float = 1.0
     text: str = ""
+    period: float | None = None
 
 
 @dataclass(frozen=True)
@@ -255,6 +281,11 @@ def loads_model(text: str, *, path: str = "<string>", default_name: str = "model
     except RecursionError:
         raise ModelFileError("not valid TOML for nlobs: arrays or tables are nested too deeply", path=path) from None
     except ValueError as e:  # e.g. an integer of more than 4300 digits
+        huge = huge_integer(str(e))
+        if huge:
+            line = next((i + 1 for i, ln in enumerate(text.splitlines()) if re.search(r"\d{4301}", ln)), None)
+            raise ModelFileError(f"not valid TOML for nlobs: {huge}" + (f" (line {line})" if line else ""),
+                                 path=path) from None
         raise ModelFileError(f"not valid TOML for nlobs: a value cannot be read ({shorten(str(e), 80)}); "
                              "numbers must be ordinary floats or integers", path=path) from None
     return _Loader(path).load(doc, default_name)
@@ -367,6 +398,13 @@ class _Loader:
             system = System(states=states, f=f, outputs=outputs, h=h, inputs=inputs, params=params, name=name, **base)
         except ModelError as e:
             raise self.err(str(e)) from None
+        except RecursionError:  # SymPy walks trees recursively: a long chain of nested calls exhausts Python's stack
+            keys = [*(f"dynamics.{k}" for k in states), *(f"output.{k}" for k in outputs)]
+            depth = [_depth(e) for e in (*f, *h)]
+            i = max(range(len(depth)), key=depth.__getitem__)
+            raise self.err(f"the expression nests {depth[i]} levels deep (calls within calls): SymPy, which nlobs's symbolic "
+                           "steps use, ran out of Python's recursion depth on it. Replace an inner call by a new state "
+                           "(z = g(x) with its own equation) or simplify the chain", keys[i]) from None
         units = self.units(doc, system)
         simulation = self.simulation(doc, system, definitions, unknown_params)
         observer_system = system.augmented(unknown_params)
@@ -483,6 +521,13 @@ class _Loader:
                 raise self.err(f"no period for {', '.join(missing)}: give one per output ({shorten_list(system.outputs)}), or "
                                "one number for all", "simulation.sample_period")
             out["sample_period"] = MappingProxyType(periods)
+        if not system.is_discrete and "dt" in out and "sample_period" in out:  # at once, not at the run's first sample
+            sp_ = out["sample_period"]
+            for key, period in ({f"sample_period.{k}": v for k, v in sp_.items()} if isinstance(sp_, Mapping)
+                                else {"sample_period": sp_}).items():
+                why = period_multiple_problem(period, out["dt"])
+                if why:
+                    raise self.err(why, f"simulation.{key}", period)
         if system.is_discrete:
             for k in ("dt", "sample_period"):
                 if k in out:
@@ -598,7 +643,7 @@ class _Loader:
             extra = [k for k in spec if k not in _SENSOR_KEYS]
             if extra:
                 raise self.err(f"unknown key `{shorten(extra[0], 40)[1:-1]}`; a sensor table has `expr`, `noise` and "
-                               "optionally `cost`", f"{key}.{extra[0]}")
+                               "optionally `cost` and `period`", f"{key}.{extra[0]}")
             for k in ("expr", "noise"):
                 if k not in spec:
                     what = ("what it measures (an expression of the states, inputs, parameters and t)" if k == "expr" else
@@ -612,8 +657,9 @@ class _Loader:
             cost = self.number(spec.get("cost", 1.0), f"{key}.cost")
             if cost < 0:
                 raise self.err("must be non-negative", f"{key}.cost", spec["cost"])
+            period = self.number(spec["period"], f"{key}.period", positive=True) if "period" in spec else None
             text = spec["expr"] if isinstance(spec["expr"], str) else repr(spec["expr"])
-            out[name] = SensorConfig(name, expr, noise, cost, text)
+            out[name] = SensorConfig(name, expr, noise, cost, text, period)
         return MappingProxyType(out)
 
     def with_definitions(self, value: Any, definitions: Mapping[str, sp.Expr], key: str) -> Any:

@@ -65,10 +65,13 @@ def sensors_figure(sel: Any, *, max_sets: int = MAX_SETS, sets: Sequence[Any] | 
             for p in pos[inf]:
                 ax.text(p, top, "∞", ha="center", va="bottom", fontsize=9, color=f"C{j % 10}")
         err = (errors or {}).get(tuple(s.sensors))
-        if err:
+        if err:  # only the finite, positive errors are dots (a log axis draws no other); the legend names drawn ones only
             ev = np.array([err.get(n, np.nan) for n in names], dtype=float)
-            ax.plot(pos, ev, "o", color="k", ms=4, label="RMS error of a smoothed EKF's x̂(0)" if not dots else None)
-            dots = True
+            shown = np.isfinite(ev) & (ev > 0)
+            if shown.any():
+                ax.plot(pos[shown], ev[shown], "o", color="k", ms=4,
+                        label="RMS error of a smoothed EKF's x̂(0)" if not dots else None)
+                dots = True
     ax.set_yscale("log")
     ax.set_ylim(lo / 3, top * 3)
     ax.set_xticks(x, names)

@@ -24,7 +24,7 @@ from ..model import System, input_signals
 from ..engine import Backend
 from ..observer import AbstractObserver, ParticleObserver, compiled_observer
 from ._isolate import each_observer, failure_of, observer_fault
-from ._options import Noise, ProcessNoise, Sampling
+from ._options import Noise, ProcessNoise, Sampling, channel_generators
 from ._options import xhat0_for as _xhat0_for
 from ._results import ObserverTrace, Run
 
@@ -116,14 +116,17 @@ def simulate_map(plant: System, obs: Mapping[str, AbstractObserver], *, t_final:
         raise ShapeError(f"{caller}: `x0` must be {plant.n_states - len(x0_tail)} finite numbers "
                          f"({', '.join(plant.states[:plant.n_states - len(x0_tail)])})")
     U = _signals(plant, inputs, t)
-    rng = np.random.default_rng(seed)
-    V = noise.draw(rng, N + 1, plant.outputs, Ts) if noise is not None else np.zeros((N + 1, plant.n_outputs))
-    W = process_noise.draw(rng, N, plant.states, 1.0) if process_noise is not None else np.zeros((N, plant.n_states))
+    root = np.random.SeedSequence(seed)  # a generator per output and per state: the noise of a step does not depend on N
+    V = (noise.draw(channel_generators(root, "measurement", plant.n_outputs), N + 1, plant.outputs, Ts)
+         if noise is not None else np.zeros((N + 1, plant.n_outputs)))
+    W = (process_noise.draw(channel_generators(root, "process", plant.n_states), N, plant.states, 1.0)
+         if process_noise is not None else np.zeros((N, plant.n_states)))
     f, h = compile_system(plant).bind()
     sx, st, su, sw = ca.SX.sym("x", plant.n_states), ca.SX.sym("t"), ca.SX.sym("u", plant.n_inputs), ca.SX.sym("w", plant.n_states)
     F = ca.Function("plant_map", [sx, st, su, sw], [f(st, sx, su) + sw])
     X = np.vstack([x, np.asarray(F.mapaccum(N)(x, t[None, :-1], U[:-1].T, W.T), dtype=float).T])
-    info = {"dt": Ts, "sampling": Ts, "time": "discrete", "sample_time": Ts, "engine": "vm", "seed": seed}
+    info = {"dt": Ts, "sampling": Ts, "time": "discrete", "sample_time": Ts, "engine": "vm", "seed": seed,
+            "noisy": noise is not None or process_noise is not None}
     k = _first_escape(X, escape_bound)
     if k is not None:
         err = FiniteEscapeError("plant", float(t[k - 1]), X[k - 1], plant.states, escape_bound,

@@ -7,6 +7,7 @@ the same conversion (one place turns the table into Noise, ProcessNoise and Samp
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 from ..design import check_identifiable
@@ -84,6 +85,18 @@ def file_arguments(mf: ModelFile, observers: Any = None, **given: Any) -> dict[s
         out["delay"] = dict(cfg.delay)
     if "sampling" not in out and cfg.sample_period:
         out["sampling"] = Sampling(cfg.sample_period)
+        if out.get("dt"):  # before anything runs: the file's periods against the step this run uses
+            from ..model._toml import period_multiple_problem
+
+            sp = cfg.sample_period
+            for key, period in ({f"sample_period.{k}": v for k, v in sp.items()} if isinstance(sp, Mapping)
+                                else {"sample_period": sp}).items():
+                why = period_multiple_problem(period, float(out["dt"]))
+                if why:
+                    dt_from = (f"[simulation] dt = {cfg.dt:g}" if cfg.dt is not None and float(out["dt"]) == cfg.dt else
+                               "the step given for this run" if cfg.dt is not None else
+                               "[simulation] dt is not set: the default step 1e-3, or the step given for this run")
+                    raise ModelError(f"{mf.path}, key `simulation.{key}`: {why} ({dt_from})")
     if "seed" not in out and cfg.seed is not None:
         out["seed"] = cfg.seed
     return out

@@ -23,7 +23,7 @@ from ..design import check_positive
 from ..engine import Backend, evaluate_many, run_batch, saved_steps
 from ..errors import FiniteEscapeError, ModelError, ShapeError, SolverError
 from ..model import System
-from ._metrics import convergence_band, convergence_time
+from ._metrics import convergence_band, convergence_time, state_convergence
 from ._options import Noise, ProcessNoise, Sampling
 from ._results import Run
 from ._run import Prepared, prepare, simulate
@@ -54,10 +54,11 @@ class ObserverStats:
     xhat: np.ndarray
     t: np.ndarray = field(repr=False)
     x: np.ndarray = field(repr=False)
-    initial_errors: Callable[[], np.ndarray] = field(repr=False)  #: ‖x̂(0⁻) − x(0)‖ of each run, computed on demand
+    initial_errors: Callable[[], np.ndarray] = field(repr=False)  #: x̂(0⁻) − x(0) of each run (M, n), computed on demand
     tol: float | None = None  #: an absolute convergence tolerance replacing the rule (see ``Run.metrics``)
     #: (M,) runs in which this observer failed while the plant and the other observers completed (None: none)
     failed: np.ndarray | None = field(default=None, repr=False)
+    noisy: bool = False  #: the runs had noise (see :func:`nlobs.simulate._metrics.state_convergence`)
 
     @functools.cached_property
     def error_norm(self) -> np.ndarray:
@@ -68,9 +69,13 @@ class ObserverStats:
         t, e = self.t, self.error_norm
         out = np.full(e.shape[0], np.nan)
         for j, (row, e0) in enumerate(zip(e, self.initial_errors())):
-            if np.all(np.isfinite(row)):  # the band of each run as in Run.metrics (CONVERGENCE_RULE)
-                tc = convergence_time(t, row, convergence_band(t, row, e0=e0, tol=self.tol).tol)
-                out[j] = np.nan if tc is None else tc
+            if not np.all(np.isfinite(row)):
+                continue
+            if self.tol is not None:  # the tolerance on ‖x̂ − x‖, as in Run.metrics
+                tc = convergence_time(t, row, convergence_band(t, row, e0=float(np.linalg.norm(e0)), tol=self.tol).tol)
+            else:  # each state in its own units, as in Run.metrics (PER_STATE_RULE)
+                tc = state_convergence(t, self.xhat[j] - self.x[j], e0, noisy=self.noisy).time
+            out[j] = np.nan if tc is None else tc
         return out
 
     @functools.cached_property
@@ -298,9 +303,10 @@ def montecarlo(
     save_every : int, optional
         Keep every k-th step (default: about a thousand saved times); the final time is always kept.
     tol : float, optional
-        Absolute convergence tolerance (default: each run's band as in :meth:`Run.metrics`, the larger
-        of 2 % of its initial error ‖x̂(0⁻) − x(0)‖ and twice its steady-state error, at most 20 % of
-        the initial error; see :data:`nlobs.simulate.CONVERGENCE_RULE`).
+        Absolute convergence tolerance on ‖x̂ − x‖ (default: each run judged per state in its own units
+        as in :meth:`Run.metrics`: each state's band the larger of 2 % of its initial error and twice
+        its steady-state error, at most 20 % of its initial error unless that floor is zero-mean noise;
+        see :data:`nlobs.simulate._metrics.PER_STATE_RULE`).
     engine : {"auto", "vm", "c", "jax"}
         ``"jax"`` (the optional ``nlobs[jax]`` extra): the same compiled step as one XLA program over every run
         (vmap over runs, scan over steps), on a GPU when JAX has one; equal to the C engine to rounding.
@@ -502,9 +508,9 @@ def _result(spec: _Spec, S: np.ndarray, O: np.ndarray, status: np.ndarray, tol: 
         def initial_errors(o: Any = o, name: str = name) -> np.ndarray:
             prior = evaluate_many(o.design.output, np.zeros((spec.x0.shape[0], 1)), evaluate_many(o.design.initial, spec.xhat0[name]),
                                   np.zeros(prep.plant.n_inputs), np.zeros(prep.plant.n_outputs))
-            return np.linalg.norm(prior - spec.x0, axis=1)
+            return prior - spec.x0
 
-        stats[name] = ObserverStats(name, xhats[name], t, x, initial_errors, tol, observer_failed[name])
+        stats[name] = ObserverStats(name, xhats[name], t, x, initial_errors, tol, observer_failed[name], prep.seeded)
     return MonteCarloResult(prep.plant.name, t, x, spec.seeds, status, stats, failures, N, info, spec, inputs)
 
 

@@ -73,6 +73,30 @@ def _steps(period: float, dt: float) -> int:
 
 Kind = Literal["gaussian", "uniform"]
 
+#: The noise streams of a seed: each channel of each stream has a generator of its own.
+STREAMS = {"measurement": 0, "process": 1}
+
+
+def channel_generators(seed: int | np.random.SeedSequence | None, stream: str, n: int) -> list[np.random.Generator]:
+    """One generator per channel (output or state) of `stream` ("measurement" or "process"), each a child of the
+    seed's SeedSequence keyed by (stream, channel). A channel's generator is drawn sample by sample in time order, so
+    the noise of sample k depends on the seed, the stream, the channel and k only: a 10 s run has the noise of the first
+    10 s of a 20 s run with the same seed, and adding process noise does not change the measurement noise."""
+    root = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+    key = STREAMS[stream]
+    return [np.random.Generator(np.random.PCG64(np.random.SeedSequence(root.entropy, spawn_key=(*root.spawn_key, key, j))))
+            for j in range(n)]
+
+
+def _generators(rng: Any, n: int) -> list[np.random.Generator]:
+    """Per-channel generators from one generator (shared by every channel, drawn channel after channel) or a list."""
+    if isinstance(rng, np.random.Generator):
+        return [rng] * n
+    rngs = list(rng)
+    if len(rngs) != n:
+        raise ValueError(f"noise: {len(rngs)} generators for {n} channels")
+    return rngs
+
 
 def _per_channel(scale: float | Sequence[float] | Mapping[str, float], names: Sequence[str], what: str) -> np.ndarray:
     if isinstance(scale, Mapping):
@@ -131,8 +155,10 @@ class Noise:
     def scales(self, names: Sequence[str]) -> np.ndarray:
         return _per_channel(self.scale, names, "Noise")
 
-    def draw(self, rng: np.random.Generator, n_rows: int, names: Sequence[str], dt: float | None = None) -> np.ndarray:
-        """Samples of shape (n_rows, len(names)), one per step of size `dt` (needed with `hold`)."""
+    def draw(self, rng: np.random.Generator | Sequence[np.random.Generator], n_rows: int, names: Sequence[str],
+             dt: float | None = None) -> np.ndarray:
+        """Samples of shape (n_rows, len(names)), one per step of size `dt` (needed with `hold`). `rng`: one generator,
+        or one per output (:func:`channel_generators`: the noise of a sample then does not depend on `n_rows`)."""
         if self.hold is not None:
             if dt is None:
                 raise ValueError("Noise with `hold` needs the step `dt` to draw")
@@ -141,12 +167,12 @@ class Noise:
             return np.repeat(fresh, every, axis=0)[:n_rows]
         s = self.scales(names)
         out = np.zeros((n_rows, len(names)))
-        for j, name in enumerate(names):
+        for j, (name, g) in enumerate(zip(names, _generators(rng, len(names)))):
             kind = self.kinds.get(name, "gaussian") if isinstance(self.kinds, Mapping) else self.kinds
             if kind == "gaussian":
-                out[:, j] = s[j] * rng.standard_normal(n_rows)
+                out[:, j] = s[j] * g.standard_normal(n_rows)
             elif kind == "uniform":
-                out[:, j] = rng.uniform(-s[j], s[j], n_rows)
+                out[:, j] = g.uniform(-s[j], s[j], n_rows)
             else:
                 raise ValueError(f"Noise: unknown kind {kind!r}; use 'gaussian' or 'uniform'")
         return out
@@ -161,9 +187,15 @@ class ProcessNoise:
 
     std: float | Sequence[float] | Mapping[str, float]
 
-    def draw(self, rng: np.random.Generator, n_rows: int, names: Sequence[str], dt: float) -> np.ndarray:
+    def draw(self, rng: np.random.Generator | Sequence[np.random.Generator], n_rows: int, names: Sequence[str],
+             dt: float) -> np.ndarray:
+        """Increments of shape (n_rows, len(names)); `rng` as for :meth:`Noise.draw`."""
         s = _per_channel(self.std, names, "ProcessNoise")
-        return s * np.sqrt(dt) * rng.standard_normal((n_rows, len(names)))
+        if isinstance(rng, np.random.Generator):
+            return s * np.sqrt(dt) * rng.standard_normal((n_rows, len(names)))
+        xi = np.column_stack([g.standard_normal(n_rows) for g in _generators(rng, len(names))]) if names else \
+            np.zeros((n_rows, 0))
+        return s * np.sqrt(dt) * xi
 
 
 @dataclass(frozen=True)

@@ -165,10 +165,11 @@ class Recording:
 
     def clocked(self) -> bool:
         """Whether the missing outputs (NaN) are per-output clocks: each output is measured at regular times of its
-        own (a multi-rate recording: a GPS at 1 s beside a wheel encoder at 10 ms) and every row measures some output.
-        Such NaN cells mean "not measured at this row" and need no ``on_missing='skip'``."""
+        own (a multi-rate recording: a GPS at 1 s beside a wheel encoder at 10 ms; a 200 Hz input beside a 50 Hz
+        sensor, its rows between the sensor's samples carrying the input only). Such NaN cells mean "not measured at
+        this row" and need no ``on_missing='skip'``; a dropped sample breaks its output's clock."""
         finite = np.isfinite(self.y)
-        if not finite.any(axis=1).all():
+        if not finite.any():
             return False
         for j in np.flatnonzero(~finite.all(axis=0)):
             times = self.t[finite[:, j]]
@@ -413,7 +414,11 @@ def _estimate_one(name: str, o: AbstractObserver, recording: Recording, xhat0: A
     xs = traj.xhat
     if smooth:
         from ._smooth import rts_smooth
-        xs, Ps, how = rts_smooth(o.design, traj, u, y0, mask, hold=hold, engine=engine)
+        try:
+            xs, Ps, how = rts_smooth(o.design, traj, u, y0, mask, hold=hold, engine=engine)
+        except FiniteEscapeError as e:  # a diverged backward pass: never smoothed numbers in a result
+            raise FiniteEscapeError(f"observer {name!r}", e.t, e.x, o.system.states, np.inf,
+                                    message=f"observer {name!r} on the recording {recording.source}: {e}") from None
         smoothed = {"filtered": traj.xhat, "smoothed_covariance": Ps}
         info.update(smoother="urts" if o.design.method == "ukf" else "rts", **how)
     return ObserverTrace(name, o.design.method, o.design.z_names, traj.z, xs, traj.xhat_prior, innovation=innovation,

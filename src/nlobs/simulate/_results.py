@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from .._display import MISSING, Column, SummaryTable, fmt_number, short_repr
-from ._metrics import CONVERGENCE_RULE, Metrics, error_metrics
+from ._metrics import CONVERGENCE_RULE, PER_STATE_RULE, Metrics, error_metrics, state_metrics
 from ._whiteness import Whiteness, ljung_box
 
 __all__ = ["ObserverFailure", "ObserverTrace", "Run", "write_csv"]
@@ -201,18 +201,23 @@ class Run:
     def metrics(self, name: str | None = None, *, tol: float | None = None, tail: float = 0.2) -> Metrics:
         """Convergence time, RMS and peak errors of one observer (see :class:`Metrics`).
 
-        The convergence band is `tol` when given, else the larger of 2 % of the initial error
-        before any measurement, ‖x̂(0⁻) − x(0)‖ (which filters updating at t = 0 cannot game),
-        and twice the steady-state error (the noise floor), at most 20 % of the initial error
-        (:data:`nlobs.simulate.CONVERGENCE_RULE`). It does not depend on the run length, beyond
-        the slow growth of the largest noise peak with it.
+        The convergence band is `tol` when given (on ‖x̂ − x‖), else judged per state in its own
+        units (:data:`nlobs.simulate._metrics.PER_STATE_RULE`): each state's band is the larger of
+        2 % of its initial error before any measurement, ``|x̂ᵢ(0⁻) − xᵢ(0)|`` (which filters updating
+        at t = 0 cannot game), and twice its steady-state error (the noise floor), at most 20 % of
+        its initial error unless that floor is zero-mean noise; the time is the latest state's and
+        ``set_by`` names those states. It does not depend on the run length, beyond the slow growth
+        of the largest noise peak with it.
         """
         trace = self._trace(name)
-        e = self.error_norm(name)
-        e0 = None
+        E = self.error(name)
+        e0 = E[0]
         if trace.xhat_prior is not None and self.x is not None:
-            e0 = float(np.linalg.norm(trace.xhat_prior[:self.x.shape[1]] - self.x[0]))
-        return error_metrics(self.t, e, tol=tol, e0=e0, tail=tail)
+            e0 = trace.xhat_prior[:self.x.shape[1]] - self.x[0]
+        if tol is None:  # each state in its own units (PER_STATE_RULE)
+            noisy = bool(self.info.get("noisy", True))  # a simulation says; recorded data has noise
+            return state_metrics(self.t, E, e0, self.state_names[:E.shape[1]], tail=tail, noisy=noisy)
+        return error_metrics(self.t, np.linalg.norm(E, axis=1), tol=tol, e0=float(np.linalg.norm(e0)), tail=tail)
 
     def noise_gain(self, name: str | None = None, *, tail: float = 0.2) -> float:
         """RMS estimation error over the last `tail` of the run divided by the RMS of the
@@ -299,7 +304,9 @@ class Run:
                                 (*res.notes, *self._failure_lines(), *self._parameter_lines()))
         cols = [Column("observer", "observer", str, numeric=False), Column("final_error", "final err"),
                 Column("rms_error", "RMS (last 20%)"), Column("peak_error", "peak err"),
-                Column("convergence_time", "conv. time"), Column("tol", "band", lambda v: fmt_number(v, 2))]
+                Column("convergence_time", "conv. time")]
+        cols.append(Column("tol", "band", lambda v: fmt_number(v, 2)) if tol is not None else
+                    Column("set_by", "set by", lambda v: ", ".join(v) if v else MISSING, numeric=False))
         rows = [{"observer": n, **self.metrics(n, tol=tol).to_dict()} for n in self.observers]
         if self.failures:
             cols.append(Column("status", "status", str, numeric=False))
@@ -307,10 +314,13 @@ class Run:
                 r["status"] = "ok"
             rows += [{"observer": n, "status": f"FAILED after t = {f.t:.4g}" if f.t is not None else "FAILED"}
                      for n, f in self.failures.items()]
-        band = ("the tolerance given" if tol is not None else
-                "max(2 % of the initial error, 2 × steady-state error), at most 20 % of the initial error")
-        return SummaryTable(title, cols, rows, (f"band: {band}; conv. time: from then on the error stays within it "
-                                                f"({MISSING}: not within the run)", *self._failure_lines(),
+        first = (f"band: the tolerance given; conv. time: from then on ‖x̂ − x‖ stays within it ({MISSING}: not within "
+                 "the run)" if tol is not None else
+                 "conv. time: from then on every state's error stays within its own band, in its own units: max(2 % of "
+                 "its initial error, 2 × its steady-state error), at most 20 % of its initial error unless that floor "
+                 f"is zero-mean noise ({MISSING}: not within the run); set by: the states that settle last, or do not "
+                 "settle")
+        return SummaryTable(title, cols, rows, (first, *self._failure_lines(),
                                                 *self._parameter_lines(),
                                                 *(f"note: {n}" for n in self.info.get("notes", ()))))
 
@@ -394,7 +404,7 @@ class Run:
             out["failed"] = list(self.failures)
         if self.x is not None:
             given = "convergence time: the first time after which ‖x̂ − x‖ stays within `tol`"
-            out["convergence_rule"] = given if tol is not None else CONVERGENCE_RULE
+            out["convergence_rule"] = given if tol is not None else PER_STATE_RULE
         if self.info.get("notes"):
             out["notes"] = list(self.info["notes"])
         return out
@@ -405,24 +415,32 @@ class Run:
         Columns: ``t``, the inputs, the measured outputs, the true states (when known), then
         ``NAME.STATE`` for each observer's estimate. Numbers are written in their shortest form
         that reads back to the same double (Python's ``repr``); missing values as empty cells.
-        `every` keeps rows 0, k, 2k, ... (e.g. only the sample instants of a sampled run); with per-output sample
-        periods every output is written in the rows where it was sampled and left empty (NaN: not measured) in the
-        others, and `every` > 1 keeps the rows where any output was sampled. With measurement delays
+        `every` > 1 (a sampled run: `every` steps per sample) keeps the sample instants, rows 0, k, 2k, ... (with
+        per-output sample periods, the rows where any output was sampled), and every row where an input changes:
+        every input sample the run saw reaches the file (a 200 Hz input beside a 50 Hz sensor is written at
+        200 Hz), so ``estimate`` holding the inputs between rows drives its observers with the inputs of the run. An
+        output is written in the rows where it was sampled and left empty (NaN: not measured) in the others. With
+        measurement delays
         (``simulate(..., delay=...)``) a delayed output is written in the row where its sample arrived, as a logger
         records it: ``estimate`` with the same `delay` reads it back.
         """
         every = int(every)
         if every < 1:
             raise ValueError(f"to_csv: `every` must be a positive whole number of rows, got {every!r}")
-        keep = np.arange(0, self.t.size, every)
+        N = self.t.size
+        keep = np.arange(0, N, every)
         header = ["t", *self.input_names, *self.output_names]
         y = self.y
         measured = self.info.get("measured")
-        if measured is not None:   # per-output clocks: each output in the rows where it was sampled, empty elsewhere
+        if measured is None and every > 1:   # one clock: the rows 0, k, 2k, ... are the samples
+            measured = np.repeat((np.arange(N) % every == 0)[:, None], y.shape[1], axis=1)
+        if measured is not None:   # each output in the rows where it was sampled, empty elsewhere
             y = np.where(measured, y, np.nan)
             y, measured = self._stamped_at_arrival(y, measured)
             if every > 1:   # (and the first row: the run's start, where the observers start, even before anything arrived)
-                keep = np.flatnonzero(measured.any(axis=1) | (np.arange(self.t.size) == 0))
+                u = np.asarray(self.u, dtype=float).reshape(N, -1)
+                changed = np.r_[False, np.any(u[1:] != u[:-1], axis=1)] if N else np.zeros(0, dtype=bool)
+                keep = np.flatnonzero(measured.any(axis=1) | changed | (np.arange(N) == 0))
         blocks = [self.t[:, None], self.u, y]
         if self.x is not None:
             header += list(self.state_names[:self.x.shape[1]])  # recorded truth may lack the estimated parameters

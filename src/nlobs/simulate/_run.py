@@ -31,7 +31,7 @@ from ..errors import DataError, EngineError, FiniteEscapeError, ModelError, Shap
 from ..model import ModelFile, ObserverConfig, System, input_signals
 from ..observer import AbstractObserver, Observer, ParticleObserver, as_observer
 from ._file import file_arguments, observers_of
-from ._options import Adaptive, Noise, ProcessNoise, Sampling
+from ._options import Adaptive, Noise, ProcessNoise, Sampling, channel_generators
 from ._options import xhat0_for as _xhat0_for
 from ._isolate import culprits, each_observer, isolate, merged, observer_fault
 from ._results import ObserverTrace, Run
@@ -79,7 +79,8 @@ def stage_inputs(plant: System, inputs: Any, params: Mapping[str, float], t: np.
     """Inputs at the RK4 stages of each step: shape (N, 3·nu), blocks [u(t_k), u(t_k + dt/2), u(t_k + dt)].
 
     Held (piecewise-constant) signals use their left limit at t_k + dt, so a switch exactly
-    on the grid takes effect in the next step.
+    on the grid takes effect in the next step; a switch within 1e-9 dt of a grid time counts as on it (a
+    recorded input's 0.175 and the grid's 35 × 0.005 = 0.17500000000000002 are the same instant).
     """
     signals = input_signals(plant, inputs, params, grid=t)
     N, nu = t.size, plant.n_inputs
@@ -88,9 +89,10 @@ def stage_inputs(plant: System, inputs: Any, params: Mapping[str, float], t: np.
     # held signal switching at t_{k+1} would then leak its new value into the last stage of step k
     t_end = t + dt
     t_end[:-1] = np.where(np.abs(t_end[:-1] - t[1:]) <= 4 * np.spacing(np.abs(t[1:])), t[1:], t_end[:-1])
+    snap = 1e-9 * np.asarray(dt, dtype=float)
     for j, sig in enumerate(signals):
-        end = np.nextafter(t_end, -np.inf) if sig.held else t_end
-        for k, times in enumerate((t, t + dt / 2, end)):
+        start, end = (t + snap, t_end - snap) if sig.held else (t, t_end)
+        for k, times in enumerate((start, t + dt / 2, end)):
             v = sig(times)
             bad = np.flatnonzero(~np.isfinite(v))
             if bad.size:
@@ -313,6 +315,7 @@ class Simulation:
         self._alone: dict[str, Simulation] = {}
         self.engine = engine
         self._info = {"dt": dt, "sampling": None if sampling is None else sampling.period, "engine": engine,
+                      "noisy": self._prep.seeded,
                       "integrator": "rk4" if integrator is None else
                       f"cvodes ({integrator.method}, rtol={integrator.rtol:g}, atol={integrator.atol:g})"}
         self._c = self._prep.constants()
@@ -490,14 +493,17 @@ class Prepared:
         return np.concatenate([head, self.plant.param_values if params is None else np.asarray(params, dtype=float)])
 
     def inputs_for(self, seed: int | None) -> np.ndarray:
-        """The per-step inputs with the noise of `seed` (measurement noise drawn first, then process noise)."""
+        """The per-step inputs with the noise of `seed` (a generator per output and per state: the noise of a step does
+        not depend on the horizon)."""
         N, plant = self.n_steps, self.plant
         columns = [self.base]
-        rng = np.random.default_rng(seed)
+        root = np.random.SeedSequence(seed)
         if self.noise is not None:
-            columns.append(self.noise.draw(rng, N + 1, plant.outputs, self.dt))
+            columns.append(self.noise.draw(channel_generators(root, "measurement", plant.n_outputs), N + 1, plant.outputs,
+                                           self.dt))
         if self.process_noise is not None:
-            columns.append(np.vstack([self.process_noise.draw(rng, N, plant.states, self.dt), np.zeros((1, plant.n_states))]))
+            columns.append(np.vstack([self.process_noise.draw(channel_generators(root, "process", plant.n_states), N,
+                                                              plant.states, self.dt), np.zeros((1, plant.n_states))]))
         if self.kind.sampled:
             columns.append(self.sample_flags())
         return columns[0] if len(columns) == 1 else np.hstack(columns)

@@ -38,13 +38,16 @@ from ..design import ObserverDesign
 from ..engine import Backend, compile_system, rows
 from ..engine._integrate import rk4_step_rate
 from ..engine._intervals import IntervalRunner
-from ..errors import PreconditionError
+from ..errors import FiniteEscapeError, PreconditionError
 from ._loop import Loop
 
-__all__ = ["SMOOTHABLE", "rts_smooth", "check_smoothable"]
+__all__ = ["SMOOTHABLE", "rts_smooth", "check_smoothable", "INFLATION"]
 
 #: The observer kinds a fixed-interval smoother exists for (continuous-discrete, without state bounds).
 SMOOTHABLE = ("ekf", "ukf")
+#: A smoothed variance above INFLATION × the filtered one (plus rounding of the column's largest filtered variance)
+#: is a diverged backward pass: in exact arithmetic P^s_k <= P_k (Rauch, Tung & Striebel (1965)).
+INFLATION = 10.0
 
 
 def check_smoothable(design: ObserverDesign, name: str) -> None:
@@ -192,4 +195,33 @@ def rts_smooth(design: ObserverDesign, traj: Any, u: np.ndarray, y: np.ndarray, 
     out = np.vstack([sm, last])
     xs = out[:, :n].copy()
     Ps = out[:, n:].reshape(N, n, n).transpose(0, 2, 1).copy()  # column-major blocks
+    _check_backward(design, traj, xs, Ps, Pf.reshape(N, n, n))
     return xs, Ps, {"replay_difference": replay}
+
+
+def _check_backward(design: ObserverDesign, traj: Any, xs: np.ndarray, Ps: np.ndarray, Pf: np.ndarray) -> None:
+    """Refuse a backward pass that diverged: a non-finite smoothed row, or a smoothed variance above the filtered one
+    by more than INFLATION (the smoothed covariance never exceeds the filtered one; rounding aside, a larger one means
+    the recursion amplified its rounding errors, as G_k = P_k Φᵀ (Φ P_k Φᵀ + Q)⁻¹ = Φ⁻¹ does with Q = 0 on a
+    contracting flow)."""
+    names = design.system.states
+    n = len(names)
+    vs, vf = np.einsum("kii->ki", Ps), np.einsum("kii->ki", Pf)
+    slack = 1e-9 * np.max(np.abs(vf), axis=0)
+    finite = np.isfinite(xs).all(axis=1) & np.isfinite(vs).all(axis=1)
+    bad = ~finite | (vs > INFLATION * np.abs(vf) + slack).any(axis=1)
+    if not bad.any():
+        return
+    k = int(np.flatnonzero(bad)[-1])  # the backward pass goes from the end: its first bad row is the last one
+    if not finite[k]:
+        c = int(np.flatnonzero(~(np.isfinite(xs[k]) & np.isfinite(vs[k])))[0])
+        what = f"its estimate or variance of {names[c]} is not finite"
+    else:
+        c = int(np.argmax(vs[k] / np.maximum(np.abs(vf[k]) + slack, 1e-300)))
+        what = (f"its variance of {names[c]} is {vs[k, c]:.3g}, above the filter's {vf[k, c]:.3g} (a smoothed "
+                "variance never exceeds the filtered one)")
+    raise FiniteEscapeError("smoother", float(traj.t[k]), xs[k], names, np.inf,
+                            message=f"the smoother diverged going backwards: at t = {traj.t[k]:.6g} (row {k}) {what}. "
+                                    "With little or no process noise Q the backward gain inverts the model's flow and "
+                                    "amplifies rounding; give the filter a small Q (e.g. 1e-10 × the squared scale of "
+                                    "each state per unit time)")

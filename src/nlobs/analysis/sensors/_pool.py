@@ -21,6 +21,8 @@ __all__ = ["Candidate", "sensor_pool", "DEFAULT_RELATIVE_NOISE"]
 #: The noise of a default candidate that the file gives none (a state, or an output without ``[simulation] noise``):
 #: this fraction of the largest magnitude it reads at the samples of the ``[simulation]`` run (of 1 when it reads 0).
 DEFAULT_RELATIVE_NOISE = 0.01
+#: A candidate whose readings stay within this fraction of the largest state magnitude on the run reads 0 (rounding).
+ROUNDING = 1e-12
 
 _NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
 
@@ -43,6 +45,9 @@ class Candidate:
         ``"file"`` ([sensors.NAME]), ``"given"`` (the API), ``"state"`` or ``"output"`` (the default pool).
     noise_source : str
         Where the noise comes from.
+    period : float or None
+        Its own sample period on the run (``[sensors.NAME] period``, or an output's own ``[simulation] sample_period``);
+        None: the run's.
     """
 
     name: str
@@ -52,6 +57,7 @@ class Candidate:
     text: str = ""
     origin: str = "given"
     noise_source: str = ""
+    period: float | None = None
 
 
 def _symbols(system: System, definitions: Mapping[str, sp.Expr]) -> dict[str, sp.Expr]:
@@ -134,7 +140,9 @@ def _default_pool(system: System, simulation: Any) -> tuple[Candidate, ...]:
             sigma, src = float(bound[o]) / math.sqrt(3.0), "[simulation] noise_bound / √3"
         else:
             sigma, src = None, ""
-        out.append(Candidate(o, h, sigma, 1.0, str(h), "output", src))
+        per = getattr(simulation, "sample_period", None)
+        out.append(Candidate(o, h, sigma, 1.0, str(h), "output", src,
+                             float(per[o]) if isinstance(per, Mapping) and o in per else None))
     return tuple(out)
 
 
@@ -161,22 +169,29 @@ def sensor_pool(model: ModelFile | System, candidates: Any = None) -> tuple[Cand
     if candidates is not None:
         return _given(system, candidates, dict(mf.definitions) if mf is not None else {})
     if mf is not None and mf.sensors:
-        return tuple(Candidate(c.name, c.expr, c.noise, c.cost, c.text, "file", f"[sensors.{c.name}]")
-                     for c in mf.sensors.values())
+        return tuple(Candidate(c.name, c.expr, c.noise, c.cost, c.text, "file", f"[sensors.{c.name}]",
+                               getattr(c, "period", None)) for c in mf.sensors.values())
     return _default_pool(system, mf.simulation if mf is not None else None)
 
 
-def with_default_noise(pool: Sequence[Candidate], readings: np.ndarray) -> tuple[Candidate, ...]:
+def with_default_noise(pool: Sequence[Candidate], readings: np.ndarray, states: np.ndarray | None = None) -> tuple[Candidate, ...]:
     """The pool with every missing noise set to :data:`DEFAULT_RELATIVE_NOISE` of the largest magnitude the candidate
-    reads at the run's samples (`readings`, one column per candidate)."""
+    reads at the run's samples (`readings`, one column per candidate). A candidate that reads 0 — or only rounding,
+    at most :data:`ROUNDING` × the largest magnitude of the run's `states` (a vertical speed of 1e-13 on a level
+    run) — gets :data:`DEFAULT_RELATIVE_NOISE` in its own units: 1 % of a rounding error would make it the most precise
+    sensor of the pool by twelve orders of magnitude and swamp every other candidate's information."""
+    run_scale = float(np.max(np.abs(states))) if states is not None and np.size(states) else 0.0
+    run_scale = run_scale if math.isfinite(run_scale) else 0.0
     out = []
     for j, c in enumerate(pool):
         if c.noise is not None:
             out.append(c)
             continue
         peak = float(np.max(np.abs(readings[:, j]))) if readings.size else 0.0
-        scale = peak if peak > 0 and math.isfinite(peak) else 1.0
-        src = (f"default: {DEFAULT_RELATIVE_NOISE:g} × max |{c.name}| at the samples" if peak > 0
-               else f"default: {DEFAULT_RELATIVE_NOISE:g} (it reads 0 on the run)")
-        out.append(Candidate(c.name, c.expr, DEFAULT_RELATIVE_NOISE * scale, c.cost, c.text, c.origin, src))
+        zero = not (peak > ROUNDING * run_scale and math.isfinite(peak))
+        scale = 1.0 if zero else peak
+        src = (f"default: {DEFAULT_RELATIVE_NOISE:g} × max |{c.name}| at the samples" if not zero
+               else f"default: {DEFAULT_RELATIVE_NOISE:g} (it reads 0 on the run" +
+               (f", to rounding: max {peak:.2g}" if peak > 0 else "") + "; give its noise)")
+        out.append(Candidate(c.name, c.expr, DEFAULT_RELATIVE_NOISE * scale, c.cost, c.text, c.origin, src, c.period))
     return tuple(out)

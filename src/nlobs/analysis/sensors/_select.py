@@ -199,10 +199,24 @@ def _fisher(system: System, pool: Sequence[Candidate], unknown: Sequence[str], c
     plant = system.with_params(**true) if true else system
     period = _get(cfg, "sample_period")
     if isinstance(period, Mapping):
-        fastest = min(float(v) for v in period.values())
-        notes.append(f"the outputs have sample periods of their own: every candidate is taken every {fastest:g} (the "
-                     "fastest)")
-        period = fastest
+        period = min(float(v) for v in period.values())   # the run's grid; each output candidate keeps its own period
+        without = [c.name for c in pool if c.period is None]
+        if without:
+            notes.append(f"the outputs have sample periods of their own: a candidate without one ({', '.join(without)}) "
+                         f"is taken every {period:g} (the fastest; [sensors.NAME] period sets one)")
+    every_each = None
+    if any(c.period is not None for c in pool):
+        grid = min([float(c.period) for c in pool if c.period is not None] + ([float(period)] if period else []))
+        base = float(period) if period else grid
+        every_each = []
+        for c in pool:
+            own = float(c.period) if c.period is not None else base
+            k = own / grid
+            if abs(k - round(k)) > 1e-9 * max(1.0, k):
+                raise ModelError(f"sensors.{c.name}.period: {own:g} s is not a whole multiple of the fastest sample period "
+                                 f"{grid:g} s of the pool; choose periods that are multiples of each other")
+            every_each.append(int(round(k)))
+        period = grid
     if any(float(v) > 0 for v in (_get(cfg, "process_noise", {}) or {}).values()):
         notes.append("the bounds are those of the deterministic model: the [simulation] process_noise is not in them "
                      "(with process noise x(0) is less informative than they say)")
@@ -210,13 +224,14 @@ def _fisher(system: System, pool: Sequence[Candidate], unknown: Sequence[str], c
     dt = float(_get(cfg, "dt") or 1e-3)
     fi = candidate_fisher(plant, [c.expr for c in pool], np.ones(len(pool)), x0=_get(cfg, "x0"), t_final=t_final, dt=dt,
                           inputs=dict(_get(cfg, "inputs", {}) or {}), sample_period=period, unknown_params=unknown,
-                          names=[c.name for c in pool], engine=engine)
-    pool = with_default_noise(pool, fi.outputs)
+                          names=[c.name for c in pool], engine=engine, sample_every=every_each)
+    pool = with_default_noise(pool, fi.outputs, fi.states)
     sigma = np.array([c.noise for c in pool], dtype=float)
     fi = CandidateFisher(fi.names, fi.unknowns, fi.information / sigma[:, None, None] ** 2, fi.times, fi.dt, fi.states,
                          fi.outputs, None, fi.method)
     run = {"t_final": float(fi.times[-1]), "dt": fi.dt, "samples": int(fi.times.size),
            "sample_period": None if period is None else float(period), "x0": [float(v) for v in _get(cfg, "x0")],
+           "periods": None if every_each is None else {c.name: k * float(period) for c, k in zip(pool, every_each)},
            "true_parameters": true, "method": fi.method}
     return fi, pool, run, notes
 

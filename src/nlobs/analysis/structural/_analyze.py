@@ -11,7 +11,7 @@ import dataclasses
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from ...errors import ModelError
+from ...errors import ModelError, ResourceError
 from ...model import System
 from ...model._tables import generic_surrogates, table_calls
 from ...model._system import ExprLike
@@ -127,6 +127,30 @@ def analyze(system: System, *, unknown_params: Any = (), inputs: Any = "generic"
     >>> analyze(s).observable, analyze(s, inputs={"u": 0}).observable
     (True, False)
     """
+    stage = ["the local rank (the output jets of every unknown by truncated power series)"]
+    try:
+        return _analyze(system, stage, unknown_params=unknown_params, inputs=inputs, unknown_inputs=unknown_inputs,
+                        functions=functions, at=at, symmetries=symmetries, seed=seed, regime=regime,
+                        global_check=global_check, identifiable_functions=identifiable_functions,
+                        experiments=experiments, engine=engine)
+    except RecursionError:  # (the frames are gone by now: the message can be built)
+        raise ResourceError("Python's recursion depth", f"{stage[0]} of {system.name!r}",
+                            "Its expressions nest too deeply for the symbolic steps (nested function calls): replace an "
+                            "inner call by a new state (z = g(x) with z' = g'(x) x') or simplify the model") from None
+    except MemoryError as e:
+        if isinstance(e, ResourceError):
+            raise
+        raise ResourceError("memory", f"{stage[0]} of {system.name!r}",
+                            "The expressions of its derivatives outgrew what this process may allocate (its address-space "
+                            "limit, `ulimit -v`, or the machine's memory): run it with more memory, analyse fewer unknowns "
+                            "(--params / unknown_params), take constant inputs (--inputs constant), leave out the global "
+                            "parts (--global, --identifiable-functions), or replace a long chain of nested functions by new "
+                            "states") from None
+
+
+def _analyze(system: System, stage: list[str], *, unknown_params: Any, inputs: Any, unknown_inputs: Any,
+             functions: Sequence[ExprLike], at: Any, symmetries: bool, seed: int, regime: Any, global_check: bool,
+             identifiable_functions: bool | str, experiments: int | None, engine: str) -> ObservabilityReport:
     system, table_notes = _without_tables(system, seed)
     if table_notes:
         return _table_report(system, table_notes, unknown_params=unknown_params, inputs=inputs, unknown_inputs=unknown_inputs,
@@ -139,6 +163,10 @@ def analyze(system: System, *, unknown_params: Any = (), inputs: Any = "generic"
     report = local_analysis(system, unknown_params=unknown_params, inputs=inputs, unknown_inputs=unknown_inputs,
                             functions=functions, at=at, symmetries=symmetries, seed=seed, regime=regime)
     if global_check or identifiable_functions or experiments is not None:  # the global parts
+        stage[0] = "the global parts (" + ", ".join(w for w, asked in (("the global check", global_check),
+                                                                         ("identifiable functions", identifiable_functions),
+                                                                         ("multiple experiments", experiments is not None))
+                                                     if asked) + ")"
         report = extend_report(report, system, unknown_params=report.unknown_params, inputs=inputs,
                                unknown_inputs=dict(unknown_inputs or {}), functions=functions, seed=seed,
                                global_check=global_check, identifiable_functions=identifiable_functions,

@@ -130,7 +130,7 @@ def _sensitivity_step(system: System, exprs: Sequence[sp.Expr], unknown: Sequenc
 def candidate_fisher(system: System, exprs: Sequence[sp.Expr], noise: Sequence[float], *, x0: Sequence[float],
                      t_final: float, dt: float = 1e-3, inputs: Any = None, sample_period: float | None = None,
                      unknown_params: Sequence[str] = (), names: Sequence[str] | None = None, engine: str = "auto",
-                     keep_sensitivities: bool = False) -> CandidateFisher:
+                     keep_sensitivities: bool = False, sample_every: Sequence[int] | None = None) -> CandidateFisher:
     """The Fisher information of (x(0), unknown parameters) each candidate gives along one noise-free run.
 
     Parameters
@@ -157,6 +157,9 @@ def candidate_fisher(system: System, exprs: Sequence[sp.Expr], noise: Sequence[f
         Where the run is computed (see :func:`nlobs.simulate`).
     keep_sensitivities : bool
         Keep every sample's sensitivity rows (``sensitivities``).
+    sample_every : sequence of int, optional
+        Each candidate's own rate: it is sampled at every k-th sample of the run (k ≥ 1, one per candidate; its
+        information sums over those samples only). Default: every candidate at every sample.
 
     Returns
     -------
@@ -199,7 +202,15 @@ def candidate_fisher(system: System, exprs: Sequence[sp.Expr], noise: Sequence[f
                         "finite); shorten t_final or change x0")
     O = O[0]
     G = O[:, nc:].reshape(O.shape[0], nc, m)
-    W = np.einsum("kci,kcj->cij", G, G) / (noise ** 2)[:, None, None]
+    if sample_every is None:
+        W = np.einsum("kci,kcj->cij", G, G) / (noise ** 2)[:, None, None]
+    else:
+        k_each = np.asarray(sample_every, dtype=int).reshape(-1)
+        if k_each.size != nc or np.any(k_each < 1):
+            raise ModelError(f"candidate_fisher: `sample_every` must hold one whole number >= 1 per candidate ({nc}), "
+                             f"got {sample_every}")
+        taken = (np.arange(G.shape[0])[:, None] % k_each[None, :] == 0).astype(float)
+        W = np.einsum("kc,kci,kcj->cij", taken, G, G) / (noise ** 2)[:, None, None]
     method = (f"exact sensitivities of the RK4 steps (dt = {dt:g}) by forward automatic differentiation, "
               f"{O.shape[0]} samples" + (f" every {sample_period:g}" if sample_period else " (every step)")
               + f"; {cite('krener2009')}" + (f"; {note}" if note else ""))
