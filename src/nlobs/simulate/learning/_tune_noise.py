@@ -80,6 +80,8 @@ Q_RANGE, R_RANGE, P0_RANGE = (1e-8, 1e8), (1e-6, 1e6), (1e-6, 1e6)
 DECREMENT_TOL = 1e-4
 #: Step of the central differences of the exact gradient that give the Hessian (in log-variance).
 FD_STEP = 1e-4
+#: Two starts whose objectives (−log p) differ by less than this have found the same optimum.
+AGREE = 1e-2
 #: A log-variance within this distance of a bound its gradient pushes against is held there.
 AT_BOUND = 1e-3
 
@@ -203,9 +205,9 @@ class TuneResult:
     def summary(self) -> str:
         what = ("innovations likelihood" if self.objective == "likelihood" else "RMS error against the reference trajectory")
         state = "converged" if self.converged else "NOT converged"
-        lines = [f"tuned {self.kind.upper()} by the {what} of its {self.likelihood_kind.upper()} "
-                 f"({cite('schweppe1965')}): {state} after {self.iterations} iterations, {self.evaluations} gradient "
-                 f"evaluations, {self.seconds:.1f} s ({self.message})"]
+        lines = [f"tuned {self.kind.upper()} by the {what} of its {self.likelihood_kind.upper()}"
+                 + (f" ({cite('schweppe1965')})" if self.objective == "likelihood" else "") + f": {state} after {self.iterations} iterations, {self.evaluations} gradient "
+                 f"evaluations of L-BFGS-B ({cite('byrd1995')}) and Newton steps, {self.seconds:.1f} s ({self.message})"]
         if self.objective == "truth":
             lines.append(f"normalised RMS error {self.rms_start:.6g} with the start design, {self.rms:.6g} tuned")
         lines.append(f"log-likelihood {self.loglik_start:.8g} with the start design, {self.loglik:.8g} tuned")
@@ -218,7 +220,7 @@ class TuneResult:
             lines.append(f"{n:<{w}} {np.exp(v):>12.4g} {(f'{s:.3g}' if np.isfinite(s) else '—'):>9} {fac}  "
                          + (f"at its {b} bound" if b else ""))
         nis = self.nis
-        lines.append(f"NIS: time average {nis['mean']:.4g}, 95 % band [{nis['band'][0]:.4g}, {nis['band'][1]:.4g}] "
+        lines.append(f"NIS ({cite('barshalom2001', 'sec. 5.4')}): time average {nis['mean']:.4g}, 95 % band [{nis['band'][0]:.4g}, {nis['band'][1]:.4g}] "
                      f"({nis['dof']} innovation components over {nis['samples']} samples): "
                      + ("inside" if nis["ok"] else "OUTSIDE — the tuned filter is not consistent with the data"))
         if not self.converged:
@@ -699,7 +701,7 @@ def tune(design_or_model: Any, recording: Recording, *, observer: str = "ekf", f
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
             sol = minimize(obj, th, jac=True, method="L-BFGS-B", bounds=list(zip(lo, hi)), callback=cb,
-                           options={"maxiter": int(max_iter), "ftol": 1e-13, "gtol": 1e-8, "maxcor": 20})
+                           options={"maxiter": int(max_iter), "ftol": 1e-11, "gtol": 1e-7, "maxcor": 20})
         x = np.asarray(sol.x, dtype=float)
         fx = obj(x)[0]
         total_iter += int(sol.nit)
@@ -709,8 +711,8 @@ def tune(design_or_model: Any, recording: Recording, *, observer: str = "ekf", f
         if best is None or fx < best[0]:
             best = (float(fx), x, int(sol.nit))
         done = [a["objective"] for a in attempts if a["objective"] is not None]
-        if len(done) >= 2 and sum(abs(o - best[0]) <= 1e-7 * max(1.0, abs(best[0])) for o in done) >= 2:
-            break   # two starts agree on the optimum
+        if len(done) >= 2 and sum(abs(o - best[0]) <= AGREE for o in done) >= 2:
+            break   # two starts agree on the optimum (to less than a hundredth of a standard error's worth of log p)
     if best is None:
         raise DataError(f"{caller}: the filter does not stay finite at any start; start from a design that runs on the "
                         "recording")
