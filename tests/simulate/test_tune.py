@@ -152,6 +152,10 @@ def test_apply_and_toml_give_the_tuned_design():
     assert table["kind"] == "ukf" and np.allclose(table["R"], res.R, rtol=1e-15)
     sr = res.apply(nlobs.design_srukf(MAP, Q=np.eye(2), R=[[1.0]], P0=np.eye(2), xhat0=[0.0, 0.0]))
     assert sr.method == "srukf" and np.array_equal(sr.certificate.values["R"], res.R)
+    pf = tune(nlobs.design_pf(MAP, Q=np.eye(2) * 1e-2, R=[[0.1]], P0=np.eye(2), xhat0=[0.0, 0.0], particles=200), rec)
+    assert pf.likelihood_kind == "ekf" and any("particle filter" in n for n in pf.notes)
+    tuned_pf = pf.apply()
+    assert tuned_pf.method == "pf" and tuned_pf.particles == 200 and np.array_equal(tuned_pf.Q, pf.Q)
 
 
 def test_truth_mode_reduces_the_rms_error_of_the_filter():

@@ -156,7 +156,7 @@ class TuneResult:
         from ...design import KINDS, options_of
 
         d = self.info["design"] if design is None else getattr(design, "design", design)
-        if not isinstance(d, ObserverDesign) or d.method not in TUNED_KINDS:
+        if not _is_design(d) or d.method not in TUNED_KINDS:
             raise PreconditionError(f"TuneResult.apply: give a design of kind {', '.join(TUNED_KINDS)}, got "
                                     f"{getattr(d, 'method', type(d).__name__)!r}")
         if d.system.n_states != self.Q.shape[0] or d.system.n_outputs != self.R.shape[0]:
@@ -170,7 +170,11 @@ class TuneResult:
 
     def _options(self, d: ObserverDesign, accepted: Sequence[str]) -> dict[str, Any]:
         v = d.certificate.values
-        opts: dict[str, Any] = {k: v[k] for k in accepted if k in v and k not in ("bounds",)}
+        opts: dict[str, Any] = {}
+        for k in accepted:   # the design's own attribute (a particle filter's), else its certificate's number
+            val = getattr(d, k, v.get(k)) if k not in ("bounds", "Q", "R", "P0", "xhat0") else None
+            if val is not None and (not isinstance(val, str) or k in ("scheme", "mode")):
+                opts[k] = val
         if "bounds" in accepted and isinstance(v.get("bounds"), str) and v["bounds"]:
             opts["bounds"] = _parse_bounds(v["bounds"])
         opts["Q"], opts["R"] = self.Q, self.R
@@ -287,16 +291,22 @@ def _start_design(design: Any, observer: str, caller: str) -> ObserverDesign:
         c = configured[name]
         design = design_from_config(design.observer_system, c.kind, c.options, where=f"{design.path}: observers.{name}")
     d = getattr(design, "design", design)
-    if not isinstance(d, ObserverDesign):
+    if not _is_design(d):
         raise TypeError(f"{caller}: give an observer design of kind {', '.join(TUNED_KINDS)} (nlobs.design_ekf(...), an "
                         f"advisor's candidate's .design) or a model file that configures one; got {type(design).__name__}")
     if d.method not in TUNED_KINDS:
         raise PreconditionError(f"{caller}: observer kind {d.method!r} has no noise covariances to tune here; supported: "
                                 f"{', '.join(TUNED_KINDS)}")
-    if d.method == "ekf" and d.update is None and not d.system.is_discrete:
+    if d.method == "ekf" and getattr(d, "update", None) is None and not d.system.is_discrete:
         raise PreconditionError(f"{caller}: the EKF in continuous mode takes R as an intensity and no samples; tune the "
                                 "continuous-discrete EKF (mode='continuous-discrete', the default)")
     return d
+
+
+def _is_design(d: Any) -> bool:
+    from ...design.kalman._pf import ParticleDesign
+
+    return isinstance(d, (ObserverDesign, ParticleDesign))
 
 
 def _likelihood_design(d: ObserverDesign, notes: list[str]) -> ObserverDesign:
