@@ -37,7 +37,10 @@ taken by central differences of the exact gradient (the observed information); N
 and the tuning has converged when a further Newton step would move the estimate by less than 0.01 standard errors
 (gᵀH⁻¹g < 10⁻⁴) with H positive definite. Only then are the standard errors of the log-variances (√diag H⁻¹)
 reported. A variance whose gradient pushes against its bound is reported "at its lower/upper bound" (the data ask
-for less process noise than the bound allows: a constant, or a random walk the recording cannot resolve).
+for less process noise than the bound allows: a constant, or a random walk the recording cannot resolve); so is a
+variance 10⁻³ below its reference that the likelihood cannot tell from its lower bound (log p changes by less than
+10⁻³ there): drifting to 0, its logarithm has a vanishing slope and curvature, where the optimiser crawls and the
+Hessian is singular.
 
 **Check.** The normalised innovation squared of the tuned filter, NIS_k = ν_kᵀS_k⁻¹ν_k, summed over the samples is
 χ² with Σ_k dim ν_k degrees of freedom for a consistent filter (Bar-Shalom, Li & Kirubarajan (2001), sec. 5.4); its
@@ -82,6 +85,8 @@ DECREMENT_TOL = 1e-4
 FD_STEP = 1e-4
 #: Two starts whose objectives (−log p) differ by less than this have found the same optimum.
 AGREE = 1e-2
+#: A variance far below its reference is put on its lower bound when the objective changes by less than this there.
+SNAP_TOL = 1e-3
 #: A log-variance within this distance of a bound its gradient pushes against is held there.
 AT_BOUND = 1e-3
 
@@ -521,7 +526,26 @@ def _held(theta: np.ndarray, g: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> n
     return ((theta <= lo + AT_BOUND) & (g > 0)) | ((theta >= hi - AT_BOUND) & (g < 0))
 
 
-def _polish(obj: _Objective, theta: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+def _snap(obj: _Objective, theta: np.ndarray, lo: np.ndarray, ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Variances far below their reference (10⁻³ of it) that the objective cannot tell from their lower bound (it
+    changes by less than SNAP_TOL there) are put on that bound: a variance drifting to 0 has a vanishing slope and
+    curvature in its logarithm, where the optimiser crawls and the Hessian is singular."""
+    f = obj(theta)[0]
+    tol = SNAP_TOL if not obj.truth else 1e-4 * abs(f)   # log p, or a relative change of the mean squared error
+    snapped = np.zeros(theta.size, dtype=bool)
+    for i in np.argsort(theta - ref):
+        if theta[i] > ref[i] - np.log(1e3) or theta[i] <= lo[i] + AT_BOUND:
+            continue
+        trial = theta.copy()
+        trial[i] = lo[i]
+        ft = obj(trial)[0]
+        if ft <= f + tol:
+            theta, f = trial, min(f, ft)
+            snapped[i] = True
+    return theta, snapped
+
+
+def _polish(obj: _Objective, theta: np.ndarray, fixed: np.ndarray, lo: np.ndarray, hi: np.ndarray,
             rounds: int = 4) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, bool]:
     """Newton steps with the finite-difference Hessian until the decrement is below DECREMENT_TOL; returns θ, H, the
     held mask, the decrement and whether H is positive definite over the free unknowns."""
@@ -530,7 +554,7 @@ def _polish(obj: _Objective, theta: np.ndarray, lo: np.ndarray, hi: np.ndarray,
     held = np.zeros(theta.size, dtype=bool)
     for _ in range(rounds):
         f, g = obj(theta)
-        held = _held(theta, g, lo, hi)
+        held = _held(theta, g, lo, hi) | fixed
         free = ~held
         if not free.any():
             return theta, H, held, 0.0, True
@@ -553,7 +577,7 @@ def _polish(obj: _Objective, theta: np.ndarray, lo: np.ndarray, hi: np.ndarray,
         else:
             return theta, H, held, dec, pd
     f, g = obj(theta)
-    held = _held(theta, g, lo, hi)
+    held = _held(theta, g, lo, hi) | fixed
     free = ~held
     H = _hessian(obj, theta, free, lo, hi)
     Hf = H[np.ix_(free, free)]
@@ -726,7 +750,7 @@ def tune(design_or_model: Any, recording: Recording, *, observer: str = "ekf", f
     if best is None:
         raise DataError(f"{caller}: the filter does not stay finite at any start; start from a design that runs on the "
                         "recording")
-    theta, H, held, dec, pd = _polish(obj, best[1], lo, hi)
+    theta, H, held, dec, pd = _polish(obj, *_snap(obj, best[1], lo, theta_ref), lo, hi)
     f_best, g = obj(theta)
     converged = bool(pd and np.isfinite(dec) and dec < DECREMENT_TOL)
     std = np.full(theta.size, np.nan)
