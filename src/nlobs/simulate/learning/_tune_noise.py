@@ -85,6 +85,11 @@ DECREMENT_TOL = 1e-4
 FD_STEP = 1e-4
 #: Two starts whose objectives (−log p) differ by less than this have found the same optimum.
 AGREE = 1e-2
+#: Directions along which the curvature of −log p (in log-variance) is below this are undetermined by the data: a
+#: standard error above 5, a factor e^5 ≈ 150 each way.
+FLAT = 0.04
+#: Largest Newton step of the polish, in log-variance.
+MAX_STEP = 2.0
 #: A variance far below its reference is put on its lower bound when the objective changes by less than this there.
 SNAP_TOL = 1e-3
 #: A log-variance within this distance of a bound its gradient pushes against is held there.
@@ -208,7 +213,8 @@ class TuneResult:
                                   "bound": self.at_bound.get(n)} for n, v, s in zip(self.names, self.log_variance, self.std)},
                 "loglik": self.loglik, "loglik_start": self.loglik_start, "rms": self.rms, "rms_start": self.rms_start,
                 "converged": self.converged, "message": self.message, "iterations": self.iterations,
-                "evaluations": self.evaluations, "nis": dict(self.nis), "attempts": [dict(a) for a in self.attempts],
+                "evaluations": self.evaluations, "undetermined": list(self.info.get("undetermined", [])),
+                "nis": dict(self.nis), "attempts": [dict(a) for a in self.attempts],
                 "notes": list(self.notes), "seconds": self.seconds}
 
     def summary(self) -> str:
@@ -227,7 +233,7 @@ class TuneResult:
             b = self.at_bound.get(n, "")
             fac = f"{np.exp(2 * s):>8.3g}" if np.isfinite(s) else f"{'—':>8}"
             lines.append(f"{n:<{w}} {np.exp(v):>12.4g} {(f'{s:.3g}' if np.isfinite(s) else '—'):>9} {fac}  "
-                         + (f"at its {b} bound" if b else ""))
+                         + (f"at its {b} bound" if b else "undetermined by the data" if s == np.inf else ""))
         nis = self.nis
         lines.append(f"NIS ({cite('barshalom2001', 'sec. 5.4')}): time average {nis['mean']:.4g}, 95 % band [{nis['band'][0]:.4g}, {nis['band'][1]:.4g}] "
                      f"({nis['dof']} innovation components over {nis['samples']} samples): "
@@ -545,29 +551,61 @@ def _snap(obj: _Objective, theta: np.ndarray, lo: np.ndarray, ref: np.ndarray) -
     return theta, snapped
 
 
+@dataclass
+class _Stationary:
+    """Where the polish ended: θ, the Hessian, the variances held at a bound, the Newton decrement over the determined
+    directions, whether it is a maximum there, the covariance of the log-variances, and the undetermined ones."""
+
+    theta: np.ndarray
+    H: np.ndarray
+    held: np.ndarray
+    decrement: float
+    maximum: bool
+    cov: np.ndarray
+    undetermined: np.ndarray
+
+
+def _newton(H: np.ndarray, g: np.ndarray, flat: float) -> tuple[np.ndarray, float, bool, np.ndarray, np.ndarray]:
+    """The Newton step over the directions whose curvature exceeds `flat` (|H| in place of H where it is negative: the
+    saddle-free step), the decrement gᵀH⁻¹g over them, whether they all curve up and the gradient along the flat ones
+    is below `flat` too, the pseudo-inverse of H over them, and which unknowns lie mostly along flat directions."""
+    ev, V = np.linalg.eigh(H)
+    big = np.abs(ev) > flat
+    proj = V.T @ g
+    step = V[:, big] @ (proj[big] / np.abs(ev[big]))
+    dec = float(np.sum(proj[big] ** 2 / np.abs(ev[big])))
+    maximum = bool(np.all(ev[big] > 0) and np.all(np.abs(proj[~big]) <= flat))
+    cov = (V[:, big] / np.where(ev[big] > 0, ev[big], np.inf)) @ V[:, big].T
+    undetermined = np.sum(V[:, ~big] ** 2, axis=1) > 0.5
+    return step, dec, maximum, cov, undetermined
+
+
 def _polish(obj: _Objective, theta: np.ndarray, fixed: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-            rounds: int = 4) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, bool]:
-    """Newton steps with the finite-difference Hessian until the decrement is below DECREMENT_TOL; returns θ, H, the
-    held mask, the decrement and whether H is positive definite over the free unknowns."""
-    dec, pd = np.inf, False
-    H = np.zeros((theta.size, theta.size))
-    held = np.zeros(theta.size, dtype=bool)
-    for _ in range(rounds):
+            rounds: int = 6) -> _Stationary:
+    """Newton steps with the finite-difference Hessian until the decrement is below DECREMENT_TOL (see _newton)."""
+    q = theta.size
+    for k in range(rounds + 1):
         f, g = obj(theta)
         held = _held(theta, g, lo, hi) | fixed
         free = ~held
         if not free.any():
-            return theta, H, held, 0.0, True
+            return _Stationary(theta, np.zeros((q, q)), held, 0.0, True, np.zeros((q, q)), np.zeros(q, dtype=bool))
         H = _hessian(obj, theta, free, lo, hi)
         Hf, gf = H[np.ix_(free, free)], g[free]
-        ev = np.linalg.eigvalsh(Hf)
-        pd = bool(np.all(np.isfinite(ev)) and ev[0] > 1e-12 * max(abs(ev[-1]), 1e-300))
-        if not pd:
-            return theta, H, held, float("nan"), False
-        step = np.linalg.solve(Hf, gf)
-        dec = float(gf @ step)
-        if dec < DECREMENT_TOL:
-            return theta, H, held, dec, True
+        if not np.all(np.isfinite(Hf)):
+            return _Stationary(theta, H, held, float("nan"), False, np.full((q, q), np.nan), np.zeros(q, dtype=bool))
+        ev_max = float(np.max(np.abs(np.linalg.eigvalsh(Hf))))
+        flat = FLAT if not obj.truth else 1e-8 * ev_max   # the likelihood's curvature is in units of log p
+        step, dec, maximum, cov_f, und_f = _newton(Hf, gf, max(flat, 1e-12 * ev_max))
+        cov = np.full((q, q), np.nan)
+        cov[np.ix_(free, free)] = cov_f
+        und = np.zeros(q, dtype=bool)
+        und[free] = und_f
+        if (maximum and dec < DECREMENT_TOL) or k == rounds:
+            return _Stationary(theta, H, held, dec, maximum, cov, und)
+        biggest = float(np.max(np.abs(step))) if step.size else 0.0
+        if biggest > MAX_STEP:   # at most a factor e² on a variance per step
+            step = step * (MAX_STEP / biggest)
         for a in (1.0, 0.5, 0.25, 0.125):
             trial = theta.copy()
             trial[free] = np.clip(theta[free] - a * step, lo[free], hi[free])
@@ -575,19 +613,8 @@ def _polish(obj: _Objective, theta: np.ndarray, fixed: np.ndarray, lo: np.ndarra
                 theta = trial
                 break
         else:
-            return theta, H, held, dec, pd
-    f, g = obj(theta)
-    held = _held(theta, g, lo, hi) | fixed
-    free = ~held
-    H = _hessian(obj, theta, free, lo, hi)
-    Hf = H[np.ix_(free, free)]
-    try:
-        ev = np.linalg.eigvalsh(Hf)
-        pd = bool(ev[0] > 1e-12 * max(abs(ev[-1]), 1e-300))
-        dec = float(g[free] @ np.linalg.solve(Hf, g[free])) if pd else float("nan")
-    except np.linalg.LinAlgError:
-        pd, dec = False, float("nan")
-    return theta, H, held, dec, pd
+            return _Stationary(theta, H, held, dec, maximum, cov, und)
+    raise AssertionError("unreachable")
 
 
 def tune(design_or_model: Any, recording: Recording, *, observer: str = "ekf", fix_r: bool = False,
@@ -750,25 +777,27 @@ def tune(design_or_model: Any, recording: Recording, *, observer: str = "ekf", f
     if best is None:
         raise DataError(f"{caller}: the filter does not stay finite at any start; start from a design that runs on the "
                         "recording")
-    theta, H, held, dec, pd = _polish(obj, *_snap(obj, best[1], lo, theta_ref), lo, hi)
+    st = _polish(obj, *_snap(obj, best[1], lo, theta_ref), lo, hi)
+    theta, held, dec = st.theta, st.held, st.decrement
     f_best, g = obj(theta)
-    converged = bool(pd and np.isfinite(dec) and dec < DECREMENT_TOL)
+    converged = bool(st.maximum and np.isfinite(dec) and dec < DECREMENT_TOL)
     std = np.full(theta.size, np.nan)
+    undetermined = [names[i] for i in np.flatnonzero(st.undetermined)]
     if converged and X_truth is None:
-        free = ~held
-        try:
-            cov = np.linalg.inv(H[np.ix_(free, free)])
-            std[free] = np.sqrt(np.maximum(np.diag(cov), 0.0))
-        except np.linalg.LinAlgError:
-            pass
+        std = np.sqrt(np.maximum(np.diag(st.cov), 0.0))
+        std[st.undetermined] = np.inf
+        std[held] = np.nan
+    what = "standard errors" if X_truth is None else "(in units of the objective's curvature)"
     if converged:
-        message = (f"a further Newton step would move the estimate by {np.sqrt(max(dec, 0.0)):.2g} "
-                   + ("standard errors" if X_truth is None else "(in units of the objective's curvature)"))
-    elif not pd:
-        message = ("the Hessian over the free variances is not positive definite at the best point: the data do not "
-                   "determine every variance (fix R: fix_r=True, --fix-r; or fewer unknowns)")
+        message = f"a further Newton step would move the estimate by {np.sqrt(max(dec, 0.0)):.2g} {what}"
+    elif not st.maximum:
+        message = ("not a maximum: the Hessian over the free variances has a direction of negative curvature at the "
+                   "best point; try more starts or iterations (starts=, max_iter=; --starts, --max-iter)")
     else:
-        message = f"a Newton step would still move the estimate by {np.sqrt(dec):.3g} standard errors"
+        message = f"a Newton step would still move the estimate by {np.sqrt(dec):.3g} {what}"
+    if undetermined:
+        message += (f"; the data do not determine {', '.join(undetermined)} (log p changes by less than "
+                    f"{FLAT / 2:g} over a factor e of each: any value there serves)")
     at_bound = {names[i]: ("lower" if theta[i] <= lo[i] + AT_BOUND else "upper") for i in np.flatnonzero(held)}
     Q = np.diag(np.exp(theta[:n]))
     R = R0.copy() if fix_r else np.diag(np.exp(theta[n:n + ny]))
@@ -786,6 +815,7 @@ def tune(design_or_model: Any, recording: Recording, *, observer: str = "ekf", f
                       Q, R, P0, run["loglik"], run0["loglik"], converged, message, total_iter, obj.evaluations, at_bound,
                       nis, rms, rms0, tuple(attempts), tuple(notes), time.perf_counter() - t_start,
                       info={"design": d, "likelihood_design": lik, "substeps": prob.n_sub, "samples": prob.N,
+                            "gradient": g, "hessian": st.H, "held": held, "decrement": dec, "undetermined": undetermined,
                             "source": recording.source})
 
 
