@@ -257,3 +257,7 @@ def test_cli_tune_json_and_toml_round_trip(tmp_path, capsys):
     assert main(["tune", str(model), str(data), "--observer", "ekf"]) == 0
     text = capsys.readouterr().out
     assert "converged" in text and "NIS" in text and "Q[x2]" in text
+    # the recording's own true states as the reference trajectory (simulate --output writes them)
+    assert main(["tune", str(model), str(data), "--observer", "ekf", "--truth", str(data), "--json"]) in (0, 1)
+    out = json.loads(capsys.readouterr().out)
+    assert out["objective"] == "truth" and out["rms"] < out["rms_start"]
