@@ -141,7 +141,7 @@ def test_fix_r_keeps_the_declared_r_and_the_nis_check_catches_a_wrong_one():
 
 def test_apply_and_toml_give_the_tuned_design():
     rec, _ = _map_recording(seed=2, N=600)
-    d = nlobs.design_ukf(MAP, Q=np.eye(2) * 1e-2, R=[[0.1]], P0=np.eye(2), xhat0=[0.0, 0.0], alpha=0.5, beta=2.0)
+    d = nlobs.design_ukf(MAP, Q=np.eye(2) * 1e-2, R=[[0.1]], P0=2 * np.eye(2), xhat0=[0.0, 0.0], alpha=0.5, beta=2.0)
     res = tune(d, rec, tune_p0=True)
     assert res.likelihood_kind == "ukf" and res.P0 is not None and len(res.names) == 5
     tuned = res.apply()
@@ -152,6 +152,8 @@ def test_apply_and_toml_give_the_tuned_design():
     assert table["kind"] == "ukf" and np.allclose(table["R"], res.R, rtol=1e-15)
     sr = res.apply(nlobs.design_srukf(MAP, Q=np.eye(2), R=[[1.0]], P0=np.eye(2), xhat0=[0.0, 0.0]))
     assert sr.method == "srukf" and np.array_equal(sr.certificate.values["R"], res.R)
+    kept = tune(d, rec, starts=1).apply()     # P0 not tuned: the design's own
+    np.testing.assert_array_equal(kept.certificate.values["P0"], 2 * np.eye(2))
     pf = tune(nlobs.design_pf(MAP, Q=np.eye(2) * 1e-2, R=[[0.1]], P0=np.eye(2), xhat0=[0.0, 0.0], particles=200), rec)
     assert pf.likelihood_kind == "ekf" and any("particle filter" in n for n in pf.notes)
     tuned_pf = pf.apply()

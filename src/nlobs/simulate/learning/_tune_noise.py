@@ -188,8 +188,7 @@ class TuneResult:
         if "bounds" in accepted and isinstance(v.get("bounds"), str) and v["bounds"]:
             opts["bounds"] = _parse_bounds(v["bounds"])
         opts["Q"], opts["R"] = self.Q, self.R
-        if self.P0 is not None:
-            opts["P0"] = self.P0
+        opts["P0"] = self.P0 if self.P0 is not None else np.asarray(v["P0"], dtype=float)
         if "xhat0" in accepted:
             opts["xhat0"] = np.asarray(d.xhat0, dtype=float).reshape(-1)
         return opts
