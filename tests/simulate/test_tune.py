@@ -263,3 +263,19 @@ def test_cli_tune_json_and_toml_round_trip(tmp_path, capsys):
     assert main(["tune", str(model), str(data), "--observer", "ekf", "--truth", str(data), "--json"]) in (0, 1)
     out = json.loads(capsys.readouterr().out)
     assert out["objective"] == "truth" and out["rms"] < out["rms_start"]
+
+
+def test_a_variance_the_data_cannot_see_is_reported_undetermined():
+    """x2 never reaches the output: log p does not depend on Q[x2] at all, so no value of it is an estimate."""
+    hidden = nlobs.System(states=["x1", "x2"], f=["0.9*x1", "0.5*x2"], outputs=["y"], h=["x1"], time="discrete",
+                          sample_time=0.1)
+    rng = np.random.default_rng(7)
+    x, y = 0.0, []
+    for _ in range(1000):
+        y.append(x + 0.1 * rng.standard_normal())
+        x = 0.9 * x + 0.05 * rng.standard_normal()
+    rec = Recording.from_arrays(hidden, np.arange(1000) * 0.1, np.array(y)[:, None])
+    res = tune(nlobs.design_ekf(hidden, Q=np.eye(2) * 1e-2, R=[[0.1]], P0=np.eye(2), xhat0=[0.0, 0.0]), rec)
+    assert res.converged and res.info["undetermined"] == ["Q[x2]"]
+    assert res.std[1] == np.inf and np.all(np.isfinite(res.std[[0, 2]]))
+    assert "undetermined by the data" in res.summary() and "Q[x2]" in res.message
