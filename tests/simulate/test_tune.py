@@ -259,6 +259,11 @@ def test_cli_tune_json_and_toml_round_trip(tmp_path, capsys):
     assert main(["tune", str(model), str(data), "--observer", "ekf"]) == 0
     text = capsys.readouterr().out
     assert "converged" in text and "NIS" in text and "Q[x2]" in text
+    # nlobs.tune on paths, a file without observers: the advisor's EKF is the start
+    bare = tmp_path / "bare.toml"
+    bare.write_text(MODEL.split("[observers.ekf]")[0])
+    res = nlobs.tune(str(bare), str(data), observer="ekf")
+    assert res.kind == "ekf" and res.converged and res.nis_ok
     # the recording's own true states as the reference trajectory (simulate --output writes them)
     assert main(["tune", str(model), str(data), "--observer", "ekf", "--truth", str(data), "--json"]) in (0, 1)
     out = json.loads(capsys.readouterr().out)
