@@ -6,7 +6,7 @@ T1  A pendulum map at 100 Hz, 5,000 samples drawn here with known Q (per step) a
 T2  ins16 (16 states, 7 outputs at three rates, GPS 0.15 s late): `nlobs simulate` a 30 s recording with its process
     noise, then the whole command `nlobs tune ins16.toml rec.csv --observer ekf --json` (the advisor's EKF as start).
 
-Run: ``PYTHONPATH=src python benchmarks/bench_tune.py [--quick]``; writes results/bench_tune.json.
+Run: ``PYTHONPATH=src python benchmarks/bench_tune_noise.py [--quick]``; writes results/bench_tune_noise.json.
 """
 
 from __future__ import annotations
@@ -97,5 +97,5 @@ if __name__ == "__main__":
     rows = t1(2000 if quick else 5000)
     if "--no-ins" not in sys.argv:
         rows.append(t2(10.0 if quick else 30.0))
-    out = Path(__file__).parent / "results" / "bench_tune.json"
+    out = Path(__file__).parent / "results" / "bench_tune_noise.json"
     out.write_text(json.dumps(rows, indent=1))
