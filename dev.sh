@@ -22,10 +22,20 @@ fi
 if [ ! -x .venv/bin/python ]; then
   "$PY" -m venv .venv
 fi
-stamp=.venv/.nlobs-installed
+# what each command needs, installed once (again when pyproject.toml changes): the demo and the nlobs and python
+# helpers the library alone (pip install -e .); test and docs the test extra too (pytest, Sphinx, Dask, JAX,
+# python-control). Each has its stamp: `./dev.sh demo` never pulls in the test tools.
+case "${1:-}" in
+  test|docs) need=test; spec='.[test]' ;;
+  *) need=demo; spec='.' ;;
+esac
+stamp=.venv/.nlobs-installed-$need
+if [ "$need" = demo ] && [ -f .venv/.nlobs-installed-test ] && [ ! pyproject.toml -nt .venv/.nlobs-installed-test ]; then
+  stamp=.venv/.nlobs-installed-test   # the test install holds the demo's
+fi
 if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
   .venv/bin/python -m pip install --quiet --upgrade pip
-  .venv/bin/python -m pip install --quiet -e '.[test]'
+  .venv/bin/python -m pip install --quiet -e "$spec"
   touch "$stamp"
 fi
 case "${1:-}" in

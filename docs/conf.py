@@ -82,4 +82,6 @@ html_theme_options = {
     "footer_start": ["copyright"],
     "footer_end": [],
 }
-html_sidebars = {"**": ["sidebar-nav-bs"]}
+# The left sidebar lists the pages of a section (the guides, the gallery, the API); a page with none below it
+# (the home page, the kinds, the references, the developers' page) has no left sidebar rather than an empty one.
+html_sidebars = {"**": ["sidebar-nav-bs"], "index": [], "kinds": [], "references": [], "developers": []}

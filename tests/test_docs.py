@@ -1,5 +1,6 @@
-"""The documentation site builds with warnings as errors (what `./dev.sh docs` runs), covers every
-public function and every paper example, cites no internal file, and its guides' code runs."""
+"""The documentation site builds with warnings as errors (what `./dev.sh docs` runs), its links and their
+anchors resolve, it covers every public function and every paper example, cites no internal file, and its
+guides' code runs."""
 
 from __future__ import annotations
 
@@ -7,7 +8,9 @@ import os
 import re
 import subprocess
 import sys
+from html.parser import HTMLParser
 from pathlib import Path
+from urllib.parse import unquote, urlsplit
 
 import pytest
 
@@ -46,6 +49,131 @@ def site(tmp_path_factory):
     return out
 
 
+class _Links(HTMLParser):
+    """The ids a page defines (``id=``, and ``name=`` of ``<a>``) and the links it holds (``href``, ``src``)."""
+
+    def __init__(self) -> None:
+        super().__init__(convert_charrefs=True)
+        self.ids: set[str] = set()
+        self.links: list[str] = []
+
+    def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
+        a = dict(attrs)
+        if a.get("id"):
+            self.ids.add(a["id"])
+        if tag == "a" and a.get("name"):
+            self.ids.add(a["name"])
+        for key in ("href", "src"):
+            if a.get(key) is not None and tag in ("a", "link", "img", "script", "source", "area"):
+                self.links.append(a[key])
+
+
+class _Text(HTMLParser):
+    """The text a reader sees (MathML's tokens included), without code, scripts and styles."""
+
+    SKIP = {"script", "style", "pre", "code", "textarea"}
+
+    def __init__(self) -> None:
+        super().__init__(convert_charrefs=True)
+        self.parts: list[str] = []
+        self.depth = 0
+
+    def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
+        self.depth += tag in self.SKIP
+
+    def handle_endtag(self, tag: str) -> None:
+        self.depth -= tag in self.SKIP and self.depth > 0
+
+    def handle_data(self, data: str) -> None:
+        if not self.depth:
+            self.parts.append(data)
+
+
+def _visible_text(page: str) -> str:
+    parser = _Text()
+    parser.feed(page)
+    return "".join(parser.parts)
+
+
+def dead_links(site: Path) -> list[str]:
+    """Every relative link of the built site whose file does not exist, or whose ``#anchor`` is no id of its page."""
+    pages: dict[Path, _Links] = {}
+
+    def parsed(page: Path) -> _Links:
+        if page not in pages:
+            parser = _Links()
+            parser.feed(page.read_text(encoding="utf-8"))
+            pages[page] = parser
+        return pages[page]
+
+    dead = []
+    for page in sorted(site.rglob("*.html")):
+        if page.relative_to(site).parts[0] == "_static":
+            continue   # the theme's assets (a Jinja macro file among them), not pages
+        for link in parsed(page).links:
+            parts = urlsplit(link)
+            if parts.scheme or parts.netloc or link.startswith("//"):
+                continue   # another site (the tests check no page loads anything from one)
+            target = (page.parent / unquote(parts.path)).resolve() if parts.path else page
+            if not target.exists():
+                dead.append(f"{page.relative_to(site)}: {link} (no such file)")
+            elif parts.fragment and target.suffix == ".html" and unquote(parts.fragment) not in parsed(target).ids:
+                dead.append(f"{page.relative_to(site)}: {link} (no anchor #{parts.fragment} in {target.name})")
+    return dead
+
+
+def test_every_link_of_the_site_reaches_its_page_and_anchor(site):
+    dead = dead_links(site)
+    assert not dead, f"{len(dead)} dead link(s):\n" + "\n".join(dead[:40])
+
+
+def test_the_link_check_finds_a_missing_anchor_and_a_missing_file(tmp_path):
+    (tmp_path / "a.html").write_text("<p id='here'><a href='#here'>ok</a> <a href='b.html#there'>ok</a>"
+                                     "<a href='b.html#ref-x'>gone</a> <a href='c.html'>gone</a>"
+                                     "<a href='https://example.org/#nowhere'>elsewhere</a></p>", encoding="utf-8")
+    (tmp_path / "b.html").write_text("<span id='there'></span>", encoding="utf-8")
+    assert dead_links(tmp_path) == ["a.html: b.html#ref-x (no anchor #ref-x in b.html)", "a.html: c.html (no such file)"]
+
+
+def test_aligned_equations_render_as_aligned_rows(site):
+    sys.path.insert(0, str(DOCS / "_ext"))
+    import nlobs_docs
+
+    # the same renderer the site uses: `&=` rows become a MathML table, one row per line, no literal "&"
+    html = nlobs_docs._mathml("a &= b + c \\\\\n d &= e", True)
+    assert html.count("<mtr>") == 2 and html.count("<mtd") == 4 and ">&<" not in html and "&amp;" not in html
+    assert nlobs_docs._mathml(r"\begin{aligned} a &= b \\ d &= e \end{aligned}", True).count("<mtr>") == 2
+    assert nlobs_docs.aligned(r"A = \begin{bmatrix} 1 & 2 \\ 3 & 4 \end{bmatrix}").startswith("A = ")  # a matrix only
+    # on the built pages: the grey-box model of the learning guide, the design_gpebo equations of the API
+    for page, rows in (("guide/learning.html", 3), ("api/generated/nlobs.design.design_gpebo.html", 2)):
+        text = (site / page).read_text(encoding="utf-8")
+        tables = re.findall(r"<div class='math-block'>(.*?)</div>", text, flags=re.S)
+        aligned = [t for t in tables if "columnalign=\"right\"" in t and t.count("<mtr>") == rows]
+        assert aligned, f"{page}: no displayed equation with {rows} aligned rows"
+        assert not any(">&<" in t for t in tables), f"{page}: a literal & in displayed maths"
+
+
+def test_guides_write_their_maths_as_maths(site):
+    for page in ("guide/recorded.html", "guide/learning.html"):
+        text = _visible_text((site / page).read_text(encoding="utf-8"))
+        for plain in ("ν_k", "ŷ_k⁻", "e^ρ", "Σ_k −½"):
+            assert plain not in text, f"{page}: {plain!r} as plain text"
+
+
+def test_the_sensors_guide_names_public_functions_only_and_draws_its_figure_at_build_time(site):
+    sensors = (site / "guide" / "sensors.html").read_text(encoding="utf-8")
+    assert "_sensors" not in _visible_text(sensors) and "nlobs.report._" not in sensors
+    assert re.search(r'<img[^>]+src="\.\./_images/sensors-enzyme-0\.png"', sensors)
+    assert (site / "_images" / "sensors-enzyme-0.png").stat().st_size > 10_000
+    assert not (DOCS / "_static" / "sensors_enzyme.png").exists()     # drawn by the build, not a committed picture
+
+
+def test_no_page_has_an_empty_sidebar(site):
+    empty = [str(p.relative_to(site)) for p in site.rglob("*.html") if p.relative_to(site).parts[0] != "_static"
+             and re.search(r'<div class="bd-toc-item navbar-nav">\s*</div>', p.read_text(encoding="utf-8"))]
+    assert not empty, f"empty 'Section Navigation' on {empty[:10]}"
+
+
 def test_api_reference_has_a_page_for_every_public_function_and_class(site):
     sys.path.insert(0, str(DOCS / "_ext"))
     import nlobs_docs
@@ -70,7 +198,7 @@ def test_gallery_has_a_page_per_example_with_its_plots_and_rendered_maths(site):
         text = pages[0].read_text(encoding="utf-8")
         assert "<math" in text, f"{key}: no rendered maths"
         assert "Claims checked" in text and ("sphx-glr-single-img" in text or "sphx-glr-multi-img" in text), key
-        assert "FAILS" not in text or key == "cuk", f"{key}: a claim fails in the docs build"
+        assert "FAILS" not in text, f"{key}: a claim fails in the docs build"
 
 
 def test_gallery_has_a_page_per_practitioners_model_with_its_file_and_plots(site):
@@ -84,6 +212,10 @@ def test_gallery_has_a_page_per_practitioners_model_with_its_file_and_plots(site
         assert "Claims checked" in text and "FAILS" not in text and "not checked" not in text, key
         assert "sphx-glr-single-img" in text or "sphx-glr-multi-img" in text, key
         assert "[simulation]" in text, f"{key}: the model file is not on its page"
+        assert "`" not in _visible_text(text), f"{key}: Markdown backticks left in the text"
+        assert "_table_" not in text, f"{key}: a lookup table shown by its internal name"
+    building = _visible_text(next((site / "gallery" / "practice").glob("plot_*_building.html")).read_text(encoding="utf-8"))
+    assert "[k+1]" in building.replace("\n", "") and "cop(" in building.replace("\n", "")   # a map, and its table by name
     index = (site / "gallery" / "index.html").read_text(encoding="utf-8")
     assert "Practitioners" in index
 
@@ -105,7 +237,7 @@ def test_references_page_lists_the_table(site):
         assert r.title.split(":")[0][:40].replace("&", "&amp;") in text, r.key
 
 
-@pytest.mark.parametrize("guide", sorted(p.name for p in (DOCS / "guide").glob("*.rst")))
+@pytest.mark.parametrize("guide", sorted(p.name for p in (DOCS / "guide").glob("*.rst") if p.name != "index.rst"))
 def test_guide_code_runs_as_written(guide, tmp_path):
     text = (DOCS / "guide" / guide).read_text(encoding="utf-8")
     blocks = re.findall(r"^\.\. code-block:: python\n\n((?:(?:   .*)?\n)+)", text, flags=re.M)

@@ -6,7 +6,8 @@
   :mod:`nlobs.examples`, written at build time, plus a scraper for the library's matplotlib
   figures (they are not pyplot figures);
 - the API reference pages: every public name of every nlobs namespace, listed at build time;
-- the references page, from :data:`nlobs.references.REFERENCES`.
+- the references page, from :data:`nlobs.references.REFERENCES`;
+- the guides' figures (``.. nlobs-figure::``), drawn at build time from the code the page shows.
 """
 
 from __future__ import annotations
@@ -18,16 +19,37 @@ from pathlib import Path, PurePosixPath
 from typing import Any
 
 from docutils import nodes
+from docutils.parsers.rst import directives
 from latex2mathml.converter import convert
+from sphinx.util.docutils import SphinxDirective
 
 HERE = Path(__file__).resolve().parent.parent   # docs/
 
 # -- maths ----------------------------------------------------------------------------------
 
 
+# latex2mathml lays out `split` as a table of rows with its columns aligned (right, left), as LaTeX does; it
+# reads `aligned` as plain maths (a literal "&", one long line) and numbers the rows of `align`. Sphinx's own
+# renderers wrap every displayed equation in `split`; these pages do the same.
+_ALIGNED_ENV = re.compile(r"\\(begin|end)\{(?:aligned|align\*?)\}")
+_INNERMOST_ENV = re.compile(r"\\begin\{(\w+\*?)\}(?:(?!\\begin\{).)*?\\end\{\1\}", re.S)
+
+
+def aligned(latex: str) -> str:
+    """A displayed equation as latex2mathml lays it out in aligned rows: rows (``\\\\``) or alignment points
+    (``&``) outside any environment wrapped in ``split``, ``aligned`` and ``align`` read as ``split``."""
+    latex = _ALIGNED_ENV.sub(lambda m: rf"\{m.group(1)}{{split}}", latex.strip())
+    top, n = latex, 1
+    while n:   # what is outside every environment (the & and \\ of a matrix are its own)
+        top, n = _INNERMOST_ENV.subn("", top)
+    if "&" in top or "\\\\" in top:
+        latex = r"\begin{split}" + latex.removesuffix("\\\\") + r"\end{split}"
+    return latex
+
+
 def _mathml(latex: str, display: bool) -> str:
     try:
-        return convert(latex.strip(), display="block" if display else "inline")
+        return convert(aligned(latex) if display else latex.strip(), display="block" if display else "inline")
     except Exception:  # noqa: BLE001 - an expression latex2mathml does not know: show its source
         return f"<code class='latex'>{html.escape(latex)}</code>"
 
@@ -62,6 +84,7 @@ def _script(ex: Any, practice: bool = False) -> str:
         intro = (f"The example registered as ``{ex.key}`` in :mod:`nlobs.examples`, run while these pages were\n"
                  f"built. ``nlobs demo --only {ex.key}`` runs the same function; so do the acceptance tests.")
         load = f'from nlobs.examples import find_example\nfrom nlobs.report import HTML, example_section\n\nresult = find_example("{ex.key}").run()'
+    up = "../../" if practice else "../"   # the page's way back to the site's root, where references.html is
     return f'''"""
 {title}
 {"=" * len(title)}
@@ -76,7 +99,7 @@ def _script(ex: Any, practice: bool = False) -> str:
 # %%
 # What is shown, the claims checked, the observability verdicts, the numbers, the model, the
 # evidence and the notes (the demo report's section, here without its plots, which follow).
-HTML(example_section(result, plots=False, level=3))
+HTML(example_section(result, plots=False, level=3, references="{up}references.html"))
 
 # %%
 # The simulations — true states (grey) against each observer's estimate, and the error norms —
@@ -141,6 +164,50 @@ class FigureScraper:
         parts = [figure_rst(narrow, gallery_conf["src_dir"])] if narrow else []
         parts += [figure_rst([p], gallery_conf["src_dir"]) for p in wide]
         return "\n".join(parts)
+
+
+# -- figures of the guides, drawn at build time ------------------------------------------------
+
+GENERATED = HERE / "_generated"   # the figures drawn while the site is built (not in git)
+_PYTHON_BLOCK = re.compile(r"^\.\. code-block:: python\n\n((?:(?:   .*)?\n)+)", re.M)
+
+
+class FigureDirective(SphinxDirective):
+    """``.. nlobs-figure:: NAME`` draws a guide's figure while the site is built, from the code the page shows: it
+    runs the page's Python code blocks above it (in a scratch folder), then its own content (not shown, e.g. what a
+    command-line option adds), and puts each matplotlib Figure the content leaves in its names on the page, as
+    ``_generated/NAME-i.png``. Options: ``:alt:`` (the text of each image)."""
+
+    has_content = True
+    required_arguments = 1
+    option_spec = {"alt": directives.unchanged}
+
+    def run(self) -> list[nodes.Node]:
+        import contextlib
+        import io
+        import tempfile
+
+        from matplotlib.figure import Figure
+
+        source = Path(self.env.doc2path(self.env.docname)).read_text(encoding="utf-8")
+        above = "\n".join(source.splitlines()[: self.lineno - 1]) + "\n"
+        shown = "\n".join("\n".join(line[3:] for line in b.splitlines()) for b in _PYTHON_BLOCK.findall(above))
+        namespace: dict[str, Any] = {"__name__": "__nlobs_figure__"}
+        with tempfile.TemporaryDirectory() as scratch, contextlib.chdir(scratch), \
+                contextlib.redirect_stdout(io.StringIO()):   # what the page's code prints is on the page already
+            exec(compile(shown, f"{self.env.docname} (its code blocks)", "exec"), namespace)   # noqa: S102 - our own pages
+            before = {id(v) for v in namespace.values()}
+            exec(compile("\n".join(self.content), f"{self.env.docname} (nlobs-figure)", "exec"), namespace)  # noqa: S102
+        figures = [v for v in namespace.values() if isinstance(v, Figure) and id(v) not in before]
+        if not figures:
+            raise self.error(f"nlobs-figure {self.arguments[0]}: its code leaves no matplotlib Figure in its names")
+        GENERATED.mkdir(exist_ok=True)
+        out = []
+        for i, fig in enumerate(figures):
+            name = f"{self.arguments[0]}-{i}.png"
+            fig.savefig(GENERATED / name, dpi=110)
+            out.append(nodes.image(uri=f"/_generated/{name}", alt=self.options.get("alt", "")))
+        return out
 
 
 # -- the API reference -----------------------------------------------------------------------
@@ -246,4 +313,5 @@ def write_kinds_page(app: Any = None) -> None:
 
 def setup(app: Any) -> dict[str, Any]:
     app.add_html_math_renderer("mathml", (_visit_math, None), (_visit_displaymath, None))
+    app.add_directive("nlobs-figure", FigureDirective)
     return {"parallel_read_safe": True, "parallel_write_safe": True}

@@ -337,3 +337,56 @@ def test_a_function_mixing_a_parameter_and_the_sine_of_another_is_checked_agains
     s = System(states=["x"], f=["-a*x + b*sin(c)"], outputs=["y"], h=["x"], params={"a": 1.0, "b": 0.5, "c": 0.3})
     assert observable_function(s, "b*sin(c)", unknown_params="all").observable
     assert not observable_function(s, "sin(c)", unknown_params="all").observable
+
+
+# -- a large fibre on fewer coefficients (issue 46: EAIHRD's 362,211 terms) ------------------------------------------
+
+@needs_engine
+def test_fewer_coefficients_give_the_published_field(monkeypatch):
+    # Goodwin's oscillator (SI.jl test/bodies/identifiable_functions.jl: sigma, delta + beta, c, b, delta*beta, of the
+    # parameters), with the size threshold at 0 so that the small model takes the path of the large ones
+    from published_models import BY_NAME
+
+    monkeypatch.setattr(I, "_FEWER_ABOVE", 0)
+    m = BY_NAME["goodwin_funcs"]
+    r = find_identifiable_functions(m.system(), with_states=False, route="io", engine=ENGINE)
+    note = [n for n in r.notes if n.startswith("the fibre on ")]
+    assert note and "of the 89 coefficients" in note[0], r.notes
+    assert r.complete is True and all(r.local_checks)
+    assert _same_field(list(r.functions), list(m.ident), list(m.params)), r.functions
+
+
+@needs_engine
+def test_fewer_coefficients_generate_every_coefficient(monkeypatch):
+    # the kept coefficients generate the field of all 89 (what the completeness checks rely on), checked
+    # independently: every coefficient ratio is constant on the fibre of the kept ones through a rational point (a
+    # Gröbner basis over QQ in SymPy). The smallest coefficients that reach the rank (5 of them) do not: 58 ratios
+    # lie outside their field, and only the rounds that add coefficients make the set generate it
+    import sympy as sp
+    from published_models import BY_NAME
+
+    monkeypatch.setattr(I, "_FEWER_ABOVE", 0)
+    eng = get_engine(ENGINE)
+    prep = _prepare_io(BY_NAME["goodwin_funcs"].system(), unknown_params="all", seed=0, eng=eng)
+    every = list(prep.io[0].params)
+    I._fewer_generators(prep, eng, np.random.default_rng([0, 46]), [])
+    kept = list(prep.io[0].params)
+    assert len(kept) < len(every) == 89
+    names = every[0][0].context().names()
+    X = sp.symbols(names)
+    loc = dict(zip(names, X))
+    pt = {x: sp.Rational(3 + 2 * i, 5 + 3 * i) for i, x in enumerate(X)}
+    z = sp.Symbol("z_")
+
+    def relation(a, b):
+        A, B = sp.sympify(str(a), locals=loc), sp.sympify(str(b), locals=loc)
+        return sp.expand(A * B.subs(pt) - A.subs(pt) * B), B
+
+    eqs, den = [], sp.Integer(1)
+    for a, b in kept:
+        rel, B = relation(a, b)
+        eqs.append(rel)
+        den *= B
+    G = sp.groebner([*eqs, sp.expand(z * den - 1)], z, *X, order="grevlex")
+    outside = [k for k, (a, b) in enumerate(every) if G.reduce(relation(a, b)[0])[1] != 0]
+    assert not outside, (len(outside), len(kept))

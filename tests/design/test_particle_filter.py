@@ -77,7 +77,10 @@ def test_pf_matches_the_exact_kalman_filter_within_monte_carlo_error(data, schem
     sd = xs.std(axis=0, ddof=1)
     z2 = (xs.mean(axis=0) - xk) ** 2 / (sd ** 2 / len(runs))
     assert z2.mean() < 2.5, z2.mean()
-    assert np.abs(xs - xk).max() < 0.2 and np.abs(xs - xk).mean() < 0.02
+    # each run within 0.8 posterior standard deviations of the KF everywhere (the largest over 96 runs of three seed
+    # blocks, measured: 0.57, at the third sample, before the cloud has settled); an absolute 0.2 held for seeds 1-16 only
+    post = np.sqrt(np.diagonal(Pk, axis1=1, axis2=2))
+    assert (np.abs(xs - xk) / post).max() < 0.8 and np.abs(xs - xk).mean() < 0.02
     # the particle covariance is the posterior covariance, and the log-likelihood estimate the KF's
     out = runs[0]
     sd = np.sqrt(np.diagonal(Pk, axis1=1, axis2=2))

@@ -41,8 +41,9 @@ def test_a_relay_flow_is_integrated_with_few_substeps_on_both_engines(time_limit
     for e, run in runs.items():
         info = run.info["integration"]["ekf"]
         # the smooth part needs 1 sub-step per second (rate 0.1); each sample that sits on the kink at most
-        # doubles its count once (3): the measured total is 51 on both engines
-        assert info["max_substeps"] <= 4 and info["substeps"] <= 4 * (rec.t.size - 1), (e, info)
+        # doubles its count once (3), and the kink's step-doubling check once more (6: its end state then moves by
+        # less than 1 % of itself): the measured total is 99 on both engines (51 before the check)
+        assert info["max_substeps"] <= 8 and info["substeps"] <= 8 * (rec.t.size - 1), (e, info)
         assert np.isfinite(run.observers["ekf"].xhat).all()
     # the two engines run the same rule: the same sub-steps, the same estimates to round-off
     assert runs["vm"].info["integration"]["ekf"]["substeps"] == runs["c"].info["integration"]["ekf"]["substeps"]
@@ -61,3 +62,41 @@ def test_a_stiff_mode_is_still_refined(time_limit):
     # rate 400 (x2) and 800 (its covariance entry P22' = -800 P22 + ...): h·rate ≤ 1 needs ≥ 400 sub-steps per 0.5 s
     assert info["max_substeps"] >= 400, info
     assert np.isfinite(run.observers["ekf"].xhat).all()
+
+
+# -- the step-doubling check of an interval taken for a kink (engine/_intervals.py, KINK_*) ---------------------------
+
+def _runner(grow: bool, backend: str):
+    """A sub-step whose measured rate is 3/h whatever h (so more sub-steps never shrink h·rate: it is taken for a
+    kink: h·rate = 3 > reject = 2). grow=False: a relay x' = -sign(x) (a true kink: the end state converges as h shrinks); grow=True: each
+    sub-step multiplies x by (1 + 0.05/h) (an end state that runs away as the sub-steps double: a diverging
+    interval, finite at every count)."""
+    import casadi as ca
+
+    from nlobs.engine._intervals import IntervalRunner
+
+    s, a, th = ca.SX.sym("s", 1), ca.SX.sym("a", 2), ca.SX.sym("th", 2)
+    h = th[1]
+    nxt = s * (1 + 0.05 / h) if grow else s - h * ca.sign(s)
+    sub = ca.Function("sub", [s, a, th], [nxt, 3 / h])
+    jump = ca.Function("jump", [s, a], [s, s])
+    return IntervalRunner(sub, jump, backend=backend)
+
+
+@pytest.mark.parametrize("backend", ["vm", "c"])
+def test_an_interval_taken_for_a_kink_is_refused_when_step_doubling_shows_it_diverging(backend, time_limit):
+    A = np.array([[0.0, 1.0], [1.0, 1.0]])
+    res = _runner(True, backend).run(np.array([1e-3]), A, np.ones(2), rate0=1.0)
+    assert res.failed == 0 and res.unconverged is not None and res.unconverged > 10, res
+    ok = _runner(False, backend).run(np.array([0.3]), A, np.ones(2), rate0=1.0)
+    assert ok.failed is None and ok.unconverged is None and np.isfinite(ok.states).all()
+    assert abs(ok.states[-1, 0]) < 0.05   # chattering around the relay's sliding set, of the order of h
+    assert ok.substeps.max() <= 16 * 16   # the check costs at most 2 + 4 + 8 times a kink's sub-steps more
+
+
+def test_the_kink_constants_of_the_c_driver_are_the_python_ones():
+    from nlobs.engine import _intervals as I
+
+    for name in ("KINK_DOUBLINGS", "KINK_RTOL", "KINK_ATOL", "KINK_SHRINK"):
+        line = next(ln for ln in I._C_DRIVER.splitlines() if ln.startswith(f"#define {name} "))
+        assert float(line.split()[-1]) == float(getattr(I, name))

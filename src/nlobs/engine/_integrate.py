@@ -228,7 +228,8 @@ def run_batch(step: ca.Function, S0: np.ndarray, A: np.ndarray, C: np.ndarray, n
         Save at steps 0, stride, 2·stride, ... and at n_steps (see :func:`saved_steps`).
     bound : float
         A state leaving [-bound, bound] (or non-finite) stops its trajectory; the rest continue.
-    backend : {"auto", "vm", "c"}
+    backend : {"auto", "vm", "c", "jax"}
+        ``"jax"``: the same step translated to JAX (optional extra; CPU or GPU), see ``engine/_jax.py``.
 
     Returns
     -------
@@ -246,6 +247,10 @@ def run_batch(step: ca.Function, S0: np.ndarray, A: np.ndarray, C: np.ndarray, n
     C = np.ascontiguousarray(C, dtype=float)
     shared_a, shared_c = A.ndim == 2, C.ndim == 1
     steps = saved_steps(n_steps, stride)
+    if backend == "jax":   # one XLA program over all trajectories (CPU or GPU): see engine/_jax.py
+        from ._jax import run_batch_jax
+
+        return run_batch_jax(step, S0, A, C, steps, bound)
     S = np.full((B, steps.size, ns), np.nan)
     O = np.full((B, steps.size, no), np.nan)
     status = np.full(B, n_steps, dtype=np.int64)

@@ -49,7 +49,18 @@ __all__ = ["IntervalRunner", "IntervalResult", "Schedule", "MAX_SUBSTEPS", "fast
 #: The most RK4 sub-steps one interval may take before it is refused.
 MAX_SUBSTEPS = 10**8
 
+#: An interval accepted as a kink is checked by step doubling: the end state with 2n sub-steps against n, each entry
+#: within KINK_ATOL + KINK_RTOL·|x| (the check is for divergence, a state that moves with the step by a good part of
+#: itself, not for RK4's accuracy); at most KINK_DOUBLINGS doublings (a true kink costs at most 2 + 4 + 8 = 14 times
+#: its sub-steps more), after which the interval is accepted if the change still shrinks by KINK_SHRINK per doubling (a kink's
+#: error shrinks with h) and refused otherwise. The C driver's #defines below carry the same values.
+KINK_DOUBLINGS, KINK_RTOL, KINK_ATOL, KINK_SHRINK = 3, 1e-2, 1e-8, 0.7
+
 _C_DRIVER = r"""
+#define KINK_DOUBLINGS 3
+#define KINK_RTOL 1e-2
+#define KINK_ATOL 1e-8
+#define KINK_SHRINK 0.7
 /* nlobs interval driver: per interval k, n_k sub-steps of SUB then JUMP (see nlobs.engine._intervals).
    Returns 0; k + 1 when the state became non-finite in interval k; -(k + 1) when interval k needs more than
    max_sub sub-steps (their number is written to need[0]). nsub[k], rate[k] are filled for every finished interval.
@@ -57,7 +68,8 @@ _C_DRIVER = r"""
    ops[3k] (its state and carried rate) when that is >= 0, else from the end of interval k - 1; its end state and
    the rate it passes on are written to slot ops[3k+1] when >= 0, and to row ops[3k+2] of out/obuf when >= 0.
    Without one, interval k's end is row k. carry[k] (when carry != NULL) is the rate interval k passes on.
-   When *stop is raised (a time budget), returns -(k + 1) with need[0] = -1. */
+   When *stop is raised (a time budget), returns -(k + 1) with need[0] = -1. When an interval accepted as a kink
+   fails its step-doubling check, returns k + 1 with need[0] = -2 and need[1] = the relative change. */
 long long nlobs_intervals(const double* s0, const double* A, const double* nmin, double rate0, double target,
                           double reject, double max_sub, double* out, double* obuf, double* nsub, double* rate,
                           long long n_int, double* need, const long long* ops, double* slots, double* carry,
@@ -113,6 +125,39 @@ long long nlobs_intervals(const double* s0, const double* A, const double* nmin,
       }
       nsub[k] = n; rate[k] = rmax;
       if (bad) return k + 1;
+      if (!check) {  /* accepted as a kink: check its end state (after the jump, as the VM path compares) by step
+                        doubling; a diverging interval fails it */
+        double e = INFINITY, e_prev = INFINITY, sc, jc[NS], jf[NS], ob[NO + 1];
+        int d, idle0 = IDLEN > 0;
+        for (j = 0; j < IDLEN; ++j) idle0 &= a[IDLEAT + j] == 0;
+        arg[0] = cur; arg[1] = a; res[0] = jc; res[1] = ob;
+        if (idle0) JUMP0(arg, res, iw, w, 0); else JUMP(arg, res, iw, w, 0);
+        for (d = 0; d < KINK_DOUBLINGS; ++d) {
+          n *= 2; ni = (long long)n; h = dt / n;
+          if (n > max_sub) { need[0] = n; return -(k + 1); }
+          for (j = 0; j < NS; ++j) nxt[j] = start[j];
+          for (i = 0; i < ni; ++i) {
+            if ((i & 65535) == 65535 && stop && *stop) { need[0] = -1; return -(k + 1); }
+            th[0] = t + i * h; th[1] = h;
+            arg[0] = nxt; arg[1] = a; arg[2] = th; res[0] = end; res[1] = &r;
+            SUB(arg, res, iw, w, 0);
+            for (j = 0; j < NS; ++j) nxt[j] = end[j];
+          }
+          arg[0] = nxt; arg[1] = a; res[0] = jf; res[1] = ob;
+          if (idle0) JUMP0(arg, res, iw, w, 0); else JUMP(arg, res, iw, w, 0);
+          e_prev = e; e = 0;
+          for (j = 0; j < NS; ++j) {
+            sc = KINK_ATOL + KINK_RTOL * fmax(fmax(fabs(jf[j]), fabs(jc[j])), fabs(start[j]));
+            sc = fabs(jf[j] - jc[j]) / sc;
+            e = sc > e || sc != sc ? sc : e;
+          }
+          for (j = 0; j < NS; ++j) { cur[j] = nxt[j]; jc[j] = jf[j]; }
+          nsub[k] = n;
+          if (e <= 1) break;
+        }
+        /* refused: the end state still moves with the step, and no longer shrinks as a kink's error does */
+        if (!(e <= 1) && !(e <= KINK_SHRINK * e_prev)) { need[0] = -2; need[1] = e; return k + 1; }
+      }
       if (check) rho = rmax;  /* a kink's rate (about 2/h) says nothing about the next interval */
       break;
     }
@@ -165,6 +210,9 @@ class IntervalResult:
     carry : numpy.ndarray of shape (N,) or None
         The rate each interval passes on to the next (its measured rate, or the one it received when it held a
         kink); NaN where not reached.
+    unconverged : float or None
+        With `failed`: the interval was taken for a kink, but its end state still changed by this much (relative, see
+        :data:`KINK_RTOL`) when its sub-steps were doubled: a diverging interval, not a kink.
 
     With a :class:`Schedule`, `states` and `outputs` have one row per emitted row of the schedule, and the other
     arrays one entry per interval of the schedule.
@@ -178,6 +226,7 @@ class IntervalResult:
     refused: tuple[int, float] | None = None
     backend: str = "vm"
     carry: np.ndarray | None = None
+    unconverged: float | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -472,6 +521,27 @@ class IntervalRunner:
             broken = ~(np.isfinite(finals).all(axis=1) & np.isfinite(outs).all(axis=1))
             bad = np.flatnonzero(recount | stiff | broken)
             accepted = int(bad[0]) if bad.size else m
+            if k <= kink_k < k + accepted:   # the kink is accepted: check it by step doubling, as the C driver does
+                i_k = kink_k - k
+                s_start = start if i_k == 0 else finals[i_k - 1]
+                e, e_prev = np.inf, np.inf
+                for _ in range(KINK_DOUBLINGS):
+                    n2 = 2 * int(counts[i_k])
+                    if n2 > max_substeps:
+                        return IntervalResult(states, outputs, substeps, rate, refused=(kink_k, float(n2)), carry=carry)
+                    f2, r2, _, o2 = self._eval_rows(s_start, A, kink_k, np.array([n2], dtype=np.int64), reject, keep=0)
+                    e_prev, e = e, _kink_change(f2[0], finals[i_k], s_start)
+                    finals[i_k], outs[i_k], counts[i_k], rmaxes[i_k] = f2[0], o2[0], n2, max(rmaxes[i_k], r2[0])
+                    if e <= 1:
+                        break
+                if not (e <= 1) and not (e <= KINK_SHRINK * e_prev):
+                    sl = slice(k, kink_k)
+                    substeps[sl], rate[sl], states[sl], outputs[sl] = counts[:i_k], rmaxes[:i_k], finals[:i_k], outs[:i_k]
+                    carry[sl] = eff[:i_k]
+                    substeps[kink_k], rate[kink_k] = counts[i_k], rmaxes[i_k]
+                    return IntervalResult(states, outputs, substeps, rate, failed=kink_k, carry=carry, unconverged=float(e))
+                accepted = i_k + 1          # the intervals after it started from its old end: they are run again
+                bad = bad[bad < accepted]
             sl = slice(k, k + accepted)
             substeps[sl], rate[sl], states[sl], outputs[sl] = counts[:accepted], rmaxes[:accepted], finals[:accepted], outs[:accepted]
             carry[sl] = eff[:accepted]
@@ -567,6 +637,14 @@ class IntervalRunner:
         return finals, rmax, rfirst, outs
 
 
+def _kink_change(fine: np.ndarray, coarse: np.ndarray, start: np.ndarray) -> float:
+    """The largest change of an end state between n and 2n sub-steps, each entry relative to KINK_ATOL + KINK_RTOL·|x|
+    (NaN or infinite: infinite)."""
+    scale = KINK_ATOL + KINK_RTOL * np.maximum(np.maximum(np.abs(fine), np.abs(coarse)), np.abs(start))
+    e = np.abs(fine - coarse) / scale
+    return float(np.max(e)) if np.all(np.isfinite(e)) else np.inf
+
+
 def fastest_rate(J: np.ndarray) -> float:
     """The flow's fastest local rate from its Jacobian J (n x n): the spectral radius, exactly (eigenvalues) up to
     n = 64, above that estimated by 48 steps of power iteration from a fixed vector (the geometric mean of the growth
@@ -644,7 +722,7 @@ class _CompiledIntervals:
         N = A.shape[0]
         rows = N if sched is None else sched.n_emit
         states, outputs = np.full((rows, self.ns), np.nan), np.full((rows, max(self.no, 1)), np.nan)
-        substeps, rate, carry, need = np.zeros(N), np.full(N, np.nan), np.full(N, np.nan), np.zeros(1)
+        substeps, rate, carry, need = np.zeros(N), np.full(N, np.nan), np.full(N, np.nan), np.zeros(2)
         p = ctypes.POINTER(ctypes.c_double)
         ops = None if sched is None else sched.ops()
         slots = None if sched is None else np.ascontiguousarray(slots, dtype=float)
@@ -658,7 +736,8 @@ class _CompiledIntervals:
             dog.raise_if_tripped("running its compiled loop")
         outputs = outputs[:, :self.no]
         if rc > 0:
-            return IntervalResult(states, outputs, substeps, rate, failed=int(rc - 1), backend="c", carry=carry)
+            return IntervalResult(states, outputs, substeps, rate, failed=int(rc - 1), backend="c", carry=carry,
+                                  unconverged=float(need[1]) if need[0] == -2 else None)
         if rc < 0:
             return IntervalResult(states, outputs, substeps, rate, refused=(int(-rc - 1), float(need[0])), backend="c",
                                   carry=carry)

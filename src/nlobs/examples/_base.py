@@ -25,23 +25,39 @@ class Claim:
     `holds` is True or False when the claim was checked, None when it could not be (e.g. the global
     check without a Gröbner engine); `detail` then says why and what to install or change. A claim
     that was not checked is never shown as holding, nor as failing.
+
+    `paper` marks a claim the paper makes that nlobs checks without standing behind it: where it does
+    not hold, that is a finding about the paper, shown as "not true" with `why` (what the numbers show
+    instead, and where the example's notes explain it), not a failure of nlobs. A claim of nlobs that
+    does not hold FAILS.
     """
 
     text: str
     holds: bool | None
     detail: str = ""
+    paper: bool = False
+    why: str = ""
 
     def __post_init__(self) -> None:
         if self.holds is not None:  # NumPy booleans from comparisons become bool
             object.__setattr__(self, "holds", bool(self.holds))
 
     @property
+    def not_true(self) -> bool:
+        """Whether this is a claim of the paper, checked, that does not hold (a finding, not a failure)."""
+        return self.paper and self.holds is False
+
+    @property
     def word(self) -> str:
-        """How the claim is shown: "ok", "FAILS" or "not checked"."""
-        return "not checked" if self.holds is None else ("ok" if self.holds else "FAILS")
+        """How the claim is shown: "ok", "not true" (a claim of the paper that the check contradicts), "FAILS"
+        or "not checked"."""
+        if self.holds is None:
+            return "not checked"
+        return "ok" if self.holds else ("not true" if self.paper else "FAILS")
 
     def __str__(self) -> str:
-        return f"[{self.word}] {self.text}" + (f" ({self.detail})" if self.detail else "")
+        return (f"[{self.word}] {self.text}" + (f" ({self.detail})" if self.detail else "")
+                + (f"; why: {self.why}" if self.not_true and self.why else ""))
 
 
 def claim_from_global(text: str, result: Any, holds: bool) -> Claim:
@@ -105,15 +121,19 @@ class ExampleResult:
 
     @property
     def ok(self) -> bool:
-        """Whether no claim fails (a claim that could not be checked is counted apart, see :attr:`tally`)."""
-        return all(c.holds is not False for c in self.claims)
+        """Whether no claim fails (a claim that could not be checked, and a claim of the paper found not true,
+        are counted apart, see :attr:`tally`)."""
+        return all(c.holds is not False or c.paper for c in self.claims)
 
     @property
     def tally(self) -> str:
-        """E.g. "claims 5/6 hold, 1 not checked"."""
+        """E.g. "claims 5/6 hold, 1 not checked", or "claims 8/10 hold, 2 of the paper's checked and not true"."""
         n_ok = sum(c.holds is True for c in self.claims)
         n_none = sum(c.holds is None for c in self.claims)
-        return f"claims {n_ok}/{len(self.claims)} hold" + (f", {n_none} not checked" if n_none else "")
+        n_not = sum(c.not_true for c in self.claims)
+        return (f"claims {n_ok}/{len(self.claims)} hold"
+                + (f", {n_not} of the paper's checked and not true" if n_not else "")
+                + (f", {n_none} not checked" if n_none else ""))
 
     def __repr__(self) -> str:
         return f"ExampleResult({self.key!r}, {self.tally}, runs={list(self.runs)}, figures={list(self.figures)})"

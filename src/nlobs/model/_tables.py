@@ -156,6 +156,17 @@ class TableCall(sp.Function):
         name = self.table.name + "".join("'" if i == 0 else "_z" for i in self.order)
         return f"{name}({', '.join(printer.doprint(a) for a in self.args)})"
 
+    def _latex(self, printer: Any, exp: str | None = None) -> str:
+        """The table's declared name, as the model file calls it (``cop(T_o)``); a derivative with a prime per
+        derivative in the first argument and ∂_z per derivative in the second (``cop'(T_o)``)."""
+        name = self.table.name
+        tex = rf"\operatorname{{{name}}}" if name.isalnum() else rf"\mathrm{{{name.replace('_', chr(92) + '_')}}}"
+        primes = sum(i == 0 for i in self.order)
+        tex = r"\partial_{z}" * (len(self.order) - primes) + tex + ("'" * primes if primes else "")
+        if exp is not None:
+            tex = rf"{{{tex}}}^{{{exp}}}"
+        return rf"{tex}{{\left({', '.join(printer._print(a) for a in self.args)} \right)}}"
+
     @classmethod
     def function(cls) -> Any:
         """The CasADi function of this call (or derivative) of one vector argument: the interpolant at the clamped

@@ -258,7 +258,7 @@ class CompiledObserver:
             k = res.failed
             err = FiniteEscapeError(label, float(t[k]), S[k, :self.nz], self.design.z_names, np.inf,
                                     hint=f"between the samples at t = {t[k]:g} and t = {t[k + 1]:g} "
-                                         f"({int(res.substeps[k])} RK4 steps)")
+                                         f"({int(res.substeps[k])} RK4 steps)" + _unconverged(res))
             err.interval, err.substeps = k, int(res.substeps[k])  # the step from sample k to sample k + 1
             raise err
         z = S[:, :self.nz]
@@ -310,12 +310,22 @@ class CompiledObserver:
             before = res.states[row - 1, :self.nz] if row > 0 and np.isfinite(res.states[row - 1]).all() else z0
             err = FiniteEscapeError(label, float(A[k, 0]), before, self.design.z_names, np.inf,
                                     hint=f"between t = {A[k, 0]:g} and t = {A[k, 0] + A[k, 1]:g}, at the row t = {t[row]:g}"
-                                         + late)
+                                         + late + _unconverged(res))
             err.interval, err.substeps = row, int(res.substeps[k])
             raise err
         z = res.states[:, :self.nz]
         xhat = z[:, :self.n] if self.selects_state else res.outputs[:, :self.n]
         return z, np.ascontiguousarray(xhat)
+
+
+def _unconverged(res: Any) -> str:
+    """What an interval refused by the kink check (engine/_intervals.py) adds to the message."""
+    if res.unconverged is None:
+        return ""
+    return (f": the flow there changes faster than any step resolves, and doubling the RK4 steps still moved the end "
+            f"state by {res.unconverged:.3g} times the tolerance (a state diverging, not a kink of abs, sign, min or "
+            "max): the state before this interval is the last one to trust. Check the model or its parameters there, "
+            "or the filter's tuning (a smaller Q, a larger R)")
 
 
 def interval_table(t: np.ndarray, u: np.ndarray, y: np.ndarray, m: np.ndarray) -> np.ndarray:

@@ -10,18 +10,17 @@ seeded by splitmix64 from the design's seed, so a run is reproducible bit for bi
 from __future__ import annotations
 
 import ctypes
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from ..design.kalman._pf import ParticleDesign, square_roots
+from ..design.kalman._pf import ParticleDesign
 from ._base import AbstractObserver
-from ._signals import signals_by_keyword
 from ..engine._codegen import _build, _generate, _renamed, built_path, signature_of
-from ..errors import DataError, FiniteEscapeError, ShapeError
+from ..errors import ShapeError
+from ._particle_runs import ParticleRun, _Job, draws_needed
 
-__all__ = ["ParticleObserver", "ParticleRun", "ParticleRunner", "particle_runner"]
+__all__ = ["ParticleObserver", "ParticleRun", "ParticleRunner", "draws_needed", "particle_runner"]
 
 _C_PF = r"""
 /* nlobs particle filter loop (see nlobs.observer._particles). Returns 0, or k + 1 when every particle's
@@ -39,7 +38,7 @@ static inline uint64_t next64(void) {
   rs[2] ^= rs[0]; rs[3] ^= rs[1]; rs[1] ^= rs[2]; rs[0] ^= rs[3]; rs[2] ^= t; rs[3] = rotl(rs[3], 45);
   return result;
 }
-static void seed_rng(uint64_t seed) {
+static void seed_stream(uint64_t seed) {
   int i;
   for (i = 0; i < 4; ++i) {
     uint64_t z = (seed += 0x9e3779b97f4a7c15ULL);
@@ -47,7 +46,14 @@ static void seed_rng(uint64_t seed) {
     rs[i] = z ^ (z >> 31);
   }
   seed_lanes(seed);
-  zigset();
+}
+static void seed_rng(uint64_t seed) { seed_stream(seed); zigset(); }
+/* the draws of sample k (its resampling uniform first, then its move's normals) come from a stream of their own,
+   seeded by (seed, k): a re-run from a saved cloud at sample k draws what the first pass drew there */
+static void seed_row(uint64_t seed, long long k) {
+  uint64_t z = seed ^ (0xd1b54a32d192ed03ULL * (uint64_t)(k + 1));
+  z = (z ^ (z >> 31)) * 0x7fb5d329728ea185ULL; z = (z ^ (z >> 27)) * 0x81dadef4bc2a0c4bULL;
+  seed_stream(z ^ (z >> 33));
 }
 static double unif(void) { return (next64() >> 11) * 0x1.0p-53; }
 static double unif_open(void) { return ((next64() >> 11) + 0.5) * 0x1.0p-53; }  /* in (0, 1) */
@@ -157,6 +163,11 @@ static double loglik(const double* x, double t, const double* u, const double* y
 /* move every particle over one interval: nsub RK4 steps of length h, each followed by sqrt(h) Lq xi; on a map
    (map != 0) one step of the map followed by Lq xi (Q is the covariance per step) */
 static double* nbuf;  /* M * NX standard normals, drawn in one tight loop per step */
+/* external draws (checking another engine against this one): normals M*NX for the initial particles, then
+   M*NX per noisy move in order; one uniform per sample for its systematic resampling. NULL: the generator. */
+static const double* ext_n;
+static const double* ext_u;
+static long long ext_off;
 static void move(double* X, long long M, double t0, double h, long long nsub, const double* u, const double* Lq, int noise,
                  long long map) {
   double tmp[NX + 1], sq = map ? 1.0 : sqrt(h);
@@ -169,10 +180,11 @@ static void move(double* X, long long M, double t0, double h, long long nsub, co
       for (a = 0; a < NX; ++a) x[a] = tmp[a];
     }
     if (noise) {
-      fill_normals(nbuf, M * NX);
+      const double* src = nbuf;
+      if (ext_n) { src = ext_n + ext_off; ext_off += M * NX; } else fill_normals(nbuf, M * NX);
       for (i = 0; i < M; ++i) {
         double* x = X + i * NX;
-        const double* xi = nbuf + i * NX;
+        const double* xi = src + i * NX;
         for (a = 0; a < NX; ++a) { double acc = 0; for (b = 0; b < NX; ++b) acc += Lq[a * NX + b] * xi[b]; x[a] += sq * acc; }
       }
     }
@@ -191,8 +203,8 @@ static double normalise(double* lw, double* wk, long long M) {
   return m;
 }
 /* systematic resampling (Kitagawa 1996): idx[i] = the particle whose cumulative weight first exceeds (i + U)/M */
-static void systematic(const double* wk, long long M, long long* idx) {
-  double c = wk[0], step = 1.0 / M, p = unif() * step;
+static void systematic(const double* wk, long long M, long long* idx, double u) {  /* u uniform in [0, 1) */
+  double c = wk[0], step = 1.0 / M, p = u * step;
   long long i, j = 0;
   for (i = 0; i < M; ++i, p += step) {
     while (p > c && j < M - 1) { ++j; c += wk[j]; }
@@ -214,21 +226,37 @@ static long long pf_loop(const double* t, const double* U, const double* Y, cons
                    const double* nsub, const double* x0, const double* L0, const double* Lq, long long N, long long M,
                    long long aux, long long map, double thresh, long long seed, double* X, double* Xb, double* lw, double* wk,
                    double* mu, double* lmu, long long* idx, double* xhat, double* P, double* ess, double* resampled,
-                   double* ll, double* xprior) {
-  long long k, i;
+                   double* ll, double* xprior, long long k0, const double* X_init, const double* lw_init,
+                   const double* keep, double* kept_X, double* kept_lw) {
+  long long k, i, nkept = 0;
   int a, b;
-  double xi[NX + 1], s, sw2;
-  seed_rng((uint64_t)seed);
+  double xi[NX + 1], s, sw2, urow = 0;
+  zigset();
   nbuf = (double*)malloc(sizeof(double) * M * NX);
   if (!nbuf) return -1;
-  for (i = 0; i < M; ++i) {
-    for (a = 0; a < NX; ++a) xi[a] = gauss();
-    for (a = 0; a < NX; ++a) { double acc = 0; for (b = 0; b <= a; ++b) acc += L0[a * NX + b] * xi[b]; X[i * NX + a] = x0[a] + acc; }
-    lw[i] = -log((double)M); wk[i] = 1.0 / M;
+  ext_off = (ext_n && !X_init) ? M * NX : 0;
+  if (X_init) {  /* resume: the cloud after sample k0 (row 0 of this call), weights as log-weights */
+    double m = -INFINITY, sum = 0;
+    memcpy(X, X_init, sizeof(double) * M * NX);
+    for (i = 0; i < M; ++i) { lw[i] = lw_init[i]; if (lw[i] > m) m = lw[i]; }
+    for (i = 0; i < M; ++i) { wk[i] = exp(lw[i] - m); sum += wk[i]; }
+    for (i = 0; i < M; ++i) wk[i] /= sum;
+  } else {
+    seed_row((uint64_t)seed, k0);
+    urow = ext_u ? ext_u[0] : unif();
+    for (i = 0; i < M; ++i) {
+      for (a = 0; a < NX; ++a) xi[a] = ext_n ? ext_n[i * NX + a] : gauss();
+      for (a = 0; a < NX; ++a) { double acc = 0; for (b = 0; b <= a; ++b) acc += L0[a * NX + b] * xi[b]; X[i * NX + a] = x0[a] + acc; }
+      lw[i] = -log((double)M); wk[i] = 1.0 / M;
+    }
   }
-  for (k = 0; k < N; ++k) {
+  for (k = X_init ? 1 : 0; k < N; ++k) {
     const double* y = Y + k * NY; const double* Wk = W + k * NY * NY;
     resampled[k] = 0;
+    if (k > 0) {
+      seed_row((uint64_t)seed, k0 + k);
+      urow = ext_u ? ext_u[k] : unif();
+    }
     if (k > 0) {
       const double* u = U + (k - 1) * NU;
       double h = (t[k] - t[k - 1]) / nsub[k - 1];
@@ -239,7 +267,7 @@ static long long pf_loop(const double* t, const double* U, const double* Y, cons
         for (i = 0; i < M; ++i) { lmu[i] = loglik(mu + i * NX, t[k], U + k * NU, y, Wk, cst[k]); lw[i] += lmu[i]; }
         s = normalise(lw, wk, M);
         if (!(s == s)) return k + 1;
-        systematic(wk, M, idx);
+        systematic(wk, M, idx, urow);
         gather(X, idx, M, Xb);
         memcpy(X, Xb, sizeof(double) * M * NX);
         move(X, M, t[k - 1], h, (long long)nsub[k - 1], u, Lq, 1, map);
@@ -286,11 +314,16 @@ static long long pf_loop(const double* t, const double* U, const double* Y, cons
     }
     ess[k] = 1 / sw2;
     if (!aux && ess[k] < thresh * M) {
-      systematic(wk, M, idx);
+      systematic(wk, M, idx, urow);
       gather(X, idx, M, Xb);
       memcpy(X, Xb, sizeof(double) * M * NX);
       for (i = 0; i < M; ++i) { lw[i] = -log((double)M); wk[i] = 1.0 / M; }
       resampled[k] = 1;
+    }
+    if (keep && keep[k] > 0) {  /* save the cloud after this sample, to resume from it */
+      memcpy(kept_X + nkept * M * NX, X, sizeof(double) * M * NX);
+      memcpy(kept_lw + nkept * M, lw, sizeof(double) * M);
+      ++nkept;
     }
   }
   return 0;
@@ -300,56 +333,18 @@ long long nlobs_pf(const double* t, const double* U, const double* Y, const doub
                    const double* nsub, const double* x0, const double* L0, const double* Lq, long long N, long long M,
                    long long aux, long long map, double thresh, long long seed, double* X, double* Xb, double* lw, double* wk,
                    double* mu, double* lmu, long long* idx, double* xhat, double* P, double* ess, double* resampled,
-                   double* ll, double* xprior) {
-  long long rc = pf_loop(t, U, Y, W, cst, nsub, x0, L0, Lq, N, M, aux, map, thresh, seed, X, Xb, lw, wk, mu, lmu, idx, xhat, P,
-                         ess, resampled, ll, xprior);
+                   double* ll, double* xprior, const double* draws_n, const double* draws_u, long long k0,
+                   const double* X_init, const double* lw_init, const double* keep, double* kept_X, double* kept_lw) {
+  long long rc;
+  ext_n = draws_n; ext_u = draws_u;
+  rc = pf_loop(t, U, Y, W, cst, nsub, x0, L0, Lq, N, M, aux, map, thresh, seed, X, Xb, lw, wk, mu, lmu, idx, xhat, P,
+               ess, resampled, ll, xprior, k0, X_init, lw_init, keep, kept_X, kept_lw);
   free(nbuf);
   nbuf = 0;
+  ext_n = 0; ext_u = 0;
   return rc;
 }
 """
-
-
-@dataclass(frozen=True, eq=False)
-class ParticleRun:
-    """What :meth:`ParticleRunner.run` returns (time on the first axis).
-
-    Attributes
-    ----------
-    t : numpy.ndarray of shape (N,)
-    xhat : numpy.ndarray of shape (N, n)
-        Weighted particle mean after each sample's weighting.
-    P : numpy.ndarray of shape (N, n, n)
-        Weighted particle covariance.
-    ess : numpy.ndarray of shape (N,)
-        Effective sample size 1/Σw² after weighting (before resampling).
-    resampled : numpy.ndarray of shape (N,), bool
-    loglik : numpy.ndarray of shape (N,)
-        log p̂(y_k | y_1..k-1), the particle estimate of each sample's predictive likelihood.
-    particles : numpy.ndarray of shape (M, n)
-        The final particles (after the last resampling, if any).
-    weights : numpy.ndarray of shape (M,)
-    xhat_prior : numpy.ndarray of shape (N, n)
-        The weighted mean of the particles moved to each sample, before its measurement is used (the
-        auxiliary filter: moved without noise).
-    """
-
-    t: np.ndarray
-    xhat: np.ndarray
-    P: np.ndarray
-    ess: np.ndarray
-    resampled: np.ndarray
-    loglik: np.ndarray
-    particles: np.ndarray
-    weights: np.ndarray
-    xhat_prior: np.ndarray
-
-    @property
-    def z(self) -> np.ndarray:
-        """The trace rows of the filter (x̂, P column-major, ESS, resampled, log-likelihood), as its ``z_names``."""
-        N, n = self.xhat.shape
-        return np.hstack([self.xhat, self.P.transpose(0, 2, 1).reshape(N, n * n), self.ess[:, None],
-                          self.resampled[:, None].astype(float), self.loglik[:, None]])
 
 
 class ParticleRunner:
@@ -375,7 +370,8 @@ class ParticleRunner:
         lib = ctypes.CDLL(str(path))
         fn = lib.nlobs_pf
         dbl, ll = ctypes.POINTER(ctypes.c_double), ctypes.c_longlong
-        fn.argtypes = [dbl] * 9 + [ll, ll, ll, ll, ctypes.c_double, ll] + [dbl] * 6 + [ctypes.POINTER(ctypes.c_longlong)] + [dbl] * 6
+        fn.argtypes = [dbl] * 9 + [ll, ll, ll, ll, ctypes.c_double, ll] + [dbl] * 6 + [ctypes.POINTER(ctypes.c_longlong)] + [dbl] * 8 \
+            + [ll] + [dbl] * 5
         fn.restype = ll
         lib.nlobs_normals.argtypes = [ll, ll, ctypes.POINTER(ctypes.c_double)]
         lib.nlobs_normals.restype = ll
@@ -388,12 +384,20 @@ class ParticleRunner:
         return out
 
     def run(self, t: Any, *args: Any, u: Any = None, y: Any = None, mask: Any = None, xhat0: Any = None,
-            seed: int | None = None, particles: int | None = None, name: str | None = None) -> ParticleRun:
+            seed: int | None = None, particles: int | None = None, name: str | None = None,
+            draws: tuple[np.ndarray, np.ndarray] | None = None, resume: tuple[np.ndarray, np.ndarray] | None = None,
+            k0: int = 0, keep: np.ndarray | None = None) -> ParticleRun:
         """Run the filter on samples: times `t` (N,), inputs `u` (N, m) and outputs `y` (N, p), held between samples:
         ``run(t, u=..., y=...)``.
 
+        Sample k's random numbers come from a stream seeded by (seed, k0 + k): `resume` = (particles, log-weights),
+        the cloud after the first sample of `t` (sample k0 of an earlier run), goes on from there with the draws that
+        run made (row 0's results are then NaN); `keep` (N bools) saves the cloud after those samples (``kept``).
+
         `mask` (N, p) marks measured outputs (1) and missing ones (0); `xhat0`, `seed` and `particles`
-        override the design's.
+        override the design's. `draws` = (normals, uniforms) replaces the generator (to check another engine
+        against this one): the initial particles' normals then each noisy move's, M·n each, in order
+        (:func:`draws_needed`), and one uniform per sample for its resampling.
 
         Raises
         ------
@@ -401,75 +405,66 @@ class ParticleRunner:
             When every particle's likelihood vanishes at a sample (the particles missed the measurement:
             more particles, a larger Q or R, or a better x̂0).
         """
-        u, y = signals_by_keyword("ParticleRunner.run", args, u, y)
-        d = self.design
-        label = f"observer {name or d.method!r}"
-        t = np.ascontiguousarray(t, dtype=float).reshape(-1)
-        N = t.size
-        if N < 1 or np.any(np.diff(t) <= 0):
-            raise ShapeError(f"{label}: the sample times must be strictly increasing")
-        y = np.ascontiguousarray(y, dtype=float).reshape(N, self.ny)
-        U = np.zeros((N, 1)) if self.nu == 0 else np.ascontiguousarray(u, dtype=float).reshape(N, self.nu)
-        m = np.ones((N, self.ny)) if mask is None else np.asarray(mask, dtype=float).reshape(N, self.ny)
-        y = np.ascontiguousarray(np.where(m > 0, y, 0.0))
-        if not (np.all(np.isfinite(y)) and np.all(np.isfinite(U))):
-            raise DataError(f"{label}: non-finite samples (give missing outputs by `mask`)")
-        W, cst = _precision_factors(d.R, m > 0)
-        dts = np.diff(t)
-        nsub = np.ones(max(N - 1, 1)) if d.max_step is None else np.maximum(1.0, np.ceil(dts / d.max_step - 1e-9))
-        M = d.particles if particles is None else int(particles)
-        x0 = np.ascontiguousarray(d.xhat0 if xhat0 is None else np.asarray(xhat0, dtype=float).reshape(self.n))
-        L0, Lq = (np.ascontiguousarray(a) for a in square_roots(d))
-        X, Xb, mu = (np.empty((M, self.n)) for _ in range(3))
+        job = _Job.of(self, t, args, u, y, mask, xhat0, seed, particles, name)
+        n_draws = draws_needed(self.design, job.nsub, job.N, job.M)
+        dn = du = None
+        if draws is not None:
+            dn, du = (np.ascontiguousarray(a, dtype=float).reshape(-1) for a in draws)
+            if dn.size != n_draws or du.size != job.N:
+                raise ShapeError(f"{job.label}: `draws` must hold {n_draws} normals and {job.N} uniforms, got {dn.size} and {du.size}")
+        M, N, n = job.M, job.N, self.n
+        X, Xb, mu = (np.empty((M, n)) for _ in range(3))
         lw, wk, lmu = np.empty(M), np.empty(M), np.empty(M)
         idx = np.empty(M, dtype=np.int64)
-        xhat, P = np.full((N, self.n), np.nan), np.full((N, self.n, self.n), np.nan)
-        ess, res, llk, prior = np.full(N, np.nan), np.zeros(N), np.full(N, np.nan), np.full((N, self.n), np.nan)
+        xhat, P = np.full((N, n), np.nan), np.full((N, n, n), np.nan)
+        ess, res, llk, prior = np.full(N, np.nan), np.zeros(N), np.full(N, np.nan), np.full((N, n), np.nan)
         p = ctypes.POINTER(ctypes.c_double)
-        rc = self._fn(t.ctypes.data_as(p), U.ctypes.data_as(p), y.ctypes.data_as(p), W.ctypes.data_as(p), cst.ctypes.data_as(p),
-                      nsub.ctypes.data_as(p), x0.ctypes.data_as(p), L0.ctypes.data_as(p), Lq.ctypes.data_as(p), N, M,
-                      int(d.scheme == "auxiliary"), int(d.system.is_discrete), d.threshold, int(d.seed if seed is None else seed),
-                      X.ctypes.data_as(p), Xb.ctypes.data_as(p), lw.ctypes.data_as(p), wk.ctypes.data_as(p),
+        null = ctypes.cast(None, p)
+        d = self.design
+        Xi = Li = None
+        if resume is not None:
+            Xi = np.ascontiguousarray(resume[0], dtype=float).reshape(M, n)
+            Li = np.ascontiguousarray(resume[1], dtype=float).reshape(M)
+        kf = None if keep is None else np.ascontiguousarray(keep, dtype=float).reshape(N)
+        n_keep = 0 if kf is None else int(np.count_nonzero(kf > 0))
+        kX, kL = np.empty((n_keep, M, n)), np.empty((n_keep, M))
+        rc = self._fn(job.t.ctypes.data_as(p), job.U.ctypes.data_as(p), job.y.ctypes.data_as(p), job.W.ctypes.data_as(p),
+                      job.cst.ctypes.data_as(p), job.nsub.ctypes.data_as(p), job.x0.ctypes.data_as(p), job.L0.ctypes.data_as(p),
+                      job.Lq.ctypes.data_as(p), N, M, int(d.scheme == "auxiliary"), int(d.system.is_discrete), d.threshold,
+                      job.seed, X.ctypes.data_as(p), Xb.ctypes.data_as(p), lw.ctypes.data_as(p), wk.ctypes.data_as(p),
                       mu.ctypes.data_as(p), lmu.ctypes.data_as(p), idx.ctypes.data_as(ctypes.POINTER(ctypes.c_longlong)),
                       xhat.ctypes.data_as(p), P.ctypes.data_as(p), ess.ctypes.data_as(p), res.ctypes.data_as(p),
-                      llk.ctypes.data_as(p), prior.ctypes.data_as(p))
+                      llk.ctypes.data_as(p), prior.ctypes.data_as(p),
+                      null if dn is None else dn.ctypes.data_as(p), null if du is None else du.ctypes.data_as(p), int(k0),
+                      null if Xi is None else Xi.ctypes.data_as(p), null if Li is None else Li.ctypes.data_as(p),
+                      null if kf is None else kf.ctypes.data_as(p), kX.ctypes.data_as(p), kL.ctypes.data_as(p))
         if rc < 0:
-            raise MemoryError(f"{label}: no memory for {M} particles' random numbers")
+            raise MemoryError(f"{job.label}: no memory for {M} particles' random numbers")
         if rc:
-            k = int(rc - 1)
-            last = xhat[k - 1] if k > 0 else x0
-            raise FiniteEscapeError(label, float(t[k - 1] if k > 0 else t[0]), last, d.system.states, np.inf,
-                                    hint=f"at the sample t = {t[k]:g} every particle's likelihood vanished (the model's output is "
-                                         "not finite at all of them: outside its domain): start x̂0 inside the domain, "
-                                         "or use a smaller P0 or Q")
-        return ParticleRun(t, xhat, P, ess, res > 0, llk, X.copy(), np.exp(lw), prior)
+            job.vanished(int(rc - 1), xhat)
+        return ParticleRun(job.t, xhat, P, ess, res > 0, llk, X.copy(), np.exp(lw), prior, lw.copy(),
+                           None if kf is None else (kX, kL))
 
 
-def _precision_factors(R: np.ndarray, measured: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per sample: W with WᵀW = R_sub⁻¹ on the measured outputs (zero elsewhere), and the Gaussian's log constant."""
-    N, p = measured.shape
-    W, cst = np.zeros((N, p, p)), np.zeros(N)
-    for pattern in {tuple(r) for r in measured}:
-        rows = np.all(measured == np.array(pattern), axis=1)
-        sel = np.flatnonzero(pattern)
-        Wk = np.zeros((p, p))
-        c = 0.0
-        if sel.size:
-            L = np.linalg.cholesky(R[np.ix_(sel, sel)])
-            Wk[np.ix_(sel, sel)] = np.linalg.inv(L)
-            c = -0.5 * sel.size * np.log(2 * np.pi) - np.log(np.diag(L)).sum()
-        W[rows], cst[rows] = Wk, c
-    return np.ascontiguousarray(W), cst
+_RUNNERS: dict[tuple[int, str], Any] = {}
 
 
-_RUNNERS: dict[int, ParticleRunner] = {}
-
-
-def particle_runner(design: ParticleDesign) -> ParticleRunner:
-    """The compiled runner for `design` (built on first use, then cached for the process)."""
-    r = _RUNNERS.get(id(design))
+def particle_runner(design: ParticleDesign, engine: str | None = None) -> Any:
+    """The runner for `design` on its engine (``design.engine`` unless `engine` is given: "c", the compiled loop;
+    "jax", :class:`nlobs.observer._particles_jax.JaxParticleRunner`), built on first use, then cached for the process."""
+    engine = getattr(design, "engine", "c") if engine is None else engine
+    if engine not in ("c", "jax"):
+        raise ValueError(f"particle_runner: `engine` must be 'c' or 'jax', got {engine!r}")
+    key = (id(design), engine)
+    r = _RUNNERS.get(key)
     if r is None or r.design is not design:
-        r = _RUNNERS[id(design)] = ParticleRunner(design)
+        if engine == "jax":
+            from ._particles_jax import JaxParticleRunner
+
+            r = JaxParticleRunner(design)
+        else:
+            r = ParticleRunner(design)
+        _RUNNERS[key] = r
     return r
 
 

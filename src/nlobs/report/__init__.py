@@ -22,7 +22,8 @@ from ._html import table as table
 from ._model_report import model_report as model_report
 from ._model_report import parameter_estimates as parameter_estimates
 from ._model_report import write_model_report as write_model_report
+from ._sensors import sensors_figure as sensors_figure
 
 __all__ = ["HTML", "DemoOutcome", "run_demo", "example_section", "summary_table", "bibliography", "details", "equations", "expr",
            "figure", "fmt", "maths", "page", "plain", "pre", "prose", "section", "table", "model_report", "parameter_estimates",
-           "write_model_report"]
+           "write_model_report", "sensors_figure"]

@@ -16,7 +16,7 @@ from typing import TextIO
 from .._version import __version__
 from .._display import Column, SummaryTable
 from ..analysis import analyze
-from ..examples import EXAMPLES, ExampleResult, find_example
+from ..examples import EXAMPLES, Claim, ExampleResult, find_example
 from ..examples._base import register_html_renderer
 from ..references import REFERENCES, cited_keys
 from ..simulate import CONVERGENCE_RULE
@@ -107,8 +107,11 @@ def _print_summary(results: Sequence[ExampleResult], failed: Sequence[tuple[str,
         w(f"{r.key:<{width}} {r.tally}" + ("" if r.ok else "  <-- see the report") + "\n")
         for c in r.claims:
             if c.holds is not True:
-                w(textwrap.fill(f"{c.word.upper()}: {plain(c.text)} ({plain(c.detail)})", width=88, initial_indent="    ",
-                            subsequent_indent="      ") + "\n")
+                text = (f'NOT TRUE, checked: the paper\'s claim "{plain(c.text)}"' if c.not_true else
+                        f"{c.word.upper()}: {plain(_claim_text(c))}") + (f" ({plain(c.detail)})" if c.detail else "")
+                if c.not_true and c.why:
+                    text += f". Why: {plain(c.why)}"
+                w(textwrap.fill(text, width=88, initial_indent="    ", subsequent_indent="      ") + "\n")
     for key, err in failed:
         w(f"{key:<{width}} CRASHED: {err.splitlines()[0]}\n")
     w(f"\nreport: {report.resolve()}\n"
@@ -148,16 +151,28 @@ def _observability(r: ExampleResult) -> list[str]:
     return out
 
 
-def _reference_links(text: str) -> str:
-    """The reference line, each cited work linked to its entry in the bibliography."""
+def _tally_class(r: ExampleResult) -> str:
+    """The colour of an example's tally: a claim fails (red), a claim of the paper is not true (amber), else green."""
+    return "fail" if not r.ok else "warn" if any(c.not_true for c in r.claims) else "ok"
+
+
+def _claim_text(c: Claim) -> str:
+    """A claim as shown: a claim of the paper says so."""
+    return f"paper: {c.text}" if c.paper else c.text
+
+
+def _reference_links(text: str, references: str = "") -> str:
+    """The reference line, each cited work linked to its entry (anchor ``ref-KEY``) on the page `references`
+    ("": this page's bibliography)."""
     out = prose(text)
     for k in cited_keys(text):
         label = html.escape(REFERENCES[k].label)
-        out = out.replace(label, f"<a href='#ref-{k}'>{label}</a>", 1)
+        out = out.replace(label, f"<a href='{html.escape(references)}#ref-{k}'>{label}</a>", 1)
     return out
 
 
-def example_section(r: ExampleResult, seconds: float | None = None, *, level: int = 2, plots: bool = True) -> str:
+def example_section(r: ExampleResult, seconds: float | None = None, *, level: int = 2, plots: bool = True,
+                    references: str = "") -> str:
     """One example as an HTML section: claims, observability, the table, the plots, the model, the evidence, notes.
 
     Parameters
@@ -169,14 +184,21 @@ def example_section(r: ExampleResult, seconds: float | None = None, *, level: in
         Heading level of the title (2: ``<h2>``).
     plots : bool
         Include the run plots and the example's figures.
+    references : str
+        The page whose anchors ``ref-KEY`` list the cited works (the documentation's references page, as a
+        relative link); "" (default): the page the section is on, as the demo report, which ends with its
+        bibliography.
     """
     h = level + 1
-    sub = _reference_links(r.reference) + (f" · ran in {seconds:.1f} s" if seconds is not None else "")
+    sub = _reference_links(r.reference, references) + (f" · ran in {seconds:.1f} s" if seconds is not None else "")
     parts = [f"<p>{prose(r.summary)}</p>", f"<h{h}>Claims checked</h{h}><ul class='claims'>"]
     for c in r.claims:
         cls, word = {True: ("ok", "holds"), False: ("fail", "FAILS"), None: ("unchecked", "not checked")}[c.holds]
-        parts.append(f"<li><span class='{cls}'>{word}</span> — {prose(c.text)}"
-                     + (f" <span class='note'>({prose(c.detail)})</span>" if c.detail else "") + "</li>")
+        if c.not_true:
+            cls, word = "warn", "not true"
+        parts.append(f"<li><span class='{cls}'>{word}</span> — {prose(_claim_text(c))}"
+                     + (f" <span class='note'>({prose(c.detail)})</span>" if c.detail else "")
+                     + (f"<br><span class='note'>Why: {prose(c.why)}</span>" if c.not_true and c.why else "") + "</li>")
     parts.append("</ul>")
     parts += _observability(r)
     if r.table:
@@ -213,7 +235,7 @@ def _extra_columns(r: ExampleResult) -> list[tuple[str, str]]:
 def _html(results: Sequence[ExampleResult], failed: Sequence[tuple[str, str]], timings: dict[str, float], seconds: float) -> str:
     nav = "<nav><h3>Examples</h3><ol>" + "".join(
         f"<li><a href='#{html.escape(r.key)}'>{prose(r.title)}</a> — "
-        f"<span class='{'ok' if r.ok else 'fail'}'>{r.tally}</span></li>"
+        f"<span class='{_tally_class(r)}'>{r.tally}</span></li>"
         for r in results) + "".join(f"<li><span class='fail'>{html.escape(k)} crashed</span></li>" for k, _ in failed) + "</ol></nav>"
     overview = [dict(row, example=r.key) for r in results for row in r.table]
     body = [nav]

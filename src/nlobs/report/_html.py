@@ -76,14 +76,16 @@ def expr(e: Any, *, display: bool = False) -> str:
 
 
 _DOLLARS = re.compile(r"\$([^$]+)\$")
+_MATHS_OR_CODE = re.compile(r"\$([^$]+)\$|`([^`]+)`")
 
 
 def prose(text: str) -> str:
-    """Escaped HTML of `text`, with the maths between dollar signs rendered."""
+    """Escaped HTML of `text`, with the maths between dollar signs rendered and the code between backticks (a
+    command, an option, a name) set as ``<code>``."""
     out, last = [], 0
-    for m in _DOLLARS.finditer(text):
+    for m in _MATHS_OR_CODE.finditer(text):
         out.append(html.escape(text[last:m.start()]))
-        out.append(maths(m.group(1)))
+        out.append(maths(m.group(1)) if m.group(1) is not None else f"<code>{html.escape(m.group(2))}</code>")
         last = m.end()
     out.append(html.escape(text[last:]))
     return "".join(out)
@@ -141,9 +143,16 @@ def _dotted(name: str) -> str:
     return rf"\dot{{{m.group(1)}}}_{{{m.group(2)}}}" if m else rf"\dot{{{tex}}}"
 
 
+def _next(name: str) -> str:
+    """The next value of a state of a map as LaTeX: x1 -> x_{1}[k+1]."""
+    return rf"{sp.latex(sp.Symbol(name))}[k+1]"
+
+
 def equations(system: Any, *, display: bool = True) -> str:
-    """A model's equations, ẋᵢ = fᵢ(x, u, t) and yⱼ = hⱼ(x, u, t), as one aligned MathML block."""
-    rows = [rf"{_dotted(n)} &=& {sp.latex(e)}" for n, e in zip(system.states, system.f)]
+    """A model's equations, ẋᵢ = fᵢ(x, u, t) (xᵢ[k+1] = fᵢ(x, u, t) for a map, ``time="discrete"``) and
+    yⱼ = hⱼ(x, u, t), as one aligned MathML block."""
+    lhs = _next if getattr(system, "is_discrete", False) else _dotted
+    rows = [rf"{lhs(n)} &=& {sp.latex(e)}" for n, e in zip(system.states, system.f)]
     rows += [rf"{sp.latex(sp.Symbol(n))} &=& {sp.latex(e)}" for n, e in zip(system.outputs, system.h)]
     body = maths(r"\begin{array}{rcl}" + r"\\".join(rows) + r"\end{array}", display=display)
     params = getattr(system, "params", {}) or {}

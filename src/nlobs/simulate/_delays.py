@@ -19,7 +19,8 @@ the step-size rule passes on, so a replay integrates with the same sub-steps as 
 
 This holds for every continuous-discrete observer (a flow between samples and an update at each: EKF, UKF, the
 square-root filters, ...): the update uses the sample at the time it was taken, with the state predicted to that
-time. Observers that take the output continuously have no sample to re-apply and are refused.
+time. The particle filter does the same from saved particle clouds (:func:`run_particles_delayed`). Observers that
+take the output continuously have no sample to re-apply and are refused.
 
 Used by :func:`nlobs.simulate` (``delay={output: seconds}``, with sampled measurements) and :func:`nlobs.estimate`
 (a recording stamped at arrival: a delayed output's row holds what was measured `d` earlier).
@@ -29,6 +30,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -218,7 +220,7 @@ def latency_notes(events: Events, t_end: float, outputs: Sequence[str], delays: 
 
 def run_delayed(obs: AbstractObserver, t: np.ndarray, u: np.ndarray, events: Events, z0: np.ndarray, *,
                 max_step: float | None = None, name: str = "observer", engine: Backend = "auto",
-                the_plan: Plan | None = None) -> tuple[np.ndarray, np.ndarray]:
+                the_plan: Plan | None = None, knot_rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The observer's state and estimate at each time of `t`, from the samples that have arrived by then (see the
     module docstring). `u` is held (zero-order) between the times of `t`; returns ``(Z, X)``.
 
@@ -232,9 +234,12 @@ def run_delayed(obs: AbstractObserver, t: np.ndarray, u: np.ndarray, events: Eve
     from ..observer import ParticleObserver
     from ..observer._compiled import compiled_observer
 
-    if isinstance(obs, ParticleObserver):
-        raise ModelError(f"observer {name!r} is a particle filter, which runs on a whole recording at once; measurement "
-                         "delays are handled by the continuous-discrete observers (ekf, ukf, srekf, srukf, iekf, ...)")
+    if isinstance(obs, ParticleObserver):   # re-processed from saved particle clouds
+        if getattr(obs.design, "engine", "c") != "c":
+            raise ModelError(f"observer {name!r}: a particle filter on late samples runs on the C engine (it re-runs from "
+                             "saved clouds with the draws of the first pass); design it with engine='c'")
+        return run_particles_delayed(obs, t, u, events, np.asarray(z0, dtype=float).reshape(-1), knot_rows=knot_rows,
+                                     name=name)
     if not obs.sampled:
         raise ModelError(f"observer {name!r} ({obs.design.method}) takes the output continuously; measurement delays are "
                          "handled by the continuous-discrete observers (a flow between samples and an update at each: "
@@ -244,3 +249,91 @@ def run_delayed(obs: AbstractObserver, t: np.ndarray, u: np.ndarray, events: Eve
     return co.replay(p, np.asarray(z0, dtype=float).reshape(-1), t=np.asarray(t, dtype=float), u=np.asarray(u, dtype=float),
                      max_step=max_step, engine=engine, name=name)
 
+
+
+def run_particles_delayed(obs: Any, t: np.ndarray, u: np.ndarray, events: Events, xhat0: np.ndarray, *,
+                          knot_rows: np.ndarray | None = None, name: str = "pf") -> tuple[np.ndarray, np.ndarray]:
+    r"""A particle filter on samples that arrive late: at each time of `t`, exactly the filter that sees, on time, the
+    samples arrived by then (the same particle filter, the same random numbers), re-processed from saved clouds.
+
+    The filter runs on *knots*: the rows `knot_rows` of `t` (all rows by default) and the times samples were taken
+    between them; inputs are held from the last row. Sample k's random numbers come from a stream seeded by (seed, k)
+    (:class:`nlobs.observer.ParticleRunner`), so a re-run from the cloud saved after knot k draws what the first pass
+    drew. First the filter runs once on every sample that arrives within the run, saving its cloud where a re-run will
+    start. Then, at each time a sample arrives or a knot is reached (a *pass*): when a sample taken at an earlier knot
+    has just arrived, the pass starts again from the saved cloud after the last knot before the first one whose samples
+    are not all in (or from the prior); otherwise it goes on from the last pass's cloud. Between passes the estimate is
+    held, as the particle filter's estimate is held between samples without delays.
+
+    Returns the filter's trace rows and estimates at the times of `t`: ``(Z, X)``.
+    """
+    from ..observer._particles import particle_runner
+
+    d = obs.design
+    runner = particle_runner(d, "c")
+    t = np.asarray(t, dtype=float)
+    N, ny, n = t.size, d.system.n_outputs, d.system.n_states
+    u = np.asarray(u, dtype=float).reshape(N, -1)
+    rows = np.arange(N) if knot_rows is None else np.union1d(np.asarray(knot_rows, dtype=np.int64), [0])
+    keep = (events.taken >= t[0] - _tol(t[0])) & (events.arrived <= t[-1] + _tol(t[-1]))
+    tk, ar, out, val = events.taken[keep], events.arrived[keep], events.output[keep].astype(np.int64), events.value[keep]
+    # knots: the rows, and the taken times between them (within the tolerance of a row: that row)
+    r = np.clip(np.searchsorted(t[rows], tk + _tol(tk), side="right") - 1, 0, rows.size - 1)
+    on = np.abs(t[rows][r] - tk) <= _tol(tk)
+    T = np.union1d(t[rows], _merged(tk[~on]))
+    T = _merged(T)
+    K = T.size
+    q_of = np.clip(np.searchsorted(T, tk + _tol(tk), side="right") - 1, 0, K - 1)
+    arr, Y = np.full((K, ny), np.inf), np.zeros((K, ny))
+    o2 = np.lexsort((ar, q_of))
+    arr[q_of[o2], out[o2]] = ar[o2]
+    Y[q_of[o2], out[o2]] = val[o2]
+    U = u[np.clip(np.searchsorted(t, T + _tol(T), side="right") - 1, 0, N - 1)]
+    # passes: the knot times and the arrival times, each with the knots reached and the samples arrived by then
+    P = _merged(np.concatenate([T, ar[(ar >= t[0]) & (ar <= t[-1] + _tol(t[-1]))]]))
+    reach = np.clip(np.searchsorted(T, P + _tol(P), side="right") - 1, 0, K - 1)
+    full = np.isfinite(arr)
+    # per pass: the first knot a sample arrived for since the last pass, and the first knot still waiting for one
+    tol_p = _tol(P)
+    j_of = np.clip(np.searchsorted(P, ar - _tol(ar), side="left"), 0, P.size - 1)   # the pass each arrival counts in
+    new_first = np.full(P.size, K, dtype=np.int64)
+    np.minimum.at(new_first, j_of, q_of)
+    by_arrival = np.argsort(ar)
+    tail_min = np.minimum.accumulate(q_of[by_arrival][::-1])[::-1]          # min knot over arrivals from here on
+    after = np.searchsorted(ar[by_arrival], P + tol_p, side="right")         # first arrival after each pass
+    pending = np.r_[tail_min, K][after]
+    starts = np.full(P.size, -1, dtype=np.int64)   # -1: go on from the last pass; else the knot to start from (0: prior)
+    starts[0] = 0
+    late = np.r_[False, new_first[1:] <= reach[:-1]]                        # a sample taken at a knot already passed
+    starts[late] = np.minimum(new_first[late], pending[late])
+    saves = sorted({s - 1 for s in starts if s > 0})
+    flags = np.zeros(K)
+    flags[saves] = 1
+    fm = full.astype(float)
+    first = runner.run(T, u=U, y=Y, mask=fm, xhat0=xhat0, name=name, keep=flags)
+    saved = {k: (first.kept[0][i], first.kept[1][i]) for i, k in enumerate(saves)}
+    Zp = np.empty((P.size, len(d.z_names)))
+    cloud: tuple[np.ndarray, np.ndarray] | None = None
+    for j, (p, s) in enumerate(zip(P, starts)):
+        q = int(reach[j])
+        if s == -1 and j and q == reach[j - 1]:
+            Zp[j] = Zp[j - 1]   # nothing new: hold
+            continue
+        if s == 0:
+            a, resume = 0, None
+        elif s > 0:
+            a, resume = s - 1, saved[s - 1]
+        else:
+            a, resume = int(reach[j - 1]), cloud
+        sl = slice(a, q + 1)
+        m = (arr[sl] <= p + _tol(p)).astype(float)
+        run = runner.run(T[sl], u=U[sl], y=Y[sl], mask=m, xhat0=xhat0, name=name, k0=a,
+                         resume=resume) if q > a or resume is None else None
+        if run is None:   # resuming at the knot itself: the cloud and its row are the last pass's
+            Zp[j] = Zp[j - 1]
+            continue
+        cloud = (run.particles, run.log_weights)
+        Zp[j] = run.z[-1]
+    row_pass = np.clip(np.searchsorted(P, t + _tol(t), side="right") - 1, 0, P.size - 1)
+    Z = Zp[row_pass]
+    return Z, Z[:, :n].copy()

@@ -296,12 +296,14 @@ def montecarlo(
     seed : int
         Base seed; run j uses ``seeds[j]`` (see the result), exactly as ``simulate(seed=seeds[j])``.
     save_every : int, optional
-        Keep every k-th step (default: about 1,Wang, Ortega & Bobtsov (2021) saved times); the final time is always kept.
+        Keep every k-th step (default: about a thousand saved times); the final time is always kept.
     tol : float, optional
         Absolute convergence tolerance (default: each run's band as in :meth:`Run.metrics`, the larger
         of 2 % of its initial error ‖x̂(0⁻) − x(0)‖ and twice its steady-state error, at most 20 % of
         the initial error; see :data:`nlobs.simulate.CONVERGENCE_RULE`).
-    engine : {"auto", "vm", "c"}
+    engine : {"auto", "vm", "c", "jax"}
+        ``"jax"`` (the optional ``nlobs[jax]`` extra): the same compiled step as one XLA program over every run
+        (vmap over runs, scan over steps), on a GPU when JAX has one; equal to the C engine to rounding.
     scheduler : str or dask.distributed.Client, optional
         Run the chunks on a Dask cluster (its address, or a client); needs ``nlobs[dask]``.
     chunk : int

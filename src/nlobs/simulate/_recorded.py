@@ -446,6 +446,7 @@ def _estimate_delayed(obs: Mapping[str, Any], rec: Recording, delay: Mapping[str
             continue
         Z, X = res
         traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, Z, X,
+                                     z0s[name] if isinstance(o, ParticleObserver) else
                                      o.estimate(rec.t[0], z0s[name], rec.u[0], np.zeros(rec.y.shape[1])),
                                      covariance=getattr(o.design, "covariance", None))
     if errors and not traces:

@@ -244,8 +244,10 @@ def _simulate_delayed(plant: System, observers: Any, delay: Mapping[str, float],
     the_plan = plan(base.t, base.u, events, plant_.n_outputs) if obs else None
     traces, failures, errors = {}, {}, []
     z0s = {name: o.initial_state(_xhat0_for(xhat0, name, plant_.n_states)) for name, o in obs.items()}
+    sample_rows = np.flatnonzero(np.asarray(measured).any(axis=1))   # where a particle filter steps (as without delays)
     done = each_observer(list(obs), lambda name: run_delayed(obs[name], base.t, base.u, events, z0s[name], name=name,
-                                                             engine=kw.get("engine", "auto"), the_plan=the_plan),
+                                                             engine=kw.get("engine", "auto"), the_plan=the_plan,
+                                                             knot_rows=sample_rows),
                          alone=[k for k, o in obs.items() if getattr(o.design, "needs_mx", False)])
     for name, o in obs.items():
         res = done[name]
@@ -257,6 +259,7 @@ def _simulate_delayed(plant: System, observers: Any, delay: Mapping[str, float],
             continue
         Z, X = res
         traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, Z, X,
+                                     z0s[name] if isinstance(o, ParticleObserver) else
                                      o.estimate(base.t[0], z0s[name], base.u[0], base.y[0]),
                                      covariance=getattr(o.design, "covariance", None))
     if errors and not traces:

@@ -58,6 +58,8 @@ class ParticleDesign:
         Seed of the filter's random numbers: the same seed gives the same estimates.
     max_step : float or None
         Largest RK4 step between samples (None: one step per interval).
+    engine : {"c", "jax"}
+        Where :func:`nlobs.observer.particle_runner` runs it.
     z_names : tuple of str
         The columns of the filter's trace: x̂, P (column-major), ESS, resampled (0/1), log-likelihood.
     covariance : casadi.Function
@@ -85,6 +87,7 @@ class ParticleDesign:
     certificate: Certificate
     z_names: tuple[str, ...] = field(default=())
     covariance: ca.Function | None = None
+    engine: str = "c"
 
     sampled: ClassVar[bool] = True
     needs_mx: ClassVar[bool] = False
@@ -141,12 +144,6 @@ PF_WORK_BUDGET = 2e8
 
 
 def tune_pf(ctx: Any) -> Tuning:
-    late = {k: v for k, v in (getattr(ctx.scenario, "delay", None) or {}).items() if v > 0}
-    if late:   # the filter runs its samples in one pass: a late sample cannot be put back where it was taken
-        return Tuning.fails(f"the outputs {', '.join(f'{k} ({v:g} s)' for k, v in late.items())} arrive late, and the "
-                            "particle filter processes the samples in one pass: it cannot go back and apply a late sample "
-                            "at the time it was taken (the re-processing the Gaussian filters do from a saved state). Use "
-                            "ekf, ukf or their square-root or iterated forms, or remove [simulation] delay")
     n = ctx.system.n_states
     particles = int(min(20000, 1000 * max(2, n)))
     sc = ctx.scenario
@@ -178,7 +175,7 @@ def tune_pf(ctx: Any) -> Tuning:
       references=(work("gordon1993"), work("pitt1999", "auxiliary")), time_base="both", tune=tune_pf)
 def design_pf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None, particles: int = 1000,
               scheme: Scheme = "bootstrap", threshold: float = 0.5, seed: int = 0,
-              max_step: float | None = None) -> ParticleDesign:
+              max_step: float | None = None, engine: str = "c") -> ParticleDesign:
     r"""Particle filter (continuous-discrete, or on a map): bootstrap or auxiliary, systematic resampling, seeded.
 
     The particles start from :math:`\mathcal N(\hat x_0, P_0)`. Between samples each particle follows
@@ -222,6 +219,11 @@ def design_pf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = No
         Seed of the random numbers (a non-negative integer).
     max_step : float, optional
         Largest RK4 step between samples (continuous-time models only: a map steps once per sample).
+    engine : {"c", "jax"}
+        Where the filter runs: the compiled C loop, or (the optional ``nlobs[jax]`` extra) the same loop as one
+        XLA program, on a GPU when JAX has one: for 10⁵–10⁶ particles. The bootstrap scheme only; its random
+        numbers come from JAX's generator, so the two engines' runs differ by their draws (given the same draws
+        they agree to rounding).
 
     Other Parameters
     ----------------
@@ -244,6 +246,10 @@ def design_pf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = No
         raise PreconditionError(f"{caller}: `threshold` (of ESS / particles) must be in [0, 1], got {threshold!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**63:
         raise PreconditionError(f"{caller}: `seed` must be a non-negative integer, got {seed!r}")
+    if engine not in ("c", "jax"):
+        raise PreconditionError(f"{caller}: `engine` must be 'c' or 'jax', got {engine!r}")
+    if engine == "jax" and scheme != "bootstrap":
+        raise PreconditionError(f"{caller}: engine='jax' runs the bootstrap scheme only; use engine='c' for the {scheme} filter")
     if max_step is not None and system.is_discrete:
         raise PreconditionError(f"{caller}: `max_step` does not apply to a discrete-time model ({system.name!r} steps once "
                                 f"per sample, sample_time = {system.sample_time:g} s): leave it out")
@@ -273,7 +279,7 @@ def design_pf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = No
     zs = ca.SX.sym("z", len(names))
     cov = ca.Function("pf_covariance", [zs], [ca.reshape(zs[n:n + n * n], n, n)], ["z"], ["P"])
     return ParticleDesign("pf", system, x0v, P0m, Qm, Rm, int(particles), scheme, float(threshold), int(seed),
-                          None if max_step is None else float(max_step), prop, meas, cert, tuple(names), cov)
+                          None if max_step is None else float(max_step), prop, meas, cert, tuple(names), cov, engine)
 
 
 def square_roots(d: ParticleDesign) -> tuple[np.ndarray, np.ndarray]:

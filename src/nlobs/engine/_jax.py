@@ -1,0 +1,212 @@
+r"""The JAX engine: the same compiled step as the C engine, run as an XLA program (CPU or GPU).
+
+Why from CasADi and not from SymPy: every run nlobs compiles (plant, noise, observers, sample-and-hold,
+escape check) is one CasADi step function, the one the C engine generates its code from. Translating
+that function's SX instruction list (``Function.instruction_id`` / ``instruction_input`` /
+``instruction_output`` / ``instruction_constant``, CasADi's documented algorithm API) into
+``jax.numpy`` operations gives a JAX function with the *same* operations in the same order, so the
+two engines agree to rounding (about 1e-15 relative), and nothing of the model is written twice.
+SymPy's ``lambdify(modules="jax")`` would translate the model's equations only, not the observer and
+integrator built around them; the converters from CasADi to JAX on PyPI (``jaxadi``) are young and
+not kept up with CasADi's releases. The translation here is one table, from CasADi's operation codes
+to ``jax.numpy``, and refuses what it does not know, by name.
+
+JAX is an optional extra (``pip install 'nlobs[jax]'``); double precision is switched on when the
+engine is first used (``jax_enable_x64``), as nlobs computes in float64 everywhere.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from ..errors import EngineError
+
+__all__ = ["jax_available", "to_jax", "run_batch_jax"]
+
+
+def _jax() -> Any:
+    try:
+        import jax
+    except ImportError as exc:  # pragma: no cover - exercised only without the extra
+        raise EngineError("engine='jax' needs JAX: pip install 'nlobs[jax]' (or jax[cuda12] for a GPU)") from exc
+    jax.config.update("jax_enable_x64", True)
+    return jax
+
+
+def jax_available() -> bool:
+    """Whether JAX can be imported (the optional ``nlobs[jax]`` extra)."""
+    try:
+        import jax  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def _ops(jnp: Any, special: Any) -> dict[int, Callable[..., Any]]:
+    f = lambda b: jnp.asarray(b, dtype=jnp.float64)  # noqa: E731  (comparisons give 0.0 / 1.0, as in CasADi)
+    return {
+        ca.OP_ASSIGN: lambda a: a,
+        ca.OP_ADD: lambda a, b: a + b,
+        ca.OP_SUB: lambda a, b: a - b,
+        ca.OP_MUL: lambda a, b: a * b,
+        ca.OP_DIV: lambda a, b: a / b,
+        ca.OP_NEG: lambda a: -a,
+        ca.OP_EXP: jnp.exp,
+        ca.OP_LOG: jnp.log,
+        ca.OP_POW: jnp.power,
+        ca.OP_CONSTPOW: jnp.power,
+        ca.OP_SQRT: jnp.sqrt,
+        ca.OP_SQ: lambda a: a * a,
+        ca.OP_TWICE: lambda a: 2.0 * a,
+        ca.OP_SIN: jnp.sin,
+        ca.OP_COS: jnp.cos,
+        ca.OP_TAN: jnp.tan,
+        ca.OP_ASIN: jnp.arcsin,
+        ca.OP_ACOS: jnp.arccos,
+        ca.OP_ATAN: jnp.arctan,
+        ca.OP_LT: lambda a, b: f(a < b),
+        ca.OP_LE: lambda a, b: f(a <= b),
+        ca.OP_EQ: lambda a, b: f(a == b),
+        ca.OP_NE: lambda a, b: f(a != b),
+        ca.OP_NOT: lambda a: f(a == 0),
+        ca.OP_AND: lambda a, b: f((a != 0) & (b != 0)),
+        ca.OP_OR: lambda a, b: f((a != 0) | (b != 0)),
+        ca.OP_FLOOR: jnp.floor,
+        ca.OP_CEIL: jnp.ceil,
+        ca.OP_FMOD: jnp.fmod,
+        ca.OP_FABS: jnp.abs,
+        ca.OP_SIGN: jnp.sign,
+        ca.OP_COPYSIGN: jnp.copysign,
+        ca.OP_IF_ELSE_ZERO: lambda c, x: jnp.where(c != 0, x, 0.0),
+        ca.OP_ERF: special.erf,
+        ca.OP_ERFINV: special.erfinv,
+        ca.OP_FMIN: jnp.fmin,
+        ca.OP_FMAX: jnp.fmax,
+        ca.OP_INV: lambda a: 1.0 / a,
+        ca.OP_SINH: jnp.sinh,
+        ca.OP_COSH: jnp.cosh,
+        ca.OP_TANH: jnp.tanh,
+        ca.OP_ASINH: jnp.arcsinh,
+        ca.OP_ACOSH: jnp.arccosh,
+        ca.OP_ATANH: jnp.arctanh,
+        ca.OP_ATAN2: jnp.arctan2,
+        ca.OP_LOG1P: jnp.log1p,
+        ca.OP_EXPM1: jnp.expm1,
+        ca.OP_HYPOT: jnp.hypot,
+        ca.OP_REMAINDER: lambda a, b: a - jnp.round(a / b) * b,   # IEEE remainder: nearest quotient, ties to even
+    }
+
+
+_NAMES = {getattr(ca, k): k for k in dir(ca) if k.startswith("OP_")}
+
+
+def _sx(fn: ca.Function) -> ca.Function:
+    if fn.is_a("SXFunction"):
+        return fn
+    try:
+        return fn.expand()
+    except RuntimeError as exc:
+        raise EngineError(f"engine='jax': the function {fn.name()!r} cannot be expanded into scalar operations "
+                          f"(it calls something only the C and VM engines run: {str(exc).splitlines()[0]}); use engine='c'") from exc
+
+
+def to_jax(fn: ca.Function) -> Callable[..., tuple[Any, ...]]:
+    """A JAX function computing what the CasADi function `fn` computes.
+
+    Every input and output of `fn` must be dense; the JAX function takes and returns flat vectors of
+    their entries (column-major, as CasADi stores them). Traceable: jit and vmap it.
+    """
+    jax = _jax()
+    jnp = jax.numpy
+    sx = _sx(fn)
+    for i in range(sx.n_in()):
+        if not sx.sparsity_in(i).is_dense():
+            raise EngineError(f"engine='jax': input {sx.name_in(i)!r} of {fn.name()!r} is sparse; only dense inputs are translated")
+    for i in range(sx.n_out()):
+        if not sx.sparsity_out(i).is_dense():
+            raise EngineError(f"engine='jax': output {sx.name_out(i)!r} of {fn.name()!r} is sparse; only dense outputs are translated")
+    ops = _ops(jnp, jax.scipy.special)
+    program: list[tuple[int, list[int], list[int], float]] = []
+    for k in range(sx.n_instructions()):
+        op = sx.instruction_id(k)
+        if op not in ops and op not in (ca.OP_CONST, ca.OP_INPUT, ca.OP_OUTPUT):
+            raise EngineError(f"engine='jax': the operation {_NAMES.get(op, op)} in {fn.name()!r} has no JAX translation; use engine='c'")
+        program.append((op, list(sx.instruction_input(k)), list(sx.instruction_output(k)),
+                        float(sx.instruction_constant(k)) if op == ca.OP_CONST else 0.0))
+    sizes = [sx.nnz_out(i) for i in range(sx.n_out())]
+    n_work = int(sx.sz_w())
+
+    def run(*args: Any) -> tuple[Any, ...]:
+        work: list[Any] = [None] * n_work
+        outs: list[list[Any]] = [[None] * n for n in sizes]
+        flat = [jnp.reshape(jnp.asarray(a, dtype=jnp.float64), (-1,)) for a in args]
+        for op, ins, res, const in program:
+            if op == ca.OP_INPUT:
+                work[res[0]] = flat[ins[0]][ins[1]]
+            elif op == ca.OP_OUTPUT:
+                outs[res[0]][res[1]] = work[ins[0]]
+            elif op == ca.OP_CONST:
+                work[res[0]] = jnp.float64(const)
+            else:
+                work[res[0]] = ops[op](*(work[i] for i in ins))
+        return tuple(jnp.stack([jnp.asarray(v, dtype=jnp.float64) if v is not None else jnp.float64(0.0) for v in o])
+                     if o else jnp.zeros((0,)) for o in outs)
+
+    return run
+
+
+_BATCH_CACHE: dict[int, tuple[ca.Function, Any]] = {}
+
+
+def _batch_program(step: ca.Function, bound: float, shared_a: bool, shared_c: bool) -> Any:
+    jax = _jax()
+    jnp, lax = jax.numpy, jax.lax
+    f = to_jax(step)
+
+    def trajectory(s0: Any, a: Any, c: Any, targets: Any) -> tuple[Any, Any, Any]:
+        def advance(carry: Any, target: Any) -> tuple[Any, tuple[Any, Any]]:
+            def body(state: Any) -> Any:
+                s, k, alive, status = state
+                nxt = f(s, a[k], c)[0]
+                bad = ~jnp.all(jnp.abs(nxt) <= bound)   # NaN compares false: non-finite is bad
+                status = jnp.where(alive & bad, k, status)
+                alive = alive & ~bad
+                return jnp.where(alive, nxt, s), k + 1, alive, status
+
+            s, k, alive, status = lax.while_loop(lambda st: st[1] < target, body, carry)
+            o = f(s, a[target], c)[1]
+            nan = jnp.float64(np.nan)
+            return (s, k, alive, status), (jnp.where(alive, s, nan), jnp.where(alive, o, nan))
+
+        n_steps = targets[-1]
+        init = (s0, jnp.int64(0), jnp.bool_(True), n_steps)
+        (_, _, _, status), (S, O) = lax.scan(advance, init, targets)
+        return S, O, status
+
+    batched = jax.vmap(trajectory, in_axes=(0, None if shared_a else 0, None if shared_c else 0, None))
+    return jax.jit(batched)
+
+
+def run_batch_jax(step: ca.Function, S0: np.ndarray, A: np.ndarray, C: np.ndarray, steps: np.ndarray,
+                  bound: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`nlobs.engine.run_batch` on JAX (one XLA program: vmap over trajectories, scan over saves).
+
+    `steps` are the saved step indices (:func:`nlobs.engine.saved_steps`); the semantics, NaN after a
+    trajectory stops and `status`, are those of the C batch driver.
+    """
+    jax = _jax()
+    shared_a, shared_c = A.ndim == 2, C.ndim == 1
+    key = (id(step), float(bound), shared_a, shared_c)
+    hit = _BATCH_CACHE.get(key)   # type: ignore[call-overload]
+    if hit is None or hit[0] is not step:
+        hit = _BATCH_CACHE[key] = (step, _batch_program(step, bound, shared_a, shared_c))   # type: ignore[index]
+        if len(_BATCH_CACHE) > 64:
+            _BATCH_CACHE.pop(next(iter(_BATCH_CACHE)))
+    program = hit[1]
+    S, O, status = program(jax.numpy.asarray(S0), jax.numpy.asarray(A), jax.numpy.asarray(C),
+                           jax.numpy.asarray(np.asarray(steps, dtype=np.int64)))
+    return np.asarray(S), np.asarray(O), np.asarray(status, dtype=np.int64)

@@ -1,0 +1,89 @@
+"""The JAX engine (engine/_jax.py) against CasADi's own evaluation and against the C engine.
+
+References: CasADi evaluating the same function (the translation must not change a single operation), and
+the C batch driver on the same Monte Carlo (same seeds, so the same noise): equal to rounding (1e-12).
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+import pytest
+
+import nlobs
+from nlobs.engine import run_batch
+from nlobs.engine._jax import to_jax
+from nlobs.errors import EngineError
+
+import jax  # noqa: E402  (the test extra installs it; the README's demo command does not need it)
+
+
+def test_every_operation_matches_casadi():
+    x = ca.SX.sym("x", 3)
+    a, b, c = x[0], x[1], x[2]
+    exprs = [a + b, a - b, a * b, a / b, -a, ca.exp(a), ca.log(b), b ** c, a ** 3, ca.sqrt(b), a ** 2, 2 * a,
+             ca.sin(a), ca.cos(a), ca.tan(a), ca.asin(a / 4), ca.acos(a / 4), ca.atan(a), a < b, a <= b, a == b,
+             a != b, ca.logic_not(a), ca.logic_and(a, b), ca.logic_or(a - a, b), ca.floor(b), ca.ceil(b), ca.fmod(b, a),
+             ca.fabs(a - 2), ca.sign(a - 2), ca.copysign(b, a - 2), ca.if_else(a > 1, b, c), ca.erf(a), ca.fmin(a, b),
+             ca.fmax(a, b), 1 / a, ca.sinh(a), ca.cosh(a), ca.tanh(a), ca.asinh(a), ca.acosh(b + 1), ca.atanh(a / 4),
+             ca.atan2(a, b - 3), ca.log1p(b), ca.expm1(a), ca.hypot(a, b), ca.remainder(b * 3, a)]
+    f = ca.Function("f", [x], [ca.vertcat(*exprs)])
+    fj = to_jax(f)   # switches JAX to float64 before anything is traced
+    g = jax.jit(lambda v: fj(v)[0])
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        v = np.array([rng.uniform(0.3, 2.5), rng.uniform(0.5, 3.0), rng.uniform(-1, 1)])
+        want = np.asarray(f(v), dtype=float).ravel()
+        got = np.asarray(g(v))
+        np.testing.assert_allclose(got, want, rtol=1e-13, atol=1e-14)
+
+
+def test_erfinv_matches_scipy():
+    # CasADi's own evaluation of erfinv is an approximation (8e-9 relative); the C engine refines it (engine/_codegen.py)
+    from scipy.special import erfinv
+
+    x = ca.SX.sym("x")
+    fj = to_jax(ca.Function("f", [x], [ca.erfinv(x)]))
+    v = np.linspace(-0.999, 0.999, 41)
+    got = np.array([float(fj(np.array([a]))[0][0]) for a in v])
+    np.testing.assert_allclose(got, erfinv(v), rtol=1e-13)
+
+
+def test_unknown_operation_is_refused_by_name():
+    x = ca.MX.sym("x", 2)
+    lut = ca.interpolant("lut", "linear", [np.linspace(0, 1, 5)], np.arange(5.0))
+    f = ca.Function("f", [x], [lut(x[0]) + x[1]])
+    with pytest.raises(EngineError, match="engine='c'"):
+        to_jax(f)
+
+
+def test_batch_equals_c_with_escapes_and_per_run_constants():
+    s, a, c = ca.SX.sym("s", 2), ca.SX.sym("a", 1), ca.SX.sym("c", 1)
+    h = 0.01
+    nxt = ca.vertcat(s[0] + h * s[1], s[1] + h * (c[0] * s[0] + a[0]))   # c > 0 escapes
+    step = ca.Function("step", [s, a, c], [nxt, ca.vertcat(s[0] ** 2, a[0])])
+    rng = np.random.default_rng(1)
+    B, N = 6, 400
+    S0 = rng.normal(size=(B, 2))
+    A = rng.normal(size=(B, N + 1, 1))
+    C = np.array([[-1.0], [-2.0], [300.0], [-0.5], [900.0], [-3.0]])
+    ref = run_batch(step, S0, A, C, N, stride=7, bound=50.0, backend="c")
+    got = run_batch(step, S0, A, C, N, stride=7, bound=50.0, backend="jax")
+    np.testing.assert_array_equal(got[2], ref[2])
+    assert (ref[2] < N).sum() == 2   # the two escaping runs stop, with their step
+    for r, g in zip(ref[:2], got[:2]):
+        assert np.array_equal(np.isnan(r), np.isnan(g))
+        np.testing.assert_allclose(g, r, rtol=1e-12, atol=1e-12)
+
+
+def test_montecarlo_jax_equals_c():
+    vdp = nlobs.System(states=["x1", "x2"], f=["x2", "mu*(1 - x1**2)*x2 - x1"], outputs=["y"], h=["x1"], params={"mu": 1.0})
+    ekf = nlobs.design_ekf(vdp, Q=np.eye(2) * 1e-2, R=np.eye(1) * 1e-2, P0=np.eye(2), xhat0=[0.0, 0.0])
+    x0 = np.random.default_rng(2).normal(size=(40, 2))
+    kw = dict(t_final=2.0, dt=1e-3, x0=x0, noise=nlobs.Noise.gaussian(0.05), sampling=nlobs.Sampling(0.01), seed=3,
+              save_every=20)
+    ref = nlobs.montecarlo(vdp, {"ekf": ekf}, engine="c", **kw)
+    got = nlobs.montecarlo(vdp, {"ekf": ekf}, engine="jax", **kw)
+    np.testing.assert_array_equal(got.status, ref.status)
+    np.testing.assert_allclose(got.x, ref.x, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(got.observers["ekf"].xhat, ref.observers["ekf"].xhat, rtol=1e-12, atol=1e-12)
