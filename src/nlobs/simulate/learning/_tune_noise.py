@@ -26,7 +26,10 @@ by the compiled loop of :mod:`nlobs.simulate._loop` over the samples. Its gradie
 whose step is CasADi's reverse-mode derivative of Φ (``jtimes(..., tr=True)``), run by the same compiled loop
 backwards over the stored forward states. Its cost is a few forward passes whatever the number of variances (the
 forward sensitivities of :mod:`._likelihood` cost one pass per unknown: 40 unknowns on 16 states is 40 passes of a
-272-entry state). The gradient in P(0) is λ₀ read at P(0)'s entries. SciPy's L-BFGS-B maximises ℓ in the
+272-entry state). Both loops run as the compiled loop decides (:mod:`nlobs.simulate._loop`): on CasADi's virtual machine
+until the time spent there reaches the predicted compile time, then as C built once per machine and cached on disk
+(on a 16-state INS the adjoint's C takes minutes to compile on a loaded machine, once). The gradient in P(0) is λ₀
+read at P(0)'s entries. SciPy's L-BFGS-B maximises ℓ in the
 log-variances within bounds relative to reference scales (the start design's variances: a variance of Q between
 10⁻⁸ and 10⁸ times its reference, R and P(0) between 10⁻⁶ and 10⁶ times theirs; a zero reference Q of a constant
 state or parameter is replaced by P0_ii / T, the random walk that covers its initial uncertainty over the
