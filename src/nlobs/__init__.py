@@ -32,13 +32,15 @@ _LAZY: dict[str, tuple[str, str | None]] = {
     **{name: (".observer", name) for name in ("CompiledObserver", "Observer", "OnlineObserver", "CExport", "export_c")},
     **{name: (".simulate", name) for name in ("Adaptive", "MonteCarloResult", "Noise", "ProcessNoise", "Recording", "Run",
                                               "Sampling", "Simulation", "estimate", "fit_parameters", "LikelihoodFit",
-                                              "fit_likelihood", "log_likelihood", "montecarlo", "simulate")},
+                                              "fit_likelihood", "log_likelihood", "montecarlo", "simulate",
+                                              "TuneResult")},
     "analyze": (".analysis", "analyze"),
     "select_sensors": (".analysis", "select_sensors"),
     "from_control": (".interop", "from_control"),
     "to_control": (".interop", "to_control"),
     "Advice": (".advise", "Advice"),
     "advise": (".advise", "advise"),
+    "tune": (".advise", "tune"),
 }
 
 #: Functions whose name is also a subpackage's: the attribute stays the function when the subpackage is imported.

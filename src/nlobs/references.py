@@ -141,6 +141,11 @@ _ALL = (
               2013),
     Reference("schweppe1965", "F. C. Schweppe", "Schweppe", "Evaluation of likelihood functions for Gaussian signals",
               "IEEE Transactions on Information Theory 11(1):61–70", 1965),
+    Reference("barshalom2001", "Y. Bar-Shalom, X. R. Li, T. Kirubarajan", "Bar-Shalom, Li & Kirubarajan",
+              "Estimation with Applications to Tracking and Navigation", "Wiley, New York", 2001),
+    Reference("byrd1995", "R. H. Byrd, P. Lu, J. Nocedal, C. Zhu", "Byrd, Lu, Nocedal & Zhu",
+              "A limited memory algorithm for bound constrained optimization", "SIAM Journal on Scientific Computing "
+              "16(5):1190–1208", 1995, doi="10.1137/0916069"),
     Reference("harvey1989", "A. C. Harvey", "Harvey", "Forecasting, Structural Time Series Models and the Kalman Filter",
               "Cambridge University Press, Cambridge", 1989),
     Reference("tobin1958", "J. Tobin", "Tobin", "Estimation of relationships for limited dependent variables",

@@ -5,3 +5,4 @@ from ._advice import Advice as Advice
 from ._advice import Candidate as Candidate
 from ._advice import Score as Score
 from ._advise import advise as advise
+from ._tune import tune as tune

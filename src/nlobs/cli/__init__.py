@@ -19,13 +19,13 @@ import sys
 from collections.abc import Sequence
 from typing import NoReturn
 
-from . import _analyze, _demo, _design, _estimate, _export, _fit, _kinds, _models, _report, _sensors, _simulate
+from . import _analyze, _demo, _design, _estimate, _export, _fit, _kinds, _models, _report, _sensors, _simulate, _tune
 from ._common import error_message, positive_int
 
 __all__ = ["main", "COMMANDS"]
 
 #: The command modules, in the order `nlobs --help` lists them.
-COMMANDS = [_demo, _models, _analyze, _sensors, _design, _report, _simulate, _estimate, _fit, _export, _kinds]
+COMMANDS = [_demo, _models, _analyze, _sensors, _design, _report, _simulate, _estimate, _fit, _tune, _export, _kinds]
 
 
 class _Parser(argparse.ArgumentParser):

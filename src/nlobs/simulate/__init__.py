@@ -26,3 +26,5 @@ from .learning import fit_parameters as fit_parameters
 from .learning import LikelihoodFit as LikelihoodFit
 from .learning import fit_likelihood as fit_likelihood
 from .learning import log_likelihood as log_likelihood
+from .learning import TuneResult as TuneResult
+from .learning import tune as tune

@@ -10,3 +10,5 @@ from ._simulation_error import fit_parameters as fit_parameters
 from ._fit_likelihood import LikelihoodFit as LikelihoodFit
 from ._fit_likelihood import fit_likelihood as fit_likelihood
 from ._likelihood import log_likelihood as log_likelihood
+from ._tune_noise import TuneResult as TuneResult
+from ._tune_noise import tune as tune

@@ -194,15 +194,18 @@ class _Recursion:
         self.loop = Loop(self.step)
 
     @staticmethod
-    def _core(d: ObserverDesign, system: Any, n_sub: int) -> ca.Function:
+    def _core(d: ObserverDesign, system: Any, n_sub: int, noise: Any = None, n_noise: int = 2) -> ca.Function:
         """(state, row, c) -> (next state, Gaussian term, censored term, masked innovation, its covariance, the
-        predicted output ŷ⁻ and the variances of its full predicted covariance)."""
+        predicted output ŷ⁻, the variances of its full predicted covariance, and the squared whitened innovation
+        νᵀS⁻¹ν). c = [model parameters, `n_noise` noise entries]; `noise` maps those entries to (Q, R) (default: the
+        log-scalings ρ_Q, ρ_R of the design's Q, R)."""
         n, nu, ny, npar = system.n_states, system.n_inputs, system.n_outputs, system.n_params
         fl = _Filter(d, system)
         v = d.certificate.values
         Q0, R0 = ca.DM(np.asarray(v["Q"], dtype=float)), ca.DM(np.asarray(v["R"], dtype=float))
-        s, a, c = ca.SX.sym("s", n + n * n), ca.SX.sym("a", 2 + 2 * nu + 4 * ny), ca.SX.sym("c", npar + 2)
-        p, Q, R = c[:npar], ca.exp(c[npar]) * Q0, ca.exp(c[npar + 1]) * R0
+        s, a, c = ca.SX.sym("s", n + n * n), ca.SX.sym("a", 2 + 2 * nu + 4 * ny), ca.SX.sym("c", npar + n_noise)
+        p = c[:npar]
+        Q, R = (ca.exp(c[npar]) * Q0, ca.exp(c[npar + 1]) * R0) if noise is None else noise(c[npar:])
         t, dt = a[0], a[1]
         u0, u1 = rows(a, 2, 2 + nu), rows(a, 2 + nu, 2 + 2 * nu)
         o = 2 + 2 * nu
@@ -232,7 +235,7 @@ class _Recursion:
         zc = z1 * (yhat - lim1) / ca.sqrt(ca.diag(S_full))
         llc = ca.sum1(z1 * z1 * log_ndtr(zc)) if ny else ca.SX(0)
         core_next = ca.vertcat(x + K @ nu_, ca.vec(P_plus))
-        return ca.Function("lik_core", [s, a, c], [core_next, ll, llc, nu_, ca.vec(S), yhat, ca.diag(S_full)])
+        return ca.Function("lik_core", [s, a, c], [core_next, ll, llc, nu_, ca.vec(S), yhat, ca.diag(S_full), ca.dot(w, w)])
 
     def __call__(self, s0core: np.ndarray, A: np.ndarray, c: np.ndarray, engine: Backend) -> tuple[float, np.ndarray, np.ndarray, int]:
         """log p, its gradient, the information, and the first row whose state is not finite (−1 if none)."""
