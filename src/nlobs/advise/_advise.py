@@ -23,6 +23,7 @@ from ._context import Context, build_context, file_true_parameters, file_unknown
 from ._kinds import try_kind
 from ._present import model_text
 from ._rank import compare, demoted, own_observers, screen, unscreened
+from ._tune_family import tune_candidates
 
 __all__ = ["advise"]
 
@@ -178,7 +179,7 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
            recording: Recording | None = None, true_parameters: Mapping[str, float] | None = None,
            kinds: Sequence[str] | None = None, run: bool = False, xhat0: Sequence[float] | None = None,
            progress: bool | Callable[[str], None] | None = None, engine: str = "auto", seed: int = 0,
-           budget: float | None = BUDGET) -> Advice:
+           budget: float | None = BUDGET, tune: bool = True) -> Advice:
     r"""Which observers fit this model, why the others do not, and (with `run`) which works best.
 
     Runs the structural observability analysis (:func:`nlobs.analyze`) and the form recognition, then tries
@@ -220,6 +221,9 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
         Seed of the structural analysis.
     budget : float or None
         Seconds each candidate may take in the run and the screening, compiling included (None: no limit).
+    tune : bool
+        With `run`: tune Q and R of the Kalman-family candidates on the run's measurements before ranking them
+        (:func:`nlobs.advise._tune.tune_candidates`; the innovations likelihood), and say so.
 
     Returns
     -------
@@ -298,28 +302,7 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
         refused = "; ".join(ctx.run_blockers)
         scores, runres = [], None
     elif run:
-        if say:
-            n_run = sum(c.applies and c.runnable for c in candidates)
-            say(f"advise {system.name}: running {n_run} design(s) ...")
-        # the file's own observers of the kinds tried (all of them without --kind), beside the candidates
-        mine = {k: v for k, v in mf.observers.items() if v.kind in chosen} if mf is not None else {}
-        own, own_notes = own_observers(ctx, mine, candidates)
-        ctx.notes.extend(own_notes)
-        if own:
-            ctx.notes.append("your own observer(s) " + ", ".join(f"[observers.{k.split(':', 1)[1]}]" for k in own)
-                             + " run beside the candidates (as " + ", ".join(own) + ") and are ranked with them")
-        scores, runres = compare(ctx, candidates, engine=engine, budget=budget, own=own)
-        where = "the comparison run" if ctx.recording is not None else "the [simulation] run"
-        candidates = demoted(candidates, scores, where)
-        left_out = [c for c in candidates if c.applies and not c.runnable]   # not in the run: screened on its start
-        screened = screen(ctx, left_out, budget)
-        candidates = unscreened(demoted(candidates, screened, "the start of the [simulation] run"), screened)
-        _reconcile_choice(ctx, candidates, [*scores, *(s for s in screened if s.status != "unscreened")], where, scores)
-        scores = [s for s in scores if s.status != "diverged"]
-        if scores and ctx.recording is None and ctx.scenario.process_std is None:
-            ctx.notes.append("the comparison run has no process noise and the model is exact: estimators that lean on the "
-                             "model (an open-loop copy of a stable model, a tiny Q) look better here than on a real system; "
-                             "add [simulation] process_noise to compare them under model error")
+        candidates, scores, runres = _run_and_rank(ctx, candidates, mf, chosen, engine, budget, say, tune)
     if run:
         scenario = (f"the recording ({ctx.recording.t.size} samples)" if ctx.recording is not None else
                     ctx.scenario.describe() + ", x̂(0) = (" + ", ".join(f"{v:.3g}" for v in ctx.xhat0) + ")")
@@ -331,3 +314,37 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
                   extra, None if scores is None else tuple(scores), runres, scenario, time.perf_counter() - t0,
                   mf.description if mf is not None else "", refused, text,
                   ctx.choice if ctx.choice is not None and any(c.kind == ctx.choice[0] and c.applies for c in candidates) else None)
+
+
+def _run_and_rank(ctx: Context, candidates: list[Candidate], mf: ModelFile | None, chosen: Sequence[str], engine: str,
+                  budget: float | None, say: Any, tune: bool) -> tuple[list[Candidate], list[Score], Any]:
+    """``--run``: the Kalman family tuned on the run's measurements (with `tune`), every runnable candidate and the
+    file's own observers run on the same measurements, ranked; the candidates demoted where they failed."""
+    system = ctx.system
+    if tune:
+        candidates, note = tune_candidates(ctx, candidates, say)
+        if note:
+            ctx.notes.append(note)
+    if say:
+        n_run = sum(c.applies and c.runnable for c in candidates)
+        say(f"advise {system.name}: running {n_run} design(s) ...")
+    # the file's own observers of the kinds tried (all of them without --kind), beside the candidates
+    mine = {k: v for k, v in mf.observers.items() if v.kind in chosen} if mf is not None else {}
+    own, own_notes = own_observers(ctx, mine, candidates)
+    ctx.notes.extend(own_notes)
+    if own:
+        ctx.notes.append("your own observer(s) " + ", ".join(f"[observers.{k.split(':', 1)[1]}]" for k in own)
+                         + " run beside the candidates (as " + ", ".join(own) + ") and are ranked with them")
+    scores, runres = compare(ctx, candidates, engine=engine, budget=budget, own=own)
+    where = "the comparison run" if ctx.recording is not None else "the [simulation] run"
+    candidates = demoted(candidates, scores, where)
+    left_out = [c for c in candidates if c.applies and not c.runnable]   # not in the run: screened on its start
+    screened = screen(ctx, left_out, budget)
+    candidates = unscreened(demoted(candidates, screened, "the start of the [simulation] run"), screened)
+    _reconcile_choice(ctx, candidates, [*scores, *(s for s in screened if s.status != "unscreened")], where, scores)
+    scores = [s for s in scores if s.status != "diverged"]
+    if scores and ctx.recording is None and ctx.scenario.process_std is None:
+        ctx.notes.append("the comparison run has no process noise and the model is exact: estimators that lean on the "
+                         "model (an open-loop copy of a stable model, a tiny Q) look better here than on a real system; "
+                         "add [simulation] process_noise to compare them under model error")
+    return candidates, scores, runres

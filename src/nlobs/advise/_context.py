@@ -830,6 +830,23 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
             notes.append(moved)
     else:
         xh0 = np.array([0.0] * model.n_states + [float(model.params[k]) for k in unknown])
+    P0, q, noise_note = _p0_and_q(model, system, sc, xh0, xhat0, local, sigma0, delta, still, omega_p, t_final, noise_note)
+    Q = np.diag(q)
+    if initial_note:
+        notes.append(initial_note)
+    ctx = Context(model, system, unknown, truth, sc, nominal, rep, rep_sig, omega_p, omega_o, scale, region, xh0, R, R_rate, Q,
+                  P0, noise_note, notes=notes, recording=recording, local_scale=np.asarray(local, dtype=float),
+                  constant=tuple(int(i) for i in np.flatnonzero(still)) if nominal is not None else (),
+                  resolvable=np.asarray(delta, dtype=float), quiet=tuple(int(i) for i in np.flatnonzero(quiet)),
+                  cramer_rao=np.asarray(crlb, dtype=float))
+    _blockers(ctx, model, unknown, rep, rep_sig, nominal, recording)
+    return ctx
+
+
+def _p0_and_q(model: System, system: System, sc: Any, xh0: np.ndarray, xhat0: Any, local: np.ndarray,
+              sigma0: Mapping[int, float], delta: np.ndarray, still: np.ndarray, omega_p: float, t_final: float,
+              noise_note: str) -> tuple[np.ndarray, np.ndarray, str]:
+    """P(0), diag Q and the tuning's text (the rules of the module docstring)."""
     # P(0): the initial uncertainty, i.e. the offset of x̂(0) from x(0) chosen above, at least a tenth of the state's
     # local scale; never the whole range squared (1e4 m² on a position that covers 100 m puts sigma points and
     # EKF corrections far outside anything the model has seen). A state with a σ₀ of its own (initial_std, a constant on
@@ -869,14 +886,4 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
                      + ", δ the smaller of its initial offset σ₀ and the smallest offset the run resolves: over the run it "
                      "wanders by a tenth of what the run can see, so the filter keeps learning it without losing it")
     noise_note += "; " + "; ".join(parts)
-    Q = np.diag(q)
-    if initial_note:
-        notes.append(initial_note)
-    ctx = Context(model, system, unknown, truth, sc, nominal, rep, rep_sig, omega_p, omega_o, scale, region, xh0, R, R_rate, Q,
-                  P0, noise_note, notes=notes, recording=recording, local_scale=np.asarray(local, dtype=float),
-                  constant=tuple(int(i) for i in np.flatnonzero(still)) if nominal is not None else (),
-                  resolvable=np.asarray(delta, dtype=float), quiet=tuple(int(i) for i in np.flatnonzero(quiet)),
-                  cramer_rao=np.asarray(crlb, dtype=float))
-    _blockers(ctx, model, unknown, rep, rep_sig, nominal, recording)
-    return ctx
-
+    return P0, q, noise_note

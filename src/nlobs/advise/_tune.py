@@ -43,3 +43,4 @@ def tune(design_or_model: Any, recording: Any, *, observer: str = "ekf", **optio
                                         + (f": {cand.why}" if cand is not None else ""))
             design_or_model = cand.design
     return _tune(design_or_model, recording, observer=observer, **options)
+

@@ -30,6 +30,9 @@ def add_parser(sub: Any) -> None:
     d.add_argument("--budget", type=positive_float, default=None, metavar="SECONDS",
                    help="seconds each candidate may take in --run, compiling included (default 120); one that takes "
                         "longer is reported as 'did not finish' and the others keep their results")
+    d.add_argument("--no-tune", dest="tune", action="store_false",
+                   help="with --run: keep the default Q and R of the Kalman-family candidates (by default they are tuned "
+                        "on the run's measurements by the innovations likelihood before the ranking, as `nlobs tune` does)")
     d.add_argument("--toml", action="store_true", help="print the applicable designs as [observers.NAME] tables to paste in the file")
     d.add_argument("--json", action="store_true", help="print one JSON object")
     d.set_defaults(run=run)
@@ -58,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
 
     adv = advise(mf, unknown_params=unknown, recording=recording, kinds=args.kind, run=args.compare or bool(args.data),
                  xhat0=xhat0, progress=not args.json, engine=args.engine,
-                 budget=args.budget if args.budget is not None else BUDGET)
+                 budget=args.budget if args.budget is not None else BUDGET, tune=args.tune)
     if args.json:
         print(json.dumps(clean(adv.to_dict())))
     elif args.toml:

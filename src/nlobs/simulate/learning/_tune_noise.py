@@ -729,56 +729,7 @@ def tune(design_or_model: Any, recording: Recording, *, observer: str = "ekf", f
     from ..._progress import as_progress
 
     bar = as_progress(progress, "tune")
-    rng = np.random.default_rng(seed)
-    plan = [("start design", theta0)]
-    nq = n
-    for label, fac in (("Q × 100", 100.0), ("Q / 100", 0.01)):
-        th = theta0.copy()
-        th[:nq] += np.log(fac)
-        plan.append((label, np.clip(th, lo, hi)))
-    attempts: list[dict[str, Any]] = []
-    best: tuple[float, np.ndarray, int] | None = None
-    total_iter = 0
-    from scipy.optimize import minimize
-
-    k = 0
-    while k < int(starts):
-        if k < len(plan):
-            label, th = plan[k]
-        else:
-            assert best is not None
-            label, th = f"perturbed start {k - len(plan) + 1}", np.clip(best[1] + rng.normal(0, 1.0, best[1].size), lo, hi)
-        k += 1
-        t1, e1 = time.perf_counter(), obj.evaluations
-        if not np.isfinite(obj(th)[0]):
-            attempts.append({"start": label, "objective": None, "iterations": 0, "seconds": 0.0,
-                             "message": "the filter does not stay finite at this start"})
-            continue
-        count = [0]
-
-        def cb(*_: Any) -> None:
-            count[0] += 1
-            if bar is not None:
-                bar(min(((k - 1) + 1 - 0.5 ** (count[0] / 10)) / int(starts), 0.999))
-
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            sol = minimize(obj, th, jac=True, method="L-BFGS-B", bounds=list(zip(lo, hi)), callback=cb,
-                           options={"maxiter": int(max_iter), "ftol": 1e-11, "gtol": 1e-7, "maxcor": 20})
-        x = np.asarray(sol.x, dtype=float)
-        fx = obj(x)[0]
-        total_iter += int(sol.nit)
-        attempts.append({"start": label, "objective": float(fx), "iterations": int(sol.nit),
-                         "evaluations": obj.evaluations - e1, "seconds": time.perf_counter() - t1,
-                         "message": str(sol.message)})
-        if best is None or fx < best[0]:
-            best = (float(fx), x, int(sol.nit))
-        done = [a["objective"] for a in attempts if a["objective"] is not None]
-        if len(done) >= 2 and sum(abs(o - best[0]) <= AGREE for o in done) >= 2:
-            break   # two starts agree on the optimum (to less than a hundredth of a standard error's worth of log p)
-    if best is None:
-        raise DataError(f"{caller}: the filter does not stay finite at any start; start from a design that runs on the "
-                        "recording")
+    best, attempts, total_iter = _multistart(obj, theta0, lo, hi, n, int(starts), int(max_iter), seed, bar, caller)
     st = _polish(obj, *_snap(obj, best[1], lo, theta_ref), lo, hi)
     theta, held, dec = st.theta, st.held, st.decrement
     f_best, g = obj(theta)
@@ -789,17 +740,7 @@ def tune(design_or_model: Any, recording: Recording, *, observer: str = "ekf", f
         std = np.sqrt(np.maximum(np.diag(st.cov), 0.0))
         std[st.undetermined] = np.inf
         std[held] = np.nan
-    what = "standard errors" if X_truth is None else "(in units of the objective's curvature)"
-    if converged:
-        message = f"a further Newton step would move the estimate by {np.sqrt(max(dec, 0.0)):.2g} {what}"
-    elif not st.maximum:
-        message = ("not a maximum: the Hessian over the free variances has a direction of negative curvature at the "
-                   "best point; try more starts or iterations (starts=, max_iter=; --starts, --max-iter)")
-    else:
-        message = f"a Newton step would still move the estimate by {np.sqrt(dec):.3g} {what}"
-    if undetermined:
-        message += (f"; the data do not determine {', '.join(undetermined)} (log p changes by less than "
-                    f"{FLAT / 2:g} over a factor e of each: any value there serves)")
+    message = _verdict(converged, st.maximum, dec, undetermined, X_truth is None)
     at_bound = {names[i]: ("lower" if theta[i] <= lo[i] + AT_BOUND else "upper") for i in np.flatnonzero(held)}
     Q = np.diag(np.exp(theta[:n]))
     R = R0.copy() if fix_r else np.diag(np.exp(theta[n:n + ny]))
@@ -820,6 +761,80 @@ def tune(design_or_model: Any, recording: Recording, *, observer: str = "ekf", f
                             "gradient": g, "hessian": st.H, "held": held, "decrement": dec, "undetermined": undetermined,
                             "source": recording.source})
 
+
+
+
+def _verdict(converged: bool, maximum: bool, dec: float, undetermined: list[str], likelihood: bool) -> str:
+    """The result's message: converged (by how little a Newton step would move it), or why not; what the data leave
+    undetermined."""
+    what = "standard errors" if likelihood else "(in units of the objective's curvature)"
+    if converged:
+        message = f"a further Newton step would move the estimate by {np.sqrt(max(dec, 0.0)):.2g} {what}"
+    elif not maximum:
+        message = ("not a maximum: the Hessian over the free variances has a direction of negative curvature at the "
+                   "best point; try more starts or iterations (starts=, max_iter=; --starts, --max-iter)")
+    else:
+        message = f"a Newton step would still move the estimate by {np.sqrt(dec):.3g} {what}"
+    if undetermined:
+        message += (f"; the data do not determine {', '.join(undetermined)} (log p changes by less than "
+                    f"{FLAT / 2:g} over a factor e of each: any value there serves)")
+    return message
+
+def _multistart(obj: Any, theta0: np.ndarray, lo: np.ndarray, hi: np.ndarray, n: int, starts: int, max_iter: int,
+                seed: int, bar: Any, caller: str) -> tuple[tuple[float, np.ndarray, int], list[dict[str, Any]], int]:
+    """L-BFGS-B from the start design, Q × 100, Q / 100, then perturbations of the best, until two starts agree or
+    `starts` are spent: the best (objective, θ, iterations), every attempt, and the iterations in all."""
+    rng = np.random.default_rng(seed)
+    plan = [("start design", theta0)]
+    nq = n
+    for label, fac in (("Q × 100", 100.0), ("Q / 100", 0.01)):
+        th = theta0.copy()
+        th[:nq] += np.log(fac)
+        plan.append((label, np.clip(th, lo, hi)))
+    attempts: list[dict[str, Any]] = []
+    best: tuple[float, np.ndarray, int] | None = None
+    total_iter = 0
+    from scipy.optimize import minimize
+
+    k = 0
+    while k < starts:
+        if k < len(plan):
+            label, th = plan[k]
+        else:
+            assert best is not None
+            label, th = f"perturbed start {k - len(plan) + 1}", np.clip(best[1] + rng.normal(0, 1.0, best[1].size), lo, hi)
+        k += 1
+        t1, e1 = time.perf_counter(), obj.evaluations
+        if not np.isfinite(obj(th)[0]):
+            attempts.append({"start": label, "objective": None, "iterations": 0, "seconds": 0.0,
+                             "message": "the filter does not stay finite at this start"})
+            continue
+        count = [0]
+
+        def cb(*_: Any) -> None:
+            count[0] += 1
+            if bar is not None:
+                bar(min(((k - 1) + 1 - 0.5 ** (count[0] / 10)) / starts, 0.999))
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            sol = minimize(obj, th, jac=True, method="L-BFGS-B", bounds=list(zip(lo, hi)), callback=cb,
+                           options={"maxiter": max_iter, "ftol": 1e-11, "gtol": 1e-7, "maxcor": 20})
+        x = np.asarray(sol.x, dtype=float)
+        fx = obj(x)[0]
+        total_iter += int(sol.nit)
+        attempts.append({"start": label, "objective": float(fx), "iterations": int(sol.nit),
+                         "evaluations": obj.evaluations - e1, "seconds": time.perf_counter() - t1,
+                         "message": str(sol.message)})
+        if best is None or fx < best[0]:
+            best = (float(fx), x, int(sol.nit))
+        done = [a["objective"] for a in attempts if a["objective"] is not None]
+        if len(done) >= 2 and sum(abs(o - best[0]) <= AGREE for o in done) >= 2:
+            break   # two starts agree on the optimum (to less than a hundredth of a standard error's worth of log p)
+    if best is None:
+        raise DataError(f"{caller}: the filter does not stay finite at any start; start from a design that runs on the "
+                        "recording")
+    return best, attempts, total_iter
 
 def _nis(terms: np.ndarray, prob: _Problem) -> dict[str, Any]:
     """The time-average NIS and its two-sided 95 % χ² band (Bar-Shalom, Li & Kirubarajan (2001), sec. 5.4)."""
