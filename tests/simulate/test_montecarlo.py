@@ -126,18 +126,19 @@ def test_metrics_are_computed_only_when_read(monkeypatch):
     assert mc.observers["o"].convergence_time is conv and len(calls) == 12  # computed once
 
 
-def _pend_kw(**kw):
+def _pend_kw(engine="c", **kw):
     return dict(t_final=1.0, dt=1e-3, x0=X0, inputs={"u": "sin(t)"}, noise=Noise.gaussian(0.01),
-                params={"a": np.linspace(9, 10.5, 12)}, seed=3, save_every=25, engine="c", **kw)
+                params={"a": np.linspace(9, 10.5, 12)}, seed=3, save_every=25, engine=engine, **kw)
 
 
-def test_threads_run_the_chunks_side_by_side_with_the_serial_numbers(monkeypatch):
-    """The chunks run on two threads at once (each seen inside the compiled batch while the other is), and the result
-    is bit for bit the serial one, however the runs are chunked."""
+@pytest.mark.parametrize("engine", ["c", "vm"])
+def test_threads_run_the_chunks_side_by_side_with_the_serial_numbers(monkeypatch, engine):
+    """The chunks run on two threads at once (each thread's first chunk waits until the other thread has one), and the
+    result is bit for bit the serial one, however the runs are chunked; compiled and on CasADi's VM."""
     import importlib
 
     mcm = importlib.import_module("nlobs.simulate._montecarlo")
-    serial = montecarlo(PEND, {"inj": INJ, "ekf": EKF}, workers=1, chunk=12, **_pend_kw())
+    serial = montecarlo(PEND, {"inj": INJ, "ekf": EKF}, workers=1, chunk=12, **_pend_kw(engine))
     assert serial.info["workers"] == 1
     real, seen, both = mcm.run_batch, set(), threading.Event()
 
@@ -153,7 +154,7 @@ def test_threads_run_the_chunks_side_by_side_with_the_serial_numbers(monkeypatch
     for chunk in (3, 5, None):
         seen.clear()
         both.clear()
-        par = montecarlo(PEND, {"inj": INJ, "ekf": EKF}, workers=2, chunk=chunk, **_pend_kw())
+        par = montecarlo(PEND, {"inj": INJ, "ekf": EKF}, workers=2, chunk=chunk, **_pend_kw(engine))
         assert len(seen) == 2 and par.info["workers"] == 2
         assert np.array_equal(par.x, serial.x) and np.array_equal(par.status, serial.status)
         for name in ("inj", "ekf"):

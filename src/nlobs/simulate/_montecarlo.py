@@ -3,8 +3,8 @@
 Trajectory j uses exactly the per-step inputs ``simulate(..., seed=seeds[j])`` would use, so
 any trajectory can be re-run alone (:meth:`MonteCarloResult.trajectory`). The work is split
 into chunks of trajectories; each chunk is one call of a compiled C loop (or of the CasADi VM).
-The chunks run on threads, one per core by default: the compiled loop releases Python's lock, so
-they run side by side (CasADi's virtual machine holds the lock: on the VM the chunks take turns).
+The chunks run on threads, one per core by default: the compiled loop and CasADi's virtual machine
+both release Python's lock while they run, so the chunks run side by side.
 With a Dask scheduler the chunks run on its workers with the same code. Every trajectory's inputs
 depend on its seed alone, so the same seeds give the same numbers however the runs are chunked,
 threaded or distributed.
@@ -314,9 +314,9 @@ def montecarlo(
         Run the chunks on a Dask cluster (its address, or a client); needs ``nlobs[dask]``.
     workers : int, optional
         Threads that run the chunks on this machine (default: one per usable core; 1 runs them one after another).
-        The compiled batches release Python's lock, so the threads use the cores; on CasADi's virtual machine
-        (``engine="vm"``, or no C compiler) the chunks run one after another. The numbers do not depend on it.
-        Not with `scheduler` (the cluster's workers run the chunks there).
+        The compiled batches and CasADi's virtual machine release Python's lock, so the threads use the cores (with
+        an MHE, whose solver reports through process-wide state, the chunks run one after another). The numbers do
+        not depend on it. Not with `scheduler` (the cluster's workers run the chunks there).
     chunk : int, optional
         Runs per compiled call (and per Dask task). Default: about four chunks per thread (or per thread of the
         cluster's workers), in whole blocks of the SIMD width, and small enough that a chunk's noise inputs
@@ -387,7 +387,10 @@ def montecarlo(
     if scheduler is None:
         # where the whole batch runs, decided (and compiled) once: every chunk, on every thread, runs there
         where = batch_backend(prep.layout.step, M, N, engine)
-        threads = (usable_cores() if workers is None else int(workers)) if where == "c" else 1
+        # compiled loops and CasADi's virtual machine (3.8) both release Python's lock while they run; a step with an
+        # optimisation inside (MHE) reports solver errors through process-wide state, so its chunks take turns
+        alone = any(getattr(o.design, "needs_mx", False) for o in prep.obs.values())
+        threads = 1 if alone else (usable_cores() if workers is None else int(workers))
         size = int(chunk) if chunk is not None else _chunk_size(M, threads, per_run)
         bounds = [(j, min(j + size, M)) for j in range(0, M, size)]
         threads = min(threads, len(bounds))
