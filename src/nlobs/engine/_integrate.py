@@ -11,6 +11,7 @@ import os
 import threading
 import time
 import warnings
+from collections import OrderedDict
 from collections.abc import Callable
 from typing import Any, Literal
 
@@ -76,6 +77,7 @@ _VM: dict[tuple[Any, ...], ca.Function] = {}
 _LOOPS: dict[str, CompiledLoop] = {}
 _BATCHES: dict[str, CompiledBatch | CompiledSimdBatch] = {}
 _BUILD_LOCK = threading.Lock()   # one build per step when threads ask for the same batch at once
+_STEP_INFO: OrderedDict[int, tuple[ca.Function, str, bool]] = OrderedDict()   # id -> (step, signature, lane-parallel)
 
 
 def usable_cores() -> int:
@@ -231,8 +233,15 @@ def _compiled_batch(step: ca.Function, n_traj: int, n_steps: int, backend: Backe
     if backend == "vm":
         return None
     ns = step.size1_in(0)
-    sig = _signature(step)
-    simd = step.is_a("SXFunction") and simd_supported(step)
+    known = _STEP_INFO.get(id(step))
+    if known is None or known[0] is not step:
+        # its hash and whether it runs lane-parallel: read once per step (a Python pass over its instructions, under
+        # Python's lock: asked again by every chunk of a Monte Carlo run, on every thread)
+        known = (step, _signature(step), step.is_a("SXFunction") and simd_supported(step))
+        _STEP_INFO[id(step)] = known   # the step kept: its id is not reused while it is here
+        if len(_STEP_INFO) > 256:
+            _STEP_INFO.popitem(last=False)
+    _, sig, simd = known
     ready = sig in _BATCHES or (lambda p: p is not None and p.exists())(
         built_path("simd", sig + f"/{LANES}", _SIMD_DRIVER + _KERNEL_VERSION) if simd else built_path("batch", sig, _BATCH))
     work = float(n_traj) * n_steps * ns
