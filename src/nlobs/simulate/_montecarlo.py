@@ -315,8 +315,9 @@ def montecarlo(
     workers : int, optional
         Threads that run the chunks on this machine (default: one per usable core; 1 runs them one after another).
         The compiled batches and CasADi's virtual machine release Python's lock, so the threads use the cores (with
-        an MHE, whose solver reports through process-wide state, the chunks run one after another). The numbers do
-        not depend on it. Not with `scheduler` (the cluster's workers run the chunks there).
+        an MHE, whose solver reports through process-wide state, the chunks run one after another; so do the runs of
+        a discrete-time plant, each one :func:`nlobs.simulate`'s map iteration). The numbers do not depend on it.
+        Not with `scheduler` (the cluster's workers run the chunks there).
     chunk : int, optional
         Runs per compiled call (and per Dask task). Default: about four chunks per thread (or per thread of the
         cluster's workers), in whole blocks of the SIMD width, and small enough that a chunk's noise inputs
