@@ -161,6 +161,15 @@ def test_threads_run_the_chunks_side_by_side_with_the_serial_numbers(monkeypatch
             assert np.array_equal(par.observers[name].xhat, serial.observers[name].xhat)
 
 
+def test_every_usable_core_by_default():
+    from nlobs.engine import usable_cores
+
+    mc = montecarlo(PEND, {"inj": INJ}, chunk=3, **_pend_kw())   # 4 chunks
+    assert mc.info["workers"] == min(usable_cores(), 4) and mc.info["chunk"] == 3
+    if hasattr(os, "sched_getaffinity"):
+        assert usable_cores() == len(os.sched_getaffinity(0))
+
+
 def test_workers_and_chunk_are_checked():
     with pytest.raises(ShapeError, match="`workers` must be a positive whole number"):
         montecarlo(PEND, {"inj": INJ}, workers=0, **_pend_kw())
