@@ -82,10 +82,11 @@ class ObserverTrajectory:
                 "fastest_rate": fastest, "engine": self.engine}
 
 
-#: Sub-steps of at most this many SX instructions are compiled inlined (as ``nlobs.simulate``'s joint step,
-#: ``INLINE_MAX``): Van der Pol's EKF, 282 instructions, runs its 2,000 intervals in 0.20 ms with the flow called at
-#: the four stages and in 0.14 ms inlined (P3 of benchmarks/bench_core.py).
-SUB_INLINE_MAX = 15_000
+#: Sub-steps of at most this many SX instructions are compiled inlined: there the four calls of the flow cost more than
+#: they save. Van der Pol's EKF (282 instructions) runs its 2,000 intervals in 0.14 ms inlined, 0.20 ms with the calls
+#: (P3 of benchmarks/bench_core.py); cart-pole's EKF (1,330) and UKF (2,931) and the quadrotor's EKF (10,729) run as
+#: fast either way, and the inlined quadrotor EKF takes 9 s to compile instead of 7.5 s.
+SUB_INLINE_MAX = 1_000
 
 
 class CompiledObserver:
