@@ -8,7 +8,7 @@ a later one); imports under ``if TYPE_CHECKING:`` do not (annotations only). Two
    subclasses ``System``); written once here, in :data:`ALLOWED_CYCLES`.
 2. A lower layer never imports a higher one (:data:`LAYERS`, lowest first; packages in one layer do not import
    each other either way round beyond what is listed). Inside a package split into rooms (:data:`ROOMS`: the
-   sub-packages of ``analysis``) the same rule holds between its rooms; the package's ``__init__`` re-exports them all.
+   sub-packages of ``analysis``; the shared modules and the family sub-packages of ``design``) the same rule holds between its rooms; the package's ``__init__`` re-exports them all.
 """
 
 from __future__ import annotations
@@ -44,6 +44,17 @@ ROOMS: dict[str, tuple[frozenset[str], ...]] = {
         frozenset({"_reports"}),                      # the result types and number formatting the rooms share
         frozenset({"structural", "trajectory"}),      # from the equations / along one trajectory
         frozenset({"forms", "sensors"}),              # structure for designs; sensor selection (rank + Fisher information)
+    ),
+    # design: the shared modules at the bottom, then the families (sub-packages) in the order they build on each other
+    "design": (
+        frozenset({"_base"}),                                   # ObserverDesign, Certificate, Check
+        frozenset({"_checks", "_kind", "_common", "_bounds"}),  # preconditions, the kind registry, symbolic helpers
+        frozenset({"_constructions"}),                          # chains, Ψ, KKL maps, Banks' gain
+        frozenset({"_tune"}),                                   # the advisor's tunings shared by the kinds
+        frozenset({"lipschitz", "banks", "_custom", "_mhe", "_registry"}),
+        frozenset({"high_gain"}),                               # uses the region's Lipschitz constant
+        frozenset({"kalman"}),                                  # the high-gain Kalman observer uses the high-gain chains
+        frozenset({"pebo", "linear"}),                          # GPEBO and the augmented observer use the Riccati design
     ),
 }
 
@@ -216,6 +227,14 @@ def test_the_checks_see_a_cycle_and_an_upward_import():
                                      "nlobs.analysis.forms._r imports nlobs.analysis",
                                      "nlobs.analysis.structural._g imports nlobs.analysis.forms._r",
                                      "nlobs.analysis.structural._g imports nlobs.analysis.trajectory._t"]
+    # in design a shared module never imports a family, nor a family a higher or neighbouring one
+    edges = {"nlobs.design._tune": {"nlobs.design.pebo._regression", "nlobs.design._constructions"},
+             "nlobs.design.kalman._riccati": {"nlobs.design.high_gain._high_gain", "nlobs.design._tune"},
+             "nlobs.design.pebo._gpebo": {"nlobs.design.kalman._riccati", "nlobs.design.linear._linear"},
+             "nlobs.design.lipschitz._lipschitz": {"nlobs.design.high_gain._high_gain"}}
+    assert upward_imports(edges) == ["nlobs.design._tune imports nlobs.design.pebo._regression",
+                                     "nlobs.design.lipschitz._lipschitz imports nlobs.design.high_gain._high_gain",
+                                     "nlobs.design.pebo._gpebo imports nlobs.design.linear._linear"]
 
 
 def test_function_level_imports_count():

@@ -45,16 +45,16 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from ..engine import to_casadi
-from ..errors import FormError, PreconditionError, ShapeError
-from ..model import TIME, System, symbol
-from ..model._forms import matrix_of
-from ..references import cite, work
-from ._base import Certificate, Check, ObserverDesign, Symbols
-from ._checks import check_matrix, check_positive
-from ._common import leaves_of
-from ._constructions import evaluate
-from ._kind import Tuning, kind
+from ...engine import to_casadi
+from ...errors import FormError, PreconditionError, ShapeError
+from ...model import TIME, System, symbol
+from ...model._forms import matrix_of
+from ...references import cite, work
+from .._base import Certificate, Check, ObserverDesign, Symbols
+from .._checks import check_matrix, check_positive
+from .._common import leaves_of
+from .._constructions import evaluate
+from .._kind import Tuning, kind
 
 __all__ = [
     "StateStack", "Regression", "sx_matrix", "lowpass", "derivative_filter", "adjugate",

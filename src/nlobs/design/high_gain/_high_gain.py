@@ -11,18 +11,18 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from ..analysis import decide_identity
-from ..engine import compile_system
-from ..errors import FormError, PreconditionError, ShapeError
-from ..model import TIME, System, symbol
-from ..model._system import ExprLike, exact, to_expr
-from ..references import cite, work
-from ._base import Certificate, Check, ObserverDesign, Symbols
-from ._checks import identity_check
-from ._common import chain_gain, leaves_of, measured_states, require_system, saturate, saturation_bounds, to_sx
-from ._constructions import derivative_map, evaluate, find_chains, text
-from ._kind import Tuning, kind, renamed
-from ._tune import clean_message, region_inputs, region_states, vanishes
+from ...analysis import decide_identity
+from ...engine import compile_system
+from ...errors import FormError, PreconditionError, ShapeError
+from ...model import TIME, System, symbol
+from ...model._system import ExprLike, exact, to_expr
+from ...references import cite, work
+from .._base import Certificate, Check, ObserverDesign, Symbols
+from .._checks import identity_check
+from .._common import chain_gain, leaves_of, measured_states, require_system, saturate, saturation_bounds, to_sx
+from .._constructions import derivative_map, evaluate, find_chains, text
+from .._kind import Tuning, kind, renamed
+from .._tune import clean_message, region_inputs, region_states, vanishes
 
 __all__ = ["design_high_gain", "design_high_gain_derivatives", "triangular_chains", "Chain"]
 
@@ -213,7 +213,7 @@ def _chains(ctx: Any) -> tuple[Any, list[list[str]] | None, str]:
 def _theta_star(chs: Any, gamma: float, n: int) -> float:
     import scipy.linalg
 
-    from ._common import chain_gain
+    from .._common import chain_gain
 
     blocks = []
     for c in chs:
@@ -264,7 +264,7 @@ def tune_high_gain(ctx: Any) -> Tuning:
                 return Tuning.fails(f"the coupling ∂{s0}'/∂{s1} = {a} takes values in [{lo:.3g}, {hi:.3g}] on the run: it "
                               f"{vanishes(lo, hi)}, and the high-gain observer needs it "
                               f"bounded away from 0 with a fixed sign ({cite('002')}, extension of the high-gain observer)")
-        from ._common import chain_gain
+        from .._common import chain_gain
 
         means = {id(a): float(np.mean(col)) for (_, _, a), col in zip(varying, vals.T)}
         K0 = []
@@ -279,7 +279,7 @@ def tune_high_gain(ctx: Any) -> Tuning:
         theta = float(max(ctx.omega_o, 1.0))
         opts["theta"] = round(theta, 6)
         return Tuning.tuned(opts, f"chains {order}; θ = {theta:.3g} from the time scale (no region to bound the nonlinearity)")
-    from ._lipschitz import region_lipschitz
+    from ..lipschitz._lipschitz import region_lipschitz
 
     A0 = sp.zeros(ctx.n, ctx.n)
     for c in chs:

@@ -15,19 +15,19 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from .._text import shorten
-from ..analysis import matrix_measure
-from ..engine import compile_system, to_casadi
-from ..errors import PreconditionError, ShapeError
-from ..model import TIME, System, symbol
-from ..model._system import ExprLike, exact, to_expr
-from ..references import cite, work
-from ._base import Certificate, Check, ObserverDesign, Symbols
-from ._checks import check_matrix
-from ._common import batch, box_of, require_system, sup_over_box
-from ._constructions import banks_gain, banks_necessary
-from ._kind import Tuning, kind, renamed
-from ._tune import region_inputs, region_states, rounded
+from ..._text import shorten
+from ...analysis import matrix_measure
+from ...engine import compile_system, to_casadi
+from ...errors import PreconditionError, ShapeError
+from ...model import TIME, System, symbol
+from ...model._system import ExprLike, exact, to_expr
+from ...references import cite, work
+from .._base import Certificate, Check, ObserverDesign, Symbols
+from .._checks import check_matrix
+from .._common import batch, box_of, require_system, sup_over_box
+from .._constructions import banks_gain, banks_necessary
+from .._kind import Tuning, kind, renamed
+from .._tune import region_inputs, region_states, rounded
 
 __all__ = ["design_banks", "banks_conditions", "BanksConditions"]
 

@@ -9,20 +9,20 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from ..analysis import decide_identity
-from ..engine import to_casadi
-from ..errors import FormError, ModelError, PreconditionError
-from ..model import TIME, System, symbol
-from ..model._forms import matrix_of
-from ..model._system import ExprLike, exact
-from ..references import cite, work
-from ._base import Certificate, Check, ObserverDesign, Symbols
-from ._checks import identity_check, observer_gain
-from ._common import require_system
-from ._constructions import evaluate, text
-from ._kalman import StateAffineParts, _riccati_design
-from ._kind import Tuning, kind
-from ._tune import CA_on_run, clean_message, fmt, poles_for, square
+from ...analysis import decide_identity
+from ...engine import to_casadi
+from ...errors import FormError, ModelError, PreconditionError
+from ...model import TIME, System, symbol
+from ...model._forms import matrix_of
+from ...model._system import ExprLike, exact
+from ...references import cite, work
+from .._base import Certificate, Check, ObserverDesign, Symbols
+from .._checks import identity_check, observer_gain
+from .._common import require_system
+from .._constructions import evaluate, text
+from ..kalman._riccati import StateAffineParts, _riccati_design
+from .._kind import Tuning, kind
+from .._tune import CA_on_run, clean_message, fmt, poles_for, square
 
 __all__ = ["design_augmented"]
 
@@ -42,7 +42,7 @@ def _states_only(Tm: sp.Matrix, system: System, caller: str) -> sp.Matrix:
 
 # -- automatic tuning for the advisor (the kinds' `tune`; see design/_kind.py) ------------------------------
 def tune_augmented(ctx: Any) -> Tuning:
-    from ..analysis import propose_augmentation
+    from ...analysis import propose_augmentation
 
     try:
         aug = propose_augmentation(ctx.system, max_degree=3, max_states=min(4 * ctx.n + 2, 18))

@@ -30,17 +30,17 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from ..analysis import decide_identity, exact_generic_rank
-from ..engine import to_casadi
-from ..errors import PreconditionError, ShapeError
-from ..model import TIME, System, symbol
-from ..model._forms import matrix_of
-from ..model._system import exact
-from ..references import cite, work
-from ._base import Certificate, Check, ObserverDesign
-from ._tune import needs_only
-from ._kind import kind
-from ._checks import identity_check
+from ...analysis import decide_identity, exact_generic_rank
+from ...engine import to_casadi
+from ...errors import PreconditionError, ShapeError
+from ...model import TIME, System, symbol
+from ...model._forms import matrix_of
+from ...model._system import exact
+from ...references import cite, work
+from .._base import Certificate, Check, ObserverDesign
+from .._tune import needs_only
+from .._kind import kind
+from .._checks import identity_check
 from ._regression import StateStack
 
 __all__ = ["design_iandi"]

@@ -34,20 +34,20 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from ..analysis import decide_identity
-from ..engine import to_casadi
-from ..errors import FormError, PreconditionError, ShapeError
-from ..model import TIME, System, symbol
-from ..model._forms import matrix_of
-from ..model._system import exact
-from ..references import cite, work
-from ._base import Certificate, Check, ObserverDesign
-from ._checks import identity_check
-from ._constructions import kkl_linear, pebo_linear
-from ._tune import needs_only
-from ._kind import Tuning, kind
+from ...analysis import decide_identity
+from ...engine import to_casadi
+from ...errors import FormError, PreconditionError, ShapeError
+from ...model import TIME, System, symbol
+from ...model._forms import matrix_of
+from ...model._system import exact
+from ...references import cite, work
+from .._base import Certificate, Check, ObserverDesign
+from .._checks import identity_check
+from .._constructions import kkl_linear, pebo_linear
+from .._tune import needs_only
+from .._kind import Tuning, kind
 from ._regression import ExcitationMonitor, Gradient, Regression, StateStack, estimator_from, lowpass, sx_matrix
-from ._tune import clean_message, output_injection_form
+from .._tune import clean_message, output_injection_form
 
 __all__ = ["design_kkl", "design_pebo", "design_kkl_pebo", "WindowedNLS"]
 

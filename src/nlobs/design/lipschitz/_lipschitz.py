@@ -10,16 +10,16 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from ..analysis import kalman_rank
-from ..engine import compile_system, to_casadi
-from ..errors import PreconditionError
-from ..model import TIME, System
-from ..references import cite, work
-from ._base import Certificate, Check, ObserverDesign, Symbols
-from ._checks import check_matrix
-from ._common import batch, box_of, require_system, sup_over_box
-from ._kind import Tuning, kind, renamed
-from ._tune import jacobians_on_run, region_inputs, region_states, rounded
+from ...analysis import kalman_rank
+from ...engine import compile_system, to_casadi
+from ...errors import PreconditionError
+from ...model import TIME, System
+from ...references import cite, work
+from .._base import Certificate, Check, ObserverDesign, Symbols
+from .._checks import check_matrix
+from .._common import batch, box_of, require_system, sup_over_box
+from .._kind import Tuning, kind, renamed
+from .._tune import jacobians_on_run, region_inputs, region_states, rounded
 
 __all__ = ["design_lipschitz", "region_lipschitz", "thau_margin", "thau_gain_search"]
 

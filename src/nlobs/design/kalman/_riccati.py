@@ -12,18 +12,18 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from ..errors import FormError, PreconditionError, ShapeError
-from ..model import TIME, StateAffine, System, symbol
-from ..model._budget import expand
-from ..model._system import exact
-from ..references import cite, work
-from ._base import Certificate, Check, ObserverDesign, Symbols
-from ._checks import check_matrix
-from ._common import box_of, leaves_of, measured_states, require_system, sup_over_box, to_sx
-from ._constructions import find_chains
-from ._high_gain import _theta, triangular_chains
-from ._kind import Tuning, kind, renamed
-from ._tune import CA_on_run, clean_message, region_inputs, square
+from ...errors import FormError, PreconditionError, ShapeError
+from ...model import TIME, StateAffine, System, symbol
+from ...model._budget import expand
+from ...model._system import exact
+from ...references import cite, work
+from .._base import Certificate, Check, ObserverDesign, Symbols
+from .._checks import check_matrix
+from .._common import box_of, leaves_of, measured_states, require_system, sup_over_box, to_sx
+from .._constructions import find_chains
+from ..high_gain._high_gain import _theta, triangular_chains
+from .._kind import Tuning, kind, renamed
+from .._tune import CA_on_run, clean_message, region_inputs, square
 
 __all__ = ["design_kalman_like", "design_kalman_bucy", "design_high_gain_kalman", "StateAffineParts", "state_affine_parts"]
 

@@ -33,13 +33,13 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from ..engine import to_casadi
-from ..errors import PreconditionError
-from ..model import System
-from ..references import cite, work
-from ._base import Certificate, Check, ObserverDesign
-from ._constructions import cascade_partition, evaluate
-from ._kind import Tuning, kind
+from ...engine import to_casadi
+from ...errors import PreconditionError
+from ...model import System
+from ...references import cite, work
+from .._base import Certificate, Check, ObserverDesign
+from .._constructions import cascade_partition, evaluate
+from .._kind import Tuning, kind
 from ._regression import ExcitationMonitor, Gradient, Regression, StateStack, estimator_from, lowpass
 
 __all__ = ["design_kkl_pebo_cascade"]

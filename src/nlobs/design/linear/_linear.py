@@ -7,16 +7,16 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from ..analysis import kalman_rank
-from ..engine import to_casadi
-from ..errors import FormError, PreconditionError
-from ..model import LTI, TIME, OutputInjectionForm, System
-from ..references import cite, work
-from ._base import Certificate, Check, ObserverDesign, Symbols, check_vector
-from ._checks import check_matrix, observer_gain
-from ._common import require_system
-from ._kind import Tuning, kind, renamed
-from ._tune import clean_message, fmt, poles_for
+from ...analysis import kalman_rank
+from ...engine import to_casadi
+from ...errors import FormError, PreconditionError
+from ...model import LTI, TIME, OutputInjectionForm, System
+from ...references import cite, work
+from .._base import Certificate, Check, ObserverDesign, Symbols, check_vector
+from .._checks import check_matrix, observer_gain
+from .._common import require_system
+from .._kind import Tuning, kind, renamed
+from .._tune import clean_message, fmt, poles_for
 
 __all__ = ["design_luenberger", "design_output_injection"]
 

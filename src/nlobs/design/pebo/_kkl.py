@@ -28,14 +28,14 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from ..algebra._modular import monomial_exponents
-from ..engine import compile_system, rk4_step
-from ..errors import PreconditionError, ShapeError
-from ..model import System
-from ..model._expr import as_written
-from ..references import cite, work
-from ._base import Certificate, Check, ObserverDesign
-from ._kind import Tuning, kind
+from ...algebra._modular import monomial_exponents
+from ...engine import compile_system, rk4_step
+from ...errors import PreconditionError, ShapeError
+from ...model import System
+from ...model._expr import as_written
+from ...references import cite, work
+from .._base import Certificate, Check, ObserverDesign
+from .._kind import Tuning, kind
 from ._regression import StateStack
 
 __all__ = ["design_kkl_learned"]

@@ -27,16 +27,16 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from ..errors import FormError, PreconditionError
-from ..model import TIME, StateAffine, System, symbol
-from ..model._forms import matrix_of
-from ..references import cite, work
-from ._base import Certificate, Check, ObserverDesign
-from ._constructions import evaluate
-from ._kalman import state_affine, state_affine_parts
-from ._kind import Tuning, kind
+from ...errors import FormError, PreconditionError
+from ...model import TIME, StateAffine, System, symbol
+from ...model._forms import matrix_of
+from ...references import cite, work
+from .._base import Certificate, Check, ObserverDesign
+from .._constructions import evaluate
+from ..kalman._riccati import state_affine, state_affine_parts
+from .._kind import Tuning, kind
 from ._regression import GD, AbstractEstimator, ExcitationMonitor, Regression, StateStack, estimator_from, sx_matrix
-from ._tune import clean_message, fmt, poles_for, rounded, square
+from .._tune import clean_message, fmt, poles_for, rounded, square
 
 __all__ = ["design_gpebo", "design_gpebo_2gd"]
 
@@ -125,7 +125,7 @@ _GROWING = 1.5
 
 
 def _injection(A: np.ndarray, C: np.ndarray, ctx: Any, what: str) -> tuple[np.ndarray | None, Tuning | None]:
-    from ._checks import observer_gain
+    from .._checks import observer_gain
 
     try:
         L, _, _ = observer_gain(A, C, poles=poles_for(ctx.n, ctx.omega_o), caller="gpebo")
