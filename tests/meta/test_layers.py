@@ -3,12 +3,14 @@
 Every ``import`` counts, at module level or inside a function (a function-level import is a real dependency, only
 a later one); imports under ``if TYPE_CHECKING:`` do not (annotations only). Two rules:
 
-1. No cycle between modules. The one allowed exception is ``System.lti`` / ``System.state_affine``: the
-   :class:`~nlobs.System` class offers its structured forms (``model/_system.py`` -> ``model/_forms.py``, which
-   subclasses ``System``); written once here, in :data:`ALLOWED_CYCLES`.
+1. No cycle between modules, and no two files that import each other (here an import under ``TYPE_CHECKING``
+   counts too). There is no exception (:data:`ALLOWED_CYCLES` is empty): ``System.lti`` builds through the
+   registry ``model._system.FORMS`` that ``model/_forms.py`` fills, and ``simulate/_plot.py`` reads a run through
+   a protocol.
 2. A lower layer never imports a higher one (:data:`LAYERS`, lowest first; packages in one layer do not import
    each other either way round beyond what is listed). Inside a package split into rooms (:data:`ROOMS`: the
-   sub-packages of ``analysis``; the shared modules and the family sub-packages of ``design``) the same rule holds between its rooms; the package's ``__init__`` re-exports them all.
+   sub-packages of ``analysis``; the shared modules and the family sub-packages of ``design``) the same rule
+   holds between its rooms; the package's ``__init__`` re-exports them all.
 """
 
 from __future__ import annotations
@@ -58,8 +60,8 @@ ROOMS: dict[str, tuple[frozenset[str], ...]] = {
     ),
 }
 
-#: Module cycles that are allowed, each as the sorted tuple of its modules.
-ALLOWED_CYCLES = {("nlobs.model._forms", "nlobs.model._system")}
+#: Module cycles that are allowed, each as the sorted tuple of its modules (none).
+ALLOWED_CYCLES: set[tuple[str, ...]] = set()
 
 
 def _modules() -> dict[str, tuple[Path, bool]]:
@@ -80,13 +82,14 @@ def _type_checking_lines(tree: ast.AST) -> set[int]:
     return lines
 
 
-def import_graph(src: Path = SRC) -> dict[str, set[str]]:
-    """Module -> the nlobs modules it imports (resolved to modules or packages)."""
+def import_graph(src: Path = SRC, *, type_checking: bool = False) -> dict[str, set[str]]:
+    """Module -> the nlobs modules it imports (resolved to modules or packages); with `type_checking`, the imports
+    under ``if TYPE_CHECKING:`` too."""
     mods = _modules()
     edges: dict[str, set[str]] = {m: set() for m in mods}
     for mod, (path, pkg) in mods.items():
         tree = ast.parse(path.read_text(encoding="utf-8"))
-        skip = _type_checking_lines(tree)
+        skip = set() if type_checking else _type_checking_lines(tree)
         for node in ast.walk(tree):
             if not isinstance(node, (ast.Import, ast.ImportFrom)) or node.lineno in skip:
                 continue
@@ -201,6 +204,17 @@ def test_no_import_cycles():
     assert not cycles, "import cycles (imports inside functions count): " + "; ".join(" <-> ".join(c) for c in cycles)
 
 
+def mutual_imports(edges: dict[str, set[str]]) -> list[tuple[str, str]]:
+    """Pairs of files that import each other, packages' ``__init__`` files included."""
+    return sorted({tuple(sorted((m, t))) for m, ts in edges.items() for t in ts if m in edges.get(t, ())})
+
+
+def test_no_two_files_import_each_other():
+    # stricter than the cycle check: an import for annotations only (under TYPE_CHECKING) counts too
+    pairs = mutual_imports(import_graph(type_checking=True))
+    assert not pairs, "files that import each other: " + "; ".join(" <-> ".join(p) for p in pairs)
+
+
 def test_no_import_goes_up_a_layer():
     bad = upward_imports(import_graph())
     assert not bad, "imports that go up a layer: " + "; ".join(bad)
@@ -211,6 +225,8 @@ def test_the_checks_see_a_cycle_and_an_upward_import():
     edges = {"nlobs.model._a": {"nlobs.model._b"}, "nlobs.model._b": {"nlobs.model._a", "nlobs.design._x"},
              "nlobs.design._x": set()}
     assert module_cycles(edges, packages=frozenset()) == [("nlobs.model._a", "nlobs.model._b")]
+    assert mutual_imports(edges) == [("nlobs.model._a", "nlobs.model._b")]
+    assert mutual_imports({"nlobs.x": {"nlobs.x._a"}, "nlobs.x._a": {"nlobs.x"}}) == [("nlobs.x", "nlobs.x._a")]
     assert upward_imports(edges) == ["nlobs.model._b imports nlobs.design._x"]
     # algebra sits below analysis; inside analysis a room never imports a higher one, nor its neighbour
     edges = {"nlobs.algebra._m": {"nlobs.analysis.structural._g"},
@@ -246,4 +262,4 @@ def test_function_level_imports_count():
     assert found and found[0].module == "_particles"
     edges = import_graph()
     assert "nlobs.analysis.structural._lie" in edges["nlobs.analysis.structural._analyze"]  # a module-level edge
-    assert "nlobs.model._forms" in edges["nlobs.model._system"]              # a function-level one (the exception)
+    assert "nlobs.design.lipschitz._lipschitz" in edges["nlobs.design.high_gain._high_gain"]  # a function-level one
