@@ -218,6 +218,7 @@ NAMESPACES = [
     ("nlobs.design", "Observer designs and their certificates"),
     ("nlobs.observer", "Running observers: offline, online, C export"),
     ("nlobs.simulate", "Simulation, noise, recorded data, Monte Carlo, results"),
+    ("nlobs.learning", "Learning from recordings: parameters and noise levels"),
     ("nlobs.advise", "Which observer fits a model: candidates, tuning and ranking"),
     ("nlobs.interop", "python-control"),
     ("nlobs.examples", "The papers' examples"),

@@ -32,6 +32,7 @@ LAYERS: tuple[frozenset[str], ...] = (
     frozenset({"design"}),
     frozenset({"observer"}),
     frozenset({"simulate"}),
+    frozenset({"learning"}),            # parameters and noise fitted to recordings (fit, likelihood, tune)
     frozenset({"advise", "interop"}),
     frozenset({"examples"}),
     frozenset({"report"}),

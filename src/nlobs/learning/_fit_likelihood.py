@@ -32,10 +32,10 @@ from typing import Any, Literal
 
 import numpy as np
 
-from ...engine import Backend
-from ...errors import DataError, ModelError
-from ...references import cite
-from .._recorded import Recording
+from ..engine import Backend
+from ..errors import DataError, ModelError
+from ..references import cite
+from ..simulate._recorded import Recording
 from ._likelihood import ACCURACY, INFORMATION, MAX_SUBSTEPS, NOISE_NAMES, _Problem
 
 __all__ = ["fit_likelihood", "LikelihoodFit"]
@@ -149,7 +149,7 @@ class LikelihoodFit:
 
         The same kind (``design_ekf`` / ``design_ukf``), P0, x̂0 and sigma-point scaling as the design that was fitted;
         the model as given (its switches exact, its saturating outputs as written)."""
-        from ...design import design_ekf, design_ukf
+        from ..design import design_ekf, design_ukf
 
         v = self.info["design_values"]
         if self.kind == "ekf":

@@ -17,7 +17,7 @@ import pytest
 
 import nlobs
 from nlobs.cli import main
-from nlobs.simulate.learning import fit_likelihood
+from nlobs.learning import fit_likelihood
 
 ROOT = Path(__file__).resolve().parents[2]
 DATA = ROOT / "tests" / "data" / "cascaded_tanks_estimation.csv"

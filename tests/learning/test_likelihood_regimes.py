@@ -15,8 +15,9 @@ from scipy.special import log_ndtr as scipy_log_ndtr
 from scipy.stats import norm
 
 import nlobs
-from nlobs.simulate import Recording, fit_likelihood, log_likelihood
-from nlobs.simulate.learning._regimes import filter_model, log_ndtr
+from nlobs.learning import fit_likelihood, log_likelihood
+from nlobs.simulate import Recording
+from nlobs.learning._regimes import filter_model, log_ndtr
 
 
 def test_log_ndtr_matches_scipy_in_both_tails():

@@ -68,12 +68,12 @@ from typing import Any, Literal
 import casadi as ca
 import numpy as np
 
-from ...design import ObserverDesign
-from ...engine import Backend
-from ...errors import DataError, ModelError, PreconditionError, ShapeError
-from ...references import cite
-from .._loop import Loop
-from .._recorded import Recording
+from ..design import ObserverDesign
+from ..engine import Backend
+from ..errors import DataError, ModelError, PreconditionError, ShapeError
+from ..references import cite
+from ..simulate._loop import Loop
+from ..simulate._recorded import Recording
 from ._likelihood import _Problem, _Recursion
 
 __all__ = ["tune", "TuneResult", "TUNED_KINDS"]
@@ -166,7 +166,7 @@ class TuneResult:
 
     def apply(self, design: Any = None) -> ObserverDesign:
         """`design` (default: the one tuned) with the tuned Q, R (and P(0)), of its own kind and options."""
-        from ...design import KINDS, options_of
+        from ..design import KINDS, options_of
 
         d = self.info["design"] if design is None else getattr(design, "design", design)
         if not _is_design(d) or d.method not in TUNED_KINDS:
@@ -198,7 +198,7 @@ class TuneResult:
 
     def toml(self, name: str | None = None) -> str:
         """An ``[observers.NAME]`` table with the tuned values, to paste into the model file."""
-        from ...design import KINDS, options_of
+        from ..design import KINDS, options_of
 
         d = self.info["design"]
         opts = self._options(d, options_of(KINDS[d.method].design))
@@ -286,10 +286,10 @@ def _parse_bounds(text: str) -> dict[str, list[float | None]]:
 
 # -- the start design and the recording -------------------------------------------------------------------------------
 def _start_design(design: Any, observer: str, caller: str) -> ObserverDesign:
-    from ...model import ModelFile
+    from ..model import ModelFile
 
     if isinstance(design, ModelFile):
-        from ...design import design_from_config
+        from ..design import design_from_config
 
         configured = design.observers
         name = observer if observer in configured else None
@@ -317,13 +317,13 @@ def _start_design(design: Any, observer: str, caller: str) -> ObserverDesign:
 
 
 def _is_design(d: Any) -> bool:
-    from ...design.kalman._pf import ParticleDesign
+    from ..design.kalman._pf import ParticleDesign
 
     return isinstance(d, (ObserverDesign, ParticleDesign))
 
 
 def _likelihood_design(d: ObserverDesign, notes: list[str]) -> ObserverDesign:
-    from ...design import design_ekf, design_ukf
+    from ..design import design_ekf, design_ukf
 
     v = d.certificate.values
     kind = TUNED_KINDS[d.method]
@@ -347,7 +347,7 @@ def _at_taken_times(rec: Recording, delay: Mapping[str, float], mask: np.ndarray
     """The recording re-stamped at the times its samples were taken (rows at the union of the row times and the taken
     times, inputs held from the row before); the mask, the truth on the new rows (NaN between rows) and which rows
     are the recording's; the samples taken before its first time (left out)."""
-    from .._delays import Events, _merged, _tol, delays_of
+    from ..simulate._delays import Events, _merged, _tol, delays_of
 
     d = delays_of(delay, list(rec.output_names), "tune")
     ev = Events.from_rows(rec.t, rec.y, mask > 0, d, stamped_at_arrival=True)
@@ -657,6 +657,8 @@ def tune(design_or_model: Any, recording: Recording, *, observer: str = "ekf", f
         As for :func:`nlobs.estimate`.
     progress : bool or callable
         True: a bar on stderr; a callable gets the fraction done.
+    seed : int
+        Seed of the random perturbations of the best start (the starts after the first three).
 
     Returns
     -------
@@ -726,7 +728,7 @@ def tune(design_or_model: Any, recording: Recording, *, observer: str = "ekf", f
         raise DataError(f"{caller}: the {lik.method} with the start design's Q and R does not stay finite on the "
                         f"recording ({prob.where_not_finite(prob.theta0()) or 'its state becomes non-finite'}); start from "
                         "a design that runs on it (nlobs estimate shows where it fails)")
-    from ..._progress import as_progress
+    from .._progress import as_progress
 
     bar = as_progress(progress, "tune")
     best, attempts, total_iter = _multistart(obj, theta0, lo, hi, n, int(starts), int(max_iter), seed, bar, caller)

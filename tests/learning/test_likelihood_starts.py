@@ -7,9 +7,10 @@ from __future__ import annotations
 import numpy as np
 
 import nlobs
-from nlobs.simulate import Recording, fit_likelihood
-from nlobs.simulate.learning import _fit_likelihood as F
-from nlobs.simulate.learning._likelihood import _Problem
+from nlobs.learning import fit_likelihood
+from nlobs.simulate import Recording
+from nlobs.learning import _fit_likelihood as F
+from nlobs.learning._likelihood import _Problem
 
 
 def _decay():

@@ -45,12 +45,12 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from ...design import ObserverDesign
-from ...engine import Backend, compile_system, rows
-from ...engine._integrate import rk4_step_rate
-from ...errors import DataError, ModelError, PreconditionError
-from .._loop import Loop
-from .._recorded import Recording
+from ..design import ObserverDesign
+from ..engine import Backend, compile_system, rows
+from ..engine._integrate import rk4_step_rate
+from ..errors import DataError, ModelError, PreconditionError
+from ..simulate._loop import Loop
+from ..simulate._recorded import Recording
 from ._regimes import FilterModel, filter_model, log_ndtr
 
 __all__ = ["log_likelihood", "LIKELIHOOD_KINDS", "NOISE_NAMES"]
@@ -99,7 +99,7 @@ class _Filter:
         self.h = ca.Function("h", args, [cs.h_sx])
         self.hH = ca.Function("hH", args, [cs.h_sx, ca.jacobian(cs.h_sx, cs.x)])
         if self.ukf:
-            from ...design.kalman._ukf import unscented_weights
+            from ..design.kalman._ukf import unscented_weights
 
             v = d.certificate.values
             self.wm, self.wc, self.spread = unscented_weights(n, float(v["alpha"]), float(v["beta"]), float(v["kappa"]))
@@ -363,11 +363,11 @@ class _Problem:
         With `switches` to be smoothed, a count above MAX_SUBSTEPS is not final: on the model as written the run
         chatters where a switch's argument crosses zero (Coulomb friction, sign(w) at rest), which the smoothed
         model does not; ``exact_stiff`` keeps it for the check on the smoothed model."""
-        from ...observer._compiled import compiled_observer
+        from ..observer._compiled import compiled_observer
 
         system, caller = self.system, self.caller
         if system.is_discrete:   # a map: one step per sample, on the model's grid
-            from .._discrete import check_map_grid
+            from ..simulate._discrete import check_map_grid
 
             check_map_grid(system, t, f"{caller}: recording ({self.source})")
             self.n_sub, self.exact_stiff = 1, None

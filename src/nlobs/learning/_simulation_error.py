@@ -30,11 +30,11 @@ from typing import Any, Literal
 import casadi as ca
 import numpy as np
 
-from ...design import check_positive
-from ...engine import compile_system, rk4_step, rows
-from ...errors import DataError, ModelError
-from ...model import System
-from .._recorded import Recording
+from ..design import check_positive
+from ..engine import compile_system, rk4_step, rows
+from ..errors import DataError, ModelError
+from ..model import System
+from ..simulate._recorded import Recording
 
 __all__ = ["fit_parameters", "FitResult"]
 

@@ -43,10 +43,10 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from ...errors import ModelError
-from ...model import TIME, System, symbol
-from ...model._translate import NUMPY, translate
-from ...references import cite
+from ..errors import ModelError
+from ..model import TIME, System, symbol
+from ..model._translate import NUMPY, translate
+from ..references import cite
 
 __all__ = ["FilterModel", "Censored", "Smoothed", "filter_model", "log_ndtr"]
 
@@ -60,7 +60,7 @@ MAX_SUBSTEPS = 64
 
 
 def _text(e: sp.Expr) -> str:
-    from ...algebra._series import pretty
+    from ..algebra._series import pretty
 
     return pretty(e, 60)
 
