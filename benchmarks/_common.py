@@ -1,7 +1,7 @@
 """Shared helpers of the speed benchmarks: interleaved timing, the result rows, the JSON they are written to.
 
 Every benchmark script writes ``benchmarks/results/<script>.json`` as ``{"machine": {...}, "rows": [ROW, ...]}``
-with one ROW per line of the README's speed table::
+with one ROW per line of the speed table in docs/benchmarks.rst::
 
     {"id": "P1", "what": "...", "nlobs": "label", "nlobs_min": s, "nlobs_median": s, "nlobs_error": "...",
      "peer": "label", "peer_min": s, "peer_median": s, "peer_error": "...",

@@ -6,8 +6,9 @@ final states only. Compared in the same process with
   - a plain C loop over the initial states (one after another), gcc with nlobs' flags;
   - a C loop vectorised across initial states (structure of arrays, the compiler's SIMD);
 Targets (issue 13): nlobs montecarlo at most 1.5x the SIMD C loop (and well under the plain loop).
-nlobs is timed through ``nlobs.montecarlo`` (parameters not varied: compiled in as constants; no
-metric is computed unless read). Installs nothing. Results: benchmarks/results/bench_batch.json.
+nlobs is timed through ``nlobs.montecarlo`` on one thread (``workers=1``, like the C loops; parameters not varied:
+compiled in as constants; no metric is computed unless read); bench_cores.py times it on every core.
+Installs nothing. Results: benchmarks/results/bench_batch.json.
 """
 
 from __future__ import annotations
@@ -120,7 +121,8 @@ def main() -> int:
 
         def nl(engine, chunk):
             def run():
-                mc = nlobs.montecarlo(vdp, {"obs": obs}, t_final=T_FINAL, dt=DT, x0=X0, save_every=N, engine=engine, chunk=chunk)
+                mc = nlobs.montecarlo(vdp, {"obs": obs}, t_final=T_FINAL, dt=DT, x0=X0, save_every=N, engine=engine, chunk=chunk,
+                                      workers=1)  # one core, as the C loops; bench_cores.py times the threads
                 return np.column_stack([mc.x[:, -1], mc.observers["obs"].xhat[:, -1]])
             return run
 

@@ -18,7 +18,7 @@ P11  Likelihood fit, coverage: a pendulum th' = om, om' = −a1 sin th − a2 om
      recursion, is reported apart).
 
 Run:  .venv/bin/python benchmarks/bench_estimation.py [--rounds N] [--runs RUNS] [--only P10|P11]
-Results: benchmarks/results/bench_estimation.json (rows for the README's speed table, speed_table.py).
+Results: benchmarks/results/bench_estimation.json (rows for the speed table in docs/benchmarks.rst, speed_table.py).
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ fitted, samples 768-1023 (t = 3072-4092 s) are held out.
 Models (``benchmarks/models``): ``cascaded_tanks_issue39.toml`` (the issue's: Torricelli outflows, overflow of the
 upper tank through sign/max, the sensor saturating at 10 V; unknowns a, k3, k4, k5) and
 ``cascaded_tanks_greybox.toml`` (ours: free outflow exponents, both tanks spilling over a weir, a sensor offset;
-see its header and the README), each as a list of variants (unknowns, options of both fits: bounds, max step).
+see its header and the learning guide), each as a list of variants (unknowns, options of both fits: bounds, max step).
 
 Per model and variant, every fit is the command a user types, in a fresh process (``python -m nlobs.cli fit ...
 --json``), its wall time measured from start to exit (imports and the compiling of the filter included), first
@@ -319,7 +319,7 @@ def main() -> None:
                           f"{entry['wall_cold']:.1f} s; VALIDATION FAILED: {entry['validation_error'][-300:]}", flush=True)
                     continue
                 figs[(key, vi, method)] = v
-                if vi == 0:   # the fitted file, for the guide's and README's commands
+                if vi == 0:   # the fitted file, for the guide's commands
                     shutil.copy(v["fitted_file"], RESULTS / f"{model.stem}_{method}_fit.toml")
                 entry.update({k: val for k, val in v.items() if not k.startswith("y_") and k != "fitted_file"})
                 row[method] = entry

@@ -1,9 +1,9 @@
-"""Run every speed benchmark (each in its own process, one after another) and print the README table.
+"""Run every speed benchmark (each in its own process, one after another) and print the docs' speed table (docs/benchmarks.rst).
 
 Runs bench_core.py (P1, P3, P3b), bench_batch.py (P2) and every other ``bench_*.py`` in this folder
 (P4 analysis, P6 MHE and whatever the team adds), then ``speed_table.py``. Timings on a shared
 machine are noisy: each script interleaves its implementations and reports min and median; run
-this on a quiet machine for the README.
+this on a quiet machine for the docs' speed table.
 
 Run:  .venv/bin/pip install -e '.[bench]'   then   .venv/bin/python benchmarks/run_all.py [--rounds N]
 """
@@ -31,7 +31,7 @@ def main() -> int:
         print(f"\n=== {name} ===", flush=True)
         if subprocess.run(cmd).returncode != 0:
             failed.append(name)
-    print("\n=== the README's speed table ===", flush=True)
+    print("\n=== the speed table of docs/benchmarks.rst ===", flush=True)
     subprocess.run([sys.executable, str(HERE / "speed_table.py")])
     if failed:
         print(f"failed: {', '.join(failed)}")

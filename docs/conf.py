@@ -83,5 +83,7 @@ html_theme_options = {
     "footer_end": [],
 }
 # The left sidebar lists the pages of a section (the guides, the gallery, the API); a page with none below it
-# (the home page, the kinds, the references, the developers' page) has no left sidebar rather than an empty one.
-html_sidebars = {"**": ["sidebar-nav-bs"], "index": [], "kinds": [], "references": [], "developers": []}
+# (the home page, the kinds, the references, the developers' page, the command and model-file references, the
+# measurements) has no left sidebar rather than an empty one.
+html_sidebars = {"**": ["sidebar-nav-bs"], "index": [], "kinds": [], "references": [], "developers": [], "commands": [],
+                 "model_files": [], "benchmarks": []}

@@ -237,6 +237,10 @@ def test_references_page_lists_the_table(site):
         assert r.title.split(":")[0][:40].replace("&", "&amp;") in text, r.key
 
 
+#: files a guide's code must leave behind (the Monte Carlo bands were the README's check before they moved here)
+GUIDE_WRITES = {"simulation.rst": {"pendulum.png", "bands.png"}}
+
+
 @pytest.mark.parametrize("guide", sorted(p.name for p in (DOCS / "guide").glob("*.rst") if p.name != "index.rst"))
 def test_guide_code_runs_as_written(guide, tmp_path):
     text = (DOCS / "guide" / guide).read_text(encoding="utf-8")
@@ -246,3 +250,4 @@ def test_guide_code_runs_as_written(guide, tmp_path):
     (tmp_path / "guide.py").write_text("import matplotlib\nmatplotlib.use('Agg')\n" + code, encoding="utf-8")
     proc = subprocess.run([sys.executable, "guide.py"], cwd=tmp_path, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, f"{guide}:\n{proc.stdout[-2000:]}\n{proc.stderr[-3000:]}"
+    assert GUIDE_WRITES.get(guide, set()) <= {p.name for p in tmp_path.iterdir()}, f"{guide}: a figure was not written"

@@ -1,9 +1,19 @@
-"""Monte Carlo: runs reproduce simulate(), statistics, failures with reasons, Dask gives the same numbers."""
+"""Monte Carlo: runs reproduce simulate(), statistics, failures with reasons, threads and Dask give the same numbers."""
 
 from __future__ import annotations
 
+import os
+import pickle
+import subprocess
+import sys
+import textwrap
+import threading
+from pathlib import Path
+
 import numpy as np
 import pytest
+
+import nlobs
 
 from nlobs import Noise, ShapeError, System, design_ekf, design_output_injection, montecarlo, simulate
 from nlobs.simulate._metrics import state_metrics
@@ -113,3 +123,118 @@ def test_metrics_are_computed_only_when_read(monkeypatch):
     conv = mc.observers["o"].convergence_time
     assert len(calls) == 12 and conv.shape == (12,)
     assert mc.observers["o"].convergence_time is conv and len(calls) == 12  # computed once
+
+
+def _pend_kw(engine="c", **kw):
+    return dict(t_final=1.0, dt=1e-3, x0=X0, inputs={"u": "sin(t)"}, noise=Noise.gaussian(0.01),
+                params={"a": np.linspace(9, 10.5, 12)}, seed=3, save_every=25, engine=engine, **kw)
+
+
+@pytest.mark.parametrize("engine", ["c", "vm"])
+def test_threads_run_the_chunks_side_by_side_with_the_serial_numbers(monkeypatch, engine):
+    """The chunks run on two threads at once (each thread's first chunk waits until the other thread has one), and the
+    result is bit for bit the serial one, however the runs are chunked; compiled and on CasADi's VM."""
+    import importlib
+
+    mcm = importlib.import_module("nlobs.simulate._montecarlo")
+    serial = montecarlo(PEND, {"inj": INJ, "ekf": EKF}, workers=1, chunk=12, **_pend_kw(engine))
+    assert serial.info["workers"] == 1
+    real, seen, both = mcm.run_batch, set(), threading.Event()
+
+    def spy(*a, **k):  # the first chunk of each thread waits (at most 10 s) until the other thread runs one too
+        seen.add(threading.get_ident())
+        if len(seen) >= 2:
+            both.set()
+        both.wait(timeout=10)
+        both.set()
+        return real(*a, **k)
+
+    monkeypatch.setattr(mcm, "run_batch", spy)
+    for chunk in (3, 5, None):
+        seen.clear()
+        both.clear()
+        par = montecarlo(PEND, {"inj": INJ, "ekf": EKF}, workers=2, chunk=chunk, **_pend_kw(engine))
+        assert len(seen) == 2 and par.info["workers"] == 2
+        assert np.array_equal(par.x, serial.x) and np.array_equal(par.status, serial.status)
+        for name in ("inj", "ekf"):
+            assert np.array_equal(par.observers[name].xhat, serial.observers[name].xhat)
+
+
+def test_every_usable_core_by_default():
+    from nlobs.engine import usable_cores
+
+    mc = montecarlo(PEND, {"inj": INJ}, chunk=3, **_pend_kw())   # 4 chunks
+    assert mc.info["workers"] == min(usable_cores(), 4) and mc.info["chunk"] == 3
+    if hasattr(os, "sched_getaffinity"):
+        assert usable_cores() == len(os.sched_getaffinity(0))
+
+
+def test_workers_and_chunk_are_checked():
+    with pytest.raises(ShapeError, match="`workers` must be a positive whole number"):
+        montecarlo(PEND, {"inj": INJ}, workers=0, **_pend_kw())
+    with pytest.raises(ShapeError, match="`chunk` must be a positive whole number"):
+        montecarlo(PEND, {"inj": INJ}, chunk=2.5, **_pend_kw())
+    with pytest.raises(ShapeError, match="not both"):
+        montecarlo(PEND, {"inj": INJ}, workers=2, scheduler="tcp://127.0.0.1:1", **_pend_kw())
+
+
+def _run_python(code: str, timeout: float, **env: str) -> subprocess.CompletedProcess:
+    """`code` in a fresh interpreter that imports this nlobs; killed (and the test failed) after `timeout` seconds."""
+    path = os.pathsep.join([str(Path(nlobs.__file__).parents[1]), os.environ.get("PYTHONPATH", "")])
+    return subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True, timeout=timeout,
+                          env={**os.environ, "PYTHONPATH": path, **env})
+
+
+def test_repeated_and_concurrent_calls_on_one_dask_client_return():
+    """An identical call again on the same client, and calls at once from two threads, all return the local numbers.
+    (Sending the spec under its content hash made the second identical call wait for good.) In a child process with a
+    time limit: a hang fails the test instead of blocking the run."""
+    pytest.importorskip("dask.distributed", reason="the Dask path needs nlobs[dask] (in the test extra)")
+    code = """
+        import threading
+        import numpy as np
+        from dask.distributed import Client, LocalCluster
+        from nlobs import Noise, System, design_output_injection, montecarlo
+        plant = System(states=["x1", "x2"], f=["x2", "-a*sin(x1) - 0.5*x2"], outputs=["y"], h=["x1"], params={"a": 9.81})
+        obs = {"inj": design_output_injection(plant, poles=[-2, -3])}
+        kw = dict(t_final=0.5, dt=1e-2, x0=np.random.default_rng(1).uniform(-1, 1, (6, 2)), noise=Noise.gaussian(0.01),
+                  seed=4, chunk=2)
+        local = montecarlo(plant, obs, workers=1, **kw).x
+        with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as cluster, \
+                Client(cluster) as client:
+            for _ in range(3):
+                assert np.array_equal(montecarlo(plant, obs, scheduler=client, **kw).x, local)
+            out = {}
+            calls = [threading.Thread(target=lambda i=i: out.__setitem__(i, montecarlo(plant, obs, scheduler=client, **kw).x))
+                     for i in range(3)]
+            for c in calls:
+                c.start()
+            for c in calls:
+                c.join()
+            assert len(out) == 3 and all(np.array_equal(x, local) for x in out.values())
+            sized = montecarlo(plant, obs, scheduler=client, **{**kw, "chunk": None})
+            assert sized.info["dask_threads"] == 2 and np.array_equal(sized.x, local)
+        print("returned")
+    """
+    proc = _run_python(code, timeout=120)
+    assert proc.returncode == 0 and "returned" in proc.stdout, proc.stderr[-3000:]
+
+
+def test_a_monte_carlo_worker_does_not_import_flint(tmp_path):
+    """What a Dask worker runs (unpickling a chunk's task and its spec, then running it) loads no python-flint: the
+    IO route's FLINT loads with its first use. SymPy itself picks python-flint as its ground types when it is installed,
+    so the child runs with SYMPY_GROUND_TYPES=gmpy (a worker can too) to see nlobs' own imports."""
+    from nlobs.simulate._montecarlo import _chunk_task
+
+    mc = montecarlo(PEND, {"inj": INJ, "ekf": EKF}, workers=1, **_pend_kw())
+    (tmp_path / "task.pkl").write_bytes(pickle.dumps((_chunk_task, mc._spec)))
+    code = f"""
+        import pickle, sys
+        task, spec = pickle.loads(open({str(tmp_path / "task.pkl")!r}, "rb").read())
+        S, O, status = task(spec, 0, 4)
+        assert S.shape[0] == 4 and (status == spec.prep.n_steps).all()
+        print(sorted(m for m in sys.modules if m.split(".")[0] == "flint"))
+    """
+    proc = _run_python(code, timeout=120, SYMPY_GROUND_TYPES="gmpy")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.stdout.strip() == "[]"

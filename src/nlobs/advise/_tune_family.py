@@ -8,12 +8,16 @@ from typing import Any
 from ..simulate import Recording
 from ..learning._tune_noise import tune as _tune
 
-__all__ = ["FAMILY", "scenario_recording", "tune_candidates"]
+__all__ = ["family", "scenario_recording", "tune_candidates"]
 
 
-#: The Kalman-family kinds ``design --run`` tunes from the run's measurements before ranking (MHE takes the same Q and R
-#: as the weights of its cost, which are those covariances in its maximum-a-posteriori reading).
-FAMILY = ("ekf", "srekf", "iekf", "ukf", "srukf", "pf", "mhe")
+def family() -> tuple[str, ...]:
+    """The kinds ``design --run`` tunes from the run's measurements before ranking: those that declare a likelihood in
+    the registry (``@kind(likelihood=...)``): the Kalman family, the pf, and MHE, whose cost weighs by the same Q and R
+    (those covariances in its maximum-a-posteriori reading)."""
+    from ..design import KINDS
+
+    return tuple(k for k, v in KINDS.items() if v.likelihood)
 #: Seconds the noise tuning of ``design --run`` may take (compiling included) before the ranking goes on without it.
 TUNE_BUDGET = 90.0
 #: ``design --run`` tunes models up to this many filter states (the EKF's state and covariance: n + n(n+1)/2) and this
@@ -51,8 +55,9 @@ def tune_candidates(ctx: Any, candidates: list[Any], say: Any = None) -> tuple[l
     from ..engine._budget import time_budget
     from ..errors import DataError, EngineError, FiniteEscapeError, NlobsError, SolverError, TimeBudgetError
 
-    family = [c for c in candidates if c.kind in FAMILY and c.applies and c.design is not None]
-    base = next((c for c in family if c.kind == "ekf"), next((c for c in family if c.kind == "ukf"), None))
+    kinds = family()
+    members = [c for c in candidates if c.kind in kinds and c.applies and c.design is not None]
+    base = next((c for c in members if c.kind == "ekf"), next((c for c in members if c.kind == "ukf"), None))
     if base is None:
         return candidates, None
     n = ctx.system.n_states
@@ -80,7 +85,7 @@ def tune_candidates(ctx: Any, candidates: list[Any], say: Any = None) -> tuple[l
                             "the default tuning (nlobs tune MODEL DATA tunes one filter with more starts)")
     out = []
     for c in candidates:
-        if c in family:
+        if c in members:
             try:
                 if c.kind == "mhe":
                     from ..design import KINDS
@@ -96,7 +101,7 @@ def tune_candidates(ctx: Any, candidates: list[Any], say: Any = None) -> tuple[l
                                why=c.why + f"; then tuned on the run's measurements ({base.kind} likelihood)"))
         else:
             out.append(c)
-    tuned = ", ".join(c.kind for c in family)
+    tuned = ", ".join(c.kind for c in members)
     what = "Q (R kept: the declared output noise)" if declared else "Q and R"
     return out, (f"{what} of {tuned} tuned on the run's measurements by the {base.kind}'s innovations likelihood "
                  f"(Schweppe (1965)): converged, NIS {res.nis['mean']:.3g} in its band, {res.seconds:.0f} s; "

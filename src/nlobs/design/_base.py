@@ -15,6 +15,7 @@ turns a design into something that runs.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -212,10 +213,11 @@ class ObserverDesign:
     def n_z(self) -> int:
         return len(self.z_names)
 
-    @property
+    @functools.cached_property
     def needs_mx(self) -> bool:
         """Whether a function is not plain SX (e.g. MHE's update embeds an NLP solver): callers then build
-        MX graphs around it, and it runs on CasADi's virtual machine (no C code generation)."""
+        MX graphs around it, and it runs on CasADi's virtual machine (no C code generation). Asked on every run
+        (four CasADi type checks): kept after the first time (the functions of a design never change)."""
         return any(fn is not None and not fn.is_a("SXFunction") for fn in (self.flow, self.output, self.initial, self.update))
 
     def selects_state(self, n: int) -> bool:

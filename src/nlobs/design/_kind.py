@@ -134,6 +134,7 @@ class Kind:
     precheck: Callable[[Any], tuple[bool, str]] | None = None
     tune: Callable[[Any], Tuning] | None = None
     map_smoother: str = ""                           # on a map: "extended" or "unscented" RTS smoother, "" none
+    likelihood: str = ""                             # the filter whose innovations likelihood tunes its Q, R ("" none)
 
     @property
     def options(self) -> dict[str, Any]:
@@ -166,7 +167,7 @@ KINDS: dict[str, Kind] = {}
 def kind(name: str, *, summary: str, references: tuple[tuple[str, str], ...] = (), time_base: str = "continuous",
          precheck: Callable[[Any], tuple[bool, str]] | None = None,
          tune: Callable[[Any], Tuning] | None = None,
-         map_smoother: str = "") -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+         map_smoother: str = "", likelihood: str = "") -> Callable[[Callable[..., Any]], Callable[..., Any]]:
     """Declare the observer kind `name`, designed by the decorated function (returned wrapped by
     :func:`requires_model`, so ``nlobs.design_x`` and ``KINDS["x"].design`` are the same object).
 
@@ -188,6 +189,9 @@ def kind(name: str, *, summary: str, references: tuple[tuple[str, str], ...] = (
     map_smoother : {"", "extended", "unscented"}
         On a discrete-time model, the fixed-interval smoother of the kind's run: the extended RTS smoother (the kind
         predicts as the EKF does) or the unscented one (it predicts by sigma points); "" when it has none.
+    likelihood : {"", "ekf", "ukf"}
+        The filter whose innovations likelihood :func:`nlobs.tune` (and ``design --run``) fits this kind's Q and R
+        with ("" when they are not tuned from data).
     """
     if time_base not in TIME_BASES:
         raise ValueError(f"kind {name!r}: time_base must be one of {', '.join(TIME_BASES)}, got {time_base!r}")
@@ -200,7 +204,7 @@ def kind(name: str, *, summary: str, references: tuple[tuple[str, str], ...] = (
 
     def register(fn: Callable[..., Any]) -> Callable[..., Any]:
         wrapped = requires_model(fn, time_base=time_base)
-        KINDS[name] = Kind(name, wrapped, summary, tuple(references), time_base, precheck, tune, map_smoother)
+        KINDS[name] = Kind(name, wrapped, summary, tuple(references), time_base, precheck, tune, map_smoother, likelihood)
         return wrapped
 
     return register

@@ -202,7 +202,7 @@ def tune_mhe(ctx: Any) -> Tuning:
                     extra=note)
 
 
-@kind('mhe', summary='moving-horizon estimator over the last samples (multiple shooting, compiled NLP)',
+@kind('mhe', likelihood='ekf', summary='moving-horizon estimator over the last samples (multiple shooting, compiled NLP)',
       references=(work("002", "trajectory-based observers (moving horizon)"),), tune=tune_mhe, time_base="both")
 def design_mhe(system: System, *, horizon: int = 20, R: Any = None, Q: Any = None, P0: Any = None,
                bounds: Mapping[str, Any] | None = None, arrival: Literal["ekf", "fixed"] = "ekf",

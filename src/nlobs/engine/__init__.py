@@ -18,6 +18,8 @@ from ._deferred import raise_deferred as raise_deferred
 from ._integrate import DEFAULT_CHUNK as DEFAULT_CHUNK
 from ._integrate import StepRunner as StepRunner
 from ._integrate import rk4_step as rk4_step
+from ._integrate import batch_backend as batch_backend
 from ._integrate import run_batch as run_batch
 from ._integrate import saved_steps as saved_steps
+from ._integrate import usable_cores as usable_cores
 from ._nlp import compiled_nlpsol as compiled_nlpsol

@@ -7,10 +7,13 @@ preallocated NumPy array through :meth:`casadi.Function.buffer` (no intermediate
 
 from __future__ import annotations
 
+import os
+import threading
 import time
 import warnings
+from collections import OrderedDict
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Literal
 
 import casadi as ca
 import numpy as np
@@ -23,7 +26,8 @@ from ._deferred import raise_deferred
 from ._simd import _DRIVER as _SIMD_DRIVER
 from ._simd import _KERNEL_VERSION, LANES, CompiledSimdBatch, simd_supported
 
-__all__ = ["rk4_step", "rk4_step_rate", "StepRunner", "DEFAULT_CHUNK", "run_batch", "saved_steps"]
+__all__ = ["rk4_step", "rk4_step_rate", "StepRunner", "DEFAULT_CHUNK", "run_batch", "batch_backend", "saved_steps",
+           "usable_cores"]
 
 DEFAULT_CHUNK = 10_000
 
@@ -72,6 +76,16 @@ def rk4_step_rate(rhs: Callable[[Any, Any, int], Any], t: Any, s: Any, dt: Any, 
 _VM: dict[tuple[Any, ...], ca.Function] = {}
 _LOOPS: dict[str, CompiledLoop] = {}
 _BATCHES: dict[str, CompiledBatch | CompiledSimdBatch] = {}
+_BUILD_LOCK = threading.Lock()   # one build per step when threads ask for the same batch at once
+_STEP_INFO: OrderedDict[int, tuple[ca.Function, str, bool]] = OrderedDict()   # id -> (step, signature, lane-parallel)
+
+
+def usable_cores() -> int:
+    """The cores this process may run on (its CPU affinity where the system tells it, else the machine's count)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):  # no affinity on this platform (macOS, Windows)
+        return max(1, os.cpu_count() or 1)
 
 
 def _signature(fn: ca.Function) -> str:
@@ -204,6 +218,45 @@ class StepRunner:
         return out, obuf, N
 
 
+def batch_backend(step: ca.Function, n_traj: int, n_steps: int, backend: Backend = "auto") -> Literal["vm", "c"]:
+    """Where :func:`run_batch` runs `n_traj` trajectories of `n_steps` steps of `step`: ``"auto"`` chosen by cost for
+    all of them at once (see :func:`nlobs.engine.choose_backend`), and for ``"c"`` the compiled batch built (once per
+    step and process, whichever thread asks first). A caller that splits a batch into chunks asks once for the whole
+    batch and passes the answer to every chunk, so that every chunk runs where the whole would (and the same numbers
+    come out however the batch is split, or run on threads)."""
+    return "c" if _compiled_batch(step, n_traj, n_steps, backend) is not None else "vm"
+
+
+def _compiled_batch(step: ca.Function, n_traj: int, n_steps: int, backend: Backend) -> CompiledBatch | CompiledSimdBatch | None:
+    """The compiled batch of `step` (lane-parallel, SIMD across trajectories, when every operation allows it) where the
+    batch runs compiled (:func:`batch_backend`), else None."""
+    if backend == "vm":
+        return None
+    ns = step.size1_in(0)
+    known = _STEP_INFO.get(id(step))
+    if known is None or known[0] is not step:
+        # its hash and whether it runs lane-parallel: read once per step (a Python pass over its instructions, under
+        # Python's lock: asked again by every chunk of a Monte Carlo run, on every thread)
+        known = (step, _signature(step), step.is_a("SXFunction") and simd_supported(step))
+        _STEP_INFO[id(step)] = known   # the step kept: its id is not reused while it is here
+        if len(_STEP_INFO) > 256:
+            _STEP_INFO.popitem(last=False)
+    _, sig, simd = known
+    ready = sig in _BATCHES or (lambda p: p is not None and p.exists())(
+        built_path("simd", sig + f"/{LANES}", _SIMD_DRIVER + _KERNEL_VERSION) if simd else built_path("batch", sig, _BATCH))
+    work = float(n_traj) * n_steps * ns
+    if choose_backend(backend, ready=ready, n_instr=step.n_instructions(), vm_instr=work / max(ns, 1) * step.n_instructions(),
+                      signature=sig) != "c":
+        return None
+    batch = _BATCHES.get(sig)
+    if batch is None:
+        with _BUILD_LOCK:
+            batch = _BATCHES.get(sig)
+            if batch is None:
+                batch = _BATCHES[sig] = CompiledSimdBatch(step, sig=sig) if simd else CompiledBatch(step, sig)
+    return batch
+
+
 def saved_steps(n_steps: int, stride: int) -> np.ndarray:
     """The step indices a batch run saves: 0, stride, 2·stride, ... (< n_steps), and n_steps."""
     return np.r_[np.arange(0, n_steps, stride), n_steps]
@@ -254,16 +307,8 @@ def run_batch(step: ca.Function, S0: np.ndarray, A: np.ndarray, C: np.ndarray, n
     S = np.full((B, steps.size, ns), np.nan)
     O = np.full((B, steps.size, no), np.nan)
     status = np.full(B, n_steps, dtype=np.int64)
-    work = B * n_steps * ns
-    sig = _signature(step) if backend != "vm" else ""
-    simd = step.is_a("SXFunction") and simd_supported(step)
-    ready = sig in _BATCHES or (lambda p: p is not None and p.exists())(
-        built_path("simd", sig + f"/{LANES}", _SIMD_DRIVER + _KERNEL_VERSION) if simd else built_path("batch", sig, _BATCH))
-    if backend != "vm" and choose_backend(backend, ready=ready, n_instr=step.n_instructions(), vm_instr=float(work) / max(ns, 1) * step.n_instructions(),
-                                          signature=sig) == "c":
-        batch = _BATCHES.get(sig)
-        if batch is None:  # lane-parallel (SIMD across trajectories) when every operation allows it
-            batch = _BATCHES[sig] = CompiledSimdBatch(step, sig=sig) if simd else CompiledBatch(step, sig)
+    batch = _compiled_batch(step, B, n_steps, backend)
+    if batch is not None:
         batch(S0, A, 0 if shared_a else A.shape[1] * A.shape[2], C, 0 if shared_c else C.shape[1], S, O, n_steps, stride,
               bound, status)
         return S, O, status

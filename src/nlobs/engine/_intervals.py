@@ -347,8 +347,10 @@ class IntervalRunner:
         s0 = np.ascontiguousarray(s0, dtype=float).reshape(self.ns)
         N = A.shape[0]
         rate0 = _finite_rate(rate0)
-        # the work predicted from the first rate (a long gap needs many sub-steps although nmin is small there)
-        backend = self.backend_for(float(np.maximum(nmin, np.ceil(A[:, 1] * rate0 / target)).sum()), N)
+        # the work predicted from the first rate (a long gap needs many sub-steps although nmin is small there); not
+        # needed once the compiled driver is loaded and no backend is forced (then it runs)
+        backend = "c" if self._c is not None and _forced(self.backend) != "vm" else \
+            self.backend_for(float(np.maximum(nmin, np.ceil(A[:, 1] * rate0 / target)).sum()), N)
         if backend == "c" and self._compiled() is not None:
             res = self._c(s0, A, nmin, rate0, target, reject, max_substeps)
             if on_progress is not None and res.failed is None and res.refused is None:
@@ -710,10 +712,9 @@ class _CompiledIntervals:
         self.path = path
         lib = ctypes.CDLL(str(path))
         self._fn = lib.nlobs_intervals
-        dbl = ctypes.POINTER(ctypes.c_double)
-        self._fn.argtypes = [dbl, dbl, dbl, ctypes.c_double, ctypes.c_double, ctypes.c_double, ctypes.c_double,
-                             dbl, dbl, dbl, dbl, ctypes.c_longlong, dbl, ctypes.POINTER(ctypes.c_longlong), dbl, dbl,
-                             ctypes.c_void_p]
+        ptr = ctypes.c_void_p  # arrays passed by address (ndarray.ctypes.data: a third of the cost of data_as)
+        self._fn.argtypes = [ptr, ptr, ptr, ctypes.c_double, ctypes.c_double, ctypes.c_double, ctypes.c_double,
+                             ptr, ptr, ptr, ptr, ctypes.c_longlong, ptr, ptr, ptr, ptr, ctypes.c_void_p]
         self._fn.restype = ctypes.c_longlong
         self._lib = lib
 
@@ -723,15 +724,13 @@ class _CompiledIntervals:
         rows = N if sched is None else sched.n_emit
         states, outputs = np.full((rows, self.ns), np.nan), np.full((rows, max(self.no, 1)), np.nan)
         substeps, rate, carry, need = np.zeros(N), np.full(N, np.nan), np.full(N, np.nan), np.zeros(2)
-        p = ctypes.POINTER(ctypes.c_double)
-        ops = None if sched is None else sched.ops()
+        ops = None if sched is None else np.ascontiguousarray(sched.ops(), dtype=np.int64)
         slots = None if sched is None else np.ascontiguousarray(slots, dtype=float)
         with Watchdog() as dog:
-            rc = self._fn(s0.ctypes.data_as(p), A.ctypes.data_as(p), nmin.ctypes.data_as(p), rate0, target, reject,
-                          float(max_substeps), states.ctypes.data_as(p), outputs.ctypes.data_as(p),
-                          substeps.ctypes.data_as(p), rate.ctypes.data_as(p), N, need.ctypes.data_as(p),
-                          None if ops is None else ops.ctypes.data_as(ctypes.POINTER(ctypes.c_longlong)),
-                          None if slots is None else slots.ctypes.data_as(p), carry.ctypes.data_as(p), dog.ref)
+            rc = self._fn(s0.ctypes.data, A.ctypes.data, nmin.ctypes.data, rate0, target, reject, float(max_substeps),
+                          states.ctypes.data, outputs.ctypes.data, substeps.ctypes.data, rate.ctypes.data, N,
+                          need.ctypes.data, None if ops is None else ops.ctypes.data,
+                          None if slots is None else slots.ctypes.data, carry.ctypes.data, dog.ref)
         if rc < 0 and need[0] == -1:
             dog.raise_if_tripped("running its compiled loop")
         outputs = outputs[:, :self.no]

@@ -78,8 +78,36 @@ from ._likelihood import _Problem, _Recursion
 
 __all__ = ["tune", "TuneResult", "TUNED_KINDS"]
 
+class _Tuned(dict):  # type: ignore[type-arg]
+    """Kinds tune takes, and the filter whose likelihood tunes each: read from the registry (``@kind(likelihood=...)``)
+    when first used. MHE declares the EKF's likelihood for the weights of its cost, which ``design --run`` shares; tune
+    itself designs filters, not an estimator of a different kind."""
+
+    def _fill(self) -> None:
+        if not super().__len__():
+            from ...design import KINDS
+
+            self.update({k: v.likelihood for k, v in KINDS.items() if v.likelihood and k != "mhe"})
+
+    def __getitem__(self, k: str) -> str:
+        self._fill()
+        return super().__getitem__(k)
+
+    def __contains__(self, k: object) -> bool:
+        self._fill()
+        return super().__contains__(k)
+
+    def __iter__(self) -> Any:
+        self._fill()
+        return super().__iter__()
+
+    def __len__(self) -> int:
+        self._fill()
+        return super().__len__()
+
+
 #: Kinds tune takes, and the filter whose likelihood tunes each.
-TUNED_KINDS = {"ekf": "ekf", "srekf": "ekf", "iekf": "ekf", "pf": "ekf", "ukf": "ukf", "srukf": "ukf"}
+TUNED_KINDS: dict[str, str] = _Tuned()
 #: Bounds of each variance relative to its reference (Q, R, P(0)).
 Q_RANGE, R_RANGE, P0_RANGE = (1e-8, 1e8), (1e-6, 1e6), (1e-6, 1e6)
 #: Converged when a further Newton step would move the estimate by less than 0.01 standard errors (squared).
@@ -328,12 +356,12 @@ def _likelihood_design(d: ObserverDesign, notes: list[str]) -> ObserverDesign:
     v = d.certificate.values
     kind = TUNED_KINDS[d.method]
     common = {"Q": v["Q"], "R": v["R"], "P0": v["P0"], "xhat0": np.asarray(d.xhat0, dtype=float).reshape(-1)}
-    if d.method != kind:
-        notes.append({"srekf": "the square-root EKF is tuned on the EKF's likelihood (the same filter up to rounding)",
-                      "iekf": "the iterated EKF is tuned on the EKF's likelihood (one linearisation at x̂⁻ per update)",
-                      "srukf": "the square-root UKF is tuned on the UKF's likelihood (the same filter up to rounding)",
-                      "pf": "the particle filter takes Q and R from an EKF tuned on the recording (the EKF's likelihood)"}
-                     [d.method])
+    if d.method != kind:   # a square-root form (the same filter up to rounding), the iterated EKF, the pf
+        from ...design import KINDS
+
+        what = KINDS[d.method].summary.split(" (")[0]
+        notes.append(f"the {what} ({d.method}) takes Q and R from the {kind.upper()}'s innovations likelihood on the "
+                     "recording")
     if v.get("bounds"):
         notes.append(f"the likelihood runs the filter without the design's state bounds ({v['bounds']}); the tuned "
                      "design keeps them")

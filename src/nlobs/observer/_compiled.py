@@ -22,6 +22,7 @@ import numpy as np
 
 from ..design import ObserverDesign
 from ..engine import Backend, compile_system, rows
+from ..engine._batch import evaluate_one
 from ..engine._integrate import rk4_step_rate
 from ..engine._intervals import MAX_SUBSTEPS, IntervalRunner, fastest_rate
 from .._progress import as_progress
@@ -74,9 +75,18 @@ class ObserverTrajectory:
     def info(self) -> dict[str, Any]:
         """How the run was integrated, for a result's ``info``."""
         n = self.substeps
+        fastest = float(np.fmax.reduce(self.rate)) if n.size else 0.0  # one pass; fmax skips NaN
+        if not np.isfinite(fastest):   # every rate NaN, or one infinite: the largest finite-or-not as nanmax gives it
+            fastest = float(np.nanmax(self.rate)) if n.size and np.isfinite(self.rate).any() else 0.0
         return {"substeps": int(n.sum()), "max_substeps": int(n.max()) if n.size else 0,
-                "fastest_rate": float(np.nanmax(self.rate)) if n.size and np.isfinite(self.rate).any() else 0.0,
-                "engine": self.engine}
+                "fastest_rate": fastest, "engine": self.engine}
+
+
+#: Sub-steps of at most this many SX instructions are compiled inlined: there the four calls of the flow cost more than
+#: they save. Van der Pol's EKF (282 instructions) runs its 2,000 intervals in 0.14 ms inlined, 0.20 ms with the calls
+#: (P3 of benchmarks/bench_core.py); cart-pole's EKF (1,330) and UKF (2,931) and the quadrotor's EKF (10,729) run as
+#: fast either way, and the inlined quadrotor EKF takes 9 s to compile instead of 7.5 s.
+SUB_INLINE_MAX = 1_000
 
 
 class CompiledObserver:
@@ -114,9 +124,10 @@ class CompiledObserver:
         fill = ca.Function(f"{d.method}_fill", [tt, zz, uu, yy, mm], [mm * yy + (1 - mm) * yhat])
 
         self.sub = self._substep(X)
-        # for C: the same sub-step over MX, calling the flow as a function at the four stages instead of inlining
-        # it four times (the same operations, a quarter of the code: a UKF's sub-step compiles in a fraction)
-        self.sub_c = self._substep(ca.MX) if X is ca.SX else None
+        # for C, above SUB_INLINE_MAX instructions: the same sub-step over MX, calling the flow as a function at the four
+        # stages instead of inlining it four times (the same operations, a quarter of the code: a UKF's sub-step
+        # compiles in a fraction); below it the SX sub-step itself, where the calls cost more than they save
+        self.sub_c = self._substep(ca.MX) if X is ca.SX and self.sub.n_instructions() > SUB_INLINE_MAX else None
 
         S, a = X.sym("S", nz + ny), X.sym("a", self.na)
         z, yh = rows(S, 0, nz), rows(S, nz, nz + ny)
@@ -165,7 +176,10 @@ class CompiledObserver:
         """`start` evaluated into NumPy buffers (no DM conversion: a tenth of a short run's set-up time):
         the prior, the first update, the held measurement, x̂ after it, ∂F/∂z there, the predicted output."""
         f = self.start
-        outs = [np.empty(f.size1_out(i) * f.size2_out(i)) for i in range(f.n_out())]
+        sizes = self.__dict__.get("_start_sizes")
+        if sizes is None:  # asked once (CasADi calls, a fifth of this function's time)
+            sizes = self._start_sizes = [f.size1_out(i) * f.size2_out(i) for i in range(f.n_out())]
+        outs = [np.empty(k) for k in sizes]
         if self.design.needs_mx:  # an NLP inside (MHE): the plain call, whose Python callbacks report their errors
             return [np.asarray(v, dtype=float).reshape(-1, order="F") for v in f(z0, t0, u0, y0, m0)]
         buf, ev = f.buffer()
@@ -176,6 +190,17 @@ class CompiledObserver:
             buf.set_res(i, memoryview(v))
         ev()
         return outs
+
+    def _first_rate(self, J: np.ndarray) -> float:
+        """:func:`fastest_rate` of ∂F/∂z at the start, kept for the last J seen (a run from the design's initial
+        estimate starts from the same J every time, and the eigenvalues were a tenth of a short run's time)."""
+        key = J.tobytes()
+        last = self.__dict__.get("_last_rate")
+        if last is not None and last[0] == key:
+            return last[1]
+        rate = fastest_rate(J)
+        self._last_rate = (key, rate)
+        return rate
 
     def _runner(self, engine: Backend) -> IntervalRunner:
         r = self._runners.get(engine)
@@ -230,7 +255,7 @@ class CompiledObserver:
             raise ShapeError(f"{label}: `max_step` must be a positive number, got {max_step!r}")
         if z0 is None:
             x0 = self.design.xhat0 if xhat0 is None else np.asarray(xhat0, dtype=float).reshape(self.n)
-            z0 = np.asarray(self.design.initial(x0), dtype=float).reshape(-1)
+            z0 = evaluate_one(self.design.initial, x0)
         prior, zs, ys, xs, J, yp0 = self._start(np.asarray(z0, dtype=float), t[0], u[0], y[0], m[0])
         J = J.reshape(self.nz, self.nz, order="F")  # CasADi's column-major
         if not np.all(np.isfinite(zs)):
@@ -238,9 +263,9 @@ class CompiledObserver:
                                     hint=f"at its first sample (t = {t[0]:g})")
             err.interval, err.substeps = -1, 0
             raise err
-        rate0 = fastest_rate(J)
-        dts = np.diff(t)
+        rate0 = self._first_rate(J)
         A = interval_table(t, u, y, m)
+        dts = A[:, 1]
         nmin = np.ones(N - 1) if max_step is None else np.maximum(1.0, np.ceil(dts / max_step - 1e-9))
         runner = self._runner(engine)
         report = as_progress(progress, f"estimate {name or self.design.method}")
@@ -330,8 +355,17 @@ def _unconverged(res: Any) -> str:
 
 def interval_table(t: np.ndarray, u: np.ndarray, y: np.ndarray, m: np.ndarray) -> np.ndarray:
     """One row per interval k: (t_k, dt_k, u_k, y_k, m_k, u_{k+1}, y_{k+1}, m_{k+1}), as the sub-step and sample
-    functions read it (y: zero where m is 0)."""
-    return np.hstack([t[:-1, None], np.diff(t)[:, None], u[:-1], y[:-1], m[:-1], u[1:], y[1:], m[1:]])
+    functions read it (y: zero where m is 0). Written column block by column block into one array (a third of the
+    time of stacking the eight pieces, which counts on a short recording)."""
+    N, nu, ny = t.size - 1, u.shape[1], y.shape[1]
+    A = np.empty((N, 2 + 2 * (nu + 2 * ny)))
+    A[:, 0] = t[:-1]
+    np.subtract(t[1:], t[:-1], out=A[:, 1])
+    j = 2
+    for block in (u[:-1], y[:-1], m[:-1], u[1:], y[1:], m[1:]):
+        A[:, j:j + block.shape[1]] = block
+        j += block.shape[1]
+    return A
 
 
 _CACHE: OrderedDict[tuple[int, str], CompiledObserver] = OrderedDict()

@@ -3,16 +3,21 @@
 Trajectory j uses exactly the per-step inputs ``simulate(..., seed=seeds[j])`` would use, so
 any trajectory can be re-run alone (:meth:`MonteCarloResult.trajectory`). The work is split
 into chunks of trajectories; each chunk is one call of a compiled C loop (or of the CasADi VM).
-With a Dask scheduler the chunks run on its workers with the same code, so the same seeds give
-the same numbers on both paths.
+The chunks run on threads, one per core by default: the compiled loop and CasADi's virtual machine
+both release Python's lock while they run, so the chunks run side by side.
+With a Dask scheduler the chunks run on its workers with the same code. Every trajectory's inputs
+depend on its seed alone, so the same seeds give the same numbers however the runs are chunked,
+threaded or distributed.
 """
 
 from __future__ import annotations
 
+import contextvars
 import functools
 import warnings
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from concurrent.futures import FIRST_EXCEPTION, ThreadPoolExecutor, wait
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -20,7 +25,8 @@ import numpy as np
 from .._display import Column, SummaryTable, short_repr
 from .._progress import as_progress
 from ..design import check_positive
-from ..engine import Backend, evaluate_many, run_batch, saved_steps
+from ..engine import Backend, batch_backend, evaluate_many, run_batch, saved_steps, usable_cores
+from ..engine._simd import LANES
 from ..errors import FiniteEscapeError, ModelError, ShapeError, SolverError
 from ..model import System
 from ._metrics import convergence_band, convergence_time, state_convergence
@@ -272,7 +278,8 @@ def montecarlo(
     tol: float | None = None,
     engine: Backend = "auto",
     scheduler: Any = None,
-    chunk: int = 64,
+    workers: int | None = None,
+    chunk: int | None = None,
     progress: bool | Callable[[float], None] | None = None,
     escape_bound: float = 1e12,
 ) -> MonteCarloResult:
@@ -308,12 +315,21 @@ def montecarlo(
         its steady-state error, at most 20 % of its initial error unless that floor is zero-mean noise;
         see :data:`nlobs.simulate._metrics.PER_STATE_RULE`).
     engine : {"auto", "vm", "c", "jax"}
+        Where the batches run; ``"auto"`` decides once for the whole Monte Carlo run (every chunk runs there).
         ``"jax"`` (the optional ``nlobs[jax]`` extra): the same compiled step as one XLA program over every run
         (vmap over runs, scan over steps), on a GPU when JAX has one; equal to the C engine to rounding.
     scheduler : str or dask.distributed.Client, optional
         Run the chunks on a Dask cluster (its address, or a client); needs ``nlobs[dask]``.
-    chunk : int
-        Runs per compiled call (and per Dask task).
+    workers : int, optional
+        Threads that run the chunks on this machine (default: one per usable core; 1 runs them one after another).
+        The compiled batches and CasADi's virtual machine release Python's lock, so the threads use the cores (with
+        an MHE, whose solver reports through process-wide state, the chunks run one after another; so do the runs of
+        a discrete-time plant, each one :func:`nlobs.simulate`'s map iteration). The numbers do not depend on it.
+        Not with `scheduler` (the cluster's workers run the chunks there).
+    chunk : int, optional
+        Runs per compiled call (and per Dask task). Default: about four chunks per thread (or per thread of the
+        cluster's workers), in whole blocks of the SIMD width, and small enough that a chunk's noise inputs
+        stay near 64 MB.
     progress : bool or callable, optional
     escape_bound : float
         A run whose state leaves this bound is stopped and reported as failed (the others go on).
@@ -324,6 +340,12 @@ def montecarlo(
     """
     if tol is not None:
         tol = check_positive(tol, "tol", "montecarlo")
+    for name, value in (("workers", workers), ("chunk", chunk)):
+        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1):
+            raise ShapeError(f"montecarlo: `{name}` must be a positive whole number, got {value!r}")
+    if workers is not None and scheduler is not None:
+        raise ShapeError("montecarlo: give `workers` (threads on this machine) or `scheduler` (a Dask cluster), not both: "
+                         "on a cluster its workers run the chunks")
     if isinstance(plant, System) and plant.is_discrete:
         return _montecarlo_map(plant, observers, t_final=t_final, dt=dt, x0=x0, runs=runs, xhat0=xhat0, params=params,
                                inputs=inputs, noise=noise, process_noise=process_noise, sampling=sampling, seed=seed,
@@ -369,21 +391,69 @@ def montecarlo(
     if stride < 1:
         raise ShapeError(f"montecarlo: `save_every` must be a positive number of steps, got {save_every}")
     spec = _Spec(prep, X0, XH, P, seeds, stride, escape_bound, engine)
-    bounds = [(j, min(j + chunk, M)) for j in range(0, M, chunk)]
     report = as_progress(progress, f"montecarlo {plant.name}")
-    if scheduler is None:
+    per_run = (N + 1) * prep.layout.step.size1_in(1) * 8 if prep.seeded else 0  # bytes of one run's noise inputs
+    if scheduler is None and engine == "jax":   # one XLA program over the runs (vmap): the device parallelises
+        size = int(chunk) if chunk is not None else M
+        parts = _on_threads(spec, [(j, min(j + size, M)) for j in range(0, M, size)], 1, report)
+        info = {"workers": 1}
+    elif scheduler is None:
+        # where the whole batch runs, decided (and compiled) once: every chunk, on every thread, runs there
+        where = batch_backend(prep.layout.step, M, N, engine)
+        # compiled loops and CasADi's virtual machine (3.8) both release Python's lock while they run; a step with an
+        # optimisation inside (MHE) reports solver errors through process-wide state, so its chunks take turns
+        alone = any(getattr(o.design, "needs_mx", False) for o in prep.obs.values())
+        threads = 1 if alone else (usable_cores() if workers is None else int(workers))
+        size = int(chunk) if chunk is not None else _chunk_size(M, threads, per_run)
+        bounds = [(j, min(j + size, M)) for j in range(0, M, size)]
+        threads = min(threads, len(bounds))
+        parts = _on_threads(replace(spec, engine=where), bounds, threads, report)
+        info = {"workers": threads}
+    else:
+        parts, size, info = _on_dask(scheduler, spec, M, chunk, per_run, report)
+    S = np.concatenate([p[0] for p in parts])
+    O = np.concatenate([p[1] for p in parts])
+    status = np.concatenate([p[2] for p in parts])
+    return _result(spec, S, O, status, tol, inputs, info={"dt": dt, "save_every": stride, "engine": engine,
+                                                          "dask": scheduler is not None, "chunk": size, **info})
+
+
+#: About this many bytes of noise inputs per chunk (the per-step inputs of its runs, made before the chunk runs).
+CHUNK_BYTES = 64 * 2**20
+
+
+def _chunk_size(M: int, slots: int, per_run: int) -> int:
+    """Runs per chunk: about four chunks per thread that runs them (the last ones even out uneven threads), in whole
+    blocks of the SIMD width, at most 1,024, and few enough that a chunk's noise inputs (`per_run` bytes a run) stay
+    near :data:`CHUNK_BYTES`."""
+    size = min(-(-M // (4 * max(slots, 1))), 1024, max(1, CHUNK_BYTES // max(per_run, 1)))
+    return max(LANES, -(-size // LANES) * LANES)
+
+
+def _on_threads(spec: _Spec, bounds: Sequence[tuple[int, int]], threads: int, report: Any) -> list[Any]:
+    """The chunks, in order, run on `threads` threads (1: one after another in this thread)."""
+    if threads <= 1:
         parts = []
         for i, (j0, j1) in enumerate(bounds):
             parts.append(spec.run_chunk(j0, j1))
             if report is not None:
                 report((i + 1) / len(bounds))
-    else:
-        parts = _on_dask(scheduler, spec, bounds, report)
-    S = np.concatenate([p[0] for p in parts])
-    O = np.concatenate([p[1] for p in parts])
-    status = np.concatenate([p[2] for p in parts])
-    return _result(spec, S, O, status, tol, inputs, info={"dt": dt, "save_every": stride, "engine": engine,
-                                                          "dask": scheduler is not None, "chunk": chunk})
+        return parts
+    with ThreadPoolExecutor(max_workers=threads, thread_name_prefix="nlobs-montecarlo") as pool:
+        # each chunk in a copy of this context: time budgets and deadlines set by the caller reach the threads
+        futures = [pool.submit(contextvars.copy_context().run, spec.run_chunk, j0, j1) for j0, j1 in bounds]
+        pending, done = set(futures), 0
+        while pending:
+            finished, pending = wait(pending, return_when=FIRST_EXCEPTION)
+            for fut in finished:
+                if fut.exception() is not None:  # the first failure stops the chunks not yet started
+                    for other in pending:
+                        other.cancel()
+                    raise fut.exception()  # type: ignore[misc]
+            done += len(finished)
+            if report is not None:
+                report(done / len(futures))
+        return [f.result() for f in futures]
 
 
 @dataclass(frozen=True, eq=False)
@@ -463,7 +533,11 @@ def _montecarlo_map(plant: System, observers: Any, *, x0: Any, runs: int | None,
                             {"time": "discrete", "sample_time": plant_.sample_time, "save_every": 1}, spec, inputs)
 
 
-def _on_dask(scheduler: Any, spec: _Spec, bounds: Sequence[tuple[int, int]], report: Any) -> list[Any]:
+def _on_dask(scheduler: Any, spec: _Spec, M: int, chunk: int | None, per_run: int, report: Any) -> tuple[list[Any], int, dict]:
+    """The chunks run as tasks on a Dask cluster: the chunk size from the cluster's threads (unless given), the spec
+    sent to every worker once per call under a key of this call's own (an identical call, even a concurrent one,
+    never shares it: a shared key released by one call while the next sends it again left the scheduler waiting for
+    good), and the results in order."""
     try:
         from dask.distributed import Client, as_completed
     except ImportError as e:
@@ -471,15 +545,22 @@ def _on_dask(scheduler: Any, spec: _Spec, bounds: Sequence[tuple[int, int]], rep
     own = not isinstance(scheduler, Client)
     client = Client(scheduler) if own else scheduler
     try:
-        spec_future = client.scatter(spec, broadcast=True)
+        slots = sum(client.nthreads().values()) or 1
+        size = int(chunk) if chunk is not None else _chunk_size(M, slots, per_run)
+        bounds = [(j, min(j + size, M)) for j in range(0, M, size)]
+        spec_future = client.scatter(spec, broadcast=True, hash=False)
         futures = [client.submit(_chunk_task, spec_future, j0, j1, pure=False) for j0, j1 in bounds]
         index = {f.key: i for i, f in enumerate(futures)}
         parts: list[Any] = [None] * len(futures)
-        for done, fut in enumerate(as_completed(futures), 1):
-            parts[index[fut.key]] = fut.result()
-            if report is not None:
-                report(done / len(futures))
-        return parts
+        try:
+            for done, fut in enumerate(as_completed(futures), 1):
+                parts[index[fut.key]] = fut.result()
+                if report is not None:
+                    report(done / len(futures))
+        finally:
+            client.cancel(futures)
+            spec_future.release()
+        return parts, size, {"dask_threads": slots}
     finally:
         if own:
             client.close()

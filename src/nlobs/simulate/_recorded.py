@@ -167,7 +167,8 @@ class Recording:
         """Whether the missing outputs (NaN) are per-output clocks: each output is measured at regular times of its
         own (a multi-rate recording: a GPS at 1 s beside a wheel encoder at 10 ms; a 200 Hz input beside a 50 Hz
         sensor, its rows between the sensor's samples carrying the input only). Such NaN cells mean "not measured at
-        this row" and need no ``on_missing='skip'``; a dropped sample breaks its output's clock."""
+        this row" and need no ``on_missing='skip'``; a dropped sample breaks its output's clock, and so does a clock that
+        stops before the end of the recording."""
         finite = np.isfinite(self.y)
         if not finite.any():
             return False
@@ -177,6 +178,10 @@ class Recording:
                 return False
             d = np.diff(times)
             if np.max(np.abs(d - d[0])) > 1e-6 * d[0]:
+                return False
+            # the clock runs to the end of the recording: a sensor that stops has missing samples (one that starts late
+            # is a delayed sensor, whose first sample arrives after its latency)
+            if times[-1] < self.t[-1] - d[0] * (1 + 1e-6):
                 return False
         return True
 

@@ -28,15 +28,14 @@ point and the Wronskian are over GF(p) for a random 62-bit prime.
 
 from __future__ import annotations
 
+import importlib
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-import flint
 import numpy as np
 import sympy as sp
-from flint.utils.flint_exceptions import DomainError as _NotExact
 
 __all__ = ["IOEquations", "NotApplicable", "io_equations"]
 
@@ -52,6 +51,24 @@ MAX_RESULTANT_TERMS = 3_000_000
 #: does not finish in minutes; SIRS forced, 2,585, 27 s, where SIAN answers in 0.4 s. One output: no bound (SIWR:
 #: 771 monomials; Pharm: 3,536, where SIAN does not finish).
 MAX_MONOMIALS_SEVERAL_OUTPUTS = 4000
+
+
+class _OnFirstUse:
+    """A module imported when one of its names is first read (then kept on this object): python-flint loads with the
+    first IO-route computation, not with ``import nlobs.design`` (which a Monte Carlo worker imports and runs no
+    algebra of)."""
+
+    def __init__(self, name: str):
+        self._name = name
+
+    def __getattr__(self, attr: str) -> Any:
+        value = getattr(importlib.import_module(self._name), attr)
+        setattr(self, attr, value)
+        return value
+
+
+flint = _OnFirstUse("flint")
+_flint_errors = _OnFirstUse("flint.utils.flint_exceptions")  # DomainError: a division that is not exact
 
 
 class NotApplicable(Exception):
@@ -449,14 +466,14 @@ def _eliminate(f, g, name: str, R: _Ring, pts: _Points):
             q = lg / lf
             g = g - q * f * R.var(name) ** (dg - df)
             continue
-        except _NotExact:
+        except _flint_errors.DomainError:
             pass
         if df == dg:
             try:
                 q = lf / lg
                 f = f - q * g
                 continue
-            except _NotExact:
+            except _flint_errors.DomainError:
                 pass
         break
     if f.is_zero() or g.is_zero():
@@ -515,7 +532,7 @@ def _divide_out(q, h):
     while True:
         try:
             q = q / h
-        except _NotExact:
+        except _flint_errors.DomainError:
             return q, times
         times += 1
 

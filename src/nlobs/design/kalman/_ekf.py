@@ -33,7 +33,7 @@ def tune_ekf(ctx: Any) -> Tuning:
     return gaussian_filter(ctx, "ekf")
 
 
-@kind('ekf', summary='extended Kalman filter (continuous-discrete or continuous), exact Jacobians by automatic differentiation',
+@kind('ekf', likelihood='ekf', summary='extended Kalman filter (continuous-discrete or continuous), exact Jacobians by automatic differentiation',
       references=(work("jazwinski1970", "continuous-discrete extended Kalman filter"), work("kalman1961"),
                   work("simon2006", "§13.2, discrete time")), time_base="both", tune=tune_ekf,
       map_smoother="extended")

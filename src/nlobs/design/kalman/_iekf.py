@@ -31,7 +31,7 @@ def tune_iekf(ctx: Any) -> Tuning:
     return robust_filter(ctx, "iekf")
 
 
-@kind('iekf', summary='iterated extended Kalman filter (continuous-discrete, or on a map): Gauss-Newton iterations of the update',
+@kind('iekf', likelihood='ekf', summary='iterated extended Kalman filter (continuous-discrete, or on a map): Gauss-Newton iterations of the update',
       references=(work("bell1993"),), time_base="both", tune=tune_iekf, map_smoother="extended")
 def design_iekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None, iterations: int = 5,
                 tol: float = 1e-10) -> ObserverDesign:

@@ -171,7 +171,7 @@ def tune_pf(ctx: Any) -> Tuning:
                         runnable=runnable, extra=note)
 
 
-@kind('pf', summary='particle filter (continuous-discrete, or on a map): bootstrap or auxiliary, systematic resampling, seeded',
+@kind('pf', likelihood='ekf', summary='particle filter (continuous-discrete, or on a map): bootstrap or auxiliary, systematic resampling, seeded',
       references=(work("gordon1993"), work("pitt1999", "auxiliary")), time_base="both", tune=tune_pf)
 def design_pf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None, particles: int = 1000,
               scheme: Scheme = "bootstrap", threshold: float = 0.5, seed: int = 0,

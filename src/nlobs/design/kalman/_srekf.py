@@ -30,7 +30,7 @@ def tune_srekf(ctx: Any) -> Tuning:
     return robust_filter(ctx, "srekf")
 
 
-@kind('srekf', summary='square-root extended Kalman filter (continuous-discrete, or on a map): the EKF carrying a square root of P (QR Joseph update)',
+@kind('srekf', likelihood='ekf', summary='square-root extended Kalman filter (continuous-discrete, or on a map): the EKF carrying a square root of P (QR Joseph update)',
       references=(work("kaminski1971", "square-root covariance, QR Joseph update"),), time_base="both", tune=tune_srekf, map_smoother="extended")
 def design_srekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None) -> ObserverDesign:
     r"""Square-root extended Kalman filter (continuous-discrete): the EKF of :func:`design_ekf` carrying a

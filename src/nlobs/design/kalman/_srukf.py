@@ -34,7 +34,7 @@ def tune_srukf(ctx: Any) -> Tuning:
     return robust_filter(ctx, "srukf")
 
 
-@kind('srukf', summary='square-root unscented Kalman filter (continuous-discrete, or on a map): P is never formed, its Cholesky factor is updated by QR',
+@kind('srukf', likelihood='ukf', summary='square-root unscented Kalman filter (continuous-discrete, or on a map): P is never formed, its Cholesky factor is updated by QR',
       references=(work("vandermerwe2001", "square root by QR"), work("arasaratnam2009")), time_base="both", tune=tune_srukf,
       map_smoother="unscented")
 def design_srukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None, alpha: float = 1.0,

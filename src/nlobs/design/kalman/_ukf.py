@@ -45,7 +45,7 @@ def tune_ukf(ctx: Any) -> Tuning:
     return gaussian_filter(ctx, "ukf")
 
 
-@kind('ukf', summary='unscented Kalman filter (continuous-discrete)',
+@kind('ukf', likelihood='ukf', summary='unscented Kalman filter (continuous-discrete)',
       references=(work("julier2004"), work("wan2000", "discrete time")), time_base="both",
       tune=tune_ukf, map_smoother="unscented")
 def design_ukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None, alpha: float = 1.0,
