@@ -85,7 +85,7 @@ class _Tuned(dict):  # type: ignore[type-arg]
 
     def _fill(self) -> None:
         if not super().__len__():
-            from ...design import KINDS
+            from ..design import KINDS
 
             self.update({k: v.likelihood for k, v in KINDS.items() if v.likelihood and k != "mhe"})
 
@@ -357,7 +357,7 @@ def _likelihood_design(d: ObserverDesign, notes: list[str]) -> ObserverDesign:
     kind = TUNED_KINDS[d.method]
     common = {"Q": v["Q"], "R": v["R"], "P0": v["P0"], "xhat0": np.asarray(d.xhat0, dtype=float).reshape(-1)}
     if d.method != kind:   # a square-root form (the same filter up to rounding), the iterated EKF, the pf
-        from ...design import KINDS
+        from ..design import KINDS
 
         what = KINDS[d.method].summary.split(" (")[0]
         notes.append(f"the {what} ({d.method}) takes Q and R from the {kind.upper()}'s innovations likelihood on the "
