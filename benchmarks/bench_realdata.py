@@ -190,7 +190,7 @@ def _validate(model: Path, label: str, values: dict[str, float], *, Q: Any, R: A
               timeout: float) -> dict[str, Any]:
     """Held-out RMSEs of one fitted model (see the module docstring)."""
     import nlobs
-    from nlobs.simulate.learning._likelihood import _Problem
+    from nlobs.learning._likelihood import _Problem
 
     fitted = _fitted_file(model, values, label, "likelihood" if Q is not None else "simulation-error", Q=Q, R=R)
     y_held = _csv(TMP / "held.csv")["y"]

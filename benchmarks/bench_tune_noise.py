@@ -21,7 +21,8 @@ from pathlib import Path
 import numpy as np
 
 import nlobs
-from nlobs.simulate import Recording, tune
+from nlobs.learning import tune
+from nlobs.simulate import Recording
 
 T = 0.01
 PEND = nlobs.System(states=["th", "om"], f=[f"th + {T}*om", f"om + {T}*(-9.81*sin(th) - 0.2*om + u)"], inputs=["u"],

@@ -8,12 +8,12 @@ no test reaches ("no tests") count as survivors.
 
 Modules and why (the equations they implement):
 
-- design/_regression.py: 000 eqs. (16)-(17) (the G+D estimator), DREM mixing, gradient and
+- design/pebo/_regression.py: 000 eqs. (16)-(17) (the G+D estimator), DREM mixing, gradient and
   least squares, the filters of 004 eq. (37);
-- design/_kalman.py: the Kalman-like observer for state-affine systems and its high-gain
+- design/kalman/_riccati.py: the Kalman-like observer for state-affine systems and its high-gain
   variant (002), the Riccati ODE Ṁ = λ[...];
-- design/_gpebo.py: the GPEBO / 2G+D observer of 000 (eqs. 8-13, order (3 + 2n)n);
-- design/_banks.py and analysis/forms/_conditions.py: Banks' matrix measure, dissipativity and
+- design/pebo/_gpebo.py: the GPEBO / 2G+D observer of 000 (eqs. 8-13, order (3 + 2n)n);
+- design/banks/_banks.py and analysis/forms/_conditions.py: Banks' matrix measure, dissipativity and
   Theorem 2.6 (003);
 - algebra/_identity.py: the exact identity test every PDE / left-inverse check relies on.
 
@@ -25,7 +25,7 @@ never modified and modules do not interfere. A full run is long (tens of minutes
 shared 2-core machine): it runs under ``nice``, one module at a time.
 
 Run:  .venv/bin/pip install -e '.[mutation]'
-      .venv/bin/python benchmarks/mutation.py [--only design/_regression.py ...] [--max-children 2]
+      .venv/bin/python benchmarks/mutation.py [--only design/pebo/_regression.py ...] [--max-children 2]
 Results: benchmarks/results/mutation.json (per module: killed, survived, no tests, timeouts, rate)
 and the survivors' names in benchmarks/results/mutation_survivors.txt (``mutmut show NAME`` in the
 scratch directory prints a mutant's diff).
@@ -47,11 +47,11 @@ SCRATCH = Path(os.environ.get("NLOBS_MUTATION_DIR", "/tmp/nlobs-mutation"))
 
 #: module (relative to src/nlobs) -> the focused tests that check its equations
 MODULES: dict[str, list[str]] = {
-    "design/_regression.py": ["tests/design/test_regression.py", "tests/design/test_estimators.py",
-                              "tests/design/test_regression_edges.py"],
-    "design/_kalman.py": ["tests/design/test_kalman.py", "tests/design/test_kalman_edges.py", "tests/design/test_high_gain.py"],
-    "design/_gpebo.py": ["tests/design/test_gpebo.py", "tests/papers/test_000_2gd_not_uco.py::test_2gd_error_follows_the_paper_law_to_round_off"],
-    "design/_banks.py": ["tests/design/test_banks.py"],
+    "design/pebo/_regression.py": ["tests/design/test_regression.py", "tests/design/test_estimators.py",
+                                   "tests/design/test_regression_edges.py"],
+    "design/kalman/_riccati.py": ["tests/design/test_kalman.py", "tests/design/test_kalman_edges.py", "tests/design/test_high_gain.py"],
+    "design/pebo/_gpebo.py": ["tests/design/test_gpebo.py", "tests/papers/test_000_2gd_not_uco.py::test_2gd_error_follows_the_paper_law_to_round_off"],
+    "design/banks/_banks.py": ["tests/design/test_banks.py"],
     "analysis/forms/_conditions.py": ["tests/analysis/test_forms_banks.py", "tests/analysis/test_conditions_edges.py",
                                 "tests/design/test_banks.py"],
     "algebra/_identity.py": ["tests/analysis/test_identity.py", "tests/analysis/test_identity_exact.py",
@@ -60,10 +60,10 @@ MODULES: dict[str, list[str]] = {
 
 #: module -> the equations it implements, for the docs' table (cited as a user reads it)
 EQUATIONS: dict[str, tuple[str, str]] = {
-    "design/_regression.py": ("000", "eqs. (16)-(17); gradient, least squares, DREM"),
-    "design/_kalman.py": ("002", "Kalman-like and high-gain observers"),
-    "design/_gpebo.py": ("000", "Lemma 1, eqs. (5), (8)-(13)"),
-    "design/_banks.py": ("003", "Lemma 2.3, Theorem 2.6"),
+    "design/pebo/_regression.py": ("000", "eqs. (16)-(17); gradient, least squares, DREM"),
+    "design/kalman/_riccati.py": ("002", "Kalman-like and high-gain observers"),
+    "design/pebo/_gpebo.py": ("000", "Lemma 1, eqs. (5), (8)-(13)"),
+    "design/banks/_banks.py": ("003", "Lemma 2.3, Theorem 2.6"),
     "analysis/forms/_conditions.py": ("003", "λ(A), μ_N, Theorem 2.6"),
     "algebra/_identity.py": ("004", "PDE (4) and left-inverse identities"),
 }
@@ -72,55 +72,55 @@ EQUATIONS: dict[str, tuple[str, str]] = {
 #: each with the reason. They stay in the survivor lists and in the raw kill rate; the docs table also shows the
 #: rate among the non-equivalent mutants. Prefix match on the mutant's name.
 EQUIVALENT: dict[str, str] = {
-    # design/_regression.py
-    "nlobs.design._regression.x_adjugate__mutmut_2": "the matrix is square: shape[1] == shape[0]",
-    "nlobs.design._regression.x_adjugate__mutmut_25": "(-1)^(i - j) == (-1)^(i + j): i - j and i + j have the same parity",
-    "nlobs.design._regression.xǁExcitationMonitorǁof__mutmut_8": "the placeholder Δ of an estimator without Δ is never read "
+    # design/pebo/_regression.py
+    "nlobs.design.pebo._regression.x_adjugate__mutmut_2": "the matrix is square: shape[1] == shape[0]",
+    "nlobs.design.pebo._regression.x_adjugate__mutmut_25": "(-1)^(i - j) == (-1)^(i + j): i - j and i + j have the same parity",
+    "nlobs.design.pebo._regression.xǁExcitationMonitorǁof__mutmut_8": "the placeholder Δ of an estimator without Δ is never read "
                                                                    "(has_delta is False)",
-    # design/_kalman.py (002 Kalman, Kalman-like and LTV-based high-gain observers)
-    "nlobs.design._kalman.x__riccati_design__mutmut_3": "A is square (n x n from state_affine_parts): shape[1] == shape[0]",
-    "nlobs.design._kalman.x__riccati_design__mutmut_154": "the high-gain branch (lam given) is only reached with V = None, so Vm = 0 "
+    # design/kalman/_riccati.py (002 Kalman, Kalman-like and LTV-based high-gain observers)
+    "nlobs.design.kalman._riccati.x__riccati_design__mutmut_3": "A is square (n x n from state_affine_parts): shape[1] == shape[0]",
+    "nlobs.design.kalman._riccati.x__riccati_design__mutmut_154": "the high-gain branch (lam given) is only reached with V = None, so Vm = 0 "
                                                           "and lam*Ric + 0 == lam*Ric - 0",
-    "nlobs.design._kalman.x__riccati_design__mutmut_253": "M0 is exactly symmetric (check_matrix symmetrises it): its C-order and "
+    "nlobs.design.kalman._riccati.x__riccati_design__mutmut_253": "M0 is exactly symmetric (check_matrix symmetrises it): its C-order and "
                                                           "F-order ravel are the same vector",
-    "nlobs.design._kalman.x__riccati_design__mutmut_255": "M0 is exactly symmetric: C-order (the default) == F-order ravel",
-    "nlobs.design._kalman.x__riccati_design__mutmut_257": "reshape(-2) == reshape(-1): numpy reads any negative size as the inferred one",
-    "nlobs.design._kalman.x__sup_norm__mutmut_28": "box_of does not read its `system` argument (design/_common.py)",
-    "nlobs.design._kalman.x__sup_norm__mutmut_71": "A is square: C-order reshape gives Aᵀ, and ‖Aᵀ‖₂ == ‖A‖₂",
-    "nlobs.design._kalman.x__sup_norm__mutmut_73": "A is square: C-order reshape (the default) gives Aᵀ, and ‖Aᵀ‖₂ == ‖A‖₂",
-    "nlobs.design._kalman.x_design_high_gain_kalman__mutmut_2": "the public design_high_gain_kalman (design/_registry.py wrapper) "
+    "nlobs.design.kalman._riccati.x__riccati_design__mutmut_255": "M0 is exactly symmetric: C-order (the default) == F-order ravel",
+    "nlobs.design.kalman._riccati.x__riccati_design__mutmut_257": "reshape(-2) == reshape(-1): numpy reads any negative size as the inferred one",
+    "nlobs.design.kalman._riccati.x__sup_norm__mutmut_28": "box_of does not read its `system` argument (design/_common.py)",
+    "nlobs.design.kalman._riccati.x__sup_norm__mutmut_71": "A is square: C-order reshape gives Aᵀ, and ‖Aᵀ‖₂ == ‖A‖₂",
+    "nlobs.design.kalman._riccati.x__sup_norm__mutmut_73": "A is square: C-order reshape (the default) gives Aᵀ, and ‖Aᵀ‖₂ == ‖A‖₂",
+    "nlobs.design.kalman._riccati.x_design_high_gain_kalman__mutmut_2": "the public design_high_gain_kalman (design/_registry.py wrapper) "
                                                                 "refuses a non-System before require_system runs",
-    "nlobs.design._kalman.x_design_high_gain_kalman__mutmut_31": "sp.zeros(n, None) == sp.zeros(n) == sp.zeros(n, n)",
-    "nlobs.design._kalman.x_design_high_gain_kalman__mutmut_32": "sp.zeros(n) == sp.zeros(n, n)",
-    "nlobs.design._kalman.x_design_high_gain_kalman__mutmut_33": "sp.zeros(n, ) == sp.zeros(n, n)",
-    "nlobs.design._kalman.x_design_high_gain_kalman__mutmut_65": "parts.b is not read on the high-gain branch (φ carries the drift): "
+    "nlobs.design.kalman._riccati.x_design_high_gain_kalman__mutmut_31": "sp.zeros(n, None) == sp.zeros(n) == sp.zeros(n, n)",
+    "nlobs.design.kalman._riccati.x_design_high_gain_kalman__mutmut_32": "sp.zeros(n) == sp.zeros(n, n)",
+    "nlobs.design.kalman._riccati.x_design_high_gain_kalman__mutmut_33": "sp.zeros(n, ) == sp.zeros(n, n)",
+    "nlobs.design.kalman._riccati.x_design_high_gain_kalman__mutmut_65": "parts.b is not read on the high-gain branch (φ carries the drift): "
                                                                  "its shape does not matter",
-    "nlobs.design._kalman.x_design_high_gain_kalman__mutmut_66": "parts.b is not read on the high-gain branch (see mutmut_65)",
-    "nlobs.design._kalman.x_design_high_gain_kalman__mutmut_67": "parts.b is not read on the high-gain branch (see mutmut_65)",
-    "nlobs.design._kalman.x_design_high_gain_kalman__mutmut_68": "parts.b is not read on the high-gain branch (see mutmut_65)",
-    "nlobs.design._kalman.x_state_affine_parts__mutmut_40": "the caller only enters measured_states' PreconditionError, which "
+    "nlobs.design.kalman._riccati.x_design_high_gain_kalman__mutmut_66": "parts.b is not read on the high-gain branch (see mutmut_65)",
+    "nlobs.design.kalman._riccati.x_design_high_gain_kalman__mutmut_67": "parts.b is not read on the high-gain branch (see mutmut_65)",
+    "nlobs.design.kalman._riccati.x_design_high_gain_kalman__mutmut_68": "parts.b is not read on the high-gain branch (see mutmut_65)",
+    "nlobs.design.kalman._riccati.x_state_affine_parts__mutmut_40": "the caller only enters measured_states' PreconditionError, which "
                                                             "state_affine_parts catches and drops (meas = [])",
-    # design/_gpebo.py, _uniform_stability: 000 assumption (5) for a constant A
-    "nlobs.design._gpebo.x__uniform_stability__mutmut_10": "`eig.size` is never 0: a state-affine model has n >= 1 states",
-    "nlobs.design._gpebo.x__uniform_stability__mutmut_12": "the empty-spectrum default is never used (n >= 1)",
-    "nlobs.design._gpebo.x__uniform_stability__mutmut_30": "`initial=None` only matters for an empty A (n >= 1)",
-    "nlobs.design._gpebo.x__uniform_stability__mutmut_32": "max(1.0, max(|A|, 1.0)) == max(1.0, max|A|)",
-    "nlobs.design._gpebo.x__uniform_stability__mutmut_34": "`>=` vs `>` at Re λ exactly equal to the round-off tolerance",
-    "nlobs.design._gpebo.x__uniform_stability__mutmut_37": "`<` vs `<=` at |Re λ| exactly equal to the round-off tolerance",
-    "nlobs.design._gpebo.x__uniform_stability__mutmut_43": "rounding to 10 instead of 9 digits only groups axis eigenvalues "
+    # design/pebo/_gpebo.py, _uniform_stability: 000 assumption (5) for a constant A
+    "nlobs.design.pebo._gpebo.x__uniform_stability__mutmut_10": "`eig.size` is never 0: a state-affine model has n >= 1 states",
+    "nlobs.design.pebo._gpebo.x__uniform_stability__mutmut_12": "the empty-spectrum default is never used (n >= 1)",
+    "nlobs.design.pebo._gpebo.x__uniform_stability__mutmut_30": "`initial=None` only matters for an empty A (n >= 1)",
+    "nlobs.design.pebo._gpebo.x__uniform_stability__mutmut_32": "max(1.0, max(|A|, 1.0)) == max(1.0, max|A|)",
+    "nlobs.design.pebo._gpebo.x__uniform_stability__mutmut_34": "`>=` vs `>` at Re λ exactly equal to the round-off tolerance",
+    "nlobs.design.pebo._gpebo.x__uniform_stability__mutmut_37": "`<` vs `<=` at |Re λ| exactly equal to the round-off tolerance",
+    "nlobs.design.pebo._gpebo.x__uniform_stability__mutmut_43": "rounding to 10 instead of 9 digits only groups axis eigenvalues "
                                                           "that agree to 1e-9; the multiplicity count uses 1e-6 anyway",
-    "nlobs.design._gpebo.x__uniform_stability__mutmut_48": "eig + λ vs eig - λ: for λ on the imaginary axis -λ = conj(λ), and the "
+    "nlobs.design.pebo._gpebo.x__uniform_stability__mutmut_48": "eig + λ vs eig - λ: for λ on the imaginary axis -λ = conj(λ), and the "
                                                           "spectrum of a real matrix is conjugate-symmetric with equal multiplicities",
-    "nlobs.design._gpebo.x__uniform_stability__mutmut_49": "`<` vs `<=` at a distance of exactly 1e-6",
-    "nlobs.design._gpebo.x__uniform_stability__mutmut_53": "A is square: shape[1] == shape[0]",
-    "nlobs.design._gpebo.x__uniform_stability__mutmut_61": "A is square: shape[1] == shape[0]",
-    "nlobs.design._gpebo.x__uniform_stability__mutmut_55": "rank tolerance: matrix_rank's default (σ_max·n·eps) vs 1e-8; they differ "
+    "nlobs.design.pebo._gpebo.x__uniform_stability__mutmut_49": "`<` vs `<=` at a distance of exactly 1e-6",
+    "nlobs.design.pebo._gpebo.x__uniform_stability__mutmut_53": "A is square: shape[1] == shape[0]",
+    "nlobs.design.pebo._gpebo.x__uniform_stability__mutmut_61": "A is square: shape[1] == shape[0]",
+    "nlobs.design.pebo._gpebo.x__uniform_stability__mutmut_55": "rank tolerance: matrix_rank's default (σ_max·n·eps) vs 1e-8; they differ "
                                                           "only for a Jordan coupling below 1e-8, which the code treats as round-off",
-    "nlobs.design._gpebo.x__uniform_stability__mutmut_57": "rank tolerance: see mutmut_55",
-    "nlobs.design._gpebo.x_design_gpebo__mutmut_16": "GD's documented default gain γ is 1.0: GD(1.0) == GD(1.0, 1.0)",
-    "nlobs.design._gpebo.x_design_gpebo__mutmut_17": "GD's documented default gain γ is 1.0: GD(1.0, ) == GD(1.0, 1.0)",
-    "nlobs.design._gpebo.x_design_gpebo__mutmut_103": "Regression.names is only checked for its length (θ names are not shown)",
-    "nlobs.design._gpebo.x_design_gpebo__mutmut_104": "Regression.names is only checked for its length (θ names are not shown)",
+    "nlobs.design.pebo._gpebo.x__uniform_stability__mutmut_57": "rank tolerance: see mutmut_55",
+    "nlobs.design.pebo._gpebo.x_design_gpebo__mutmut_16": "GD's documented default gain γ is 1.0: GD(1.0) == GD(1.0, 1.0)",
+    "nlobs.design.pebo._gpebo.x_design_gpebo__mutmut_17": "GD's documented default gain γ is 1.0: GD(1.0, ) == GD(1.0, 1.0)",
+    "nlobs.design.pebo._gpebo.x_design_gpebo__mutmut_103": "Regression.names is only checked for its length (θ names are not shown)",
+    "nlobs.design.pebo._gpebo.x_design_gpebo__mutmut_104": "Regression.names is only checked for its length (θ names are not shown)",
     # analysis/forms/_conditions.py, box_sup (the sampled suprema of 003 Lemma 2.4, Theorem 2.6): conversions of arrays that
     # are already float, the optimiser scipy picks anyway, iteration caps that are never reached
     "nlobs.analysis.forms._conditions.x_box_sup__mutmut_22": "3^d instead of 2^d corners: the extra indices repeat corners (bits above d unused)",

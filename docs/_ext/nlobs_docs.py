@@ -218,6 +218,7 @@ NAMESPACES = [
     ("nlobs.design", "Observer designs and their certificates"),
     ("nlobs.observer", "Running observers: offline, online, C export"),
     ("nlobs.simulate", "Simulation, noise, recorded data, Monte Carlo, results"),
+    ("nlobs.learning", "Learning from recordings: parameters and noise levels"),
     ("nlobs.advise", "Which observer fits a model: candidates, tuning and ranking"),
     ("nlobs.interop", "python-control"),
     ("nlobs.examples", "The papers' examples"),
@@ -272,6 +273,10 @@ def write_api_pages(app: Any = None) -> None:
     text = "\n".join(lines)
     if not target.exists() or target.read_text(encoding="utf-8") != text:
         target.write_text(text, encoding="utf-8")
+    # autosummary's pages of names that have moved (nlobs.simulate.tune -> nlobs.learning.tune) would fail to import
+    for stub in (HERE / "api" / "generated").glob("nlobs.*.rst"):
+        if stub.stem not in set(home.values()):
+            stub.unlink()
 
 
 def write_references_page(app: Any = None) -> None:

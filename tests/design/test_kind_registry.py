@@ -35,7 +35,7 @@ def test_no_list_of_kinds_is_written_twice():
     names = set(KINDS)
     bad = []
     for path in SRC.rglob("*.py"):
-        if path.parent.name in ("design", "examples"):
+        if path.relative_to(SRC).parts[0] in ("design", "examples"):
             continue
         for node in ast.walk(ast.parse(path.read_text())):
             keys = node.keys if isinstance(node, ast.Dict) else node.elts if isinstance(node, (ast.List, ast.Tuple, ast.Set)) else []

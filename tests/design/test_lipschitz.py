@@ -6,7 +6,7 @@ import scipy.linalg
 
 import nlobs
 from nlobs.design import design_lipschitz
-from nlobs.design._lipschitz import region_lipschitz, thau_margin
+from nlobs.design.lipschitz._lipschitz import region_lipschitz, thau_margin
 from nlobs.errors import PreconditionError
 
 DAMPED = nlobs.System(states=["x1", "x2"], f=["x2", "-x1 - x2 + 0.3*sin(x2)"], outputs=["y"], h=["x1"])

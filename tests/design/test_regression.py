@@ -14,7 +14,7 @@ from nlobs import PreconditionError, System, simulate
 from nlobs.design import (DREM, GD, Certificate, Gradient, LeastSquares, LinearRegression, StateStack, derivative_filter,
                           design_drem, design_from_config, design_gd, design_gradient, design_least_squares,
                           excitation_report, lowpass)
-from nlobs.design._regression import adjugate
+from nlobs.design.pebo._regression import adjugate
 from nlobs.errors import ModelError
 
 SCALAR = LinearRegression(["psi1"], signals=["psi1"])          # Y = ψ θ
@@ -235,7 +235,7 @@ def test_det_and_adjugate_of_a_large_matrix_by_faddeev_leverrier(n):
     # must give NumPy's det and det·inv, and stay exact at a singular matrix (the estimators start at D = 0)
     import casadi as ca
 
-    from nlobs.design._regression import det_adj
+    from nlobs.design.pebo._regression import det_adj
 
     M = ca.SX.sym("M", n, n)
     f = ca.Function("f", [M], list(det_adj(M)))

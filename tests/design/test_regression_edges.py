@@ -1,6 +1,6 @@
 """Regression models and DREM at their edges: documented defaults and the flow of the estimator against a hand
 computation. Written against the mutants the mutation run (benchmarks/mutation.py) found alive in
-design/_regression.py. DREM: extension by the Kreisselmeier filter and mixing with the adjugate,
+design/pebo/_regression.py. DREM: extension by the Kreisselmeier filter and mixing with the adjugate,
 000_6cd8bea7ca1db43b.txt eqs. (17c)-(19) (the estimator θ̂ᵢ' = γᵢΔ(Y_m,i − Δθ̂ᵢ)).
 """
 
@@ -213,7 +213,7 @@ def test_more_refusals_name_the_estimator_and_the_argument(make, message):
 
 
 def test_empty_matrices_keep_their_shape():
-    from nlobs.design._regression import sx_matrix
+    from nlobs.design.pebo._regression import sx_matrix
 
     assert sx_matrix(sp.zeros(2, 0), []).shape == (2, 0)
     assert sx_matrix(sp.zeros(0, 3), []).shape == (0, 3)

@@ -11,9 +11,10 @@ import nlobs
 import nlobs.analysis
 import nlobs.design
 import nlobs.model
+import nlobs.learning
 import nlobs.simulate
 
-NAMESPACES = (nlobs, nlobs.design, nlobs.analysis, nlobs.model, nlobs.simulate)
+NAMESPACES = (nlobs, nlobs.design, nlobs.analysis, nlobs.model, nlobs.simulate, nlobs.learning)
 
 
 def _public_callables():

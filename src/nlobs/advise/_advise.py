@@ -56,7 +56,7 @@ def _progress_writer(progress: bool | Callable[[str], None] | None) -> Callable[
 def _uco(ctx: Context) -> tuple[dict[str, Any] | None, str]:
     """Observability on the run vs uniform complete observability, for a state-affine model (Wang, Ortega &
     Bobtsov (2021) eqs. 3-4): the Gramian of the model frozen along the nominal run."""
-    from ..design._kalman import state_affine_parts
+    from ..design.kalman._riccati import state_affine_parts
     from ..errors import FormError
 
     if ctx.nominal is None:

@@ -1,4 +1,4 @@
-"""``nlobs.tune``: :func:`nlobs.simulate.tune` from a model file (or its path) and a recording (or its CSV), starting,
+"""``nlobs.tune``: :func:`nlobs.learning.tune` from a model file (or its path) and a recording (or its CSV), starting,
 when the file configures no observer of the kind, from the advisor's automatic tuning of that kind (as ``nlobs tune``
 and ``nlobs estimate --observer KIND`` do)."""
 
@@ -10,16 +10,16 @@ from typing import Any
 from ..errors import PreconditionError
 from ..model import ModelFile, load_model
 from ..simulate import Recording
-from ..simulate.learning._tune_noise import TuneResult
-from ..simulate.learning._tune_noise import tune as _tune
+from ..learning._tune_noise import TuneResult
+from ..learning._tune_noise import tune as _tune
 
 __all__ = ["tune"]
 
 
 def tune(design_or_model: Any, recording: Any, *, observer: str = "ekf", **options: Any) -> TuneResult:
-    """Tune the noise covariances of a Kalman-family filter on a recording; see :func:`nlobs.simulate.tune`.
+    """Tune the noise covariances of a Kalman-family filter on a recording; see :func:`nlobs.learning.tune`.
 
-    Besides what :func:`nlobs.simulate.tune` takes, `design_or_model` may be a model file's path and `recording` a CSV
+    Besides what :func:`nlobs.learning.tune` takes, `design_or_model` may be a model file's path and `recording` a CSV
     path; a model file that configures no observer named `observer` nor one of that kind starts from the advisor's
     automatic tuning of the kind `observer` (its Q, R, P0 and x̂0 are the start and the reference scales)."""
     if isinstance(design_or_model, (str, Path)):

@@ -1,12 +1,12 @@
 """``design --run``'s noise tuning: the Kalman-family candidates' Q and R fitted on the comparison run's measurements
-(or the recording) by :func:`nlobs.simulate.tune` before they are ranked."""
+(or the recording) by :func:`nlobs.learning.tune` before they are ranked."""
 
 from __future__ import annotations
 
 from typing import Any
 
 from ..simulate import Recording
-from ..simulate.learning._tune_noise import tune as _tune
+from ..learning._tune_noise import tune as _tune
 
 __all__ = ["family", "scenario_recording", "tune_candidates"]
 

@@ -91,7 +91,8 @@ def _bounds(items: list[str] | None) -> dict[str, tuple[float | None, float | No
 
 def run(args: argparse.Namespace) -> int:
     from ..model import load_model
-    from ..simulate import Recording, fit_parameters
+    from ..learning import fit_parameters
+    from ..simulate import Recording
     from ..simulate._results import write_csv
 
     mf = load_model(args.model)
@@ -138,8 +139,8 @@ def run(args: argparse.Namespace) -> int:
 def _likelihood(args: argparse.Namespace, mf: Any, rec: Any) -> int:
     """``nlobs fit --method likelihood``: the innovations likelihood of a configured EKF/UKF."""
     from ..design import design_from_config
-    from ..simulate import fit_likelihood
-    from ..simulate.learning._likelihood import LIKELIHOOD_KINDS
+    from ..learning import fit_likelihood
+    from ..learning._likelihood import LIKELIHOOD_KINDS
 
     unused = [flag for flag, given in (("--x0", args.x0), ("--output-std", args.output_std),
                                        ("--fit-x0", args.fit_x0 and args.start != "simulation")) if given] + \

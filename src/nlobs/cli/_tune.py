@@ -43,7 +43,8 @@ def add_parser(sub: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..model import load_model
-    from ..simulate import Recording, tune
+    from ..learning import tune
+    from ..simulate import Recording
 
     if args.json and args.toml:
         raise ValueError("--json and --toml: choose one output")

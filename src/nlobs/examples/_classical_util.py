@@ -9,7 +9,7 @@ import numpy as np
 
 from ..design._base import Symbols
 from ..design._common import leaves_of, to_sx
-from ..design._kalman import state_affine_parts
+from ..design.kalman._riccati import state_affine_parts
 from ..model import StateAffine, System
 
 __all__ = ["a_matrix", "gramian", "gramian_min_eig"]

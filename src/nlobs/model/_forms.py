@@ -16,7 +16,7 @@ import sympy as sp
 
 from ..errors import FormError, ShapeError
 from ._expr import as_written
-from ._system import TIME, System, exact, symbol, to_expr
+from ._system import FORMS, TIME, System, exact, symbol, to_expr
 
 __all__ = ["LTI", "StateAffine", "OutputInjectionForm", "matrix_of"]
 
@@ -295,3 +295,7 @@ class OutputInjectionForm:
         x_of_y = Cm.pinv() * ysyms
         B = sp.simplify(f.xreplace(dict(zip(system.x, x_of_y))))
         return cls(np.array(A, dtype=float), np.array(Cm, dtype=float), tuple(B), system)
+
+
+# System.lti and System.state_affine build through these (model/_system.py reads them here instead of importing this module)
+FORMS.update(LTI=LTI, StateAffine=StateAffine)

@@ -42,6 +42,11 @@ def symbol(name: str) -> sp.Symbol:
 #: The time symbol ``t``.
 TIME = symbol("t")
 
+#: The structured forms that :meth:`System.lti` and :meth:`System.state_affine` build through, by class name. Filled
+#: by ``model/_forms.py`` (whose classes build Systems) when it is imported, as the package's ``__init__`` does: this
+#: module does not import that one, so the two do not import each other.
+FORMS: dict[str, Any] = {}
+
 
 def exact(value: float) -> sp.Rational:
     """The exact rational of a float's shortest decimal form (0.1 -> 1/10)."""
@@ -373,13 +378,11 @@ class System:
         lines += [f"  {n} = {e}" for n, e in zip(self._outputs, self._h)]
         return "\n".join(lines)
 
-    # -- constructors for structured forms (see model/_forms.py) -----------------------
+    # -- constructors for structured forms (see model/_forms.py, which fills FORMS) -----
     @staticmethod
     def lti(A: Any, B: Any = None, C: Any = None, D: Any = None, **names: Any) -> System:
         """An LTI system x' = Ax + Bu, y = Cx + Du; see :class:`nlobs.model.LTI`."""
-        from ._forms import LTI
-
-        return LTI(A, B, C, D, **names).to_system()
+        return FORMS["LTI"](A, B, C, D, **names).to_system()
 
     @staticmethod
     def state_affine(A: Any, b: Any, C: Any, **names: Any) -> System:
@@ -387,9 +390,7 @@ class System:
 
         See :class:`nlobs.model.StateAffine`.
         """
-        from ._forms import StateAffine
-
-        return StateAffine(A, b, C, **names).to_system()
+        return FORMS["StateAffine"](A, b, C, **names).to_system()
 
 
 def _rebuild(states: Any, f: Any, outputs: Any, h: Any, inputs: Any, params: Any, name: str,

@@ -21,10 +21,3 @@ from ._recorded import Recording as Recording
 from ._recorded import estimate as estimate
 from ._montecarlo import MonteCarloResult as MonteCarloResult
 from ._montecarlo import montecarlo as montecarlo
-from .learning import FitResult as FitResult
-from .learning import fit_parameters as fit_parameters
-from .learning import LikelihoodFit as LikelihoodFit
-from .learning import fit_likelihood as fit_likelihood
-from .learning import log_likelihood as log_likelihood
-from .learning import TuneResult as TuneResult
-from .learning import tune as tune

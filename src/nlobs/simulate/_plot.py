@@ -3,14 +3,11 @@
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
-
-if TYPE_CHECKING:
-    from ._results import Run
 
 __all__ = ["plot_run", "style_axes", "log_axis", "LINESTYLES"]
 
@@ -21,6 +18,23 @@ LINESTYLES = ((0, (5, 3)), (0, (1, 2)), (0, (8, 3, 1, 3)), (0, (3, 1, 1, 1, 1, 1
 #: Samples drawn per line at most (every k-th sample of longer runs).
 MAX_POINTS = 2500
 FONT = {"tick": 9.0, "label": 10.0, "legend": 9.0, "title": 11.0}
+
+
+class RunLike(Protocol):
+    """What :func:`plot_run` reads of a run; :class:`~nlobs.simulate.Run` has it. A protocol, so that this module does
+    not import ``_results.py``, which calls it (``Run.plot``)."""
+
+    @property
+    def t(self) -> np.ndarray: ...
+    @property
+    def state_names(self) -> tuple[str, ...]: ...
+    @property
+    def observers(self) -> Mapping[str, Any]: ...  # name -> ObserverTrace (xhat, filtered, smoothed)
+    @property
+    def x(self) -> np.ndarray | None: ...
+    @property
+    def info(self) -> Mapping[str, Any]: ...
+    def error_norm(self, name: str | None = None) -> np.ndarray: ...
 
 
 _SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
@@ -70,7 +84,7 @@ def _label(name: str, units: Mapping[str, str]) -> str:
     return f"{name} [{unit}]" if unit else name
 
 
-def plot_run(run: Run, path: str | None = None, *, observers: Sequence[str] | None = None, width: float = 6.4,
+def plot_run(run: RunLike, path: str | None = None, *, observers: Sequence[str] | None = None, width: float = 6.4,
              title: str | None = None) -> Figure:
     """One panel per state (true state in black, one line per observer; for a smoothed run the
     smoothed estimate and, dotted, the filtered one) and, when the truth is known, a last panel with

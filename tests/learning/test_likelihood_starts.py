@@ -1,0 +1,50 @@
+"""The starts of the likelihood fit: a start that converges at the recursion's integration and then loses convergence
+when polished at the finer integration its estimate needs is a start that did not converge, and the next start is
+tried (before: the fit stopped there, reported NOT converged, and never tried the simulation-error start)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+import nlobs
+from nlobs.learning import fit_likelihood
+from nlobs.simulate import Recording
+from nlobs.learning import _fit_likelihood as F
+from nlobs.learning._likelihood import _Problem
+
+
+def _decay():
+    system = nlobs.System(states=["x"], f=["-k*x + u"], inputs=["u"], outputs=["y"], h=["x"], params={"k": 0.3})
+    t = np.arange(0.0, 40.0, 0.5)
+    u = np.sign(np.sin(0.4 * t))
+    truth = nlobs.simulate(system.with_params(k=0.5), {}, t_final=40.0, dt=0.01, x0=[1.0],
+                           inputs={"u": (t, u)})
+    y = np.interp(t, truth.t, truth.x[:, 0]) + np.random.default_rng(3).normal(0, 0.02, t.size)
+    rec = Recording(t=t, u=u[:, None], y=y[:, None], input_names=("u",), output_names=("y",))
+    return nlobs.design_ekf(system, Q=[[1e-4]], R=[[4e-4]], xhat0=[1.0], P0=[[0.1]]), rec
+
+
+def test_a_start_lost_when_integrated_finer_is_followed_by_the_next_start(monkeypatch):
+    design, rec = _decay()
+    asked: list[int] = []
+
+    def needed(self, theta):   # the first converged estimate asks for one more sub-step, later ones for none
+        asked.append(self.n_sub)
+        return self.n_sub + 1 if len(asked) == 1 else self.n_sub
+
+    real = F._optimise
+
+    def optimise(obj, phi0, start, max_iter):
+        att = real(obj, phi0, start, max_iter)
+        if start.startswith("initial guess, integrated with"):   # the polish of the first start does not converge
+            att.converged, att.message = False, "forced: not converged at the finer integration"
+        return att
+
+    monkeypatch.setattr(_Problem, "needed_substeps", needed)
+    monkeypatch.setattr(F, "_optimise", optimise)
+    fit = fit_likelihood(design, rec, ["k"], learn_noise=True)
+    starts = [(a["start"], a["converged"]) for a in fit.attempts]
+    assert starts[0] == (starts[0][0], False) and starts[0][0].startswith("initial guess, integrated with"), starts
+    assert starts[-1] == ("simulation-error fit", True), starts
+    assert fit.success and np.all(np.isfinite(fit.std))
+    assert abs(fit.parameters["k"]["estimate"] - 0.5) <= 3 * fit.parameters["k"]["std"]
