@@ -359,19 +359,7 @@ def montecarlo(
         raise ModelError(f"montecarlo: particle filters ({', '.join(prep.particle)}) are not run in Monte Carlo batches; "
                          "run nlobs.simulate once per seed for them")
     plant, n = prep.plant, prep.plant.n_states
-    sizes = [np.shape(x0)[0]] if np.ndim(x0) == 2 else []
-    if isinstance(xhat0, Mapping):
-        sizes += [np.shape(v)[0] for v in xhat0.values() if np.ndim(v) == 2]
-    elif xhat0 is not None and np.ndim(xhat0) == 2:
-        sizes.append(np.shape(xhat0)[0])
-    sizes += [np.size(v) for v in (params or {}).values() if np.ndim(v) == 1]
-    if runs is not None:
-        sizes.append(int(runs))
-    if not sizes:
-        raise ShapeError("montecarlo: nothing varies between runs: give `runs`, or x0/xhat0/params with one row per run")
-    M = sizes[0]
-    if any(s != M for s in sizes):
-        raise ShapeError(f"montecarlo: the per-run arguments disagree on the number of runs: {sorted(set(sizes))}")
+    M = _count_runs(x0, xhat0, params, runs)
     if prep.x0_tail and np.shape(x0)[-1:] == (n - len(prep.x0_tail),):  # estimated parameters: true values appended
         x0 = np.asarray(x0, dtype=float)
         x0 = np.concatenate([x0, np.broadcast_to(np.asarray(prep.x0_tail), x0.shape[:-1] + (len(prep.x0_tail),))], axis=-1)
@@ -393,22 +381,8 @@ def montecarlo(
     spec = _Spec(prep, X0, XH, P, seeds, stride, escape_bound, engine)
     report = as_progress(progress, f"montecarlo {plant.name}")
     per_run = (N + 1) * prep.layout.step.size1_in(1) * 8 if prep.seeded else 0  # bytes of one run's noise inputs
-    if scheduler is None and engine == "jax":   # one XLA program over the runs (vmap): the device parallelises
-        size = int(chunk) if chunk is not None else M
-        parts = _on_threads(spec, [(j, min(j + size, M)) for j in range(0, M, size)], 1, report)
-        info = {"workers": 1}
-    elif scheduler is None:
-        # where the whole batch runs, decided (and compiled) once: every chunk, on every thread, runs there
-        where = batch_backend(prep.layout.step, M, N, engine)
-        # compiled loops and CasADi's virtual machine (3.8) both release Python's lock while they run; a step with an
-        # optimisation inside (MHE) reports solver errors through process-wide state, so its chunks take turns
-        alone = any(getattr(o.design, "needs_mx", False) for o in prep.obs.values())
-        threads = 1 if alone else (usable_cores() if workers is None else int(workers))
-        size = int(chunk) if chunk is not None else _chunk_size(M, threads, per_run)
-        bounds = [(j, min(j + size, M)) for j in range(0, M, size)]
-        threads = min(threads, len(bounds))
-        parts = _on_threads(replace(spec, engine=where), bounds, threads, report)
-        info = {"workers": threads}
+    if scheduler is None:
+        parts, size, info = _on_this_machine(spec, M, N, engine, workers, chunk, per_run, report)
     else:
         parts, size, info = _on_dask(scheduler, spec, M, chunk, per_run, report)
     S = np.concatenate([p[0] for p in parts])
@@ -417,6 +391,43 @@ def montecarlo(
     return _result(spec, S, O, status, tol, inputs, info={"dt": dt, "save_every": stride, "engine": engine,
                                                           "dask": scheduler is not None, "chunk": size, **info})
 
+
+
+def _count_runs(x0: Any, xhat0: Any, params: Any, runs: int | None) -> int:
+    """The number of runs the per-run arguments agree on."""
+    sizes = [np.shape(x0)[0]] if np.ndim(x0) == 2 else []
+    if isinstance(xhat0, Mapping):
+        sizes += [np.shape(v)[0] for v in xhat0.values() if np.ndim(v) == 2]
+    elif xhat0 is not None and np.ndim(xhat0) == 2:
+        sizes.append(np.shape(xhat0)[0])
+    sizes += [np.size(v) for v in (params or {}).values() if np.ndim(v) == 1]
+    if runs is not None:
+        sizes.append(int(runs))
+    if not sizes:
+        raise ShapeError("montecarlo: nothing varies between runs: give `runs`, or x0/xhat0/params with one row per run")
+    M = sizes[0]
+    if any(s != M for s in sizes):
+        raise ShapeError(f"montecarlo: the per-run arguments disagree on the number of runs: {sorted(set(sizes))}")
+    return M
+
+
+def _on_this_machine(spec: _Spec, M: int, N: int, engine: str, workers: int | None, chunk: int | None, per_run: int,
+                     report: Any) -> tuple[list[Any], int, dict[str, Any]]:
+    """The chunks on this machine's threads (JAX: one XLA program over every run, the device parallelises)."""
+    prep = spec.prep
+    if engine == "jax":
+        size = int(chunk) if chunk is not None else M
+        return _on_threads(spec, [(j, min(j + size, M)) for j in range(0, M, size)], 1, report), size, {"workers": 1}
+    # where the whole batch runs, decided (and compiled) once: every chunk, on every thread, runs there
+    where = batch_backend(prep.layout.step, M, N, engine)
+    # compiled loops and CasADi's virtual machine (3.8) both release Python's lock while they run; a step with an
+    # optimisation inside (MHE) reports solver errors through process-wide state, so its chunks take turns
+    alone = any(getattr(o.design, "needs_mx", False) for o in prep.obs.values())
+    threads = 1 if alone else (usable_cores() if workers is None else int(workers))
+    size = int(chunk) if chunk is not None else _chunk_size(M, threads, per_run)
+    bounds = [(j, min(j + size, M)) for j in range(0, M, size)]
+    threads = min(threads, len(bounds))
+    return _on_threads(replace(spec, engine=where), bounds, threads, report), size, {"workers": threads}
 
 #: About this many bytes of noise inputs per chunk (the per-step inputs of its runs, made before the chunk runs).
 CHUNK_BYTES = 64 * 2**20
