@@ -48,3 +48,14 @@ def test_a_start_lost_when_integrated_finer_is_followed_by_the_next_start(monkey
     assert starts[-1] == ("simulation-error fit", True), starts
     assert fit.success and np.all(np.isfinite(fit.std))
     assert abs(fit.parameters["k"]["estimate"] - 0.5) <= 3 * fit.parameters["k"]["std"]
+
+
+def test_a_start_that_puts_a_positive_unknown_below_zero_is_moved_back_inside():
+    # a simulation-error start knows no sign: k5 = -24 for a parameter scaled by its logarithm gave log(-24) = NaN
+    import numpy as np
+
+    from nlobs.learning._fit_likelihood import _Scaling
+
+    sc = _Scaling(["a", "k5"], np.array([0.02, 1.4]), np.array([-np.inf, -np.inf]), np.array([np.inf, np.inf]), set())
+    th = sc.admissible(np.array([0.05, -23.98]), np.array([0.02, 1.4]))
+    assert np.all(np.isfinite(sc.phi(th))) and th[0] == 0.05 and 0 < th[1] < 1.4

@@ -228,6 +228,11 @@ class _Scaling:
     def phi(self, theta: np.ndarray) -> np.ndarray:
         return np.where(self.log, np.log(np.where(self.log, theta, 1.0)), theta / self.scale)
 
+    def admissible(self, theta: np.ndarray, theta0: np.ndarray) -> np.ndarray:
+        """A start with every log-scaled (positive) unknown positive: one that another start (a simulation-error fit,
+        which knows no sign) put at or below 0 starts at a thousandth of its initial guess instead."""
+        return np.where(self.log & ~(theta > 0), 1e-3 * np.abs(theta0), theta)
+
     def theta(self, phi: np.ndarray) -> np.ndarray:
         return np.where(self.log, np.exp(np.where(self.log, phi, 0.0)), phi * self.scale)
 
@@ -519,7 +524,7 @@ def fit_likelihood(design: Any, recording: Recording, params: Sequence[str], *, 
     plan = [("simulation-error fit" if tried_sim else "initial guess", first)]
     while plan and len(attempts) < int(starts):
         label, th = plan.pop(0)
-        att = _optimise(obj, sc.phi(np.clip(th, lo, hi)), label, max_iter)
+        att = _optimise(obj, sc.phi(sc.admissible(np.clip(th, lo, hi), theta0)), label, max_iter)
         if att.converged:   # polished at the integration its estimate needs: a start that loses it there did not
             att, obj = _refine(prob, obj, att, max_iter)   # converge, and the next one is tried (at that integration)
         attempts.append(att)
