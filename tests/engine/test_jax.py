@@ -15,10 +15,11 @@ from nlobs.engine import run_batch
 from nlobs.engine._jax import to_jax
 from nlobs.errors import EngineError
 
-import jax  # noqa: E402  (the test extra installs it; the README's demo command does not need it)
 
 
-def test_every_operation_matches_casadi():
+def check_every_operation_matches_casadi():
+    import jax   # the test extra installs it; the README's demo command does not need it
+
     x = ca.SX.sym("x", 3)
     a, b, c = x[0], x[1], x[2]
     exprs = [a + b, a - b, a * b, a / b, -a, ca.exp(a), ca.log(b), b ** c, a ** 3, ca.sqrt(b), a ** 2, 2 * a,
@@ -38,7 +39,7 @@ def test_every_operation_matches_casadi():
         np.testing.assert_allclose(got, want, rtol=1e-13, atol=1e-14)
 
 
-def test_erfinv_matches_scipy():
+def check_erfinv_matches_scipy():
     # CasADi's own evaluation of erfinv is an approximation (8e-9 relative); the C engine refines it (engine/_codegen.py)
     from scipy.special import erfinv
 
@@ -49,7 +50,7 @@ def test_erfinv_matches_scipy():
     np.testing.assert_allclose(got, erfinv(v), rtol=1e-13)
 
 
-def test_unknown_operation_is_refused_by_name():
+def check_unknown_operation_is_refused_by_name():
     x = ca.MX.sym("x", 2)
     lut = ca.interpolant("lut", "linear", [np.linspace(0, 1, 5)], np.arange(5.0))
     f = ca.Function("f", [x], [lut(x[0]) + x[1]])
@@ -57,7 +58,7 @@ def test_unknown_operation_is_refused_by_name():
         to_jax(f)
 
 
-def test_batch_equals_c_with_escapes_and_per_run_constants():
+def check_batch_equals_c_with_escapes_and_per_run_constants():
     s, a, c = ca.SX.sym("s", 2), ca.SX.sym("a", 1), ca.SX.sym("c", 1)
     h = 0.01
     nxt = ca.vertcat(s[0] + h * s[1], s[1] + h * (c[0] * s[0] + a[0]))   # c > 0 escapes
@@ -76,7 +77,7 @@ def test_batch_equals_c_with_escapes_and_per_run_constants():
         np.testing.assert_allclose(g, r, rtol=1e-12, atol=1e-12)
 
 
-def test_montecarlo_jax_equals_c():
+def check_montecarlo_jax_equals_c():
     vdp = nlobs.System(states=["x1", "x2"], f=["x2", "mu*(1 - x1**2)*x2 - x1"], outputs=["y"], h=["x1"], params={"mu": 1.0})
     ekf = nlobs.design_ekf(vdp, Q=np.eye(2) * 1e-2, R=np.eye(1) * 1e-2, P0=np.eye(2), xhat0=[0.0, 0.0])
     x0 = np.random.default_rng(2).normal(size=(40, 2))
@@ -87,3 +88,17 @@ def test_montecarlo_jax_equals_c():
     np.testing.assert_array_equal(got.status, ref.status)
     np.testing.assert_allclose(got.x, ref.x, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(got.observers["ekf"].xhat, ref.observers["ekf"].xhat, rtol=1e-12, atol=1e-12)
+
+
+def test_in_a_process_of_its_own():
+    """JAX starts threads, and a process that has imported it must not fork afterwards (the global check races its
+    routes in forked children): these checks run in a fresh interpreter, one after another, and each failure is shown."""
+    import subprocess
+    import sys
+
+    code = ("import runpy, traceback, sys; g = runpy.run_path(sys.argv[1]); bad = 0\n"
+            "for k in [k for k in g if k.startswith('check_')]:\n"
+            "    try:\n        g[k]()\n    except Exception:\n        bad += 1; print('FAILED', k); traceback.print_exc()\n"
+            "sys.exit(1 if bad else 0)")
+    out = subprocess.run([sys.executable, "-c", code, __file__], capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stdout[-6000:] + out.stderr[-6000:]

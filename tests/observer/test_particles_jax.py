@@ -33,8 +33,12 @@ def _same(a, b):
     np.testing.assert_array_equal(b.resampled, a.resampled)
 
 
-@pytest.mark.parametrize("max_step", [None, 0.02])
-def test_jax_equals_c_given_the_same_draws(max_step):
+def check_jax_equals_c_given_the_same_draws():
+    for max_step in (None, 0.02):
+        _same_draws(max_step)
+
+
+def _same_draws(max_step):
     pf = nlobs.design_pf(VDP, Q=np.eye(2) * 1e-2, R=np.eye(1) * 0.05 ** 2, P0=np.eye(2), xhat0=[0.5, 0.0], particles=300,
                          seed=4, max_step=max_step)
     t, y, _ = _data(VDP, 3.0, 1e-3, 0.05, [2.0, 0.0])
@@ -47,7 +51,7 @@ def test_jax_equals_c_given_the_same_draws(max_step):
     _same(a, b)
 
 
-def test_jax_equals_c_on_a_map_with_inputs_and_missing_samples():
+def check_jax_equals_c_on_a_map_with_inputs_and_missing_samples():
     sys_ = nlobs.System(states=["p", "v"], f=["p + 0.1*v", "0.95*v + 0.1*u - 0.02*sin(p)"], inputs=["u"], outputs=["y"],
                         h=["atan(p)"], time="discrete", sample_time=0.1)
     pf = nlobs.design_pf(sys_, Q=np.diag([1e-4, 1e-3]), R=np.eye(1) * 0.02 ** 2, P0=np.eye(2) * 0.5, particles=200, seed=1)
@@ -63,7 +67,7 @@ def test_jax_equals_c_on_a_map_with_inputs_and_missing_samples():
     _same(c.run(t, u=u, y=y, mask=mask, draws=draws), j.run(t, u=u, y=y, mask=mask, draws=draws))
 
 
-def test_jax_engine_tracks_with_its_own_generator():
+def check_jax_engine_tracks_with_its_own_generator():
     pf = nlobs.design_pf(VDP, Q=np.eye(2) * 1e-2, R=np.eye(1) * 0.05 ** 2, P0=np.eye(2), xhat0=[0.5, 0.0], particles=500,
                          seed=4, engine="jax")
     t, y, x = _data(VDP, 5.0, 1e-3, 0.05, [2.0, 0.0])
@@ -75,6 +79,20 @@ def test_jax_engine_tracks_with_its_own_generator():
     assert err < 2 * ref + 0.02
 
 
-def test_jax_engine_refuses_the_auxiliary_scheme():
+def check_jax_engine_refuses_the_auxiliary_scheme():
     with pytest.raises(PreconditionError, match="bootstrap"):
         nlobs.design_pf(VDP, Q=np.eye(2), R=np.eye(1), particles=10, scheme="auxiliary", engine="jax")
+
+
+def test_in_a_process_of_its_own():
+    """JAX starts threads, and a process that has imported it must not fork afterwards (the global check races its
+    routes in forked children): these checks run in a fresh interpreter, one after another, and each failure is shown."""
+    import subprocess
+    import sys
+
+    code = ("import runpy, traceback, sys; g = runpy.run_path(sys.argv[1]); bad = 0\n"
+            "for k in [k for k in g if k.startswith('check_')]:\n"
+            "    try:\n        g[k]()\n    except Exception:\n        bad += 1; print('FAILED', k); traceback.print_exc()\n"
+            "sys.exit(1 if bad else 0)")
+    out = subprocess.run([sys.executable, "-c", code, __file__], capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stdout[-6000:] + out.stderr[-6000:]

@@ -8,7 +8,8 @@ then on it runs to the end. If the budget runs out first, SIAN starts in a secon
 usable answer wins; the other child is killed together with its Gröbner-engine subprocesses. An unusable answer
 (a refusal) hands over to SIAN at once.
 
-Where fork is not available (Windows, macOS), or the caller is itself a daemonic worker, the routes run one after
+Where fork is not available (Windows, macOS), the caller is itself a daemonic worker, or JAX is loaded (its threads
+make a fork unsafe), the routes run one after
 the other in this process, without a limit.
 """
 
@@ -84,7 +85,9 @@ def _stop(proc: Any) -> None:
 def _forking() -> bool:
     import multiprocessing as mp
 
-    return sys.platform.startswith("linux") and not mp.current_process().daemon
+    # a process that has imported JAX (engine="jax") runs its thread pool: a forked child could deadlock on a lock one
+    # of those threads held, so the routes run one after another there
+    return sys.platform.startswith("linux") and not mp.current_process().daemon and "jax" not in sys.modules
 
 
 def race(first: Callable[[], Any], seconds: float, second: Callable[[], Any],
