@@ -14,7 +14,10 @@ import nlobs.model
 import nlobs.learning
 import nlobs.simulate
 
-NAMESPACES = (nlobs, nlobs.design, nlobs.analysis, nlobs.model, nlobs.simulate, nlobs.learning)
+import sys
+
+# `nlobs.simulate` is the function of that name once the package is loaded: the subpackage is read from sys.modules
+NAMESPACES = (nlobs, nlobs.design, nlobs.analysis, nlobs.model, sys.modules["nlobs.simulate"], nlobs.learning)
 
 
 def _public_callables():

@@ -65,7 +65,8 @@ PER_STATE_RULE = ("convergence time: the first time after which every state's er
 
 
 def convergence_time(t: np.ndarray, e: np.ndarray, tol: float) -> float | None:
-    """The first time after which ``e`` stays at or below `tol` until the end; None if it never does."""
+    """The first time of `t` after which the error `e` (sampled at `t`) stays at or below `tol` until the end; None if
+    it never does."""
     above = np.flatnonzero(~(e <= tol))
     if above.size == 0:
         return float(t[0])
@@ -74,7 +75,7 @@ def convergence_time(t: np.ndarray, e: np.ndarray, tol: float) -> float | None:
 
 
 def steady_state_error(t: np.ndarray, e: np.ndarray, *, tail: float = 0.2) -> float | None:
-    """The error level the run settles to: the largest value of `e` over the last `tail` of the
+    """The error level the run settles to: the largest value of `e` (sampled at times `t`) over the last `tail` of the
     run, or None while the error is still decreasing there (its median over the window of the
     same length before the tail is more than 1.5 times its median over the tail)."""
     t = np.asarray(t, dtype=float)
@@ -102,10 +103,11 @@ class Band:
 
 def convergence_band(t: np.ndarray, e: np.ndarray, *, e0: float | None = None, tol: float | None = None,
                      tail: float = 0.2) -> Band:
-    """The band the convergence time is measured against (see the module docstring).
+    """The band the convergence time of the error `e`, sampled at times `t`, is measured against (see the module
+    docstring).
 
     `e0` is the initial error before any measurement (default: ``e[0]``); `tol` an absolute
-    tolerance that replaces the rule.
+    tolerance that replaces the rule; `tail` the fraction of the run at its end whose error is the steady state.
     """
     e0_ = float(e[0]) if e0 is None else float(e0)
     steady = steady_state_error(t, e, tail=tail)
@@ -182,7 +184,8 @@ def error_metrics(t: np.ndarray, e: np.ndarray, *, tol: float | None = None, e0:
     """Metrics of the error norm `e` sampled at times `t` (see :class:`Metrics`).
 
     `e0` is the error of the initial estimate before any measurement (default ``e[0]``); `tol`
-    an absolute convergence tolerance (default: the band of :data:`CONVERGENCE_RULE`).
+    an absolute convergence tolerance (default: the band of :data:`CONVERGENCE_RULE`); `tail` the fraction of the run
+    at its end over which the RMS error is taken.
     """
     t = np.asarray(t, dtype=float)
     e = np.asarray(e, dtype=float)
