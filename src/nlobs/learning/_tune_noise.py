@@ -76,38 +76,15 @@ from ..simulate._loop import Loop
 from ..simulate._recorded import Recording
 from ._likelihood import _Problem, _Recursion
 
-__all__ = ["tune", "TuneResult", "TUNED_KINDS"]
+__all__ = ["tune", "TuneResult", "tuned_kinds"]
 
-class _Tuned(dict):  # type: ignore[type-arg]
-    """Kinds tune takes, and the filter whose likelihood tunes each: read from the registry (``@kind(likelihood=...)``)
-    when first used. MHE declares the EKF's likelihood for the weights of its cost, which ``design --run`` shares; tune
-    itself designs filters, not an estimator of a different kind."""
+def tuned_kinds() -> dict[str, str]:
+    """Kinds tune takes, and the filter whose likelihood tunes each: read from the registry (``@kind(likelihood=...)``).
+    MHE declares the EKF's likelihood for the weights of its cost, which ``design --run`` shares; tune itself designs
+    filters, not an estimator of a different kind."""
+    from ..design import KINDS
 
-    def _fill(self) -> None:
-        if not super().__len__():
-            from ..design import KINDS
-
-            self.update({k: v.likelihood for k, v in KINDS.items() if v.likelihood and k != "mhe"})
-
-    def __getitem__(self, k: str) -> str:
-        self._fill()
-        return super().__getitem__(k)
-
-    def __contains__(self, k: object) -> bool:
-        self._fill()
-        return super().__contains__(k)
-
-    def __iter__(self) -> Any:
-        self._fill()
-        return super().__iter__()
-
-    def __len__(self) -> int:
-        self._fill()
-        return super().__len__()
-
-
-#: Kinds tune takes, and the filter whose likelihood tunes each.
-TUNED_KINDS: dict[str, str] = _Tuned()
+    return {k: v.likelihood for k, v in KINDS.items() if v.likelihood and k != "mhe"}
 #: Bounds of each variance relative to its reference (Q, R, P(0)).
 Q_RANGE, R_RANGE, P0_RANGE = (1e-8, 1e8), (1e-6, 1e6), (1e-6, 1e6)
 #: Converged when a further Newton step would move the estimate by less than 0.01 standard errors (squared).
@@ -200,8 +177,8 @@ class TuneResult:
         from ..design import KINDS, options_of
 
         d = self.info["design"] if design is None else getattr(design, "design", design)
-        if not _is_design(d) or d.method not in TUNED_KINDS:
-            raise PreconditionError(f"TuneResult.apply: give a design of kind {', '.join(TUNED_KINDS)}, got "
+        if not _is_design(d) or d.method not in tuned_kinds():
+            raise PreconditionError(f"TuneResult.apply: give a design of kind {', '.join(tuned_kinds())}, got "
                                     f"{getattr(d, 'method', type(d).__name__)!r}")
         if d.system.n_states != self.Q.shape[0] or d.system.n_outputs != self.R.shape[0]:
             raise ShapeError(f"TuneResult.apply: the design has {d.system.n_states} states and {d.system.n_outputs} outputs; "
@@ -336,11 +313,11 @@ def _start_design(design: Any, observer: str, caller: str) -> ObserverDesign:
         design = design_from_config(design.observer_system, c.kind, c.options, where=f"{design.path}: observers.{name}")
     d = getattr(design, "design", design)
     if not _is_design(d):
-        raise TypeError(f"{caller}: give an observer design of kind {', '.join(TUNED_KINDS)} (nlobs.design_ekf(...), an "
+        raise TypeError(f"{caller}: give an observer design of kind {', '.join(tuned_kinds())} (nlobs.design_ekf(...), an "
                         f"advisor's candidate's .design) or a model file that configures one; got {type(design).__name__}")
-    if d.method not in TUNED_KINDS:
+    if d.method not in tuned_kinds():
         raise PreconditionError(f"{caller}: observer kind {d.method!r} has no noise covariances to tune here; supported: "
-                                f"{', '.join(TUNED_KINDS)}")
+                                f"{', '.join(tuned_kinds())}")
     if d.method == "ekf" and getattr(d, "update", None) is None and not d.system.is_discrete:
         raise PreconditionError(f"{caller}: the EKF in continuous mode takes R as an intensity and no samples; tune the "
                                 "continuous-discrete EKF (mode='continuous-discrete', the default)")
@@ -357,7 +334,7 @@ def _likelihood_design(d: ObserverDesign, notes: list[str]) -> ObserverDesign:
     from ..design import design_ekf, design_ukf
 
     v = d.certificate.values
-    kind = TUNED_KINDS[d.method]
+    kind = tuned_kinds()[d.method]
     common = {"Q": v["Q"], "R": v["R"], "P0": v["P0"], "xhat0": np.asarray(d.xhat0, dtype=float).reshape(-1)}
     if d.method != kind:   # a square-root form (the same filter up to rounding), the iterated EKF, the pf
         from ..design import KINDS
