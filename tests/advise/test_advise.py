@@ -292,3 +292,12 @@ def test_riccati_weight_floor_is_taken_in_the_states_own_scales():
     assert 1.0 <= W < 1e4                                     # σ²T_s = 1, raised only as far as the step limit needs
     e = adv.run.error_norm("kalman_bucy")
     assert e[-1] < 0.01 * e[0]
+
+
+def test_rank_of_candidates_equal_as_shown_is_by_name_whatever_the_order_they_finished():
+    # filters that compute the same estimate in another order (ekf, iekf, ukf on a linear output) differ in the last
+    # bits; the ranking shows 6 figures, so its order among them must not follow rounding or completion order
+    a = [Score("ukf", "ok", 1.0 + 3e-15, 0.47, 1.0), Score("ekf", "ok", 1.0, 0.47, 1.0),
+         Score("iekf", "ok", 1.0 + 1e-15, 0.47 + 1e-16, 1.0)]
+    for order in (a, a[::-1], [a[1], a[0], a[2]]):
+        assert [x.kind for x in rank(order)] == ["ekf", "iekf", "ukf"]

@@ -164,9 +164,15 @@ def _key(s: Score) -> float:
     return s.normalised_rms if s.normalised_rms is not None else s.rms_error
 
 
+def _shown(v: float) -> float:
+    """`v` to the 6 significant figures a ranking shows: candidates equal there (filters that compute the same
+    estimate in another order) are ordered by name, the same on every run, not by rounding or by which finished first."""
+    return float(f"{v:.6g}")
+
+
 def _ordered(scores: Sequence[Score]) -> list[Score]:
     """Finite errors (per-state normalised, :attr:`Score.normalised_rms`) grouped within a factor :data:`TIE`, each
-    group by convergence time."""
+    group by convergence time, then by error and name as shown (:func:`_shown`)."""
     ok = sorted(scores, key=_key)
     out: list[Score] = []
     i = 0
@@ -175,7 +181,8 @@ def _ordered(scores: Sequence[Score]) -> list[Score]:
         while j + 1 < len(ok) and _key(ok[j + 1]) <= TIE * _key(ok[i]):
             j += 1
         group = ok[i:j + 1]
-        out += sorted(group, key=lambda s: (s.convergence_time is None, s.convergence_time or 0.0, _key(s)))
+        out += sorted(group, key=lambda s: (s.convergence_time is None, _shown(s.convergence_time or 0.0), _shown(_key(s)),
+                                            s.kind))
         i = j + 1
     return out
 
