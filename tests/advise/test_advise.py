@@ -7,6 +7,7 @@ eigenvalues with NumPy, PDEs and left inverses with SymPy at random points, Jaco
 
 from __future__ import annotations
 
+import textwrap
 import numpy as np
 import pytest
 import sympy as sp
@@ -301,3 +302,28 @@ def test_rank_of_candidates_equal_as_shown_is_by_name_whatever_the_order_they_fi
          Score("iekf", "ok", 1.0 + 1e-15, 0.47 + 1e-16, 1.0)]
     for order in (a, a[::-1], [a[1], a[0], a[2]]):
         assert [x.kind for x in rank(order)] == ["ekf", "iekf", "ukf"]
+
+
+def test_rates_are_written_in_the_models_time_unit():
+    # a model in hours: its rates are per hour (a note that says s⁻¹ misreads ω_p by a factor 3600)
+    from nlobs import loads_model
+
+    text = '''
+    name = "decay"
+    states = ["x"]
+    outputs = ["y"]
+    [dynamics]
+    x = "-2*x"
+    [output]
+    y = "x"
+    [units]
+    t = "{unit}"
+    [simulation]
+    t_final = 5.0
+    dt = 0.01
+    x0 = [1.0]
+    '''
+    for unit, per in (("h", "h⁻¹"), ("s", "s⁻¹"), ("min", "min⁻¹")):
+        adv = advise(loads_model(textwrap.dedent(text.format(unit=unit))), kinds=["ekf"])
+        note = next(n for n in adv.notes if n.startswith("time scale"))
+        assert f"ω_p = 2 {per}" in note and f"ω_o = 6 {per}" in note, note

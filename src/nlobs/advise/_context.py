@@ -173,6 +173,7 @@ class Context:
     constant: tuple[int, ...] = ()         # the states the nominal run leaves where they start (biases, constants)
     resolvable: np.ndarray | None = None   # δ per state: the smallest offset of x(0) the run resolves (inf: not seen)
     quiet: tuple[int, ...] = ()            # states that move on the run by less than δ (a height on a flat road)
+    rate_unit: str = "s⁻¹"                 # a rate in the model's time unit (rate_unit)
     cramer_rao: np.ndarray | None = None   # per state: the Cramér–Rao bound of x(0) from the run's samples (cramer_rao)
 
     @property
@@ -221,7 +222,7 @@ class Context:
         if np.any(np.diag(W2) < floor):
             W2[np.diag_indices_from(W2)] = np.maximum(np.diag(W2), floor)
             notes.append(f"W raised from σ²T_s to {floor:.3g} so that the filter's gains stay below the step limit "
-                         f"{lim:.3g} s⁻¹ (a continuous-time filter cannot be faster than the samples)")
+                         f"{lim:.3g} {self.rate_unit} (a continuous-time filter cannot be faster than the samples)")
         if C is not None and C.size:
             rate = float(np.max(np.linalg.eigvals(C @ M @ C.T @ np.linalg.inv(W2)).real))
             if rate > 0.5 * lim:
@@ -318,8 +319,14 @@ def _jacobians(system: System, s: Mapping[str, np.ndarray]) -> np.ndarray:
     return jacobians_at(system, s["t"], s["x"], s["u"])[0]
 
 
+def rate_unit(model_file: ModelFile | None) -> str:
+    """How a rate is written in the model's time unit (``[units] t``): ``s⁻¹`` by default, ``h⁻¹`` for a model in hours."""
+    unit = str((model_file.units if model_file is not None else {}).get("t", "s")).strip() or "s"
+    return f"{unit}⁻¹" if unit.isalpha() else f"1/({unit})"
+
+
 def _time_scales(system: System, s: Mapping[str, np.ndarray], t_final: float, scale: np.ndarray,
-                 where: str = "on the run") -> tuple[float, str]:
+                 where: str = "on the run", per: str = "s⁻¹") -> tuple[float, str]:
     J = _jacobians(system, s)
     J = J[np.all(np.isfinite(J), axis=(1, 2))]
     if not J.size:
@@ -329,13 +336,13 @@ def _time_scales(system: System, s: Mapping[str, np.ndarray], t_final: float, sc
         lam = np.abs(np.linalg.eigvals(J)).ravel()
         rates = np.abs(np.log(np.clip(lam, 1e-3, None))) / Ts
         omega = float(max(np.max(rates, initial=0.0), 3.0 / t_final))
-        return omega, (f"ω_p = {omega:.3g} s⁻¹ (fastest |ln|eig ∂f/∂x||/T_s of the map {where}, floor 3/t_final = "
+        return omega, (f"ω_p = {omega:.3g} {per} (fastest |ln|eig ∂f/∂x||/T_s of the map {where}, floor 3/t_final = "
                        f"{3.0 / t_final:.3g})")
     rho = float(np.max(np.abs(np.linalg.eigvals(J)), initial=0.0))
     Js = J * scale[None, None, :] / scale[None, :, None]         # D⁻¹JD, D = diag(scale): in the states' own units
     norm = float(np.max(np.linalg.norm(Js, 2, axis=(1, 2)), initial=0.0))
     omega = max(rho, 0.2 * norm, 3.0 / t_final)
-    why = (f"ω_p = {omega:.3g} s⁻¹ (largest |eig ∂f/∂x| {where} {rho:.3g}, ‖D⁻¹ ∂f/∂x D‖₂ up to {norm:.3g} with D the "
+    why = (f"ω_p = {omega:.3g} {per} (largest |eig ∂f/∂x| {where} {rho:.3g}, ‖D⁻¹ ∂f/∂x D‖₂ up to {norm:.3g} with D the "
            f"states' scales, floor 3/t_final = {3.0 / t_final:.3g})")
     return omega, why
 
@@ -784,7 +791,8 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
             if still[i]:
                 scale[i] = max(v, float(delta[i])) if seen[i] else v
         region = _region(system, nominal, model.inputs)
-        omega_p, scale_note = _time_scales(system, {key: v[k] for key, v in s.items()}, t_final, scale)
+        omega_p, scale_note = _time_scales(system, {key: v[k] for key, v in s.items()}, t_final, scale,
+                                             per=rate_unit(model_file))
         # the local scale: the distance a state covers at its fastest rate in 2/ω_p, at most its range (a position that
         # travels a kilometre, an angle that winds five turns: their range is no measure of the uncertainty a filter
         # carries over one time scale), at least the offset the run resolves; a constant's is its uncertainty
@@ -798,7 +806,8 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
         pts = {"t": np.zeros(1), "x": np.zeros((1, system.n_states)), "u": np.zeros((1, system.n_inputs))}
         scale = np.ones(system.n_states)
         local = scale
-        omega_p, scale_note = _time_scales(system, pts, t_final, scale, "at x = 0, u = 0")
+        omega_p, scale_note = _time_scales(system, pts, t_final, scale, "at x = 0, u = 0",
+                                             per=rate_unit(model_file))
         region = {}
         delta = crlb = np.full(system.n_states, np.inf)
         still = quiet = np.zeros(system.n_states, dtype=bool)
@@ -808,7 +817,7 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
         if sc.sample_period:
             limit = min(limit, 0.5 / sc.sample_period)
     omega_o = float(min(3.0 * omega_p, limit))
-    notes.append(f"time scale: {scale_note}; observer rate ω_o = {omega_o:.3g} s⁻¹ (3 ω_p"
+    notes.append(f"time scale: {scale_note}; observer rate ω_o = {omega_o:.3g} {rate_unit(model_file)} (3 ω_p"
                  + (f", capped at {limit:.3g} by the step/sample period" if 3.0 * omega_p > limit else "") + ")")
     period = (sc.sample_period or sc.dt) if sc is not None else 1e-2
     R = np.diag(sig ** 2)
@@ -838,7 +847,7 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
                   P0, noise_note, notes=notes, recording=recording, local_scale=np.asarray(local, dtype=float),
                   constant=tuple(int(i) for i in np.flatnonzero(still)) if nominal is not None else (),
                   resolvable=np.asarray(delta, dtype=float), quiet=tuple(int(i) for i in np.flatnonzero(quiet)),
-                  cramer_rao=np.asarray(crlb, dtype=float))
+                  cramer_rao=np.asarray(crlb, dtype=float), rate_unit=rate_unit(model_file))
     _blockers(ctx, model, unknown, rep, rep_sig, nominal, recording)
     return ctx
 

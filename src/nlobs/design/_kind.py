@@ -60,6 +60,7 @@ class TuningContext(Protocol):
     P0: Any                   # initial covariance from the offset of x̂(0)
     omega_p: float            # the plant's fastest rate on the run (rad/s)
     omega_o: float            # the observer's target rate (3 ω_p)
+    rate_unit: str            # how a rate is written in the model's time unit ("s⁻¹", "h⁻¹")
     noise_note: str           # how Q and R were chosen, as a user reads it
     uco: dict[str, Any] | None
 

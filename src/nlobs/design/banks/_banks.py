@@ -151,8 +151,8 @@ def tune_banks(ctx: Any) -> Tuning:
                       "condition than a stable linearisation)", L=rounded(P))
     speed = float(np.linalg.norm(P, 2)) * ctx.output_gain
     if speed > ctx.step_limit():
-        return Tuning.fails(f"a gain with λ(∂f/∂x + P ∂h/∂x) < 0 on the region needs ‖P‖·‖∂h/∂x‖ ≈ {speed:.3g} s⁻¹, beyond what the "
-                      f"step allows ({ctx.step_limit():.3g} s⁻¹); reduce dt / the sample period, or shrink the region", L=rounded(P))
+        return Tuning.fails(f"a gain with λ(∂f/∂x + P ∂h/∂x) < 0 on the region needs ‖P‖·‖∂h/∂x‖ ≈ {speed:.3g} {ctx.rate_unit}, beyond what the "
+                      f"step allows ({ctx.step_limit():.3g} {ctx.rate_unit}); reduce dt / the sample period, or shrink the region", L=rounded(P))
     region = {k: list(v) for k, v in {**box, **region_inputs(ctx)}.items()}
     if ctx.system.is_time_varying:
         region["t"] = [0.0, float(ctx.scenario.t_final)]
