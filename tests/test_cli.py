@@ -320,3 +320,22 @@ def test_estimate_plot_draws_the_estimates(tmp_path, capsys):
 
     img = mpimg.imread(png)
     assert img.shape[0] > 300 and img.shape[1] > 300 and img.std() > 0.05   # a drawn figure, not a blank page
+
+
+def test_estimate_plot_labels_the_axes_with_the_files_units(tmp_path, capsys, monkeypatch):
+    # simulate --plot wrote 'X [g/L]' and 't [h]'; estimate --plot on the same file wrote 'X' and 't'
+    model = tmp_path / "decay.toml"
+    model.write_text('name = "decay"\nstates = ["x"]\noutputs = ["y"]\n[dynamics]\nx = "-0.5*x"\n[output]\ny = "x"\n'
+                     '[units]\nx = "g/L"\nt = "h"\n[simulation]\nt_final = 2.0\ndt = 0.01\nx0 = [1.0]\nnoise = { y = 0.01 }\n'
+                     'seed = 1\n[observers.ekf]\nkind = "ekf"\nQ = [[1e-4]]\nR = [[1e-4]]\nxhat0 = [0.5]\n')
+    sim_csv, png = tmp_path / "sim.csv", tmp_path / "est.png"
+    assert main(["simulate", str(model), "--output", str(sim_csv), "--json"]) == 0
+    import matplotlib.figure
+
+    labels = []
+    real = matplotlib.figure.Figure.savefig
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig",
+                        lambda self, *a, **k: (labels.extend(ax.get_ylabel() for ax in self.axes),
+                                               labels.extend(ax.get_xlabel() for ax in self.axes), real(self, *a, **k))[-1])
+    assert main(["estimate", str(model), str(sim_csv), "--observer", "ekf", "--plot", str(png)]) == 0
+    assert "x [g/L]" in labels and "t [h]" in labels, labels

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 from typing import Any
 
@@ -63,6 +64,8 @@ def run(args: argparse.Namespace) -> int:
     run_ = estimate(designs, rec, xhat0=xhat0, on_missing="skip" if args.skip_missing else "error", hold=args.hold,
                     max_step=args.max_step, engine=args.engine, progress=not args.json, smooth=args.smooth,
                     delay=dict(mf.simulation.delay) or None)
+    if mf.units:   # the file's [units] label the plot's axes, as simulate's
+        run_ = dataclasses.replace(run_, info={**run_.info, "units": dict(mf.units)})
     if args.output:
         run_.to_csv(args.output)
     if args.plot:
