@@ -22,7 +22,7 @@ import numpy as np
 
 import nlobs
 from nlobs.learning import tune
-from nlobs.simulate import Recording
+from nlobs.estimation import Recording
 
 T = 0.01
 PEND = nlobs.System(states=["th", "om"], f=[f"th + {T}*om", f"om + {T}*(-9.81*sin(th) - 0.2*om + u)"], inputs=["u"],

@@ -3,8 +3,8 @@
 The data flow, one way: ``model`` (System, forms, model files) -> ``engine`` (CasADi
 compilation, integrators, C) -> ``algebra`` -> ``analysis`` -> ``design`` (one function per method,
 returning an ObserverDesign with its evidence) -> ``observer`` (the runnable contract) ->
-``simulate`` (plant + observers, noise, sampling, recorded data) -> ``learning`` (parameters and noise fitted
-to recordings) -> ``advise`` -> ``report`` -> ``cli``.
+``simulate`` (plant + observers, noise, sampling, Monte Carlo) -> ``estimation`` (observers and smoothers on
+recorded data) -> ``learning`` (parameters and noise fitted to recordings) -> ``advise`` -> ``report`` -> ``cli``.
 
 Every public name below is loaded when it is first used (PEP 562): ``import nlobs`` itself imports
 nothing heavy (SymPy, CasADi, SciPy and matplotlib load with the first model, run or plot), so
@@ -23,7 +23,7 @@ from ._version import __version__ as __version__
 #: Public name -> (module, attribute); attribute None: the module itself.
 _LAZY: dict[str, tuple[str, str | None]] = {
     **{name: (f".{name}", None) for name in ("analysis", "design", "engine", "model", "observer", "interop", "errors",
-                                             "references", "algebra", "learning")},
+                                             "references", "algebra", "estimation", "learning")},
     **{name: (".design", name) for name in ("Certificate", "ObserverDesign", "DREM", "GD", "Gradient", "LeastSquares",
                                             "LinearRegression", "WindowedNLS", "excitation_report", "KINDS")},
     **{name: (".errors", name) for name in ("ConvergenceWarning", "DataError", "FiniteEscapeError", "SolverError",
@@ -31,8 +31,9 @@ _LAZY: dict[str, tuple[str, str | None]] = {
                                             "PreconditionError", "ShapeError", "EngineError")},
     **{name: (".model", name) for name in ("LTI", "StateAffine", "System", "load_model", "loads_model")},
     **{name: (".observer", name) for name in ("CompiledObserver", "Observer", "OnlineObserver", "CExport", "export_c")},
-    **{name: (".simulate", name) for name in ("Adaptive", "MonteCarloResult", "Noise", "ProcessNoise", "Recording", "Run",
-                                              "Sampling", "Simulation", "estimate", "montecarlo", "simulate")},
+    **{name: (".simulate", name) for name in ("Adaptive", "MonteCarloResult", "Noise", "ProcessNoise", "Run", "Sampling",
+                                              "Simulation", "montecarlo", "simulate")},
+    **{name: (".estimation", name) for name in ("Recording", "estimate")},
     **{name: (".learning", name) for name in ("fit_parameters", "LikelihoodFit", "fit_likelihood", "log_likelihood",
                                               "TuneResult")},
     "analyze": (".analysis", "analyze"),

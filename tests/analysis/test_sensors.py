@@ -406,7 +406,7 @@ def test_to_dict_has_the_issue_contract(nl6):
 def test_a_smoothed_kalman_filter_reaches_the_posterior_bound_on_the_lti_model(lti):
     """Linear and Gaussian: the RTS-smoothed x̂(0) of the EKF (here the Kalman filter) has the posterior covariance
     (P0⁻¹ + F)⁻¹ exactly, so over 300 noise draws its RMS error is that bound within sampling error (±4 % one σ)."""
-    from nlobs.simulate._sensors import PRIOR_FACTOR, sensor_errors
+    from nlobs.estimation._sensors import PRIOR_FACTOR, sensor_errors
 
     mf = loads_model(_lti_text(), path="lti4.toml")
     best = lti.best.sensors

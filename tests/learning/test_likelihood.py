@@ -16,7 +16,7 @@ import nlobs
 from nlobs.cli import main
 from nlobs.errors import PreconditionError
 from nlobs.learning import fit_likelihood, log_likelihood
-from nlobs.simulate import Recording
+from nlobs.estimation import Recording
 
 A = np.array([[0.0, 1.0], [-2.0, -0.5]])
 B = np.array([0.0, 1.0])

@@ -16,7 +16,7 @@ from scipy.stats import norm
 
 import nlobs
 from nlobs.learning import fit_likelihood, log_likelihood
-from nlobs.simulate import Recording
+from nlobs.estimation import Recording
 from nlobs.learning._regimes import filter_model, log_ndtr
 
 

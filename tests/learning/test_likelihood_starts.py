@@ -8,7 +8,7 @@ import numpy as np
 
 import nlobs
 from nlobs.learning import fit_likelihood
-from nlobs.simulate import Recording
+from nlobs.estimation import Recording
 from nlobs.learning import _fit_likelihood as F
 from nlobs.learning._likelihood import _Problem
 

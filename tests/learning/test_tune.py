@@ -20,7 +20,7 @@ from scipy.optimize import minimize
 import nlobs
 from nlobs.cli import main
 from nlobs.learning import tune
-from nlobs.simulate import Recording
+from nlobs.estimation import Recording
 
 A_MAP = np.array([[1.0, 0.1], [-0.2, 0.9]])
 MAP = nlobs.System(states=["x1", "x2"], f=["x1 + 0.1*x2", "-0.2*x1 + 0.9*x2"], outputs=["y"], h=["x1"],

@@ -10,6 +10,7 @@ import pytest
 import nlobs
 import nlobs.analysis
 import nlobs.design
+import nlobs.estimation
 import nlobs.model
 import nlobs.learning
 import nlobs.simulate
@@ -17,7 +18,8 @@ import nlobs.simulate
 import sys
 
 # `nlobs.simulate` is the function of that name once the package is loaded: the subpackage is read from sys.modules
-NAMESPACES = (nlobs, nlobs.design, nlobs.analysis, nlobs.model, sys.modules["nlobs.simulate"], nlobs.learning)
+NAMESPACES = (nlobs, nlobs.design, nlobs.analysis, nlobs.model, sys.modules["nlobs.simulate"], nlobs.estimation,
+              nlobs.learning)
 
 
 def _public_callables():

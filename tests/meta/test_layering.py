@@ -7,8 +7,10 @@ from pathlib import Path
 
 import nlobs
 
-ORDER = ["model", "engine", "algebra", "analysis", "design", "observer", "simulate", "learning", "advise", "report"]
-TOP = {"examples": 9, "interop": 10, "cli": 11}  # examples beside report; interop above; the CLI on top of everything
+ORDER = [
+    "model", "engine", "algebra", "analysis", "design", "observer", "simulate", "estimation", "learning", "advise", "report",
+]
+TOP = {"examples": 10, "interop": 11, "cli": 12}  # examples beside report; interop above; the CLI on top of everything
 ROOT = Path(nlobs.__file__).parent
 
 

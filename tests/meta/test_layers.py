@@ -31,7 +31,8 @@ LAYERS: tuple[frozenset[str], ...] = (
     frozenset({"analysis"}),
     frozenset({"design"}),
     frozenset({"observer"}),
-    frozenset({"simulate"}),
+    frozenset({"simulate"}),            # plant and observer runs, Monte Carlo, results
+    frozenset({"estimation"}),          # observers and smoothers on recordings, the sensor check
     frozenset({"learning"}),            # parameters and noise fitted to recordings (fit, likelihood, tune)
     frozenset({"advise", "interop"}),
     frozenset({"examples"}),

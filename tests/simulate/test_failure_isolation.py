@@ -12,7 +12,8 @@ import nlobs
 from nlobs import FiniteEscapeError, SolverError, System, design_ekf, design_mhe, simulate
 from nlobs.errors import EngineError
 from nlobs.cli import main
-from nlobs.simulate import Noise, Recording
+from nlobs.estimation import Recording
+from nlobs.simulate import Noise
 
 PEND = System(states=["x1", "x2"], inputs=["u"], outputs=["y"], f=["x2", "-9.81*sin(x1) - 0.5*x2 + u"], h=["x1"],
               name="pendulum")

@@ -16,7 +16,7 @@ from ..design import KINDS
 from ..errors import ModelError
 from ..model import ModelFile, System, load_model
 from ..references import cite
-from ..simulate import Recording
+from ..estimation import Recording
 from ._advice import Advice, Candidate, Score
 from ..design._constructions import evaluate
 from ._context import Context, build_context, file_true_parameters, file_unknown_params

@@ -78,7 +78,8 @@ import sympy as sp
 from ..analysis import ObservabilityReport, analyze, matrix_measure, pbh_test
 from ..errors import FiniteEscapeError, FormError, ModelError
 from ..model import LTI, ModelFile, System
-from ..simulate import Noise, ProcessNoise, Recording, Run, Sampling, simulate
+from ..estimation import Recording
+from ..simulate import Noise, ProcessNoise, Run, Sampling, simulate
 from ._forms import recognise
 
 __all__ = ["Scenario", "Context", "build_context", "file_unknown_params", "file_true_parameters"]

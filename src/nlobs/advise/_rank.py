@@ -34,7 +34,8 @@ from ..engine import compile_system
 from ..engine._budget import observer_budget, time_budget
 from ..errors import DataError, EngineError, FiniteEscapeError, SolverError, TimeBudgetError
 from ..model import System
-from ..simulate import Run, estimate, simulate
+from ..estimation import estimate
+from ..simulate import Run, simulate
 from ..simulate._isolate import failure_of
 from ._advice import WHAT_TO_TRY, Candidate, Score
 from ._context import Context

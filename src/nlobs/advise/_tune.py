@@ -9,7 +9,7 @@ from typing import Any
 
 from ..errors import PreconditionError
 from ..model import ModelFile, load_model
-from ..simulate import Recording
+from ..estimation import Recording
 from ..learning._tune_noise import TuneResult
 from ..learning._tune_noise import tune as _tune
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..simulate import Recording
+from ..estimation import Recording
 from ..learning._tune_noise import tune as _tune
 
 __all__ = ["family", "scenario_recording", "tune_candidates"]

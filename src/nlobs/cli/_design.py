@@ -41,7 +41,7 @@ def add_parser(sub: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     from ..advise import advise
     from ..model import load_model
-    from ..simulate import Recording
+    from ..estimation import Recording
 
     mf = load_model(args.model)
     unknown = None

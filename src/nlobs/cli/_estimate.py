@@ -50,7 +50,7 @@ def add_parser(sub: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..model import load_model
-    from ..simulate import Recording, estimate
+    from ..estimation import Recording, estimate
 
     mf = load_model(args.model)
     system = mf.system

@@ -92,7 +92,7 @@ def _bounds(items: list[str] | None) -> dict[str, tuple[float | None, float | No
 def run(args: argparse.Namespace) -> int:
     from ..model import load_model
     from ..learning import fit_parameters
-    from ..simulate import Recording
+    from ..estimation import Recording
     from ..simulate._results import write_csv
 
     mf = load_model(args.model)

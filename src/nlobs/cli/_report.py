@@ -29,7 +29,7 @@ def run(args: argparse.Namespace) -> int:
     from ..advise import advise
     from ..model import load_model
     from ..report import write_model_report
-    from ..simulate import Recording
+    from ..estimation import Recording
 
     mf = load_model(args.model)
     unknown = [p.strip() for p in args.params.split(",") if p.strip()] if args.params is not None else None

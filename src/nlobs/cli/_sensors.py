@@ -3,7 +3,7 @@ generic rank), and the Cramér–Rao bounds each set allows on the file's ``[sim
 
 The candidates are the file's ``[sensors.NAME]`` tables (expr, noise, optional cost), else every state and every
 output. ``--run`` also runs a smoothed extended Kalman filter with each listed set on the run (simulate layer:
-:func:`nlobs.simulate._sensors.sensor_errors`) and shows the error of its x̂(0) beside each bound.
+:func:`nlobs.estimation.sensor_errors`) and shows the error of its x̂(0) beside each bound.
 """
 
 from __future__ import annotations
@@ -64,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
     if args.filter_run:
         if sel.run is None:
             raise ValueError(f"--run: {mf.path} has no [simulation] x0 to run (or --no-bounds was given)")
-        from ..simulate._sensors import sensor_errors
+        from ..estimation import sensor_errors
 
         errors = sensor_errors(mf, sel, seeds=args.draws, engine=args.engine)
     if args.plot:

@@ -50,7 +50,8 @@ def add_parser(sub: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..model import Sampled, load_model
-    from ..simulate import Recording, Sampling, simulate
+    from ..estimation import Recording
+    from ..simulate import Sampling, simulate
 
     mf = load_model(args.model)
     system, cfg = mf.system, mf.simulation

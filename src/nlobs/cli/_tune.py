@@ -44,7 +44,7 @@ def add_parser(sub: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     from ..model import load_model
     from ..learning import tune
-    from ..simulate import Recording
+    from ..estimation import Recording
 
     if args.json and args.toml:
         raise ValueError("--json and --toml: choose one output")

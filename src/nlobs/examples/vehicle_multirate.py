@@ -18,7 +18,8 @@ from ..analysis import analyze
 from ..design import design_ekf, design_ukf
 from ..model import loads_model
 from ..references import cite
-from ..simulate import Recording, estimate, simulate
+from ..estimation import Recording, estimate
+from ..simulate import simulate
 from ._base import Claim, ExampleResult, practice, rows_from_run
 
 __all__ = ["MODEL", "run"]

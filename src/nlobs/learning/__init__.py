@@ -1,5 +1,6 @@
 """Learning from recordings: model parameters (and noise levels) fitted to measured data. This stage sits above
-``simulate`` (whose recordings, compiled loop and delays it uses) and below ``advise``.
+``estimation`` (whose recordings it reads) and ``simulate`` (whose compiled loop and delays it uses), and below
+``advise``.
 
 - :func:`fit_parameters`: simulation-error least squares (the model run open loop on the recorded input);
 - :func:`log_likelihood`, :func:`fit_likelihood`: the innovations likelihood of an EKF or UKF, which accounts

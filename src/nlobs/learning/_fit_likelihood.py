@@ -35,7 +35,7 @@ import numpy as np
 from ..engine import Backend
 from ..errors import DataError, ModelError
 from ..references import cite
-from ..simulate._recorded import Recording
+from ..estimation import Recording
 from ._likelihood import ACCURACY, INFORMATION, MAX_SUBSTEPS, NOISE_NAMES, _Problem
 
 __all__ = ["fit_likelihood", "LikelihoodFit"]

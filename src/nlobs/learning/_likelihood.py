@@ -50,7 +50,7 @@ from ..engine import Backend, compile_system, rows
 from ..engine._integrate import rk4_step_rate
 from ..errors import DataError, ModelError, PreconditionError
 from ..simulate._loop import Loop
-from ..simulate._recorded import Recording
+from ..estimation import Recording
 from ._regimes import FilterModel, filter_model, log_ndtr
 
 __all__ = ["log_likelihood", "LIKELIHOOD_KINDS", "NOISE_NAMES"]

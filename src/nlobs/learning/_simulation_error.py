@@ -34,7 +34,7 @@ from ..design import check_positive
 from ..engine import compile_system, rk4_step, rows
 from ..errors import DataError, ModelError
 from ..model import System
-from ..simulate._recorded import Recording
+from ..estimation import Recording
 
 __all__ = ["fit_parameters", "FitResult"]
 

@@ -73,7 +73,7 @@ from ..engine import Backend
 from ..errors import DataError, ModelError, PreconditionError, ShapeError
 from ..references import cite
 from ..simulate._loop import Loop
-from ..simulate._recorded import Recording
+from ..estimation import Recording
 from ._likelihood import _Problem, _Recursion
 
 __all__ = ["tune", "TuneResult", "tuned_kinds"]

@@ -1,4 +1,5 @@
-"""Simulate: run plants and observers on the same measurements; recorded data; results and metrics."""
+"""Simulate: run plants and observers on the same measurements; Monte Carlo; results and metrics. Observers on
+recorded data are a layer above, :mod:`nlobs.estimation`."""
 
 from ._metrics import CONVERGENCE_RULE as CONVERGENCE_RULE
 from ._metrics import Metrics as Metrics
@@ -17,7 +18,5 @@ from ._whiteness import Whiteness as Whiteness
 from ._whiteness import ljung_box as ljung_box
 from ._run import Simulation as Simulation
 from ._run import simulate as simulate
-from ._recorded import Recording as Recording
-from ._recorded import estimate as estimate
 from ._montecarlo import MonteCarloResult as MonteCarloResult
 from ._montecarlo import montecarlo as montecarlo

@@ -4,8 +4,8 @@ x[k+1] = f(x[k], u[k], t[k]) + w[k] (w[k] the process noise of the step), y[k] =
 t[k] = k·sample_time. The plant is one CasADi ``mapaccum`` (a loop in compiled code, not in Python); each observer
 then runs over the measurements on its own (:func:`~nlobs.simulate._isolate.each_observer`: one observer's failure is
 its own), a Gaussian filter as its compiled update loop z[k] = U(t[k], z[k−1], u[k], y[k], m[k]) from its prior state
-at k = 0, a particle filter as its compiled particle loop. :func:`estimate_map` runs the same observers on a
-recording one row per step, with the fixed-interval smoothers of :mod:`._smooth_map`.
+at k = 0, a particle filter as its compiled particle loop. :func:`observers_on` is also what runs them on
+a recording, one row per step (:mod:`nlobs.estimation`, a layer above, adds the fixed-interval smoothers).
 """
 
 from __future__ import annotations
@@ -17,9 +17,9 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from ..design import KINDS, ObserverDesign
+from ..design import ObserverDesign
 from ..engine import compile_system
-from ..errors import DataError, FiniteEscapeError, ModelError, PreconditionError, ShapeError
+from ..errors import DataError, FiniteEscapeError, ModelError, ShapeError
 from ..model import System, input_signals
 from ..engine import Backend
 from ..observer import AbstractObserver, ParticleObserver, compiled_observer
@@ -28,8 +28,7 @@ from ._options import Noise, ProcessNoise, Sampling, channel_generators
 from ._options import xhat0_for as _xhat0_for
 from ._results import ObserverTrace, Run
 
-__all__ = ["simulate_map", "estimate_map", "map_trace", "run_map_observer", "check_map_grid", "MAX_MAP_STEPS",
-           "map_smoothable"]
+__all__ = ["simulate_map", "observers_on", "map_trace", "run_map_observer", "check_map_grid", "MAX_MAP_STEPS"]
 
 #: The most steps a discrete-time simulation stores.
 MAX_MAP_STEPS = 10_000_000
@@ -137,7 +136,7 @@ def simulate_map(plant: System, obs: Mapping[str, AbstractObserver], *, t_final:
         raise err
     Y_true = np.asarray(h.map(N + 1)(t[None, :], X.T, U.T), dtype=float).T.reshape(N + 1, plant.n_outputs)
     Y = Y_true + V
-    traces, failures, extra = _observers_on(obs, t, U, Y, np.ones_like(Y), xhat0, innovations=False)
+    traces, failures, extra = observers_on(obs, t, U, Y, np.ones_like(Y), xhat0, innovations=False)
     if extra:
         info["particles"] = extra
     return Run(plant.name, t, plant.states, plant.inputs, plant.outputs, U, Y, traces, x=X, y_true=Y_true,
@@ -163,8 +162,8 @@ def map_trace(name: str, o: AbstractObserver, t: np.ndarray, U: np.ndarray, Y: n
                          innovation=inn), {}
 
 
-def _observers_on(obs: Mapping[str, AbstractObserver], t: np.ndarray, U: np.ndarray, Y: np.ndarray, mask: np.ndarray,
-                  xhat0: Any, *, innovations: bool) -> tuple[dict[str, ObserverTrace], dict[str, Any], dict[str, Any]]:
+def observers_on(obs: Mapping[str, AbstractObserver], t: np.ndarray, U: np.ndarray, Y: np.ndarray, mask: np.ndarray,
+                 xhat0: Any, *, innovations: bool) -> tuple[dict[str, ObserverTrace], dict[str, Any], dict[str, Any]]:
     """Every observer on its own (:func:`each_observer`): the traces, the failures (an observer's blow-up or solver
     failure is its own; anything else is raised; when all fail, the first error) and the particle filters' counts.
     Particle filters and NLP estimators run one after another (their compiled loop and solver keep process-wide
@@ -187,55 +186,6 @@ def _observers_on(obs: Mapping[str, AbstractObserver], t: np.ndarray, U: np.ndar
     if failures and not traces:
         raise done[next(iter(failures))]   # type: ignore[misc]
     return traces, failures, extra
-
-
-def map_smoothable() -> tuple[str, ...]:
-    """The kinds whose run on a map has a fixed-interval smoother (:mod:`._smooth_map`), as their declarations say
-    (``@kind(..., map_smoother=...)``): the extended RTS smoother for the kinds that predict as the EKF does, the
-    unscented one for the sigma-point filters."""
-    return tuple(name for name, k in KINDS.items() if k.map_smoother)
-
-
-def estimate_map(obs: Mapping[str, AbstractObserver], recording: Any, t: np.ndarray, u: np.ndarray, y0: np.ndarray,
-                 mask: np.ndarray, xhat0: Any, smooth: bool) -> Run:
-    """Observers of a discrete-time model on a recording on its grid (one row per step; NaN: not measured), each on
-    its own; `smooth`: the fixed-interval smoother of each (see :func:`map_smoothable`)."""
-    if not all(o.system.is_discrete for o in obs.values()):
-        raise ModelError("estimate: a discrete-time model's observers run alone (no continuous-time observers beside "
-                         "them)")
-    if smooth:
-        smoothable = map_smoothable()
-        bad = [k for k, o in obs.items() if o.design.method not in smoothable or o.design.covariance is None]
-        if bad:
-            pf = " (a particle filter's smoother, by backward simulation, is not available)" \
-                if obs[bad[0]].design.method == "pf" else ""
-            raise PreconditionError(f"smoothing: observer {bad[0]!r} is of kind {obs[bad[0]].design.method!r}; smoothers of "
-                                    f"a discrete-time model exist for its {', '.join(smoothable)}{pf}")
-    for o in obs.values():
-        check_map_grid(o.system, t, f"recording ({recording.source})")
-    traces, failures, extra = _observers_on(obs, t, u, y0, mask, xhat0, innovations=True)
-    traces = {name: _smoothed(obs[name], tr, t, u) if smooth else tr for name, tr in traces.items()}
-    system = next(iter(obs.values())).system
-    info: dict[str, Any] = {"source": recording.source, "time": "discrete", "sample_time": system.sample_time}
-    if extra:
-        info["particles"] = extra
-    return Run(system.name, t, system.states, recording.input_names, recording.output_names, u,
-               np.where(mask > 0, recording.y, np.nan), traces, x=recording.x, info=info,
-               estimated_params=system.estimated_params, failures=failures)
-
-
-def _smoothed(o: AbstractObserver, tr: ObserverTrace, t: np.ndarray, u: np.ndarray) -> ObserverTrace:
-    """The trace with the smoothed means (Rauch-Tung-Striebel on the map, unscented for the sigma-point filters), the
-    filtered ones kept as `filtered`."""
-    from dataclasses import replace
-
-    from ..engine import evaluate_many
-    from ._smooth_map import rts_smooth_map
-
-    n = o.system.n_states
-    P = evaluate_many(o.design.covariance, tr.z).reshape(-1, n, n, order="F")
-    xs, Ps = rts_smooth_map(o.design, t, u, tr.xhat, P)
-    return replace(tr, xhat=xs, filtered=tr.xhat, smoothed_covariance=Ps)
 
 
 def _map_innovations(system: System, t: np.ndarray, u: np.ndarray, y: np.ndarray, mask: np.ndarray, X: np.ndarray,

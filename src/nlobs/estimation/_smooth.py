@@ -39,7 +39,7 @@ from ..engine import Backend, compile_system, rows
 from ..engine._integrate import rk4_step_rate
 from ..engine._intervals import IntervalRunner
 from ..errors import FiniteEscapeError, PreconditionError
-from ._loop import Loop
+from ..simulate._loop import Loop
 
 __all__ = ["SMOOTHABLE", "rts_smooth", "check_smoothable", "INFLATION"]
 

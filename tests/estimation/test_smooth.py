@@ -19,7 +19,7 @@ from scipy.integrate import solve_ivp
 import nlobs
 from nlobs.cli import main
 from nlobs.errors import PreconditionError
-from nlobs.simulate import Recording
+from nlobs.estimation import Recording
 
 A = np.array([[0.0, 1.0], [-2.0, -0.5]])
 B = np.array([0.0, 1.0])
@@ -110,7 +110,7 @@ def test_ekf_transition_jacobian_is_that_of_the_rk4_map():
     """The EKF smoother's A_k is the Jacobian of the RK4 map the filter integrates (nonlinear model, 4 sub-steps):
     compared with CasADi's Jacobian of that map written out here."""
     from nlobs.observer._compiled import compiled_observer, interval_table
-    from nlobs.simulate._smooth import _Replay
+    from nlobs.estimation._smooth import _Replay
 
     vdp = nlobs.System(states=["x1", "x2"], f=["x2", "1.5*(1 - x1**2)*x2 - x1"], outputs=["y"], h=["x1"])
     d = nlobs.design_ekf(vdp, Q=np.eye(2) * 1e-3, R=[[0.01]], xhat0=[1.0, 0.5])

@@ -16,10 +16,10 @@ from ..errors import (DataError, EngineError, FiniteEscapeError, ModelError, Sha
                       TimeBudgetError)
 from ..model import ModelFile, System
 from ..observer import AbstractObserver, ParticleObserver, compiled_observer
-from ._isolate import each_observer, failure_of
-from ._results import ObserverTrace, Run
-from ._options import xhat0_for as _xhat0_for
-from ._run import named_observers
+from ..simulate._isolate import each_observer, failure_of
+from ..simulate._options import xhat0_for as _xhat0_for
+from ..simulate._results import ObserverTrace, Run
+from ..simulate._run import named_observers
 
 __all__ = ["Recording", "estimate"]
 
@@ -297,7 +297,7 @@ def estimate(
         after it as well as those before. For the continuous-discrete ``ekf`` and ``ukf`` without
         bounds; other kinds are refused. The smoother's prediction is the filter's own: the RK4 map
         it integrates between samples (same sub-steps), linearised by its exact Jacobian (EKF) or
-        statistically (UKF); see :mod:`nlobs.simulate._smooth`.
+        statistically (UKF); see :mod:`nlobs.estimation._smooth`.
     delay : mapping of output name to seconds, optional
         Known measurement delays: the recording is stamped when each sample *arrived*, and a delayed output's
         value in a row was measured `delay` seconds earlier. The continuous-discrete observers apply it at the
@@ -433,7 +433,7 @@ def _estimate_one(name: str, o: AbstractObserver, recording: Recording, xhat0: A
 def _estimate_delayed(obs: Mapping[str, Any], rec: Recording, delay: Mapping[str, float], mask: np.ndarray, xhat0: Any,
                       max_step: float | None, smooth: bool, engine: Backend = "auto") -> Run:
     """Observers on a recording stamped at arrival, with the delayed samples applied when they were taken."""
-    from ._delays import TOL, Events, delays_of, latency_notes, plan, run_delayed
+    from ..simulate._delays import TOL, Events, delays_of, latency_notes, plan, run_delayed
 
     if smooth:
         raise ModelError("estimate: smoothing a recording with measurement delays is not supported (the smoother "
@@ -496,7 +496,7 @@ def _non_finite(name: str, o: AbstractObserver, rec: Recording, err: FiniteEscap
 
 def _estimate_map(obs: Mapping[str, Any], recording: Recording, t: np.ndarray, u: np.ndarray, y0: np.ndarray,
                   mask: np.ndarray, xhat0: Any, smooth: bool) -> Run:
-    """Observers of a discrete-time model on a recording on its grid: :func:`nlobs.simulate._discrete.estimate_map`."""
-    from ._discrete import estimate_map
+    """Observers of a discrete-time model on a recording on its grid: :func:`nlobs.estimation._map.estimate_map`."""
+    from ._map import estimate_map
 
     return estimate_map(obs, recording, t, u, y0, mask, xhat0, smooth)
