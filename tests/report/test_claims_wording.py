@@ -49,3 +49,16 @@ def test_a_claim_of_nlobs_that_does_not_hold_still_fails():
     assert not r.ok and r.tally == "claims 0/2 hold, 1 of the paper's checked and not true"
     assert broken.word == "FAILS" and "FAILS: every observer converges (KKLO: 3.1 A)" in _printed(r)
     assert "<span class='fail'>FAILS</span>" in example_section(r, plots=False)
+
+
+def test_the_convergence_note_states_the_rule_the_table_was_measured_by():
+    # the examples' tables come from Run.metrics, which judges each state in its own units; the demo's note and each
+    # example's section described the norm's band, a rule no longer used
+    r = ExampleResult(key="cuk", title="t", reference="r", summary="s", model="m", claims=(HOLDS,),
+                      table=[{"run": "a", "observer": "ekf", "convergence_time": 1.0, "rms_error": 0.1, "final_error": 0.1}])
+    flat = " ".join(_printed(r).split())
+    assert "every state's error" in flat and "‖x̂ − x‖ stays within a band" not in flat
+    import html as html_lib
+
+    html = " ".join(html_lib.unescape(example_section(r, plots=False)).split())
+    assert "every state's error" in html and "‖x̂ − x‖ stays within a band" not in html

@@ -101,7 +101,7 @@ class ExampleResult:
         (:func:`nlobs.analysis.analyze`).
     convergence_rule : str
         What the table's ``convergence_time`` and errors mean when the example measures them its own
-        way (default "": the rule of :meth:`nlobs.Run.metrics`, :data:`nlobs.simulate.CONVERGENCE_RULE`,
+        way (default "": the rule of :meth:`nlobs.Run.metrics`, :data:`nlobs.simulate.PER_STATE_RULE`,
         and RMS over the last 20 % of the run).
     """
 
@@ -217,7 +217,7 @@ def rows_from_run(label: str, run: Run, *, tol: float | None = None, **extra: An
     """Summary-table rows (one per observer) from a run with known true state.
 
     The convergence time is :meth:`nlobs.Run.metrics`'s: the time after which the error stays
-    within its band (`tol`, else the rule of :data:`nlobs.simulate.CONVERGENCE_RULE`).
+    within its band (`tol`, else each state's in its own units: :data:`nlobs.simulate.PER_STATE_RULE`).
     """
     rows = []
     for name in run.observers:

@@ -19,7 +19,7 @@ from ..analysis import analyze
 from ..examples import EXAMPLES, Claim, ExampleResult, find_example
 from ..examples._base import register_html_renderer
 from ..references import REFERENCES, cited_keys
-from ..simulate import CONVERGENCE_RULE
+from ..simulate import PER_STATE_RULE
 from ._html import HALF_WIDTH, bibliography, details, equations, figure, page, plain, pre, prose, section, table
 
 __all__ = ["run_demo", "DemoOutcome", "example_section", "summary_table"]
@@ -94,7 +94,7 @@ def summary_table(results: Sequence[ExampleResult]) -> SummaryTable:
     rows = [dict(row, example=r.key, run=plain(str(row["run"])), observer=plain(str(row["observer"])))
             for r in results for row in r.table]
     return SummaryTable("All observers", cols, rows,
-                        tuple(textwrap.wrap(f"{CONVERGENCE_RULE} (—: not within the run). RMS error: over the "
+                        tuple(textwrap.wrap(f"{PER_STATE_RULE} (—: not within the run). RMS error: over the "
                                             "last 20 % of the run; final err: at the final time", width=88)))
 
 
@@ -122,7 +122,7 @@ def _convergence_note(r: ExampleResult) -> str:
     """What the convergence-time column of an example means (its own rule, or the rule of nlobs.simulate)."""
     if r.convergence_rule:
         return r.convergence_rule
-    return f"{CONVERGENCE_RULE[0].upper() + CONVERGENCE_RULE[1:]} (— : not within the run). RMS over the last 20 % of the run."
+    return f"{PER_STATE_RULE[0].upper() + PER_STATE_RULE[1:]} (— : not within the run). RMS over the last 20 % of the run."
 
 
 def _observability(r: ExampleResult) -> list[str]:

@@ -2,6 +2,7 @@
 recorded data are a layer above, :mod:`nlobs.estimation`."""
 
 from ._metrics import CONVERGENCE_RULE as CONVERGENCE_RULE
+from ._metrics import PER_STATE_RULE as PER_STATE_RULE
 from ._metrics import Metrics as Metrics
 from ._metrics import convergence_band as convergence_band
 from ._metrics import steady_state_error as steady_state_error
