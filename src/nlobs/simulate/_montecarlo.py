@@ -245,9 +245,9 @@ class _Spec:
     def rerun(self, j: int, inputs: Any) -> Run:
         prep = self.prep
         plant = prep.plant.with_params(**dict(zip(prep.plant.param_names, self.params[j])))
-        sampling = Sampling(prep.schedule.every * prep.dt) if prep.kind.sampled else None
+        # the schedule's own sampling: every output on its clock, as in the batch (one clock per output too)
         return simulate(plant, prep.obs, t_final=prep.n_steps * prep.dt, dt=prep.dt, x0=self.x0[j],
-                        inputs=inputs, noise=prep.noise, process_noise=prep.process_noise, sampling=sampling,
+                        inputs=inputs, noise=prep.noise, process_noise=prep.process_noise, sampling=prep.schedule.sampling,
                         seed=int(self.seeds[j]), xhat0={k: v[j] for k, v in self.xhat0.items()}, escape_bound=self.bound)
 
 
