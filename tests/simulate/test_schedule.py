@@ -43,6 +43,10 @@ def test_a_sample_arrives_its_delay_after_it_was_taken_and_a_recording_is_stampe
     assert np.allclose(ev.arrived - ev.taken, np.where(ev.output == 0, 0.15, 0.0), rtol=0, atol=1e-12)
     assert np.array_equal(np.sort(ev.taken[ev.output == 0]), t[rows])   # a run's rows: when its samples were taken
     assert np.array_equal(np.sort(ev.taken[ev.output == 1]), t[rows])
+    assert list(s.arrival_lag("to_csv")) == [3, 0]   # 0.15 s on a 0.05 s grid: written three rows later
+    off = SampleSchedule.on_grid(t, 0.05, CART.outputs, CART.states, sampling=Sampling(0.1), delay={"gps": 0.12})
+    with pytest.raises(ValueError, match="0.12 s.*not a whole number of steps of dt = 0.05"):
+        off.arrival_lag("to_csv")
     rec = SampleSchedule.of_recording(t, np.isfinite(np.where(y > 10, y, np.nan)), CART.outputs, delay={"wheel": 0.2})
     ev = rec.events(y)
     assert np.allclose(ev.arrived - ev.taken, np.where(ev.output == 1, 0.2, 0.0), rtol=0, atol=1e-12)

@@ -151,6 +151,19 @@ class SampleSchedule:
         """The rows where at least one output is sampled."""
         return np.flatnonzero(self.measured().any(axis=1))
 
+    def arrival_lag(self, caller: str) -> np.ndarray:
+        """Rows from a sample's row to the row it arrives in, per output, on a grid of step `step` (a recording
+        written at arrival: :meth:`nlobs.Run.to_csv`). ValueError for a delay that is not a whole number of steps."""
+        lag = np.zeros(len(self.outputs), dtype=int)
+        for j, (name, d) in enumerate(zip(self.outputs, self.delays)):
+            k = int(round(d / self.step))
+            if abs(k * self.step - d) > 1e-9 * max(1.0, d):
+                raise ValueError(f"{caller}: the delay of {name!r} ({d:g} s) is not a whole number of steps of dt = "
+                                 f"{self.step:g}; a recording stamped at arrival needs it on the grid (choose dt dividing "
+                                 "the delay)")
+            lag[j] = k
+        return lag
+
     def events(self, y: np.ndarray) -> Any:
         """The samples of `y` (rows as `t`) as events: the time each was taken, the time it arrived (taken + its
         output's delay), its output and its value (:class:`nlobs.simulate._delays.Events`)."""
