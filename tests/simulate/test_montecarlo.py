@@ -42,6 +42,24 @@ def test_each_run_is_the_simulation_with_its_seed(mc):
         assert np.array_equal(again.x, run.x)
 
 
+def test_a_multirate_run_is_the_simulation_with_its_seed_and_so_is_its_rerun():
+    # one clock per output in the batch; trajectory(j) re-runs it with the same clocks (it once ran every output on the
+    # fastest clock)
+    cart = System(states=["p", "v", "b"], inputs=["a"], outputs=["gps", "wheel"], f=["v", "a - 0.1*v", "0"],
+                  h=["p", "v + b"], name="cart")
+    ekf = design_ekf(cart, R=np.diag([0.25, 0.01]), Q=np.diag([1e-4, 1e-3, 1e-6]), xhat0=[5.0, 0.0, 0.0])
+    clocks = nlobs.Sampling({"gps": 0.25, "wheel": 0.1})
+    kw = dict(t_final=2.0, dt=0.01, inputs={"a": "sin(0.5*t)"}, noise=Noise.per_output({"gps": 0.5, "wheel": 0.1}),
+              sampling=clocks)
+    mc = montecarlo(cart, {"ekf": ekf}, x0=[0.0, 1.0, 0.3], runs=3, seed=3, save_every=1, **kw)
+    for j in (0, 2):
+        run = simulate(cart, {"ekf": ekf}, x0=[0.0, 1.0, 0.3], seed=int(mc.seeds[j]), **kw)
+        assert np.max(np.abs(run.observers["ekf"].xhat - mc.observers["ekf"].xhat[j])) < 1e-12
+        again = mc.trajectory(j)
+        assert again.info["sampling"] == clocks.period
+        assert np.array_equal(again.observers["ekf"].xhat, run.observers["ekf"].xhat)
+
+
 def test_statistics_match_the_per_run_numbers(mc):
     o = mc.observers["inj"]
     assert o.error_norm.shape == (12, 401) and mc.t[-1] == pytest.approx(4.0)

@@ -32,14 +32,14 @@ def scenario_recording(ctx: Any) -> Recording:
     import numpy as np
 
     from ..simulate import simulate
+    from ..simulate._schedule import SampleSchedule
 
     sc = ctx.scenario
     run = simulate(ctx.system, None, t_final=sc.t_final, dt=sc.dt, x0=sc.x0, inputs=sc.inputs, noise=sc.noise,
                    process_noise=sc.process_noise, sampling=sc.sampling, seed=sc.seed)
     measured = run.info.get("measured")
-    if measured is None:
-        every = sc.sampling.every(sc.dt) if sc.sampling is not None else 1
-        measured = np.repeat((np.arange(run.t.size) % every == 0)[:, None], run.y.shape[1], axis=1)
+    if measured is None:   # one clock for every output (or none): the schedule the run was built on says which rows are samples
+        measured = SampleSchedule.on_grid(run.t, sc.dt, run.output_names, run.state_names, sampling=sc.sampling).measured()
     return Recording.from_arrays(ctx.system, run.t, np.where(measured, run.y, np.nan), run.u,
                                  source="the comparison run's measurements")
 

@@ -433,13 +433,15 @@ def _estimate_one(name: str, o: AbstractObserver, recording: Recording, xhat0: A
 def _estimate_delayed(obs: Mapping[str, Any], rec: Recording, delay: Mapping[str, float], mask: np.ndarray, xhat0: Any,
                       max_step: float | None, smooth: bool, engine: Backend = "auto") -> Run:
     """Observers on a recording stamped at arrival, with the delayed samples applied when they were taken."""
-    from ..simulate._delays import TOL, Events, delays_of, latency_notes, plan, run_delayed
+    from ..simulate._delays import TOL, plan, run_delayed
+    from ..simulate._schedule import SampleSchedule
 
     if smooth:
         raise ModelError("estimate: smoothing a recording with measurement delays is not supported (the smoother "
                          "uses every sample at its row); estimate without `smooth`, or without `delay`")
-    d = delays_of(delay, list(rec.output_names), "estimate")
-    events = Events.from_rows(rec.t, rec.y, mask > 0, d, stamped_at_arrival=True)
+    # the recording's schedule: its measured cells, stamped when they arrived, each taken its output's delay earlier
+    schedule = SampleSchedule.of_recording(rec.t, mask > 0, rec.output_names, delay=delay, caller="estimate")
+    events = schedule.events(rec.y)
     the_plan = plan(rec.t, rec.u, events, rec.y.shape[1])
     traces, failures, errors = {}, {}, []
     z0s = {name: o.initial_state(_xhat0_for(xhat0, name, o.system.n_states)) for name, o in obs.items()}

@@ -355,10 +355,10 @@ def _at_taken_times(rec: Recording, delay: Mapping[str, float], mask: np.ndarray
     """The recording re-stamped at the times its samples were taken (rows at the union of the row times and the taken
     times, inputs held from the row before); the mask, the truth on the new rows (NaN between rows) and which rows
     are the recording's; the samples taken before its first time (left out)."""
-    from ..simulate._delays import Events, _merged, _tol, delays_of
+    from ..simulate._delays import _merged, _tol
+    from ..simulate._schedule import SampleSchedule
 
-    d = delays_of(delay, list(rec.output_names), "tune")
-    ev = Events.from_rows(rec.t, rec.y, mask > 0, d, stamped_at_arrival=True)
+    ev = SampleSchedule.of_recording(rec.t, mask > 0, rec.output_names, delay=delay, caller="tune").events(rec.y)
     keep = ev.taken >= rec.t[0] - _tol(rec.t[0])
     early = int(np.count_nonzero(~keep))
     taken, out, val = ev.taken[keep], ev.output[keep], ev.value[keep]

@@ -24,9 +24,10 @@ from ..model import System, input_signals
 from ..engine import Backend
 from ..observer import AbstractObserver, ParticleObserver, compiled_observer
 from ._isolate import each_observer, failure_of, observer_fault
-from ._options import Noise, ProcessNoise, Sampling, channel_generators
+from ._options import Noise, ProcessNoise, Sampling
 from ._options import xhat0_for as _xhat0_for
 from ._results import ObserverTrace, Run
+from ._schedule import SampleSchedule
 
 __all__ = ["simulate_map", "observers_on", "map_trace", "run_map_observer", "check_map_grid", "MAX_MAP_STEPS"]
 
@@ -115,11 +116,13 @@ def simulate_map(plant: System, obs: Mapping[str, AbstractObserver], *, t_final:
         raise ShapeError(f"{caller}: `x0` must be {plant.n_states - len(x0_tail)} finite numbers "
                          f"({', '.join(plant.states[:plant.n_states - len(x0_tail)])})")
     U = _signals(plant, inputs, t)
-    root = np.random.SeedSequence(seed)  # a generator per output and per state: the noise of a step does not depend on N
-    V = (noise.draw(channel_generators(root, "measurement", plant.n_outputs), N + 1, plant.outputs, Ts)
-         if noise is not None else np.zeros((N + 1, plant.n_outputs)))
-    W = (process_noise.draw(channel_generators(root, "process", plant.n_states), N, plant.states, 1.0)
-         if process_noise is not None else np.zeros((N, plant.n_states)))
+    # every output at every step; a generator per output and per state: the noise of a step does not depend on N
+    schedule = SampleSchedule.on_map(t, Ts, plant.outputs, plant.states, noise=noise, process_noise=process_noise,
+                                     seed=seed)
+    V = schedule.measurement_noise()
+    V = np.zeros((N + 1, plant.n_outputs)) if V is None else V
+    W = schedule.process_increments()
+    W = np.zeros((N, plant.n_states)) if W is None else W
     f, h = compile_system(plant).bind()
     sx, st, su, sw = ca.SX.sym("x", plant.n_states), ca.SX.sym("t"), ca.SX.sym("u", plant.n_inputs), ca.SX.sym("w", plant.n_states)
     F = ca.Function("plant_map", [sx, st, su, sw], [f(st, sx, su) + sw])
@@ -136,7 +139,7 @@ def simulate_map(plant: System, obs: Mapping[str, AbstractObserver], *, t_final:
         raise err
     Y_true = np.asarray(h.map(N + 1)(t[None, :], X.T, U.T), dtype=float).T.reshape(N + 1, plant.n_outputs)
     Y = Y_true + V
-    traces, failures, extra = observers_on(obs, t, U, Y, np.ones_like(Y), xhat0, innovations=False)
+    traces, failures, extra = observers_on(obs, t, U, Y, schedule.measured().astype(float), xhat0, innovations=False)
     if extra:
         info["particles"] = extra
     return Run(plant.name, t, plant.states, plant.inputs, plant.outputs, U, Y, traces, x=X, y_true=Y_true,

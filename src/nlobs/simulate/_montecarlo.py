@@ -33,6 +33,7 @@ from ._metrics import convergence_band, convergence_time, state_convergence
 from ._options import Noise, ProcessNoise, Sampling
 from ._results import Run
 from ._run import Prepared, prepare, simulate
+from ._schedule import run_seeds
 
 __all__ = ["montecarlo", "MonteCarloResult", "ObserverStats"]
 
@@ -244,9 +245,9 @@ class _Spec:
     def rerun(self, j: int, inputs: Any) -> Run:
         prep = self.prep
         plant = prep.plant.with_params(**dict(zip(prep.plant.param_names, self.params[j])))
-        sampling = Sampling(prep.every * prep.dt) if prep.kind.sampled else None
+        # the schedule's own sampling: every output on its clock, as in the batch (one clock per output too)
         return simulate(plant, prep.obs, t_final=prep.n_steps * prep.dt, dt=prep.dt, x0=self.x0[j],
-                        inputs=inputs, noise=prep.noise, process_noise=prep.process_noise, sampling=sampling,
+                        inputs=inputs, noise=prep.noise, process_noise=prep.process_noise, sampling=prep.schedule.sampling,
                         seed=int(self.seeds[j]), xhat0={k: v[j] for k, v in self.xhat0.items()}, escape_bound=self.bound)
 
 
@@ -373,7 +374,7 @@ def montecarlo(
         raise ShapeError(f"montecarlo: `params` names {unknown[0]!r}, which is not a parameter of {plant.name!r}")
     P = np.column_stack([np.broadcast_to(np.asarray((params or {}).get(k, v), dtype=float), (M,)) for k, v in plant.params.items()]) \
         if plant.n_params else np.zeros((M, 0))
-    seeds = np.random.SeedSequence(seed).generate_state(M).astype(np.int64)
+    seeds = run_seeds(seed, M)
     N = prep.n_steps
     stride = max(1, N // 1000) if save_every is None else int(save_every)
     if stride < 1:
@@ -517,7 +518,7 @@ def _montecarlo_map(plant: System, observers: Any, *, x0: Any, runs: int | None,
         raise ShapeError(f"montecarlo: `params` names {unknown[0]!r}, which is not a parameter of {plant_.name!r}")
     P = np.column_stack([np.broadcast_to(np.asarray((params or {}).get(k, v), dtype=float), (M,))
                          for k, v in plant_.params.items()]) if plant_.n_params else np.zeros((M, 0))
-    seeds = np.random.SeedSequence(seed).generate_state(M).astype(np.int64)
+    seeds = run_seeds(seed, M)
     spec = _MapSpec(plant_, obs, kw, X0, XH, P, seeds)
     report = as_progress(progress, f"montecarlo {plant_.name}")
     runs_, failures = [], []

@@ -424,6 +424,8 @@ class Run:
         (``simulate(..., delay=...)``) a delayed output is written in the row where its sample arrived, as a logger
         records it: ``estimate`` with the same `delay` reads it back.
         """
+        from ._schedule import SampleSchedule
+
         every = int(every)
         if every < 1:
             raise ValueError(f"to_csv: `every` must be a positive whole number of rows, got {every!r}")
@@ -433,7 +435,7 @@ class Run:
         y = self.y
         measured = self.info.get("measured")
         if measured is None and every > 1:   # one clock: the rows 0, k, 2k, ... are the samples
-            measured = np.repeat((np.arange(N) % every == 0)[:, None], y.shape[1], axis=1)
+            measured = SampleSchedule(self.t, tuple(self.output_names), clock=(every,)).measured()
         if measured is not None:   # each output in the rows where it was sampled, empty elsewhere
             y = np.where(measured, y, np.nan)
             y, measured = self._stamped_at_arrival(y, measured)
@@ -454,17 +456,16 @@ class Run:
     def _stamped_at_arrival(self, y: np.ndarray, measured: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """With measurement delays, each delayed output moved to the row where its sample arrived (a recording is
         stamped at arrival; :func:`nlobs.estimate` with the same `delay` takes it back to when it was taken)."""
+        from ._schedule import SampleSchedule
+
         delay = self.info.get("delay") or {}
         if not any(v > 0 for v in delay.values()):
             return y, measured
         dt = float(self.info.get("dt") or np.median(np.diff(self.t)))
         y, measured = y.copy(), measured.copy()
-        for name, d in delay.items():
-            j = self.output_names.index(name)
-            k = int(round(d / dt))
-            if abs(k * dt - d) > 1e-9 * max(1.0, d):
-                raise ValueError(f"to_csv: the delay of {name!r} ({d:g} s) is not a whole number of steps of dt = {dt:g}; "
-                                 "a recording stamped at arrival needs it on the grid (choose dt dividing the delay)")
+        delays = np.array([float(delay.get(name, 0.0)) for name in self.output_names])
+        lag = SampleSchedule(self.t, tuple(self.output_names), delays=delays, step=dt).arrival_lag("to_csv")
+        for j, k in enumerate(lag):
             if k:
                 y[k:, j], y[:k, j] = y[:-k, j].copy(), np.nan
                 measured[k:, j], measured[:k, j] = measured[:-k, j].copy(), False

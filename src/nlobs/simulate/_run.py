@@ -30,11 +30,13 @@ from ..engine import Backend, StepRunner, compile_system, evaluate_many, rk4_ste
 from ..errors import DataError, EngineError, FiniteEscapeError, ModelError, ShapeError, SolverError, TimeBudgetError
 from ..model import ModelFile, ObserverConfig, System, input_signals
 from ..observer import AbstractObserver, Observer, ParticleObserver, as_observer
+from ..observer._signals import delays_of
 from ._file import file_arguments, observers_of
-from ._options import Adaptive, Noise, ProcessNoise, Sampling, channel_generators
+from ._options import Adaptive, Noise, ProcessNoise, Sampling
 from ._options import xhat0_for as _xhat0_for
 from ._isolate import culprits, each_observer, isolate, merged, observer_fault
 from ._results import ObserverTrace, Run
+from ._schedule import SampleSchedule
 from ._tables import table_range_notes
 
 __all__ = ["simulate", "Simulation", "prepare", "Prepared", "named_observers", "check_compatible", "stage_inputs",
@@ -210,7 +212,11 @@ def simulate(
                                  engine=engine, progress=progress, escape_bound=escape_bound, integrator=integrator)
     sim = Simulation(plant, observers, t_final=t_final, dt=dt, inputs=inputs, params=params, noise=noise,
                      process_noise=process_noise, sampling=sampling, integrator=integrator, engine=engine, _caller="simulate")
-    run = sim.run(x0, xhat0=xhat0, seed=seed, progress=progress, escape_bound=escape_bound)
+    return _noted(sim, sim.run(x0, xhat0=xhat0, seed=seed, progress=progress, escape_bound=escape_bound))
+
+
+def _noted(sim: Simulation, run: Run) -> Run:
+    """The run with a note for each table its plant read outside the table's range."""
     notes = table_range_notes(sim.plant, run.t, run.x, run.u)
     return replace(run, info={**run.info, "notes": (*run.info.get("notes", ()), *notes)}) if notes else run
 
@@ -220,7 +226,7 @@ def _simulate_delayed(plant: System, observers: Any, delay: Mapping[str, float],
     """The plant on its own, then each observer on the samples as they arrive (see :mod:`nlobs.simulate._delays`):
     one compiled re-processing per observer, planned once for all of them; an observer that fails is reported with
     its reason and the others keep their results."""
-    from ._delays import Events, delays_of, latency_notes, plan, run_delayed
+    from ._delays import latency_notes, plan, run_delayed
     from ._isolate import each_observer, failure_of
 
     if not isinstance(plant, System) or plant.is_discrete:
@@ -237,16 +243,17 @@ def _simulate_delayed(plant: System, observers: Any, delay: Mapping[str, float],
         x0v += list(tail)
     for name, o in obs.items():
         check_compatible(plant_, name, o)
-    base = simulate(plant_, None, x0=x0v, sampling=sampling, **kw)
-    measured = base.info.get("measured")
-    if measured is None:   # one clock for all outputs
-        every = sampling.every(float(kw["dt"]))
-        measured = np.repeat((np.arange(base.t.size) % every == 0)[:, None], plant_.n_outputs, axis=1)
-    events = Events.from_rows(base.t, base.y, measured, d, stamped_at_arrival=False)
+    run_kw = {k: kw.pop(k) for k in ("seed", "progress", "escape_bound")}
+    sim = Simulation(plant_, None, sampling=sampling, **kw, _caller="simulate")
+    base = _noted(sim, sim.run(x0v, **run_kw))
+    # the plant's run has the schedule of every sample; with the delays it says when each one arrives
+    schedule = replace(sim._prep.schedule, delays=d)
+    measured = schedule.measured()
+    events = schedule.events(base.y)
     the_plan = plan(base.t, base.u, events, plant_.n_outputs) if obs else None
     traces, failures, errors = {}, {}, []
     z0s = {name: o.initial_state(_xhat0_for(xhat0, name, plant_.n_states)) for name, o in obs.items()}
-    sample_rows = np.flatnonzero(np.asarray(measured).any(axis=1))   # where a particle filter steps (as without delays)
+    sample_rows = schedule.sample_rows()   # where a particle filter steps (as without delays)
     done = each_observer(list(obs), lambda name: run_delayed(obs[name], base.t, base.u, events, z0s[name], name=name,
                                                              engine=kw.get("engine", "auto"), the_plan=the_plan,
                                                              knot_rows=sample_rows),
@@ -266,7 +273,7 @@ def _simulate_delayed(plant: System, observers: Any, delay: Mapping[str, float],
                                      covariance=getattr(o.design, "covariance", None))
     if errors and not traces:
         raise errors[0]
-    notes = (*base.info.get("notes", ()), *latency_notes(events, float(base.t[-1]), list(plant_.outputs), d))
+    notes = (*base.info.get("notes", ()), *latency_notes(events, float(base.t[-1]), list(plant_.outputs), schedule.delays))
     info = {**base.info, "delay": {k: float(v) for k, v in delay.items()}, "measured": measured, "notes": notes,
             "replayed": the_plan.replayed if the_plan is not None else 0}
     return replace(base, observers=traces, failures=failures, info=info)
@@ -401,7 +408,7 @@ class Simulation:
         report = as_progress(progress, f"simulate {plant.name}")
         info = dict(self._info, seed=seed)
         if prep.kind.multirate:   # which outputs were sampled at each time (the others are held, NaN in a CSV)
-            info["measured"] = A[:, layout.flags] > 0
+            info["measured"] = prep.schedule.measured()
         runner = layout.runner(self.engine)
         # one step beyond t_final: its per-step outputs are the measurements and estimates at t_final (row N of O), and
         # its state (row N + 1 of S) is dropped; one RK4 step instead of a separate evaluation of the outputs
@@ -423,7 +430,7 @@ class Simulation:
             raise err
         S = S[:N + 1]
         run = _assemble(plant, obs, layout, S, O, t, A, info)
-        return _with_particles(run, prep, A, xhat0) if prep.particle else run
+        return _with_particles(run, prep, xhat0) if prep.particle else run
 
 
 def _plant_output_failure(plant: System, S: np.ndarray, A: np.ndarray, c: np.ndarray, layout: _Layout, runner: _Runner,
@@ -463,15 +470,12 @@ class Prepared:
     dt: float
     t: np.ndarray
     base: np.ndarray  # per-step inputs before noise: [t, u stages], shape (N + 1, 1 + 3 nu)
-    noise: Noise | None
-    process_noise: ProcessNoise | None
-    every: int
+    #: what is sampled when and the noise, on the grid `t` (its seed set per run: :meth:`inputs_for`)
+    schedule: SampleSchedule
     caller: str
     x0_tail: tuple[float, ...] = ()  # true values of the estimated parameters, appended to a model-state x0
     #: particle filters: run on the sampled measurements after the plant (not in the joint step)
     particle: Mapping[str, ParticleObserver] = field(default_factory=dict)
-    #: per-output sampling: steps per sample of each output (None: one clock, `every`)
-    every_each: tuple[int, ...] | None = None
 
     def initial_state(self, x0: Sequence[float], xhat0: Any) -> np.ndarray:
         n, ny = self.plant.n_states, self.plant.n_outputs
@@ -493,26 +497,26 @@ class Prepared:
         return np.concatenate([head, self.plant.param_values if params is None else np.asarray(params, dtype=float)])
 
     def inputs_for(self, seed: int | None) -> np.ndarray:
-        """The per-step inputs with the noise of `seed` (a generator per output and per state: the noise of a step does
-        not depend on the horizon)."""
-        N, plant = self.n_steps, self.plant
+        """The per-step inputs with the noise of `seed`, as the schedule draws it (a generator per output and per state:
+        the noise of a step does not depend on the horizon), and its sample flags."""
+        sched = self.schedule.with_seed(seed)
         columns = [self.base]
-        root = np.random.SeedSequence(seed)
-        if self.noise is not None:
-            columns.append(self.noise.draw(channel_generators(root, "measurement", plant.n_outputs), N + 1, plant.outputs,
-                                           self.dt))
-        if self.process_noise is not None:
-            columns.append(np.vstack([self.process_noise.draw(channel_generators(root, "process", plant.n_states), N,
-                                                              plant.states, self.dt), np.zeros((1, plant.n_states))]))
+        V, W = sched.measurement_noise(), sched.process_increments()
+        if V is not None:
+            columns.append(V)
+        if W is not None:
+            columns.append(np.vstack([W, np.zeros((1, self.plant.n_states))]))
         if self.kind.sampled:
-            columns.append(self.sample_flags())
+            columns.append(sched.flags())
         return columns[0] if len(columns) == 1 else np.hstack(columns)
 
-    def sample_flags(self) -> np.ndarray:
-        """(N + 1, 1) or, per output, (N + 1, ny): 1 where a sample is taken."""
-        k = np.arange(self.n_steps + 1)[:, None]
-        every = np.asarray(self.every_each if self.kind.multirate else (self.every,))
-        return (k % every[None, :] == 0).astype(float)
+    @property
+    def noise(self) -> Noise | None:
+        return self.schedule.noise
+
+    @property
+    def process_noise(self) -> ProcessNoise | None:
+        return self.schedule.process_noise
 
     @property
     def seeded(self) -> bool:
@@ -560,20 +564,19 @@ def prepare(plant: System, observers: Any, *, t_final: float, dt: float, inputs:
     obs = {k: o for k, o in obs.items() if k not in particle}
     if integrator is not None and not isinstance(integrator, Adaptive):
         raise TypeError(f"{caller}: `integrator` must be an nlobs.Adaptive (or None for fixed-step RK4), got {integrator!r}")
-    multirate = sampling is not None and sampling.multirate
-    every_each = tuple(int(v) for v in sampling.every_each(dt, plant.outputs)) if multirate else None
+    t = _grid(N, dt)
+    schedule = SampleSchedule.on_grid(t, dt, plant.outputs, plant.states, sampling=sampling, noise=noise,
+                                      process_noise=process_noise, caller=caller)
+    multirate = schedule.multirate
     kind = _Kind(sampled=sampling is not None, noisy=noise is not None, process=process_noise is not None, adaptive=integrator,
                  folded=tuple(float(v) for v in plant.param_values) if fold_params else None, multirate=multirate)
     _, layout = _joint_step(plant, obs, kind)
-    t = _grid(N, dt)
     base = t[:, None]
     if plant.n_inputs:
         base = np.hstack([base, stage_inputs(plant, inputs, plant.params, t, np.full(N + 1, dt))])
     elif inputs:
         input_signals(plant, inputs)  # reports unknown input names
-    every = sampling.every(dt) if sampling is not None else 1
-    return Prepared(plant, obs, kind, layout, N, float(dt), t, base, noise, process_noise, every, caller, x0_tail, particle,
-                    every_each)
+    return Prepared(plant, obs, kind, layout, N, float(dt), t, base, schedule, caller, x0_tail, particle)
 
 
 @functools.lru_cache(maxsize=8)
@@ -601,13 +604,13 @@ def augmented_plant(plant: System, obs: Mapping[str, AbstractObserver]) -> tuple
     return plant.augmented(est), tuple(plant.params[k] for k in est)
 
 
-def _with_particles(run: Run, prep: Prepared, A: np.ndarray, xhat0: Any) -> Run:
+def _with_particles(run: Run, prep: Prepared, xhat0: Any) -> Run:
     """`run` with the traces of the particle filters, run on the measurements at the sample instants
     (every step without `sampling`); between samples their estimate is held."""
-    F = A[:, prep.layout.flags] > 0 if prep.kind.sampled else np.ones((run.t.size, 1), dtype=bool)
-    flags = F.any(axis=1)
+    measured = prep.schedule.measured()
+    flags = measured.any(axis=1)
     held = np.cumsum(flags) - 1
-    mask = np.broadcast_to(F[flags], (int(flags.sum()), run.y.shape[1])).astype(float)
+    mask = measured[flags].astype(float)
     traces, info = dict(run.observers), dict(run.info)
     for name, o in prep.particle.items():
         pr, _ = o.trace_on(run.t[flags], run.y[flags], run.u[flags], mask=mask,
