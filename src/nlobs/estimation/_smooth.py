@@ -205,7 +205,6 @@ def _check_backward(design: ObserverDesign, traj: Any, xs: np.ndarray, Ps: np.nd
     the recursion amplified its rounding errors, as G_k = P_k Φᵀ (Φ P_k Φᵀ + Q)⁻¹ = Φ⁻¹ does with Q = 0 on a
     contracting flow)."""
     names = design.system.states
-    n = len(names)
     vs, vf = np.einsum("kii->ki", Ps), np.einsum("kii->ki", Pf)
     slack = 1e-9 * np.max(np.abs(vf), axis=0)
     finite = np.isfinite(xs).all(axis=1) & np.isfinite(vs).all(axis=1)

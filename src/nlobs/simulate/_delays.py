@@ -28,7 +28,7 @@ Used by :func:`nlobs.simulate` (``delay={output: seconds}``, with sampled measur
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 

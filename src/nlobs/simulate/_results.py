@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from .._display import MISSING, Column, SummaryTable, fmt_number, short_repr
-from ._metrics import CONVERGENCE_RULE, PER_STATE_RULE, Metrics, error_metrics, state_metrics
+from ._metrics import PER_STATE_RULE, Metrics, error_metrics, state_metrics
 from ._whiteness import Whiteness, ljung_box
 
 __all__ = ["ObserverFailure", "ObserverTrace", "Run", "write_csv"]
@@ -294,7 +294,8 @@ class Run:
         Parameters
         ----------
         tol : float, optional
-            Convergence tolerance (default: the band of :data:`nlobs.simulate.CONVERGENCE_RULE`).
+            Absolute convergence tolerance on ‖x̂ − x‖ (default: each state judged in its own units,
+            :data:`nlobs.simulate.PER_STATE_RULE`).
         """
         title = f"{self.model}: t in [{self.t[0]:g}, {self.t[-1]:g}], {len(self.t)} samples"
         if self.x is None:

@@ -232,7 +232,6 @@ def kalman_decomposition(A: Any, C: Any) -> KalmanDecomposition:
     """
     A, C = check_pair(A, C, "kalman_decomposition")
     res = kalman_rank(A, C)
-    n = A.shape[0]
     _, _, Vt = np.linalg.svd(observability_matrix(A, C))
     T = Vt.T  # first `rank` columns: row space of O; the rest: ker O
     A_bar = T.T @ A @ T

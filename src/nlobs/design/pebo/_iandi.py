@@ -105,7 +105,7 @@ def design_iandi(system: System, *, beta: Sequence[Any], phi: Sequence[Any], lef
     caller = "design_iandi"
     if not isinstance(system, System):
         raise TypeError(f"{caller}: expected a System, got {type(system).__name__}")
-    n, p = system.n_states, system.n_outputs
+    n = system.n_states
     if isinstance(beta, (str, sp.Basic)) or isinstance(phi, (str, sp.Basic)):
         raise ShapeError(f"{caller}: `beta` and `phi` must be lists of expressions")
     nz = len(beta)
