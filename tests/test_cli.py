@@ -339,3 +339,23 @@ def test_estimate_plot_labels_the_axes_with_the_files_units(tmp_path, capsys, mo
                                                labels.extend(ax.get_xlabel() for ax in self.axes), real(self, *a, **k))[-1])
     assert main(["estimate", str(model), str(sim_csv), "--observer", "ekf", "--plot", str(png)]) == 0
     assert "x [g/L]" in labels and "t [h]" in labels, labels
+
+
+def test_estimate_on_a_simulated_csv_reads_the_parameters_truth(tmp_path, capsys):
+    # simulate --output writes the unknown parameter's true value as a column; estimate read only the plant's states, so
+    # its summary and plot lost the parameter's truth that simulate had shown
+    model = tmp_path / "decay.toml"
+    model.write_text('name = "decay"\nstates = ["x"]\ninputs = ["u"]\noutputs = ["y"]\n[parameters]\n'
+                     'k = { value = 0.4, unknown = true }\n[dynamics]\nx = "-k*x + u"\n[output]\ny = "x"\n'
+                     '[simulation]\nt_final = 5.0\ndt = 0.01\nx0 = [1.0]\ninputs = { u = "sin(2*t)" }\n'
+                     'noise = { y = 0.01 }\nseed = 1\ntrue_parameters = { k = 0.5 }\n'
+                     '[observers.ekf]\nkind = "ekf"\nQ = [[1e-4, 0], [0, 1e-6]]\nR = [[1e-4]]\nP0 = [[1, 0], [0, 0.1]]\n')
+    sim_csv = tmp_path / "sim.csv"
+    assert main(["simulate", str(model), "--observer", "ekf", "--output", str(sim_csv), "--json"]) == 0
+    sim = json.loads(capsys.readouterr().out)
+    assert main(["estimate", str(model), str(sim_csv), "--observer", "ekf", "--json"]) == 0
+    est = json.loads(capsys.readouterr().out)
+    p_sim = sim["observers"]["ekf"]["parameters"]["k"]
+    p_est = est["observers"]["ekf"]["parameters"]["k"]
+    assert p_est["true"] == 0.5 == p_sim["true"]
+    assert abs(p_est["estimate"] - p_sim["estimate"]) < 0.01   # the recording holds the input between its rows

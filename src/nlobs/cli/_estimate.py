@@ -61,6 +61,9 @@ def run(args: argparse.Namespace) -> int:
     if args.xhat0 is not None:
         xhat0 = {n: parse_vector(args.xhat0, estimated.states, "--xhat0", d.xhat0) for n, d in designs.items()}
     rec = Recording.from_csv(args.data, system, columns=parse_columns(args.column))
+    if mf.unknown_params and rec.x is not None:   # a CSV that `simulate --output` wrote also has the parameters' truth
+        with_params = Recording.from_csv(args.data, estimated, columns=parse_columns(args.column))
+        rec = with_params if with_params.x is not None else rec
     run_ = estimate(designs, rec, xhat0=xhat0, on_missing="skip" if args.skip_missing else "error", hold=args.hold,
                     max_step=args.max_step, engine=args.engine, progress=not args.json, smooth=args.smooth,
                     delay=dict(mf.simulation.delay) or None)
