@@ -26,14 +26,21 @@ from typing import Any
 RESULTS = Path(__file__).with_name("results")
 
 
-def interleaved(fns: Mapping[str, Callable[[], Any]], rounds: int, pause: float = 0.05) -> dict[str, tuple[float, float, Any]]:
+def interleaved(fns: Mapping[str, Callable[[], Any]], rounds: int, pause: float = 0.05,
+                warm: bool = False) -> dict[str, tuple[float, float, Any]]:
     """Time implementations round by round (A, B, C, A, B, C, ...) so machine noise hits them alike;
-    return (min, median, last output) per implementation."""
+    return (min, median, last output) per implementation.
+
+    `warm`: each timed call follows an untimed call of the same implementation, so that it runs with its own code and
+    data in the caches, as a call in a loop does (after the pause, another implementation's run has evicted them: a
+    call of a few hundred microseconds then pays a refill that a call of milliseconds hides)."""
     times: dict[str, list[float]] = {k: [] for k in fns}
     outs: dict[str, Any] = {}
     for _ in range(rounds):
         for k, fn in fns.items():
             time.sleep(pause)  # let another implementation's worker threads (JAX/XLA spin-waits) go idle first
+            if warm:
+                fn()
             t0 = time.perf_counter()
             outs[k] = fn()
             times[k].append(time.perf_counter() - t0)

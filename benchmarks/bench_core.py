@@ -24,7 +24,9 @@ P3b UKF, same data and model: nlobs design_ukf (alpha = 1, beta = 0, kappa = 0) 
 nlobs is timed through its public API: ``nlobs.simulate`` / ``nlobs.estimate`` (prepared once per design
 and cached, as every call after the first) and, for P3, also the prepared handle
 ``Observer(design).compiled().run(t, u=u, y=y)`` on arrays (the dynamax-like call). First calls (build,
-compile or JIT) are reported separately.
+compile or JIT) are reported separately. Each timed call follows an untimed call of the same implementation (warm, as
+calls in a loop run); the same pairs timed cold (each call after the others' runs have evicted its caches, which costs
+a call of a few hundred microseconds far more than one of milliseconds) are in each row's note.
 
 Run:  .venv/bin/pip install -e '.[bench]'   then   .venv/bin/python benchmarks/bench_core.py [--rounds N]
 It installs nothing; a missing peer is reported and its rows skipped. Results: benchmarks/results/bench_core.json.
@@ -145,13 +147,15 @@ def p1(rounds: int) -> list[dict]:
         ref = c_run()
         fns = {"C": c_run, "c": nlobs_p1("c"), "auto": nlobs_p1("auto")}
         first = {k: cm.first_call(fns[k]) for k in ("c", "auto")}
-        timed = cm.interleaved(fns, rounds)
+        timed = cm.interleaved(fns, rounds, warm=True)
+        cold = cm.interleaved(fns, rounds)
         dev = {k: float(np.max(np.abs(states_of(timed[k][2]) - ref))) for k in ("c", "auto")}
         for k in ("c", "auto"):
             rows.append(cm.row("P1", "Van der Pol + observer, RK4, 100k steps, all states returned",
                                nlobs=f"nlobs.simulate(engine='{k}'; first call {first[k]:.2f} s)", t_nlobs=timed[k][:2],
                                err_nlobs=f"max |dev| from C {dev[k]:.1e}", peer="hand-written C RK4 loop (gcc " + " ".join(CFLAGS[:2]) + ")",
-                               t_peer=timed["C"][:2], err_peer="reference", kind="nlobs/peer", target="<= 1.3x C", threshold=1.3))
+                               t_peer=timed["C"][:2], err_peer="reference", kind="nlobs/peer", target="<= 1.3x C", threshold=1.3,
+                               note=_cold_note(cold, k, "C", nlobs_over_peer=True)))
             cm.print_row(rows[-1])
         try:
             import control as ct
@@ -180,6 +184,15 @@ def p1(rounds: int) -> list[dict]:
                            note="tolerance tightened until python-control agrees with the C result to 1e-6"))
         cm.print_row(rows[-1])
     return rows
+
+
+def _cold_note(cold: dict, mine: str, peer: str, *, nlobs_over_peer: bool) -> str:
+    """The same pair timed cold (each call after the pause, its caches evicted by the other implementations' runs): the
+    main figures are warm (each timed call follows an untimed one, as calls in a loop run)."""
+    a, b = cold[mine][0], cold[peer][0]
+    ratio = a / b if nlobs_over_peer else b / a
+    return (f"timed cold (no untimed call before each): nlobs {cm.fmt_time(a)}, peer {cm.fmt_time(b)} min, "
+            f"{ratio:.2f}x {'nlobs/peer' if nlobs_over_peer else 'peer/nlobs'}")
 
 
 # -- P3 / P3b ----------------------------------------------------------------------------------------
@@ -322,7 +335,8 @@ def p3(rounds: int) -> list[dict]:
         fns["handle"] = lambda: handle.run(rec.t, u=rec.u, y=rec.y, engine=engines[0]).xhat
         fns.update(peers[kind])
         first = {k: cm.first_call(fn) for k, fn in fns.items()}
-        timed = cm.interleaved(fns, rounds)
+        timed = cm.interleaved(fns, rounds, warm=True)
+        cold = cm.interleaved(fns, rounds)
         err = {k: rms(v[2], rec.x) for k, v in timed.items()}
         ref_out = timed[f"estimate/{engines[0]}"][2]
         for k in fns:
@@ -332,7 +346,8 @@ def p3(rounds: int) -> list[dict]:
         for peer in peers[kind]:
             target, thr = (">= 3x", 3) if "dynamax" in peer else ((">= 50x", 50) if kind == "EKF" else ("(report)", None))
             note = (f"prepared handle Observer(design).compiled().run(t, u=u, y=y): {cm.fmt_time(timed['handle'][0])} min"
-                    + (f"; engine='c': {cm.fmt_time(timed['estimate/c'][0])} min" if "estimate/c" in timed and main_key != "estimate/c" else ""))
+                    + (f"; engine='c': {cm.fmt_time(timed['estimate/c'][0])} min" if "estimate/c" in timed and main_key != "estimate/c" else "")
+                    + "; " + _cold_note(cold, main_key, peer, nlobs_over_peer=False))
             rows.append(cm.row("P3" if kind == "EKF" else "P3b", f"{kind}, 20 s at 100 Hz, same RMS error",
                                nlobs=f"nlobs.estimate(engine='{engines[-1]}')", t_nlobs=timed[main_key][:2],
                                err_nlobs=f"RMS {err[main_key]:.4f}", peer=peer, t_peer=timed[peer][:2],
