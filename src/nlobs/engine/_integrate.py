@@ -30,6 +30,10 @@ __all__ = ["rk4_step", "rk4_step_rate", "StepRunner", "DEFAULT_CHUNK", "run_batc
            "usable_cores"]
 
 DEFAULT_CHUNK = 10_000
+#: The most (state + input + output) entries times steps one VM chunk of :class:`StepRunner` covers: building CasADi's
+#: mapaccum over K steps takes about 35 bytes per entry and step for a while (1.26 GB, and 4.6 s, for the 16-state
+#: navigation model's sensitivities, 469 entries, over 10,000 steps; 0.13 GB for 1,000).
+VM_CHUNK_ENTRIES = 1_000_000
 
 
 def rk4_step(rhs: Callable[[Any, Any, int], Any], t: Any, s: Any, dt: Any, *, half: Any = None, sixth: Any = None) -> Any:
@@ -199,6 +203,8 @@ class StepRunner:
         # an MX step (e.g. embedding an NLP solver) cannot be generated as C: always the VM
         backend = self.backend_for(N) if self.step.is_a("SXFunction") else "vm"
         K = min(self.chunk, N) if (backend != "c" or on_chunk is not None) else N
+        if backend != "c":
+            K = min(K, max(256, VM_CHUNK_ENTRIES // (self.ns + self.na + self.no)))
         k = 0
         while k < N:
             n = min(K, N - k)
