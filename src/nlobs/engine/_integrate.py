@@ -84,7 +84,9 @@ def rk4_step_rate(rhs: Callable[[Any, Any, int], Any], t: Any, s: Any, dt: Any, 
     # change in time is not read as a rate.
     X = ca.MX if isinstance(s, ca.MX) else ca.SX
     tau = X.sym("tau")
-    k4_same = k4 if not ca.depends_on(rhs(tau, s, 2), tau) else rhs(t + half, y4, 1)
+    probe = rhs(tau, s, 2)
+    timed = isinstance(probe, (ca.SX, ca.MX)) and ca.depends_on(probe, tau)
+    k4_same = rhs(t + half, y4, 1) if timed else k4
     return s_next, ca.fmax(_quotient(k3 - k2, y3 - y2, s), _quotient(k4_same - k3, y4 - y3, s))
 
 
