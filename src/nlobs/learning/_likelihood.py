@@ -383,7 +383,9 @@ class _Problem:
         self.exact_stiff: tuple[int, int] | None = None
         if self.n_sub > MAX_UNROLLED and switches:
             self.exact_stiff = (self.n_sub, int(np.argmax(traj.substeps)))
-            self.n_sub = 1
+            # the smoothed model's own count decides, but never a step longer than the user's max_step
+            dts = np.diff(t)
+            self.n_sub = 1 if max_step is None or dts.size == 0 else int(np.ceil(dts.max() / max_step - 1e-9))
         elif self.n_sub > MAX_SUBSTEPS or (self.n_sub > MAX_UNROLLED and
                                            self.n_sub * traj.substeps.size > UNEVEN * traj.substeps.sum()):
             k = int(np.argmax(traj.substeps))
