@@ -55,6 +55,38 @@ def _lti_information(members: list[str]) -> np.ndarray:
     return out
 
 
+def _lti_scales() -> np.ndarray:
+    """The largest |x_i| at the samples t = 0, 0.1, ..., 3 of x' = A x + e2 sin(2t) from the file's x0 (SciPy)."""
+    sol = solve_ivp(lambda t, x: A_LTI @ x + np.array([0.0, np.sin(2 * t), 0.0, 0.0]), (0.0, 3.0), [1.0, 0.0, 0.5, -0.5],
+                    t_eval=np.arange(31) * 0.1, rtol=1e-11, atol=1e-13)
+    return np.max(np.abs(sol.y), axis=1)
+
+
+def test_the_unobservability_index_is_finite_in_mixed_units_where_every_bound_is():
+    """Unknowns in units decades apart (a quaternion, a position in mm, a bias): F = D⁻¹ M D⁻¹ with M well
+    conditioned and D = diag(1e-6, 1, 1e6) spans 24 decades. Its plain eigenvalues read singular (the index was ∞)
+    though every bound is finite. The index is √λmax of the Cramér–Rao covariance D M⁻¹ D (computed here), and with
+    the unknowns' scales D it is that of M: 1/√λmin(M)."""
+    from nlobs.analysis.sensors._quality import quality
+
+    M = np.array([[2.0, 0.5, 0.1], [0.5, 1.0, 0.3], [0.1, 0.3, 0.7]])
+    D = np.diag([1e-6, 1.0, 1e6])
+    Di = np.diag(1 / np.diag(D))
+    F = Di @ M @ Di
+    q = quality(F, [0, 1, 2])
+    cov = D @ np.linalg.inv(M) @ D
+    assert np.all(np.isfinite(q.crb)) and q.crb == pytest.approx(np.sqrt(np.diag(cov)), rel=1e-9)
+    assert q.unobservability_index == pytest.approx(math.sqrt(np.linalg.eigvalsh(cov)[-1]), rel=1e-9)
+    qs = quality(F, [0, 1, 2], np.diag(D))
+    lam = np.linalg.eigvalsh(M)
+    assert qs.unobservability_index == pytest.approx(1 / math.sqrt(lam[0]), rel=1e-9)
+    assert qs.condition == pytest.approx(math.sqrt(lam[-1] / lam[0]), rel=1e-9)
+    # an uninformed direction stays infinite
+    Fz = F.copy()
+    Fz[2, :] = Fz[:, 2] = 0.0
+    assert quality(Fz, [0, 1, 2], np.diag(D)).unobservability_index == math.inf
+
+
 @pytest.fixture(scope="module")
 def lti():
     return select_sensors(loads_model(_lti_text(), path="lti4.toml"), budget=3)
@@ -72,8 +104,10 @@ def test_lti_bounds_equal_the_matrix_exponential_gramian(lti):
         got = np.array([s.crb[x] for x in ("x1", "x2", "x3", "x4")])
         assert np.max(np.abs(got / want - 1)) < 1e-6, s.sensors
         assert abs(s.log_det - np.linalg.slogdet(W)[1]) < 1e-6 * abs(s.log_det)
-        # the unobservability index of Krener & Ide (2009): 1/√λmin of the (noise-weighted) Gramian
-        assert s.unobservability_index == pytest.approx(1 / math.sqrt(lam[0]), rel=1e-6)
+        # the unobservability index of Krener & Ide (2009): 1/√λmin of the (noise-weighted) Gramian, in units of each
+        # state's scale (no initial_std: its largest magnitude at the run's samples)
+        Sc = np.diag(_lti_scales())
+        assert s.unobservability_index == pytest.approx(1 / math.sqrt(np.linalg.eigvalsh(Sc @ W @ Sc)[0]), rel=1e-6)
         checked += 1
     assert checked >= 3
 

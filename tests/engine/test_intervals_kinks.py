@@ -62,6 +62,12 @@ def test_a_stiff_mode_is_still_refined(time_limit):
     # rate 400 (x2) and 800 (its covariance entry P22' = -800 P22 + ...): h·rate ≤ 1 needs ≥ 400 sub-steps per 0.5 s
     assert info["max_substeps"] >= 400, info
     assert np.isfinite(run.observers["ekf"].xhat).all()
+    # at rest (x2 ~ 1e-9, P at its steady state) the fast mode is all but absent from the RK4 stages' first quotient;
+    # one 0.5 s step amplifies it by ~1e9 and took P22 to -20 (issue 44 item 4): the last two stages see it. P22's
+    # steady state: P22' = -800 P22 + Q22 (x2 is not measured, and its coupling to x1 is one-way), 1e-3/800.
+    o = run.observers["ekf"]
+    P22 = o.z[:, list(o.z_names).index("P_1_1")]
+    assert np.all(np.abs(P22[1:] / (1e-3 / 800) - 1) < 0.05), P22
 
 
 # -- the step-doubling check of an interval taken for a kink (engine/_intervals.py, KINK_*) ---------------------------
@@ -97,6 +103,36 @@ def test_an_interval_taken_for_a_kink_is_refused_when_step_doubling_shows_it_div
 def test_the_kink_constants_of_the_c_driver_are_the_python_ones():
     from nlobs.engine import _intervals as I
 
-    for name in ("KINK_DOUBLINGS", "KINK_RTOL", "KINK_ATOL", "KINK_SHRINK"):
+    for name in ("KINK_DOUBLINGS", "KINK_RTOL", "KINK_ATOL", "KINK_SHRINK", "REDO_GROWTH"):
         line = next(ln for ln in I._C_DRIVER.splitlines() if ln.startswith(f"#define {name} "))
         assert float(line.split()[-1]) == float(getattr(I, name))
+
+
+# -- a fast mode that only the last RK4 stage enters (issue 44 item 4) -------------------------------------------------
+
+def test_a_weir_that_only_the_last_stage_overflows_is_refined_on_both_engines(tmp_path, time_limit):
+    """The grey-box Cascaded Tanks file with the weir as steep as the likelihood fit clamps it (w = 4610) on the real
+    record: at t = 584 s the upper tank sits 2e-4 above its top. One RK4 step of 4 s has Y2, Y3 below the weir's
+    steep part or past the Torricelli outflow's domain (its Jacobian NaN at x1 < 0), and only Y4 on it: the
+    equal-time quotient ‖k3 − k2‖/‖Y3 − Y2‖ saw nothing, the step was taken and x1 went to −1400 (a non-finite state
+    at t = 588). The rate now includes the last two stages' quotient over their finite entries; the run must go
+    through and agree with one at a forced step 400 times finer (0.01 s: the converged solution, whatever the
+    rate rule says)."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    text = (root / "benchmarks" / "models" / "cascaded_tanks_greybox.toml").read_text(encoding="utf-8")
+    path = tmp_path / "steep_weir.toml"
+    path.write_text(text.replace("\nw = 1.0\n", "\nw = 4610.0\n"), encoding="utf-8")
+    system = nlobs.load_model(path).system
+    assert dict(zip(system.param_names, system.param_values))["w"] == 4610.0
+    rec = nlobs.Recording.from_csv(root / "tests" / "data" / "cascaded_tanks_estimation.csv", system)
+    d = design_ekf(system, Q=np.eye(2) * 1e-4, R=[[1e-4]], xhat0=[6.0, 5.2], P0=np.diag([4.0, 0.04]))
+    ref = nlobs.estimate({"ekf": d}, rec, engine="c", max_step=0.01).observers["ekf"].xhat
+    k = int(np.flatnonzero(rec.t == 584.0)[0])
+    for e in ("vm", "c"):
+        run = nlobs.estimate({"ekf": d}, rec, engine=e)
+        x = run.observers["ekf"].xhat
+        assert np.isfinite(x).all() and x[:, 0].min() > 2.0 and x[:, 0].max() < 10.1, e
+        assert np.abs(x - ref).max() < 1e-4, (e, np.abs(x - ref).max(axis=0))
+        assert abs(x[k + 1, 0] - 10.0) < 0.01, (e, x[k + 1])

@@ -30,6 +30,10 @@ __all__ = ["rk4_step", "rk4_step_rate", "StepRunner", "DEFAULT_CHUNK", "run_batc
            "usable_cores"]
 
 DEFAULT_CHUNK = 10_000
+#: The most (state + input + output) entries times steps one VM chunk of :class:`StepRunner` covers: building CasADi's
+#: mapaccum over K steps takes about 35 bytes per entry and step for a while (1.26 GB, and 4.6 s, for the 16-state
+#: navigation model's sensitivities, 469 entries, over 10,000 steps; 0.13 GB for 1,000).
+VM_CHUNK_ENTRIES = 1_000_000
 
 
 def rk4_step(rhs: Callable[[Any, Any, int], Any], t: Any, s: Any, dt: Any, *, half: Any = None, sixth: Any = None) -> Any:
@@ -54,6 +58,11 @@ def rk4_step_rate(rhs: Callable[[Any, Any, int], Any], t: Any, s: Any, dt: Any, 
     Wanner, Solving ODEs II, sec. IV.2, applied to the two equal-time stages of RK4). Classical
     RK4 is stable for dt·|λ| up to about 2.8 on the real and imaginary axes. The quotient is 0
     when the stages agree to 1e-10 relative (no information; e.g. a flow that depends on t only).
+    The rate returned is the larger of that quotient and the same quotient of the last two stages,
+    ``‖f(t + dt/2, Y4) − k3‖ / ‖Y4 − Y3‖`` (Y4 = s + dt·k3): a fast mode that only the last stage
+    enters (a state the step's end carries past a steep kink) leaves k3 − k2 small but not this one.
+    f(t + dt/2, Y4) is k4 itself when the flow does not depend on t (no extra evaluation); else one
+    more evaluation, at the time (and stage index 1) of k3.
     """
     if half is None:
         half = dt / 2
@@ -64,13 +73,31 @@ def rk4_step_rate(rhs: Callable[[Any, Any, int], Any], t: Any, s: Any, dt: Any, 
     k2 = rhs(t + half, y2, 1)
     y3 = s + half * k2
     k3 = rhs(t + half, y3, 1)
-    k4 = rhs(t + dt, s + dt * k3, 2)
+    y4 = s + dt * k3
+    k4 = rhs(t + dt, y4, 2)
     s_next = s + sixth * (k1 + 2 * k2 + 2 * k3 + k4)
     if not rate:
         return s_next, None
-    den = ca.norm_2(y3 - y2)
-    num = ca.norm_2(k3 - k2)
-    return s_next, ca.if_else(den > 1e-10 * ca.norm_2(s) + 1e-300, num / (den + 1e-300), 0)
+    # a fast mode the last stage enters alone (a weir the step's end overflows: Y4 past a steep kink that Y2, Y3 stay
+    # below) leaves k3 - k2 small; the quotient of the last two stages, ‖f(Y4) − f(Y3)‖ / ‖Y4 − Y3‖, sees it. Taken at
+    # the same time as Y3 (k4 itself when the flow does not depend on t: no extra evaluation), so that a flow's own
+    # change in time is not read as a rate.
+    X = ca.MX if isinstance(s, ca.MX) else ca.SX
+    tau = X.sym("tau")
+    probe = rhs(tau, s, 2)
+    timed = isinstance(probe, (ca.SX, ca.MX)) and ca.depends_on(probe, tau)
+    k4_same = rhs(t + half, y4, 1) if timed else k4
+    return s_next, ca.fmax(_quotient(k3 - k2, y3 - y2, s), _quotient(k4_same - k3, y4 - y3, s))
+
+
+def _quotient(dk: Any, dy: Any, s: Any) -> Any:
+    """‖dk‖/‖dy‖ over the entries where both are finite (a stage past the model's domain, e.g. the Jacobian of
+    max(x, 0)^b at x < 0, is NaN in some entries: the others still measure the rate), 0 when the stages agree to
+    1e-10 relative to the state (no information)."""
+    ok = (ca.fabs(dk) < np.inf) * (ca.fabs(dy) < np.inf)   # 1 where both entries are finite
+    dk, dy = ca.if_else(ok, dk, 0), ca.if_else(ok, dy, 0)
+    den = ca.norm_2(dy)
+    return ca.if_else(den > 1e-10 * ca.norm_2(s) + 1e-300, ca.norm_2(dk) / (den + 1e-300), 0)
 
 
 _VM: dict[tuple[Any, ...], ca.Function] = {}
@@ -178,6 +205,8 @@ class StepRunner:
         # an MX step (e.g. embedding an NLP solver) cannot be generated as C: always the VM
         backend = self.backend_for(N) if self.step.is_a("SXFunction") else "vm"
         K = min(self.chunk, N) if (backend != "c" or on_chunk is not None) else N
+        if backend != "c":
+            K = min(K, max(256, VM_CHUNK_ENTRIES // (self.ns + self.na + self.no)))
         k = 0
         while k < N:
             n = min(K, N - k)

@@ -60,7 +60,14 @@ LIKELIHOOD_KINDS = ("ekf", "ukf")
 #: The names of the learnt noise log-scalings ρ_Q, ρ_R among the unknowns.
 NOISE_NAMES = ("log_Q_scale", "log_R_scale")
 #: The most RK4 sub-steps per interval in the likelihood's recursion (all intervals take the same number).
-MAX_SUBSTEPS = 64
+MAX_SUBSTEPS = 4096
+#: The most sub-steps one step of the recursion unrolls: above it, each interval is run as several rows of the
+#: recursion (equal parts of the interval, the last with the sample's update; the others predict only, their outputs
+#: masked), so that a finer step costs rows, not a larger graph.
+MAX_UNROLLED = 64
+#: Above MAX_UNROLLED, the same count in every interval is refused where it would cost more than UNEVEN times the
+#: sub-steps the filter's own run takes (one long gap in a recording: split it there instead).
+UNEVEN = 8
 #: A fit whose estimate would move by more than this many standard errors when the smoothing widths and the
 #: integration step are halved says so.
 ACCURACY = 0.5
@@ -308,8 +315,7 @@ class _Problem:
         self._args = (run, y, mask, smoothing, censor, learn_noise)
         self.width_scale = 1.0
         self._build(*self._args)
-        self.n_sub = min(max(self.n_sub, self.model.substeps), MAX_SUBSTEPS)
-        self.rec = _recursion(d, self.model, self.free, self.n_sub)
+        self.set_substeps(min(max(self.n_sub, self.model.substeps), MAX_SUBSTEPS))
         if self.exact_stiff:   # the exact run chattered at a switch: the smoothed model's own stiffness decides
             need = self.needed_substeps(self.theta0())
             if need > MAX_SUBSTEPS:
@@ -347,7 +353,7 @@ class _Problem:
         fine.__dict__.update(self.__dict__)
         fine.width_scale = self.width_scale / 2
         fine._build(*self._args)
-        fine.set_substeps(min(2 * self.n_sub, MAX_SUBSTEPS))
+        fine.set_substeps(min(2 * self.n_sub, max(MAX_SUBSTEPS, self.n_sub)))
         llf, gf, _, _ = fine.evaluate(theta)
         if not (np.isfinite(ll) and np.isfinite(llf)):
             return float("inf")
@@ -360,7 +366,7 @@ class _Problem:
                   switches: bool = False) -> Any:
         """Sub-steps per interval: the filter's own rule, run at the initial guess (the most it takes in one); the run.
 
-        With `switches` to be smoothed, a count above MAX_SUBSTEPS is not final: on the model as written the run
+        With `switches` to be smoothed, a count above MAX_UNROLLED is not final: on the model as written the run
         chatters where a switch's argument crosses zero (Coulomb friction, sign(w) at rest), which the smoothed
         model does not; ``exact_stiff`` keeps it for the check on the smoothed model."""
         from ..observer._compiled import compiled_observer
@@ -375,14 +381,19 @@ class _Problem:
         traj = compiled_observer(self.d).run(t, u=u, y=y, mask=mask, max_step=max_step, engine=self.engine, name=caller)
         self.n_sub = max(1, int(traj.substeps.max()))
         self.exact_stiff: tuple[int, int] | None = None
-        if self.n_sub > MAX_SUBSTEPS and switches:
+        if self.n_sub > MAX_UNROLLED and switches:
             self.exact_stiff = (self.n_sub, int(np.argmax(traj.substeps)))
-            self.n_sub = 1
-        elif self.n_sub > MAX_SUBSTEPS:
+            # the smoothed model's own count decides, but never a step longer than the user's max_step
+            dts = np.diff(t)
+            self.n_sub = 1 if max_step is None or dts.size == 0 else int(np.ceil(dts.max() / max_step - 1e-9))
+        elif self.n_sub > MAX_SUBSTEPS or (self.n_sub > MAX_UNROLLED and
+                                           self.n_sub * traj.substeps.size > UNEVEN * traj.substeps.sum()):
             k = int(np.argmax(traj.substeps))
             raise DataError(f"{caller}: the filter takes {self.n_sub} RK4 sub-steps in the interval from t = {t[k]:g} to "
-                            f"{t[k + 1]:g} (the most in any interval); the likelihood's recursion takes the same number in "
-                            f"every interval, at most {MAX_SUBSTEPS}: split the recording at long gaps, or resample it")
+                            f"{t[k + 1]:g} (the most in any interval, {int(traj.substeps.sum())} in all); the likelihood's "
+                            f"recursion takes the same number in every interval (at most {MAX_SUBSTEPS}; above "
+                            f"{MAX_UNROLLED}, only where the intervals need about as many: not {UNEVEN} times the "
+                            "filter's own work): split the recording at long gaps, or resample it")
         return traj
 
     def theta0(self) -> np.ndarray:
@@ -397,7 +408,8 @@ class _Problem:
         c = self.c.copy()
         c[self.free] = theta
         n = self.system.n_states
-        X = self.rec.loop(np.concatenate([self.s0, np.zeros(self.rec.ns - self.s0.size)]), self.A, c, self.engine)[:, :n]
+        X = self.rec.loop(np.concatenate([self.s0, np.zeros(self.rec.ns - self.s0.size)]), self.A_run, c,
+                          self.engine)[self.split - 1::self.split, :n]
         if not np.all(np.isfinite(X)):
             return self.n_sub
         fx = compile_system(self.model.system).f_x.map(self.N)
@@ -413,21 +425,28 @@ class _Problem:
         """The filter's one-step predictions ŷ_k⁻ at θ and their standard deviations √diag(H P⁻ Hᵀ + R), (N, p) each."""
         c = self.c.copy()
         c[self.free] = theta
-        run = self.rec.core.mapaccum("lik_one_step", self.N)
-        out = run(self.s0, self.A.T, c)
-        ny = self.system.n_outputs
-        return np.asarray(out[5]).reshape(ny, self.N).T, np.sqrt(np.maximum(np.asarray(out[6]).reshape(ny, self.N).T, 0.0))
+        rows = self.A_run.shape[0]
+        run = self.rec.core.mapaccum("lik_one_step", rows)
+        out = run(self.s0, self.A_run.T, c)
+        ny, last = self.system.n_outputs, slice(self.split - 1, None, self.split)
+        return (np.asarray(out[5]).reshape(ny, rows).T[last],
+                np.sqrt(np.maximum(np.asarray(out[6]).reshape(ny, rows).T[last], 0.0)))
 
     def set_substeps(self, n_sub: int) -> None:
-        """Integrate with `n_sub` RK4 steps per interval."""
-        self.n_sub = n_sub
-        self.rec = _recursion(self.d, self.model, self.free, n_sub)
+        """Integrate with at least `n_sub` RK4 steps per interval: above MAX_UNROLLED, each interval is `split` rows
+        of the recursion with an equal share of them (``n_sub`` becomes the count taken, split·share)."""
+        self.split = max(1, -(-int(n_sub) // MAX_UNROLLED))
+        inner = -(-int(n_sub) // self.split)
+        self.n_sub = self.split * inner
+        self.rec = _recursion(self.d, self.model, self.free, inner)
+        self.A_run = _split_rows(self.A, self.split, self.system.n_inputs, self.system.n_outputs)
 
     def evaluate(self, theta: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, int]:
         """log p, gradient, information, and the first sample whose filter state is not finite (−1 if none)."""
         c = self.c.copy()
         c[self.free] = theta
-        return self.rec(self.s0, self.A, c, self.engine)
+        ll, g, info, bad = self.rec(self.s0, self.A_run, c, self.engine)
+        return ll, g, info, (bad // self.split if bad >= 0 else bad)
 
     def __call__(self, theta: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
         ll, g, info, _ = self.evaluate(theta)
@@ -440,6 +459,20 @@ class _Problem:
             return ""
         return (f"at t = {self.t[bad]:g} (predicting from t = {self.t[bad - 1]:g}, then updating)" if bad
                 else f"at the first sample (t = {self.t[0]:g})")
+
+
+def _split_rows(A: np.ndarray, m: int, nu: int, ny: int) -> np.ndarray:
+    """The recursion's data rows with each interval cut into `m` equal parts: the first m - 1 predict only (nothing
+    measured: the update is the identity, the terms 0), the last carries the sample. Row layout as in _Recursion."""
+    if m == 1:
+        return A
+    N = A.shape[0]
+    rows = np.repeat(A, m, axis=0)
+    j = np.tile(np.arange(m), N)
+    rows[:, 1] = A[:, 1].repeat(m) / m
+    rows[:, 0] = A[:, 0].repeat(m) + j * rows[:, 1]
+    rows[j < m - 1, 2 + 2 * nu:] = 0.0     # y, mask, censoring code and limit of the parts before the sample
+    return np.ascontiguousarray(rows)
 
 
 def log_likelihood(design: Any, recording: Recording, *, params: Sequence[str] = (), learn_noise: bool = False,

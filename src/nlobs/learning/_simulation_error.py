@@ -182,7 +182,10 @@ def fit_parameters(
         each output scaled by its own spread in the data); the standard errors always use the
         residual variances at the optimum.
     max_step : float, optional
-        Largest RK4 step (default: one step per sample interval). Check ``integration_change``.
+        Largest RK4 step (default: one step per sample interval). The step is checked along the run at the estimate:
+        where halving it moves a state by more than 1 % of its range or an output by more than a tenth of its RMS error
+        at any sample, the step is halved and the fit polished, up to 64 steps per interval; beyond, the fit is not
+        successful and its message names the sample time where the step is too coarse.
     hold : {"zoh", "linear"}
         How the recorded input is held between samples.
     max_nfev : int, optional
@@ -197,7 +200,6 @@ def fit_parameters(
     ModelError
         For unknown names. DataError for missing inputs or a recording without measured outputs.
     """
-    from scipy.optimize import least_squares
 
     if not isinstance(system, System):
         raise TypeError(f"fit_parameters: `system` must be an nlobs.System, got {type(system).__name__}")
@@ -245,19 +247,12 @@ def fit_parameters(
     meas = mask > 0
     yw = np.where(meas, y, 0.0) * weights
 
-    fun, jac = sim.residual_functions(n_sub, meas, weights)
-
-    def r(theta: np.ndarray) -> np.ndarray:
-        return np.asarray(fun(theta, yw[meas])).ravel()
-
-    def J(theta: np.ndarray) -> np.ndarray:
-        return np.asarray(jac(theta))
-
-    r0 = r(theta0)
-    if not np.all(np.isfinite(r0)):
-        raise DataError(f"fit_parameters: the simulation from the initial guess ({_pairs(names, theta0)}) is not finite; "
-                        "start from other values, bound the unknowns, or give a smaller max_step")
-    sol = least_squares(r, theta0, jac=J, bounds=(lo, hi), x_scale="jac", method="trf", max_nfev=max_nfev)
+    sol, n_sub, check, nfev = _solve(sim, theta0, names, lo, hi, n_sub, meas, weights, yw, y, max_nfev)
+    message, success = str(sol.message), bool(sol.success)
+    if check is not None:
+        success = False
+        message = (f"{message}; but the integration step is too coarse: {check} with {n_sub} RK4 steps per sample "
+                   f"interval (the most the fit refines to): give a smaller max_step there, or resample the recording")
     theta = sol.x
     y_fit = sim.outputs(theta, n_sub)
     y_fit_half = sim.outputs(theta, 2 * n_sub)
@@ -286,8 +281,98 @@ def fit_parameters(
         x0_fit[system.states.index(s)] = v
     rmse = {o: float(np.sqrt(rss_j[j] / m_j[j])) if m_j[j] else float("nan") for j, o in enumerate(system.outputs)}
     return FitResult(names, theta, std, cov, theta0, fitted, x0_fit, t, y, y_fit, tuple(system.outputs), rmse,
-                     bool(sol.success), str(sol.message), int(sol.nfev), svals, tuple(weak), change, n_sub,
+                     success, message, nfev, svals, tuple(weak), change, n_sub,
                      info={"source": recording.source, "hold": hold, "max_step": max_step, "weights": weights.tolist()})
+
+
+def _solve(sim: _Simulator, theta0: np.ndarray, names: Sequence[str], lo: np.ndarray, hi: np.ndarray, n_sub: int,
+           meas: np.ndarray, weights: np.ndarray, yw: np.ndarray, y: np.ndarray, max_nfev: int | None) -> tuple[Any, int, str | None, int]:
+    """The least-squares fit with its step checked along the run at every iterate and at the estimate, halved while
+    it matters (see :func:`_step_check`): SciPy's result, the RK4 steps per interval, what the last check found (None:
+    nothing) and the simulations run."""
+    from scipy.optimize import least_squares
+
+    fns = [sim.residual_functions(n_sub, meas, weights)]
+    count = [0]
+    good = [theta0]   # the last iterate whose step passed the check
+
+    def r(theta: np.ndarray) -> np.ndarray:
+        count[0] += 1
+        return np.asarray(fns[-1][0](theta, yw[meas])).ravel()
+
+    def J(theta: np.ndarray) -> np.ndarray:
+        # at every iterate of the fit (not only at its end: on its way it may cross a region the step cannot run,
+        # a steep weir, and end where the run no longer depends on what went wrong there), the step is checked
+        # along the run; where it fails, the fit starts again from the last iterate that passed, with half the step
+        if 2 * n_sub_now[0] <= MAX_FIT_SUBSTEPS:
+            if _step_check(sim, theta, n_sub_now[0], meas, y, PATH_SLACK) is not None:
+                raise _Refine()
+            good[0] = np.array(theta, dtype=float)
+        return np.asarray(fns[-1][1](theta))
+
+    n_sub_now = [n_sub]
+    r0 = r(theta0)
+    if not np.all(np.isfinite(r0)):
+        raise DataError(f"fit_parameters: the simulation from the initial guess ({_pairs(names, theta0)}) is not finite; "
+                        "start from other values, bound the unknowns, or give a smaller max_step")
+    while True:   # the step checked along the run, at every iterate and at the end: halved while it still matters
+        try:
+            sol = least_squares(r, good[0], jac=J, bounds=(lo, hi), x_scale="jac", method="trf", max_nfev=max_nfev)
+            check = _step_check(sim, sol.x, n_sub, meas, y)
+            if check is None or 2 * n_sub > MAX_FIT_SUBSTEPS:
+                break
+            good[0] = sol.x
+        except _Refine:
+            pass
+        n_sub *= 2
+        n_sub_now[0] = n_sub
+        fns.append(sim.residual_functions(n_sub, meas, weights))
+    return sol, n_sub, check, count[0]
+
+
+class _Refine(Exception):
+    """Raised inside the least-squares iterations when an iterate's step fails the check along the run."""
+
+
+#: The most RK4 steps per sample interval the fit refines to when halving its step still matters (see _step_check).
+MAX_FIT_SUBSTEPS = 64
+#: Halving the step must move every state by less than STATE_RTOL of its range on the run, and every output by less
+#: than OUTPUT_FRACTION of its RMS error (floored at 1e-6 of the output's spread), at every sample.
+STATE_RTOL, OUTPUT_FRACTION = 1e-2, 0.1
+#: On the fit's way (every iterate) the tolerances are PATH_SLACK times looser: what must not pass there is a run
+#: the step cannot follow (an unstable RK4 step on a steep weir), accuracy is checked at the estimate.
+PATH_SLACK = 3.0
+
+
+def _step_check(sim: _Simulator, theta: np.ndarray, n_sub: int, meas: np.ndarray, y: np.ndarray,
+                slack: float = 1.0) -> str | None:
+    """The run at θ with `n_sub` RK4 steps per interval against 2·n_sub, at every sample (states and outputs: a state
+    diverging between samples shows there even where the output hides it, e.g. saturated): None when halving the
+    step changes nothing that matters, else where it does (the first sample over the tolerance, and the worst).
+    `slack` multiplies the tolerances (the iterates on the fit's way: a run the step cannot follow, not accuracy)."""
+    xc, xf = sim.states(theta, n_sub), sim.states(theta, 2 * n_sub)
+    yc, yf = sim.outputs(theta, n_sub), sim.outputs(theta, 2 * n_sub)
+    with np.errstate(invalid="ignore"):
+        rmse = np.sqrt(np.nanmean(np.where(meas, y - yc, np.nan) ** 2, axis=0))
+        spread = np.nanmax(np.where(meas, y, np.nan), axis=0) - np.nanmin(np.where(meas, y, np.nan), axis=0)
+        y_tol = OUTPUT_FRACTION * np.maximum(np.nan_to_num(rmse), 1e-6 * np.maximum(np.nan_to_num(spread), 1e-300))
+        x_tol = STATE_RTOL * np.maximum(np.nanmax(np.abs(np.where(np.isfinite(xf), xf, np.nan)), axis=0), 1e-12)
+        ratio = np.hstack([np.abs(xf - xc) / x_tol, np.abs(yf - yc) / y_tol]) / slack
+    ratio = np.where(np.isfinite(ratio), ratio, np.inf)
+    per_k = ratio.max(axis=1)
+    if np.all(per_k <= 1):
+        return None
+    names = [*sim.system.states, *sim.system.outputs]
+    t = sim.t
+
+    def at(k: int) -> str:
+        i = int(np.argmax(ratio[k]))
+        d = (xf - xc)[k, i] if i < xc.shape[1] else (yf - yc)[k, i - xc.shape[1]]
+        tol = x_tol[i] if i < xc.shape[1] else y_tol[i - xc.shape[1]]
+        return f"t = {t[k]:g} (halving the step moves {names[i]} by {d:.3g}, tolerance {tol:.3g})"
+
+    first, worst = int(np.argmax(per_k > 1)), int(np.argmax(per_k))
+    return f"first at {at(first)}" + ("" if worst == first else f", most at {at(worst)}")
 
 
 def _start_and_bounds(names: Sequence[str], theta0: np.ndarray, initial: Mapping[str, float] | None,
@@ -368,9 +453,11 @@ class _Simulator:
         self.p = ca.vertcat(*p_full) if p_full else ca.MX(0, 1)
         self.x0 = ca.vertcat(*x_full)
         self._cache: dict[int, ca.MX] = {}
+        self._X: dict[int, ca.MX] = {}
+        self._runs: dict[int, ca.Function] = {}
 
     def _Y(self, n_sub: int) -> ca.MX:
-        """Simulated outputs, shape (p, N), as an expression of θ."""
+        """Simulated outputs, shape (p, N), as an expression of θ (the states, (n, N), in ``_X[n_sub]``)."""
         if n_sub in self._cache:
             return self._cache[n_sub]
         cs, sys_ = self.cs, self.system
@@ -396,6 +483,7 @@ class _Simulator:
         h = ca.Function("h", [cs.t, cs.x, cs.u, cs.p], [cs.h_sx]).map(N)
         Y = h(ca.DM(self.t).T, Xall, ca.DM(self.u.T) if nu else ca.DM(0, N), ca.repmat(self.p, 1, N))
         self._cache[n_sub] = Y
+        self._X[n_sub] = Xall
         return Y
 
     def residual_functions(self, n_sub: int, meas: np.ndarray, weights: np.ndarray) -> tuple[ca.Function, ca.Function]:
@@ -411,8 +499,19 @@ class _Simulator:
         jac = ca.Function("fit_jacobian", [self.theta], [ca.jacobian(-sel, self.theta)])
         return fun, jac
 
+    def _run(self, n_sub: int) -> ca.Function:
+        fn = self._runs.get(n_sub)
+        if fn is None:
+            Y = self._Y(n_sub)
+            fn = self._runs[n_sub] = ca.Function("run", [self.theta], [self._X[n_sub], Y])
+        return fn
+
+    def states(self, theta: np.ndarray, n_sub: int) -> np.ndarray:
+        """The simulated states at the samples, shape (N, n)."""
+        return np.asarray(self._run(n_sub)(theta)[0]).T
+
     def outputs(self, theta: np.ndarray, n_sub: int) -> np.ndarray:
-        return np.asarray(ca.Function("y", [self.theta], [self._Y(n_sub)])(theta)).T
+        return np.asarray(self._run(n_sub)(theta)[1]).T
 
     def output_jacobian(self, theta: np.ndarray, n_sub: int) -> np.ndarray:
         Y = self._Y(n_sub)  # (p, N)

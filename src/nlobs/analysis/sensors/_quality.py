@@ -34,9 +34,10 @@ class Quality:
         -inf when a target is not informed.
     unobservability_index : float
         :math:`1/\sqrt{\lambda_{\min}(F_S)}` (Krener & Ide (2009)): the bound's standard deviation along the worst
-        direction, in the unknowns' units; inf when :math:`F_S` is singular.
+        direction, in the unknowns' units, or in units of their scales when :func:`quality` is given them; inf when
+        :math:`F_S` is singular (a bound is infinite).
     condition : float
-        :math:`\sqrt{\lambda_{\max}/\lambda_{\min}}` (the local estimation condition number).
+        :math:`\sqrt{\lambda_{\max}/\lambda_{\min}}` (the local estimation condition number, in the same units).
     """
 
     crb: np.ndarray
@@ -78,14 +79,35 @@ def batch_criterion(F: np.ndarray, targets: Sequence[int]) -> tuple[np.ndarray, 
     return crb, np.where(ok, -logdet, -np.inf)
 
 
-def quality(F: np.ndarray, targets: Sequence[int]) -> Quality:
-    """The :class:`Quality` of one information matrix."""
+def quality(F: np.ndarray, targets: Sequence[int], scales: Sequence[float] | None = None) -> Quality:
+    """The :class:`Quality` of one information matrix.
+
+    Parameters
+    ----------
+    F : numpy.ndarray of shape (m, m)
+        The set's Fisher information.
+    targets : sequence of int
+        The unknowns the criterion is of.
+    scales : sequence of float, optional
+        Each unknown's scale (its prior σ₀: ``[simulation] initial_std``, else its size on the run). The
+        unobservability index and the condition number are then those of the information in those units
+        (S F S, S = diag(scales)): with mixed units (a quaternion and a position) the plain eigenvalues of F span
+        more decades than double precision holds, and F looked singular where every bound is finite.
+
+    The index is computed as √λ_max of the Cramér–Rao covariance (in the same units), which the Jacobi-scaled
+    eigen-decomposition of F gives accurately; it is infinite exactly when a bound is (an uninformed direction).
+    """
     crb, crit = batch_criterion(F[None], targets)
-    lam = np.linalg.eigvalsh((F + F.T) / 2)
-    lo, hi = float(lam[0]), float(lam[-1])
-    singular = hi <= 0 or lo <= ZERO * hi
-    return Quality(crb[0], float(crit[0]), math.inf if singular else 1.0 / math.sqrt(lo),
-                   math.inf if singular else math.sqrt(hi / lo))
+    d, lam, V, live = _scaled_eig(F[None])
+    d, lam, V = d[0], lam[0], V[0]
+    if not (live[0].all() and np.all(d > 0)):
+        return Quality(crb[0], float(crit[0]), math.inf, math.inf)
+    s = np.ones(F.shape[0]) if scales is None else np.asarray(scales, dtype=float).reshape(F.shape[0])
+    cov = (V / lam) @ V.T * np.outer(d / s, d / s)      # the Cramér–Rao covariance in units of the scales
+    Fs = F * np.outer(s, s)
+    big = float(np.linalg.eigvalsh((cov + cov.T) / 2)[-1])
+    top = float(np.linalg.eigvalsh((Fs + Fs.T) / 2)[-1])
+    return Quality(crb[0], float(crit[0]), math.sqrt(big), math.sqrt(max(big * top, 1.0)))
 
 
 def all_subsets(information: np.ndarray, costs: np.ndarray, targets: Sequence[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -55,7 +55,9 @@ class SensorSet:
     log_det : float or None
         The ranking criterion (see :data:`CRITERION`).
     unobservability_index, condition : float or None
-        Krener & Ide (2009)'s local unobservability index and estimation condition number of the set's information.
+        Krener & Ide (2009)'s local unobservability index and estimation condition number of the set's information,
+        in units of each unknown's σ₀ (``[simulation] initial_std``, else its largest magnitude on the run): the
+        index is the Cramér–Rao bound along the worst direction, as a multiple of σ₀.
     roles : tuple of str
         Why it is listed: ``minimal``, ``pareto``, ``best``, ``pool``.
     within_budget : bool
@@ -392,7 +394,10 @@ def _assemble(model: Any, system: System, pool: tuple[Candidate, ...], jets: Can
     if best is not None:
         order.setdefault(best, []).append("best")
     order.setdefault(tuple(range(len(pool))), []).append("pool")
-    sets = tuple(_evaluate(m, roles, names, costs, jets, cols, fisher, limit) for m, roles in order.items())
+    # the index and condition number in units of each unknown's σ₀ (as the greedy's prior): mixed units otherwise
+    scales = None if fisher is None else \
+        1.0 / np.sqrt(np.diag(_prior(fisher, jets.unknowns[system.n_states:], system, cfg)))
+    sets = tuple(_evaluate(m, roles, names, costs, jets, cols, fisher, limit, scales) for m, roles in order.items())
     by_members = dict(zip(order, sets))
     return SensorSelection(
         system.name, tnames, jets.unknowns, pool, graph, search,
@@ -402,12 +407,13 @@ def _assemble(model: Any, system: System, pool: tuple[Candidate, ...], jets: Can
 
 
 def _evaluate(members: tuple[int, ...], roles: list[str], names: Sequence[str], costs: np.ndarray, jets: CandidateJets,
-              cols: Sequence[int], fisher: CandidateFisher | None, limit: float) -> SensorSet:
+              cols: Sequence[int], fisher: CandidateFisher | None, limit: float,
+              scales: np.ndarray | None = None) -> SensorSet:
     cost = float(costs[list(members)].sum())
     observable = jets.observes(members, cols)
     if fisher is None:
         return SensorSet(tuple(names[i] for i in members), cost, observable, roles=tuple(roles),
                          within_budget=cost <= limit * (1 + 1e-12))
-    q = quality(fisher.of(members), cols)
+    q = quality(fisher.of(members), cols, scales)
     return SensorSet(tuple(names[i] for i in members), cost, observable, dict(zip(jets.unknowns, map(float, q.crb))),
                      q.log_det, q.unobservability_index, q.condition, tuple(roles), cost <= limit * (1 + 1e-12))

@@ -74,7 +74,8 @@ def _quality_lines(sel: Any) -> list[str]:
     run = sel.run
     out = [f"Cramér–Rao bounds (σ) of the initial values on the [simulation] run (t in [0, {run['t_final']:g}], "
            f"{run['samples']} samples{'' if run['sample_period'] is None else ' every ' + format(run['sample_period'], 'g')}; "
-           f"{cite('krener2009')} for the index):"]
+           f"{cite('krener2009')} for the index: the bound along the worst direction, in units of each unknown's "
+           "initial_std, else its size on the run):"]
     wide = len(sel.unknowns) > WIDE
     head = ["set", "cost", "observable", "log det", *(["largest σ"] if wide else sel.unknowns), "unobs. index",
             "listed as"]
