@@ -59,3 +59,12 @@ def test_a_start_that_puts_a_positive_unknown_below_zero_is_moved_back_inside():
     sc = _Scaling(["a", "k5"], np.array([0.02, 1.4]), np.array([-np.inf, -np.inf]), np.array([np.inf, np.inf]), set())
     th = sc.admissible(np.array([0.05, -23.98]), np.array([0.02, 1.4]))
     assert np.all(np.isfinite(sc.phi(th))) and th[0] == 0.05 and 0 < th[1] < 1.4
+
+
+def test_the_command_lines_iteration_budget_is_the_librarys():
+    # the CLI cannot import the learning layer when it starts (SciPy, CasADi); its help names the same default
+    from nlobs.cli import _parser
+    from nlobs.learning._fit_likelihood import MAX_ITER
+
+    fit = next(a for a in _parser()._subparsers._group_actions[0].choices["fit"]._actions if a.dest == "max_iter")
+    assert fit.default is None and f"default {MAX_ITER}," in fit.help

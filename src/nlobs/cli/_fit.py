@@ -53,8 +53,9 @@ def add_parser(sub: Any) -> None:
                         "the simulation-error fit, then perturbed starts (--starts)")
     f.add_argument("--starts", type=int, default=4, metavar="N",
                    help="with --method likelihood: most starts (default 4)")
-    f.add_argument("--max-iter", type=int, default=200, metavar="N",
-                   help="with --method likelihood: most trust-region iterations per start, over its phases (default 200)")
+    f.add_argument("--max-iter", type=int, default=None, metavar="N",
+                   help="with --method likelihood: most trust-region iterations per start, over its phases (default 1000, "
+                        "nlobs.learning's MAX_ITER)")
     f.add_argument("--smoothing", type=float, default=1.0, metavar="FACTOR",
                    help="with --method likelihood: factor on the widths over which abs/sign/min/max are smoothed for the "
                         "filter (default 1: 1 %% of the range each argument spans on the filter's run at the initial guess; 0: "
@@ -102,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
         return _likelihood(args, mf, rec)
     for flag, given in (("--observer", args.observer), ("--learn-noise", args.learn_noise),
                         ("--skip-missing", args.skip_missing), ("--start simulation", args.start != "initial"),
-                        ("--starts", args.starts != 4), ("--max-iter", args.max_iter != 200), ("--smoothing", args.smoothing != 1.0),
+                        ("--starts", args.starts != 4), ("--max-iter", args.max_iter is not None), ("--smoothing", args.smoothing != 1.0),
                         ("--no-censor", args.no_censor)):
         if given:
             raise ValueError(f"{flag} is an option of --method likelihood (the simulation-error fit does not use it)")
@@ -177,7 +178,8 @@ def _likelihood(args: argparse.Namespace, mf: Any, rec: Any) -> int:
     res = fit_likelihood(design, rec, params, learn_noise=args.learn_noise, initial=initial, bounds=bounds,
                          start=args.start, starts=args.starts, fit_x0=_names(args.fit_x0) or None,
                          smoothing=args.smoothing, censor=not args.no_censor, max_step=args.max_step,
-                         on_missing="skip" if args.skip_missing else "error", max_iter=args.max_iter)
+                         on_missing="skip" if args.skip_missing else "error",
+                         **({} if args.max_iter is None else {"max_iter": args.max_iter}))
     if args.output:
         from ..simulate._results import write_csv
 
