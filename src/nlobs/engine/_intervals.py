@@ -13,7 +13,7 @@ with nmin_k from the user's largest step, ρ the fastest rate measured in the pr
 initial state) and c the target product h·ρ (default 1: well inside RK4's stability limit 2.8,
 and about 1 % amplitude error per step on the fastest mode). When the rate measured during the
 interval shows that a step was longer than `reject`/ρ, the interval is redone from its start with
-n_k = max(min(ceil(dt_k · ρ_measured / c), 8 n_k), 2 n_k): a stiff covariance equation or a fast transient
+n_k = max(min(ceil(dt_k · ρ_measured / c), REDO_GROWTH n_k), 2 n_k): a stiff covariance equation or a fast transient
 cannot silently inflate the state between samples. When twice the sub-steps do not shrink h·ρ (by at
 least a quarter), the interval holds a kink or a jump of the flow (abs, sign, min, max: the difference
 quotient grows as 1/h there), not a fast mode: it is finished with those sub-steps and its rate is not
