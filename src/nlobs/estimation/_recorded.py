@@ -433,7 +433,8 @@ def _estimate_one(name: str, o: AbstractObserver, recording: Recording, xhat0: A
 def _estimate_delayed(obs: Mapping[str, Any], rec: Recording, delay: Mapping[str, float], mask: np.ndarray, xhat0: Any,
                       max_step: float | None, smooth: bool, engine: Backend = "auto") -> Run:
     """Observers on a recording stamped at arrival, with the delayed samples applied when they were taken."""
-    from ..simulate._delays import TOL, plan, run_delayed
+    from ..simulate._delays import TOL, plan
+    from ..simulate._isolate import run_all_delayed
     from ..simulate._schedule import SampleSchedule
 
     if smooth:
@@ -443,26 +444,9 @@ def _estimate_delayed(obs: Mapping[str, Any], rec: Recording, delay: Mapping[str
     schedule = SampleSchedule.of_recording(rec.t, mask > 0, rec.output_names, delay=delay, caller="estimate")
     events = schedule.events(rec.y)
     the_plan = plan(rec.t, rec.u, events, rec.y.shape[1])
-    traces, failures, errors = {}, {}, []
     z0s = {name: o.initial_state(_xhat0_for(xhat0, name, o.system.n_states)) for name, o in obs.items()}
-    done = each_observer(list(obs), lambda name: run_delayed(obs[name], rec.t, rec.u, events, z0s[name], max_step=max_step,
-                                                             name=name, engine=engine, the_plan=the_plan),
-                         alone=[k for k, o in obs.items() if getattr(o.design, "needs_mx", False)])
-    for name, o in obs.items():
-        res = done[name]
-        if isinstance(res, BaseException):   # the others keep their results
-            if not isinstance(res, (FiniteEscapeError, SolverError, ModelError, DataError, EngineError, TimeBudgetError)):
-                raise res
-            failures[name] = failure_of(name, o.design.method, res)
-            errors.append(res)
-            continue
-        Z, X = res
-        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, Z, X,
-                                     z0s[name] if isinstance(o, ParticleObserver) else
-                                     o.estimate(rec.t[0], z0s[name], rec.u[0], np.zeros(rec.y.shape[1])),
-                                     covariance=getattr(o.design, "covariance", None))
-    if errors and not traces:
-        raise errors[0]
+    traces, failures = run_all_delayed(obs, rec.t, rec.u, np.zeros(rec.y.shape[1]), events, z0s, the_plan=the_plan,
+                                       engine=engine, max_step=max_step)
     system = next(iter(obs.values())).system
     early = int(np.sum(events.taken < rec.t[0] - TOL * max(1.0, abs(float(rec.t[0])))))
     notes = ([f"{early} delayed sample(s) taken before the recording's first time were left out"] if early else [])

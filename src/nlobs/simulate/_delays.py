@@ -337,3 +337,4 @@ def run_particles_delayed(obs: Any, t: np.ndarray, u: np.ndarray, events: Events
     row_pass = np.clip(np.searchsorted(P, t + _tol(t), side="right") - 1, 0, P.size - 1)
     Z = Zp[row_pass]
     return Z, Z[:, :n].copy()
+

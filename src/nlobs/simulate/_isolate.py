@@ -20,9 +20,12 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from ..engine import Backend
 from ..engine._budget import per_observer, time_budget
-from ..errors import FiniteEscapeError, SolverError, TimeBudgetError
-from ._results import ObserverFailure, Run
+from ..errors import DataError, EngineError, FiniteEscapeError, ModelError, SolverError, TimeBudgetError
+from ..observer import AbstractObserver, ParticleObserver
+from ._delays import Events, Plan, run_delayed
+from ._results import ObserverFailure, ObserverTrace, Run
 
 __all__ = ["culprits", "isolate", "merged", "observer_fault", "failure_of", "each_observer", "WORKERS"]
 
@@ -138,3 +141,36 @@ def each_observer(names: Sequence[str], work: Callable[[str], T], *, alone: Sequ
     else:
         out.update((n, guarded(n)) for n in rest)
     return {n: out[n] for n in names}
+
+
+def run_all_delayed(obs: dict[str, AbstractObserver], t: np.ndarray, u: np.ndarray, y0: np.ndarray, events: Events,
+                    z0s: dict[str, np.ndarray], *, the_plan: Plan | None, engine: Backend = "auto",
+                    max_step: float | None = None, knot_rows: np.ndarray | None = None
+                    ) -> tuple[dict[str, ObserverTrace], dict[str, ObserverFailure]]:
+    """Every observer of `obs` on the late samples (:func:`nlobs.simulate._delays.run_delayed`), each on its own: the traces of those that
+    ran and the failures of the others (the others keep their results). `y0` is the output the estimate at ``t[0]``
+    reads; `z0s` the initial states by name. Raises the first error when none ran, and any error that is not a run's
+    failure (a bug) at once."""
+
+    done = each_observer(list(obs), lambda name: run_delayed(obs[name], t, u, events, z0s[name], max_step=max_step,
+                                                             name=name, engine=engine, the_plan=the_plan,
+                                                             knot_rows=knot_rows),
+                         alone=[k for k, o in obs.items() if getattr(o.design, "needs_mx", False)])
+    traces: dict[str, ObserverTrace] = {}
+    failures: dict[str, ObserverFailure] = {}
+    errors: list[BaseException] = []
+    for name, o in obs.items():
+        res = done[name]
+        if isinstance(res, BaseException):   # ModelError: e.g. a kind that takes the output continuously
+            if not isinstance(res, (FiniteEscapeError, SolverError, ModelError, DataError, EngineError, TimeBudgetError)):
+                raise res
+            failures[name] = failure_of(name, o.design.method, res)
+            errors.append(res)
+            continue
+        Z, X = res
+        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, Z, X,
+                                     z0s[name] if isinstance(o, ParticleObserver) else o.estimate(t[0], z0s[name], u[0], y0),
+                                     covariance=getattr(o.design, "covariance", None))
+    if errors and not traces:
+        raise errors[0]
+    return traces, failures

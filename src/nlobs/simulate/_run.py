@@ -27,7 +27,7 @@ from .._progress import as_progress
 from ..design import ObserverDesign
 from ..design.kalman._pf import ParticleDesign
 from ..engine import Backend, StepRunner, compile_system, evaluate_many, rk4_step, rows
-from ..errors import DataError, EngineError, FiniteEscapeError, ModelError, ShapeError, SolverError, TimeBudgetError
+from ..errors import EngineError, FiniteEscapeError, ModelError, ShapeError
 from ..model import ModelFile, ObserverConfig, System, input_signals
 from ..observer import AbstractObserver, Observer, ParticleObserver, as_observer
 from ..observer._signals import delays_of
@@ -226,8 +226,8 @@ def _simulate_delayed(plant: System, observers: Any, delay: Mapping[str, float],
     """The plant on its own, then each observer on the samples as they arrive (see :mod:`nlobs.simulate._delays`):
     one compiled re-processing per observer, planned once for all of them; an observer that fails is reported with
     its reason and the others keep their results."""
-    from ._delays import latency_notes, plan, run_delayed
-    from ._isolate import each_observer, failure_of
+    from ._delays import latency_notes, plan
+    from ._isolate import run_all_delayed
 
     if not isinstance(plant, System) or plant.is_discrete:
         raise ModelError("simulate: measurement delays are handled for continuous-time models")
@@ -251,28 +251,10 @@ def _simulate_delayed(plant: System, observers: Any, delay: Mapping[str, float],
     measured = schedule.measured()
     events = schedule.events(base.y)
     the_plan = plan(base.t, base.u, events, plant_.n_outputs) if obs else None
-    traces, failures, errors = {}, {}, []
     z0s = {name: o.initial_state(_xhat0_for(xhat0, name, plant_.n_states)) for name, o in obs.items()}
-    sample_rows = schedule.sample_rows()   # where a particle filter steps (as without delays)
-    done = each_observer(list(obs), lambda name: run_delayed(obs[name], base.t, base.u, events, z0s[name], name=name,
-                                                             engine=kw.get("engine", "auto"), the_plan=the_plan,
-                                                             knot_rows=sample_rows),
-                         alone=[k for k, o in obs.items() if getattr(o.design, "needs_mx", False)])
-    for name, o in obs.items():
-        res = done[name]
-        if isinstance(res, BaseException):   # the others keep their results (ModelError: takes the output continuously)
-            if not isinstance(res, (FiniteEscapeError, SolverError, ModelError, DataError, EngineError, TimeBudgetError)):
-                raise res
-            failures[name] = failure_of(name, o.design.method, res)
-            errors.append(res)
-            continue
-        Z, X = res
-        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, Z, X,
-                                     z0s[name] if isinstance(o, ParticleObserver) else
-                                     o.estimate(base.t[0], z0s[name], base.u[0], base.y[0]),
-                                     covariance=getattr(o.design, "covariance", None))
-    if errors and not traces:
-        raise errors[0]
+    traces, failures = run_all_delayed(obs, base.t, base.u, base.y[0], events, z0s, the_plan=the_plan,
+                                       engine=kw.get("engine", "auto"),
+                                       knot_rows=schedule.sample_rows())   # where a pf steps (as without delays)
     notes = (*base.info.get("notes", ()), *latency_notes(events, float(base.t[-1]), list(plant_.outputs), schedule.delays))
     info = {**base.info, "delay": {k: float(v) for k, v in delay.items()}, "measured": measured, "notes": notes,
             "replayed": the_plan.replayed if the_plan is not None else 0}
