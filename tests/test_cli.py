@@ -94,7 +94,7 @@ def test_demo_only_writes_the_report(tmp_path, capsys):
     assert main(["demo", "--only", "002-pendulum", "--out", str(tmp_path), "--quiet"]) == 0
     html = (tmp_path / "index.html").read_text()
     assert "robot arm" in html and "data:image/png;base64," in html
-    assert "twice the steady-state error" in html and "2 % of its initial value" not in html  # the rule the numbers follow
+    assert "twice its steady-state error" in html and "2 % of its initial value" not in html  # the rule the numbers follow
     assert "claims 3/3 hold" in capsys.readouterr().out
     assert main(["demo", "--only", "nope", "--out", str(tmp_path)]) == 1
 
