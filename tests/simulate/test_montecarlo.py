@@ -220,9 +220,10 @@ def test_repeated_and_concurrent_calls_on_one_dask_client_return():
     assert proc.returncode == 0 and "returned" in proc.stdout, proc.stderr[-3000:]
 
 
-def test_a_monte_carlo_worker_does_not_import_flint(tmp_path):
-    """What a Dask worker runs (unpickling a chunk's task and its spec, then running it) loads no python-flint: the
-    IO route's FLINT loads with its first use. SymPy itself picks python-flint as its ground types when it is installed,
+def test_a_monte_carlo_worker_imports_only_what_it_runs(tmp_path):
+    """What a Dask worker runs (unpickling a chunk's task and its spec, then running it) loads no python-flint (the
+    IO route's FLINT loads with its first use), no analysis room (nlobs.analysis and its SymPy-heavy rooms load with
+    their first name used) and no SciPy. SymPy itself picks python-flint as its ground types when it is installed,
     so the child runs with SYMPY_GROUND_TYPES=gmpy (a worker can too) to see nlobs' own imports."""
     from nlobs.simulate._montecarlo import _chunk_task
 
@@ -233,11 +234,24 @@ def test_a_monte_carlo_worker_does_not_import_flint(tmp_path):
         task, spec = pickle.loads(open({str(tmp_path / "task.pkl")!r}, "rb").read())
         S, O, status = task(spec, 0, 4)
         assert S.shape[0] == 4 and (status == spec.prep.n_steps).all()
-        print(sorted(m for m in sys.modules if m.split(".")[0] == "flint"))
+        print(sorted(m for m in sys.modules if m.split(".")[0] in ("flint", "scipy") or m.startswith("nlobs.analysis")))
     """
     proc = _run_python(code, timeout=120, SYMPY_GROUND_TYPES="gmpy")
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert proc.stdout.strip() == "[]"
+
+
+def test_the_analysis_names_load_on_first_use():
+    """``nlobs.analysis`` offers every name it did (each loads its room on first use), and a name it lacks is an
+    AttributeError (so ``from nlobs.analysis import forms`` still finds the sub-package)."""
+    import nlobs.analysis as an
+    from nlobs.analysis import forms
+    from nlobs.analysis.structural import analyze
+
+    assert an.analyze is analyze and an.kalman_rank is forms.kalman_rank and "select_sensors" in dir(an)
+    assert set(an.__all__) >= {"analyze", "global_identifiability", "select_sensors", "decide_identity", "uco_test"}
+    with pytest.raises(AttributeError, match="no attribute 'nonesuch'"):
+        an.nonesuch  # noqa: B018
 
 
 @pytest.mark.parametrize("case", ["gaussian", "hold", "process", "multirate"])
