@@ -48,10 +48,10 @@ CHUNK_CPU: dict[int, float] = {}
 _run_chunk = _Spec.run_chunk
 
 
-def _timed_chunk(self, j0, j1):
+def _timed_chunk(self, j0, j1, *args):
     c0 = time.thread_time()
     try:
-        return _run_chunk(self, j0, j1)
+        return _run_chunk(self, j0, j1, *args)
     finally:
         tid = threading.get_ident()
         CHUNK_CPU[tid] = CHUNK_CPU.get(tid, 0.0) + time.thread_time() - c0

@@ -238,9 +238,10 @@ def test_repeated_and_concurrent_calls_on_one_dask_client_return():
     assert proc.returncode == 0 and "returned" in proc.stdout, proc.stderr[-3000:]
 
 
-def test_a_monte_carlo_worker_does_not_import_flint(tmp_path):
-    """What a Dask worker runs (unpickling a chunk's task and its spec, then running it) loads no python-flint: the
-    IO route's FLINT loads with its first use. SymPy itself picks python-flint as its ground types when it is installed,
+def test_a_monte_carlo_worker_imports_only_what_it_runs(tmp_path):
+    """What a Dask worker runs (unpickling a chunk's task and its spec, then running it) loads no python-flint (the
+    IO route's FLINT loads with its first use), no analysis room (nlobs.analysis and its SymPy-heavy rooms load with
+    their first name used) and no SciPy. SymPy itself picks python-flint as its ground types when it is installed,
     so the child runs with SYMPY_GROUND_TYPES=gmpy (a worker can too) to see nlobs' own imports."""
     from nlobs.simulate._montecarlo import _chunk_task
 
@@ -251,8 +252,52 @@ def test_a_monte_carlo_worker_does_not_import_flint(tmp_path):
         task, spec = pickle.loads(open({str(tmp_path / "task.pkl")!r}, "rb").read())
         S, O, status = task(spec, 0, 4)
         assert S.shape[0] == 4 and (status == spec.prep.n_steps).all()
-        print(sorted(m for m in sys.modules if m.split(".")[0] == "flint"))
+        print(sorted(m for m in sys.modules if m.split(".")[0] in ("flint", "scipy") or m.startswith("nlobs.analysis")))
     """
     proc = _run_python(code, timeout=120, SYMPY_GROUND_TYPES="gmpy")
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert proc.stdout.strip() == "[]"
+
+
+def test_the_analysis_names_load_on_first_use():
+    """``nlobs.analysis`` offers every name it did (each loads its room on first use), and a name it lacks is an
+    AttributeError (so ``from nlobs.analysis import forms`` still finds the sub-package)."""
+    import nlobs.analysis as an
+    from nlobs.analysis import forms
+    from nlobs.analysis.structural import analyze
+
+    assert an.analyze is analyze and an.kalman_rank is forms.kalman_rank and "select_sensors" in dir(an)
+    assert set(an.__all__) >= {"analyze", "global_identifiability", "select_sensors", "decide_identity", "uco_test"}
+    with pytest.raises(AttributeError, match="no attribute 'nonesuch'"):
+        an.nonesuch  # noqa: B018
+
+
+@pytest.mark.parametrize("case", ["gaussian", "hold", "process", "multirate"])
+def test_a_chunk_draws_each_seeds_noise_in_place_bit_for_bit(case):
+    """A chunk's noise inputs, drawn in place into one array for the chunk, are bit for bit the per-step inputs that
+    :func:`nlobs.simulate` makes for each seed (``Prepared.inputs_for``), and the measurement noise is the seeding
+    contract written in plain NumPy: output j of seed s draws from PCG64(SeedSequence(s, spawn_key=(0, j))), sample by
+    sample (so the first N + 1 samples, whatever the horizon)."""
+    from nlobs import ProcessNoise, Sampling
+    from nlobs.simulate._montecarlo import _Buffers, seeded_inputs
+    from nlobs.simulate._run import prepare
+
+    plant = System(states=["p", "v"], f=["v", "-p - 0.2*v + u"], inputs=["u"], outputs=["y1", "y2"], h=["p", "v"])
+    kw = {"gaussian": dict(noise=Noise.gaussian([0.1, 0.02])),
+          "hold": dict(noise=Noise.per_output({"y1": 0.1}, {"y2": 0.05}, hold=0.03)),
+          "process": dict(noise=Noise.uniform(0.05), process_noise=ProcessNoise([0.01, 0.02])),
+          "multirate": dict(process_noise=ProcessNoise({"v": 0.03}), sampling=Sampling({"y1": 0.02, "y2": 0.05}))}[case]
+    prep = prepare(plant, None, t_final=0.5, dt=0.01, inputs={"u": "sin(t)"}, params=None, caller="montecarlo",
+                   **{"noise": None, "process_noise": None, "sampling": None, **kw})
+    seeds = np.random.SeedSequence(9).generate_state(5).astype(np.int64)
+    expected = np.stack([prep.inputs_for(int(s)) for s in seeds])
+    flat = _Buffers().take(expected.size + 7)
+    flat[:] = np.nan   # a lent array holds the last chunk's numbers: every cell must be written
+    assert np.array_equal(seeded_inputs(prep, seeds, flat), expected)
+    assert np.array_equal(seeded_inputs(prep, seeds), expected)
+    if case == "gaussian":
+        nb = prep.base.shape[1]
+        for r, s in enumerate(seeds):
+            for j, std in enumerate((0.1, 0.02)):
+                g = np.random.Generator(np.random.PCG64(np.random.SeedSequence(int(s), spawn_key=(0, j))))
+                assert np.array_equal(expected[r, :, nb + j], std * np.array([g.standard_normal() for _ in range(51)]))

@@ -23,82 +23,62 @@ Identities (exact, Schwartz-Zippel): :func:`decide_identity`, :func:`exact_gener
 Sensor selection (Liu, Slotine & Barabási (2013); Krener & Ide (2009)): :func:`select_sensors` -> :class:`SensorSelection`.
 Augmentation (Viegas, Batista, Oliveira & Silvestre (2015)): :func:`check_mimicking`, :func:`injectivity`, :func:`left_inverse_bounds`,
 :func:`augmented_observability`, :func:`propose_augmentation`.
+
+Every name loads its room when first used (PEP 562): a package that needs one test (a design's
+``kalman_rank``) imports that room alone, and a Monte Carlo worker, which runs no analysis, none of them.
 """
 
-from .forms import LinearObservability as LinearObservability
-from .forms import PBHResult as PBHResult
-from .forms import kalman_rank as kalman_rank
-from .forms import observability_matrix as observability_matrix
-from .forms import pbh_test as pbh_test
-from .structural import InputClass as InputClass
-from .structural import analyze as analyze
-from .structural import observable_function as observable_function
-from .structural import GlobalResult as GlobalResult
-from .structural import LocallyOnly as LocallyOnly
-from .structural import MultiExperiment as MultiExperiment
-from .structural import NotRational as NotRational
-from .structural import global_identifiability as global_identifiability
-from .structural import multi_experiment as multi_experiment
-from .structural import replicate as replicate
-from ..algebra._groebner import available_engines as available_engines
-from .structural import IdentifiableFunctions as IdentifiableFunctions
-from .structural import find_identifiable_functions as find_identifiable_functions
-from .structural import Regime as Regime
-from .structural import visited_regimes as visited_regimes
-from .structural import Reparametrization as Reparametrization
-from .structural import reparametrize as reparametrize
-from ._reports import FunctionCheck as FunctionCheck
-from ._reports import ObservabilityReport as ObservabilityReport
-from ._reports import Symmetry as Symmetry
-from .trajectory import EmpiricalGramian as EmpiricalGramian
-from .trajectory import GramianResult as GramianResult
-from .trajectory import Indistinguishability as Indistinguishability
-from .trajectory import UCOResult as UCOResult
-from .trajectory import empirical_gramian as empirical_gramian
-from .trajectory import indistinguishable as indistinguishable
-from .trajectory import ltv_gramian as ltv_gramian
-from .trajectory import state_affine_ltv as state_affine_ltv
-from .trajectory import uco_test as uco_test
-from .forms import KalmanDecomposition as KalmanDecomposition
-from .forms import kalman_decomposition as kalman_decomposition
-from .trajectory import ExcitationResult as ExcitationResult
-from .trajectory import IdentifiabilityResult as IdentifiabilityResult
-from .trajectory import LocalRegularity as LocalRegularity
-from .trajectory import identifiability_rank as identifiability_rank
-from .trajectory import interval_excitation as interval_excitation
-from .trajectory import local_regularity as local_regularity
-from .trajectory import persistent_excitation as persistent_excitation
-from .trajectory import regular_persistence as regular_persistence
-from .forms import FormCheck as FormCheck
-from .forms import FormsReport as FormsReport
-from .forms import lipschitz_constant as lipschitz_constant
-from .forms import recognise_forms as recognise_forms
-from .forms import state_affine_form as state_affine_form
-from .forms import triangular_form as triangular_form
-from .forms import with_params_as_states as with_params_as_states
-from ..algebra._identity import ExactRank as ExactRank
-from ..algebra._identity import Identity as Identity
-from ..algebra._identity import decide_identity as decide_identity
-from ..algebra._identity import exact_generic_rank as exact_generic_rank
-from .forms import BanksCheck as BanksCheck
-from .forms import LipschitzEstimate as LipschitzEstimate
-from .forms import SlopeResult as SlopeResult
-from .forms import banks_condition as banks_condition
-from .forms import lipschitz_bound as lipschitz_bound
-from .forms import matrix_measure as matrix_measure
-from .forms import max_slope as max_slope
-from .forms import Augmentation as Augmentation
-from .forms import AugmentedObservability as AugmentedObservability
-from .forms import InjectivityCheck as InjectivityCheck
-from .forms import LeftInverseBounds as LeftInverseBounds
-from .forms import MimickingCheck as MimickingCheck
-from .forms import augmented_observability as augmented_observability
-from .forms import check_mimicking as check_mimicking
-from .forms import injectivity as injectivity
-from .forms import left_inverse_bounds as left_inverse_bounds
-from .forms import propose_augmentation as propose_augmentation
-from .sensors import Candidate as Candidate
-from .sensors import SensorSelection as SensorSelection
-from .sensors import SensorSet as SensorSet
-from .sensors import select_sensors as select_sensors
-from .sensors import sensor_pool as sensor_pool
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+#: Public name -> the module (relative to this package) that defines it.
+_LAZY: dict[str, str] = {
+    **dict.fromkeys((
+        "LinearObservability", "PBHResult", "kalman_rank", "observability_matrix", "pbh_test",
+        "KalmanDecomposition", "kalman_decomposition", "FormCheck", "FormsReport", "lipschitz_constant",
+        "recognise_forms", "state_affine_form", "triangular_form", "with_params_as_states", "BanksCheck",
+        "LipschitzEstimate", "SlopeResult", "banks_condition", "lipschitz_bound", "matrix_measure", "max_slope",
+        "Augmentation", "AugmentedObservability", "InjectivityCheck", "LeftInverseBounds", "MimickingCheck",
+        "augmented_observability", "check_mimicking", "injectivity", "left_inverse_bounds",
+        "propose_augmentation",
+    ), ".forms"),
+    **dict.fromkeys((
+        "InputClass", "analyze", "observable_function", "GlobalResult", "LocallyOnly", "MultiExperiment",
+        "NotRational", "global_identifiability", "multi_experiment", "replicate", "IdentifiableFunctions",
+        "find_identifiable_functions", "Regime", "visited_regimes", "Reparametrization", "reparametrize",
+    ), ".structural"),
+    **dict.fromkeys((
+        "available_engines",
+    ), "..algebra._groebner"),
+    **dict.fromkeys((
+        "FunctionCheck", "ObservabilityReport", "Symmetry",
+    ), "._reports"),
+    **dict.fromkeys((
+        "EmpiricalGramian", "GramianResult", "Indistinguishability", "UCOResult", "empirical_gramian",
+        "indistinguishable", "ltv_gramian", "state_affine_ltv", "uco_test", "ExcitationResult",
+        "IdentifiabilityResult", "LocalRegularity", "identifiability_rank", "interval_excitation",
+        "local_regularity", "persistent_excitation", "regular_persistence",
+    ), ".trajectory"),
+    **dict.fromkeys((
+        "ExactRank", "Identity", "decide_identity", "exact_generic_rank",
+    ), "..algebra._identity"),
+    **dict.fromkeys((
+        "Candidate", "SensorSelection", "SensorSet", "select_sensors", "sensor_pool",
+    ), ".sensors"),
+}
+
+__all__ = sorted(_LAZY)
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _LAZY:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(_LAZY[name], __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_LAZY})

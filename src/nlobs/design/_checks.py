@@ -13,7 +13,6 @@ from typing import Any
 import numpy as np
 
 from .._text import shorten
-from ..analysis import kalman_rank, pbh_test
 from ..algebra._identity import Identity
 from ..errors import PreconditionError, ShapeError
 from ._base import Check
@@ -141,6 +140,7 @@ def observer_gain(A: np.ndarray, C: np.ndarray, *, poles: Any = None, L: Any = N
     values : dict
         ``L``, ``eigenvalues`` of A - LC, ``decay_rate`` (-max Re), and the design inputs.
     """
+    from ..analysis import kalman_rank, pbh_test  # here, not at the top: a Monte Carlo worker loads no analysis
     n, p = A.shape[0], C.shape[0]
     given = [k for k, v in (("poles", poles), ("L", L), ("Q/R", Q if Q is not None else R)) if v is not None]
     if len(given) != 1:

@@ -15,7 +15,6 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from ..analysis.forms._conditions import box_sup, region_pairs
 from ..engine import to_casadi
 from ..errors import ModelError, PreconditionError, ShapeError
 from ..model import TIME, System
@@ -77,6 +76,7 @@ def chain_gain(couplings: Sequence[float], poles: Sequence[complex]) -> np.ndarr
 def box_of(system: System, region: Mapping[str, Sequence[float]] | None, names: Sequence[str], caller: str,
            what: str = "region") -> tuple[np.ndarray, np.ndarray]:
     """Lower and upper bounds for `names` from a mapping ``{name: (lo, hi)}`` (every name required)."""
+    from ..analysis.forms._conditions import region_pairs  # here, not at the top: a Monte Carlo worker loads no analysis
     if region is None:
         raise PreconditionError(f"{caller}: `{what}` is required here: give a box {{name: (lo, hi)}} for {', '.join(names)}")
     region_pairs(region, names, what, caller)   # every name once, no other
@@ -105,6 +105,7 @@ def sup_over_box(fn: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.
     value : float
     argmax : numpy.ndarray of shape (d,)
     """
+    from ..analysis.forms._conditions import box_sup  # here, not at the top: a Monte Carlo worker loads no analysis
     try:
         return box_sup(fn, np.column_stack([lo, hi]))
     except ModelError as e:

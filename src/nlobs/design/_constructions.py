@@ -24,7 +24,6 @@ import numpy as np
 import sympy as sp
 from sympy.printing.str import StrPrinter
 
-from ..analysis import matrix_measure
 from ..engine import to_casadi
 from ..errors import FormError, PreconditionError
 from ..model import TIME, System, symbol
@@ -281,6 +280,7 @@ def banks_gain(system: System, samples: np.ndarray, u: np.ndarray, t: np.ndarray
     over the given points (Banks (1980) Theorem 2.6 with f2 = 0), by Nelder–Mead on the largest matrix measure
     from the sign-flipped pole-placement gain of the linearisation at the centre. Returns (P, best value, how).
     """
+    from ..analysis import matrix_measure  # here, not at the top: a Monte Carlo worker loads no analysis
     import scipy.optimize
 
     n, p = system.n_states, system.n_outputs

@@ -26,7 +26,6 @@ from typing import Any
 import numpy as np
 
 from .._text import shorten, shorten_list
-from ..analysis import analyze
 from ..errors import ModelError, PreconditionError
 from ..model import ObserverConfig, System
 from ..model._budget import symbolic_budget
@@ -111,6 +110,8 @@ def check_identifiable(system: System, *, inputs: Any = "generic", where: str = 
         return
     key = (system.key, tuple(system.params.items()), repr(inputs))
     if key not in _IDENT_CACHE:
+        from ..analysis import analyze  # deferred: a Monte Carlo worker unpickling a design runs no analysis
+
         report = analyze(system, inputs=inputs, symmetries=False)
         bad = tuple(k for k in est if k not in report.observable_states)
         detail = ""

@@ -30,6 +30,7 @@ import numpy as np
 
 from ..errors import ConvergenceWarning, EngineError
 from ._budget import Watchdog, expired, remaining
+from ._split import split_large, units
 
 __all__ = ["Backend", "COSTS", "choose_backend", "code_size", "signature_of", "built_path", "CompiledBatch", "CompiledLoop", "cache_dir", "find_compiler", "compile_c", "resolve_backend"]
 
@@ -337,25 +338,56 @@ def _build(code: str | Callable[[], str], tag: str, so: Path | None = None, n_in
         out_dir = so.parent
         out_dir.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory(prefix="nlobs-cc-", dir=out_dir) as tmp:
-            c_file = Path(tmp) / "gen.c"
-            c_file.write_text(code)
             flags = cflags(code.count("\n"))
             tmp_so = Path(tmp) / "gen.so"
             t0 = time.perf_counter()
             left = remaining()
             if left is not None and left <= 0:
                 raise expired(f"compiling its C code ({tag})")
-            try:
-                proc = subprocess.run([cc, *flags, str(c_file), "-o", str(tmp_so), "-lm"], capture_output=True, text=True,
-                                      timeout=left)
-            except subprocess.TimeoutExpired:
-                raise expired(f"compiling its C code ({tag})") from None
-            if proc.returncode != 0:
-                raise EngineError(f"the C compiler {cc} failed on the generated code for {tag}:\n{proc.stderr[-2000:]}")
+            pieces = units(code)
+            if pieces is None:
+                (Path(tmp) / "gen.c").write_text(code)
+                _run_compilers(cc, [[cc, *flags, str(Path(tmp) / "gen.c"), "-o", str(tmp_so), "-lm"]], tag, left)
+            else:   # a function split into parts: the units compiled apart (two at a time), then linked
+                objs = []
+                for i, src in enumerate(pieces):
+                    (Path(tmp) / f"u{i}.c").write_text(src)
+                    objs.append(str(Path(tmp) / f"u{i}.o"))
+                unit_flags = [f for f in flags if f != "-shared"]
+                _run_compilers(cc, [[cc, *unit_flags, "-c", str(Path(tmp) / f"u{i}.c"), "-o", o] for i, o in enumerate(objs)],
+                               tag, left)
+                _run_compilers(cc, [[cc, *flags, *objs, "-o", str(tmp_so), "-lm"]], tag, remaining())
             if n_instr:
                 COSTS.record_compile(n_instr, time.perf_counter() - t0, big=code.count("\n") > BIG_CODE)
             os.replace(tmp_so, so)  # atomic: concurrent builders never see a half-written file
     return so
+
+
+#: gcc processes one build runs at once (the units of a split function).
+UNIT_WORKERS = max(1, min(2, os.cpu_count() or 1))
+
+
+def _run_compilers(cc: str, commands: list[list[str]], tag: str, left: float | None) -> None:
+    """Run the compiler `commands`, :data:`UNIT_WORKERS` at a time, within `left` seconds (None: no limit); the first
+    failure (its message included) or the time running out stops the others."""
+    deadline = None if left is None else time.monotonic() + left
+    waiting, running = list(commands), []
+    try:
+        while waiting or running:
+            while waiting and len(running) < UNIT_WORKERS:
+                running.append(subprocess.Popen(waiting.pop(0), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
+            proc = running[0]
+            try:
+                _, err = proc.communicate(timeout=None if deadline is None else max(deadline - time.monotonic(), 0.0))
+            except subprocess.TimeoutExpired:
+                raise expired(f"compiling its C code ({tag})") from None
+            running.pop(0)
+            if proc.returncode != 0:
+                raise EngineError(f"the C compiler {cc} failed on the generated code for {tag}:\n{err[-2000:]}")
+    finally:
+        for proc in running:
+            proc.kill()
+            proc.wait()
 
 
 def compile_c(fn: ca.Function, *, sig: str | None = None, tag: str | None = None) -> ca.Function:
@@ -483,7 +515,9 @@ def _compile_driver(step: ca.Function, template: str, tag: str, no: int, sig: st
 
 def _renamed(fn: ca.Function, name: str) -> ca.Function:
     """`fn` under another name (the C symbol), evaluated symbolically so it stays SX when it was (and an MX function
-    stays one call: the functions it calls are generated once, not inlined)."""
+    stays one call: the functions it calls are generated once, not inlined). A very large SX function becomes a chain
+    of parts (:func:`nlobs.engine._split.split_large`: the compiler sees no huge function)."""
+    fn = split_large(fn)
     Sym = ca.SX if fn.is_a("SXFunction") else ca.MX
     args = [Sym.sym(fn.name_in(i), fn.sparsity_in(i)) for i in range(fn.n_in())]
     return ca.Function(name, args, fn.call(args))

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextvars
 import functools
+import threading
 import warnings
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import FIRST_EXCEPTION, ThreadPoolExecutor, wait
@@ -30,7 +31,7 @@ from ..engine._simd import LANES
 from ..errors import FiniteEscapeError, ModelError, ShapeError, SolverError
 from ..model import System
 from ._metrics import convergence_band, convergence_time, state_convergence
-from ._options import Noise, ProcessNoise, Sampling
+from ._options import Noise, ProcessNoise, Sampling, channel_generators
 from ._results import Run
 from ._run import Prepared, prepare, simulate
 from ._schedule import run_seeds
@@ -229,7 +230,9 @@ class _Spec:
     bound: float
     engine: str
 
-    def run_chunk(self, j0: int, j1: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def run_chunk(self, j0: int, j1: int, buffers: _Buffers | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Runs j0 .. j1 - 1: final arrays (states, outputs, status) of :func:`nlobs.engine.run_batch`; `buffers`
+        lends the chunk its noise inputs' array (reused from an earlier chunk of the same call)."""
         prep, layout = self.prep, self.prep.layout
         S0 = np.empty((j1 - j0, layout.size))
         S0[:, :prep.plant.n_states] = self.x0[j0:j1]
@@ -239,8 +242,16 @@ class _Spec:
             S0[:, layout.held] = 0.0
         C = np.tile(prep.constants(), (j1 - j0, 1)) if prep.kind.folded is not None else \
             np.column_stack([np.tile(prep.constants()[:3], (j1 - j0, 1)), self.params[j0:j1]])
-        A = prep.inputs_for(None) if not prep.seeded else np.stack([prep.inputs_for(int(s)) for s in self.seeds[j0:j1]])
-        return run_batch(layout.step, S0, A, C, prep.n_steps, stride=self.stride, bound=self.bound, backend=self.engine)
+        if not prep.seeded:
+            return run_batch(layout.step, S0, prep.inputs_for(None), C, prep.n_steps, stride=self.stride, bound=self.bound,
+                             backend=self.engine)
+        flat = (buffers or _Buffers()).take((j1 - j0) * (prep.n_steps + 1) * prep.layout.step.size1_in(1))
+        try:
+            A = seeded_inputs(prep, self.seeds[j0:j1], flat)
+            return run_batch(layout.step, S0, A, C, prep.n_steps, stride=self.stride, bound=self.bound, backend=self.engine)
+        finally:
+            if buffers is not None:
+                buffers.give(flat)
 
     def rerun(self, j: int, inputs: Any) -> Run:
         prep = self.prep
@@ -249,6 +260,60 @@ class _Spec:
         return simulate(plant, prep.obs, t_final=prep.n_steps * prep.dt, dt=prep.dt, x0=self.x0[j],
                         inputs=inputs, noise=prep.noise, process_noise=prep.process_noise, sampling=prep.schedule.sampling,
                         seed=int(self.seeds[j]), xhat0={k: v[j] for k, v in self.xhat0.items()}, escape_bound=self.bound)
+
+
+class _Buffers:
+    """Flat float arrays lent to the chunks of one call and given back after each: a fresh array of tens of MB pays a
+    page fault per 4 kB on its first write (on the noisy P2 run that cost more than drawing the noise), a reused one
+    does not. Thread-safe; freed with the call."""
+
+    def __init__(self) -> None:
+        self._free: list[np.ndarray] = []
+        self._lock = threading.Lock()
+
+    def take(self, size: int) -> np.ndarray:
+        """An array of at least `size` floats (contents undefined)."""
+        with self._lock:
+            for i, b in enumerate(self._free):
+                if b.size >= size:
+                    return self._free.pop(i)
+        return np.empty(size)
+
+    def give(self, flat: np.ndarray) -> None:
+        """Return an array from :meth:`take`."""
+        with self._lock:
+            self._free.append(flat)
+
+
+def seeded_inputs(prep: Prepared, seeds: np.ndarray, flat: np.ndarray | None = None) -> np.ndarray:
+    """The per-step inputs of runs with the given seeds, shape (len(seeds), N + 1, na): row r equals
+    ``prep.inputs_for(seeds[r])`` bit for bit (the same generators, draws and products), written in place into one
+    array for the chunk (no per-run arrays to stack; into `flat`, a float array of at least that size, when given),
+    with the seed-free columns (time and inputs, sample flags) broadcast once and the noise scales computed once."""
+    N, plant = prep.n_steps, prep.plant
+    flags = prep.sample_flags() if prep.kind.sampled else None
+    nb = prep.base.shape[1]
+    nv = plant.n_outputs if prep.noise is not None else 0
+    nw = plant.n_states if prep.process_noise is not None else 0
+    shape = (len(seeds), N + 1, nb + nv + nw + (flags.shape[1] if flags is not None else 0))
+    A = np.empty(shape) if flat is None else flat[:int(np.prod(shape))].reshape(shape)
+    A[:, :, :nb] = prep.base
+    if flags is not None:
+        A[:, :, nb + nv + nw:] = flags
+    V, W = slice(nb, nb + nv), slice(nb + nv, nb + nv + nw)
+    A[:, N, W] = 0.0  # process noise: an increment per step, none after the last
+    scratch = np.empty(N + 1)
+    if nv:
+        s_v, kinds = prep.noise.scales(plant.outputs), prep.noise.kind_of(plant.outputs)  # type: ignore[union-attr]
+    if nw:
+        s_w = prep.process_noise.scales(plant.states) * np.sqrt(prep.dt)  # type: ignore[union-attr]
+    for r, seed in enumerate(seeds):
+        if nv:
+            prep.noise.fill(channel_generators(int(seed), "measurement", nv), A[r, :, V], s_v, kinds, prep.dt,  # type: ignore[union-attr]
+                            scratch)
+        if nw:
+            ProcessNoise.fill(channel_generators(int(seed), "process", nw), A[r, :N, W], s_w, scratch)
+    return A
 
 
 def _per_run(value: Any, M: int, n: int, name: str) -> np.ndarray:
@@ -444,16 +509,17 @@ def _chunk_size(M: int, slots: int, per_run: int) -> int:
 
 def _on_threads(spec: _Spec, bounds: Sequence[tuple[int, int]], threads: int, report: Any) -> list[Any]:
     """The chunks, in order, run on `threads` threads (1: one after another in this thread)."""
+    buffers = _Buffers()
     if threads <= 1:
         parts = []
         for i, (j0, j1) in enumerate(bounds):
-            parts.append(spec.run_chunk(j0, j1))
+            parts.append(spec.run_chunk(j0, j1, buffers))
             if report is not None:
                 report((i + 1) / len(bounds))
         return parts
     with ThreadPoolExecutor(max_workers=threads, thread_name_prefix="nlobs-montecarlo") as pool:
         # each chunk in a copy of this context: time budgets and deadlines set by the caller reach the threads
-        futures = [pool.submit(contextvars.copy_context().run, spec.run_chunk, j0, j1) for j0, j1 in bounds]
+        futures = [pool.submit(contextvars.copy_context().run, spec.run_chunk, j0, j1, buffers) for j0, j1 in bounds]
         pending, done = set(futures), 0
         while pending:
             finished, pending = wait(pending, return_when=FIRST_EXCEPTION)

@@ -82,9 +82,14 @@ def channel_generators(seed: int | np.random.SeedSequence | None, stream: str, n
     seed's SeedSequence keyed by (stream, channel). A channel's generator is drawn sample by sample in time order, so
     the noise of sample k depends on the seed, the stream, the channel and k only: a 10 s run has the noise of the first
     10 s of a 20 s run with the same seed, and adding process noise does not change the measurement noise."""
-    root = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
     key = STREAMS[stream]
-    return [np.random.Generator(np.random.PCG64(np.random.SeedSequence(root.entropy, spawn_key=(*root.spawn_key, key, j))))
+    if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+        # SeedSequence(seed) keeps the integer as its entropy and has no spawn key: the children directly
+        entropy, spawn_key = int(seed), ()
+    else:
+        root = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+        entropy, spawn_key = root.entropy, tuple(root.spawn_key)
+    return [np.random.Generator(np.random.PCG64(np.random.SeedSequence(entropy, spawn_key=(*spawn_key, key, j))))
             for j in range(n)]
 
 
@@ -159,22 +164,43 @@ class Noise:
              dt: float | None = None) -> np.ndarray:
         """Samples of shape (n_rows, len(names)), one per step of size `dt` (needed with `hold`). `rng`: one generator,
         or one per output (:func:`channel_generators`: the noise of a sample then does not depend on `n_rows`)."""
+        out = np.zeros((n_rows, len(names)))
+        self.fill(_generators(rng, len(names)), out, self.scales(names), self.kind_of(names), dt)
+        return out
+
+    def kind_of(self, names: Sequence[str]) -> tuple[str, ...]:
+        """The kind ("gaussian" or "uniform") of each of `names`."""
+        kinds = tuple(self.kinds.get(n, "gaussian") if isinstance(self.kinds, Mapping) else self.kinds for n in names)
+        bad = [k for k in kinds if k not in ("gaussian", "uniform")]
+        if bad:
+            raise ValueError(f"Noise: unknown kind {bad[0]!r}; use 'gaussian' or 'uniform'")
+        return kinds
+
+    def fill(self, rngs: Sequence[np.random.Generator], out: np.ndarray, scales: np.ndarray, kinds: Sequence[str],
+             dt: float | None = None, scratch: np.ndarray | None = None) -> None:
+        """:meth:`draw` with one generator per output (the same numbers), written into `out` (a view of shape
+        (n_rows, len(rngs)), e.g. the noise columns of a Monte Carlo chunk's inputs), with the scales and kinds
+        computed once (:meth:`scales`, :meth:`kind_of`); `scratch`, a float array of at least n_rows, spares an
+        allocation per output."""
         if self.hold is not None:
             if dt is None:
                 raise ValueError("Noise with `hold` needs the step `dt` to draw")
             every = Sampling(self.hold).every(dt)
-            fresh = Noise(self.kinds, self.scale).draw(rng, -(-n_rows // every), names)
-            return np.repeat(fresh, every, axis=0)[:n_rows]
-        s = self.scales(names)
-        out = np.zeros((n_rows, len(names)))
-        for j, (name, g) in enumerate(zip(names, _generators(rng, len(names)))):
-            kind = self.kinds.get(name, "gaussian") if isinstance(self.kinds, Mapping) else self.kinds
-            if kind == "gaussian":
-                out[:, j] = s[j] * g.standard_normal(n_rows)
-            elif kind == "uniform":
-                out[:, j] = g.uniform(-s[j], s[j], n_rows)
+            fresh = self._fill(rngs, np.zeros((-(-out.shape[0] // every), len(rngs))), scales, kinds, scratch)
+            out[...] = np.repeat(fresh, every, axis=0)[:out.shape[0]]
+            return
+        self._fill(rngs, out, scales, kinds, scratch)
+
+    @staticmethod
+    def _fill(rngs: Sequence[np.random.Generator], out: np.ndarray, s: np.ndarray, kinds: Sequence[str],
+              scratch: np.ndarray | None = None) -> np.ndarray:
+        n_rows = out.shape[0]
+        buf = scratch[:n_rows] if scratch is not None and scratch.size >= n_rows else np.empty(n_rows)
+        for j, (g, kind) in enumerate(zip(rngs, kinds)):
+            if kind == "gaussian":  # (the same product as s[j] * g.standard_normal(n_rows))
+                np.multiply(s[j], g.standard_normal(out=buf), out=out[:, j])
             else:
-                raise ValueError(f"Noise: unknown kind {kind!r}; use 'gaussian' or 'uniform'")
+                out[:, j] = g.uniform(-s[j], s[j], n_rows)
         return out
 
 
@@ -190,12 +216,25 @@ class ProcessNoise:
     def draw(self, rng: np.random.Generator | Sequence[np.random.Generator], n_rows: int, names: Sequence[str],
              dt: float) -> np.ndarray:
         """Increments of shape (n_rows, len(names)); `rng` as for :meth:`Noise.draw`."""
-        s = _per_channel(self.std, names, "ProcessNoise")
+        s = self.scales(names)
         if isinstance(rng, np.random.Generator):
             return s * np.sqrt(dt) * rng.standard_normal((n_rows, len(names)))
-        xi = np.column_stack([g.standard_normal(n_rows) for g in _generators(rng, len(names))]) if names else \
-            np.zeros((n_rows, 0))
-        return s * np.sqrt(dt) * xi
+        out = np.zeros((n_rows, len(names)))
+        self.fill(_generators(rng, len(names)), out, s * np.sqrt(dt))
+        return out
+
+    def scales(self, names: Sequence[str]) -> np.ndarray:
+        """σ of each of `names`."""
+        return _per_channel(self.std, names, "ProcessNoise")
+
+    @staticmethod
+    def fill(rngs: Sequence[np.random.Generator], out: np.ndarray, scales: np.ndarray, scratch: np.ndarray | None = None) -> None:
+        """:meth:`draw` with one generator per state, written into `out` (a view of shape (n_rows, len(rngs)));
+        `scales` is σ·√dt per state (``scales(names) * np.sqrt(dt)``); `scratch` as for :meth:`Noise.fill`."""
+        n_rows = out.shape[0]
+        buf = scratch[:n_rows] if scratch is not None and scratch.size >= n_rows else np.empty(n_rows)
+        for j, g in enumerate(rngs):  # (the same product as (σ·√dt) * ξ, column by column)
+            np.multiply(scales[j], g.standard_normal(out=buf), out=out[:, j])
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,6 @@ import numpy as np
 import sympy as sp
 
 from ..._text import shorten
-from ...analysis import matrix_measure
 from ...engine import compile_system, to_casadi
 from ...errors import PreconditionError, ShapeError
 from ...model import TIME, System, symbol
@@ -87,6 +86,7 @@ def banks_conditions(system: System, P: np.ndarray, perturbation: Sequence[sp.Ex
     polish, see :func:`nlobs.analysis.box_sup`), and only the variables the
     matrices depend on need bounds.
     """
+    from ...analysis import matrix_measure  # here, not at the top: a Monte Carlo worker loads no analysis
     f, h = system.substituted()
     x = sp.Matrix(system.x)
     f2 = sp.Matrix(list(perturbation))

@@ -7,7 +7,6 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from ...analysis import kalman_rank
 from ...engine import to_casadi
 from ...errors import FormError, PreconditionError
 from ...model import LTI, TIME, OutputInjectionForm, System
@@ -190,6 +189,7 @@ def design_output_injection(system: System, *, poles: Any = None, L: Any = None,
 def discrete_luenberger(system: System, *, poles: Any = None, L: Any = None, xhat0: Any = None,
                         caller: str = "design_luenberger") -> ObserverDesign:
     """The discrete-time Luenberger observer of a linear map (see the module's docstring)."""
+    from ...analysis import kalman_rank  # here, not at the top: a Monte Carlo worker loads no analysis
     import scipy.signal
 
     try:

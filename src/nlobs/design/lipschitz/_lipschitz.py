@@ -10,7 +10,6 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from ...analysis import kalman_rank
 from ...engine import compile_system, to_casadi
 from ...errors import PreconditionError
 from ...model import TIME, System
@@ -257,6 +256,7 @@ def design_lipschitz(system: System, *, lipschitz: float | None = None, region: 
     ----------
     Besançon (2010), "LTI + Lipschitz NL", "First idea" (Thau (1973)).
     """
+    from ...analysis import kalman_rank  # here, not at the top: a Monte Carlo worker loads no analysis
     gamma, K = lipschitz, L  # Besançon (2010)'s γ and K
     require_system(system, "design_lipschitz")
     caller = "design_lipschitz"

@@ -30,7 +30,7 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from ...analysis import decide_identity, exact_generic_rank
+from ...algebra._identity import decide_identity, exact_generic_rank
 from ...engine import to_casadi
 from ...errors import PreconditionError, ShapeError
 from ...model import TIME, System, symbol

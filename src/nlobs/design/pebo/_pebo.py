@@ -34,7 +34,7 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from ...analysis import decide_identity
+from ...algebra._identity import decide_identity
 from ...engine import to_casadi
 from ...errors import FormError, PreconditionError, ShapeError
 from ...model import TIME, System, symbol
