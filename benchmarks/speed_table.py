@@ -10,6 +10,7 @@ Rows come from every results file written in the format of ``_common.py``.
 from __future__ import annotations
 
 import json
+import re
 import sys
 from pathlib import Path
 
@@ -17,6 +18,11 @@ sys.path.insert(0, str(Path(__file__).parent))
 from _common import RESULTS, fmt_time  # noqa: E402
 
 ORDER = ["P1", "P2", "P3", "P3b", "P4", "P5", "P6", "P7", "P8"]
+
+
+def _public(text: str) -> str:
+    """A result's wording for the docs: a budget is the target's, not an issue's (no issue numbers on user pages)."""
+    return re.sub(r"\bissue \d+ ", "", text)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -46,7 +52,7 @@ def main(argv: list[str] | None = None) -> int:
         peer_t = "" if r["peer_min"] is None else f": {fmt_time(r['peer_min'])} / {fmt_time(r['peer_median'])}"
         mark = {True: " ✔", False: " ✘", None: ""}[r.get("met")]
         cells = [f"{r['id']} {r['what']}", f"{r['nlobs']}: {fmt_time(r['nlobs_min'])} / {fmt_time(r['nlobs_median'])}; {r['nlobs_error']}",
-                 f"{r['peer']}{peer_t}; {r['peer_error']}", ratio, f"{r['target']}{mark}"]
+                 f"{_public(r['peer'])}{peer_t}; {r['peer_error']}", ratio, f"{r['target']}{mark}"]
         cells = [c.replace("|", "\\|") for c in cells]  # a | would split a Markdown cell, or start an RST substitution
         if rst:
             print("\n".join(("   * - " if k == 0 else "     - ") + c for k, c in enumerate(cells)))
