@@ -291,7 +291,7 @@ def seeded_inputs(prep: Prepared, seeds: np.ndarray, flat: np.ndarray | None = N
     array for the chunk (no per-run arrays to stack; into `flat`, a float array of at least that size, when given),
     with the seed-free columns (time and inputs, sample flags) broadcast once and the noise scales computed once."""
     N, plant = prep.n_steps, prep.plant
-    flags = prep.sample_flags() if prep.kind.sampled else None
+    flags = prep.schedule.flags() if prep.kind.sampled else None
     nb = prep.base.shape[1]
     nv = plant.n_outputs if prep.noise is not None else 0
     nw = plant.n_states if prep.process_noise is not None else 0
