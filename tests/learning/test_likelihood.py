@@ -237,3 +237,15 @@ def test_cli_fit_likelihood_json(tmp_path, capsys):
         assert main(["fit", str(model), str(data), "--param", "a1", *argv]) == 1
         err = capsys.readouterr().err
         assert msg in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_a_filter_that_blows_up_raises_with_its_sample_instead_of_returning_minus_infinity():
+    # at k = 50 one RK4 step per 1 s sample multiplies the unmeasured x2 (and its variance) by ~2e5: the filter's state
+    # overflows within a few samples; log_likelihood returned (-inf, NaN) without saying where
+    m = nlobs.System(states=["x1", "x2"], f=["x2 - x1", "-k*x2"], outputs=["y"], h=["x1"], params={"k": 0.5})
+    t = np.arange(200.0)
+    rec = Recording.from_arrays(m, t, np.exp(-0.5 * t)[:, None] + 0.01)
+    d = nlobs.design_ekf(m, Q=np.eye(2) * 1e-4, R=[[1e-4]], P0=np.eye(2), xhat0=[1.0, 0.5])
+    assert np.isfinite(log_likelihood(d, rec, params=["k"], max_step=1.0)[0])
+    with pytest.raises(nlobs.errors.FiniteEscapeError, match=r"non-finite at sample \d+ \(t = \d+"):
+        log_likelihood(d, rec, params=["k"], values={"k": 50.0}, max_step=1.0)

@@ -48,7 +48,7 @@ import sympy as sp
 from ..design import ObserverDesign
 from ..engine import Backend, compile_system, rows
 from ..engine._integrate import rk4_step_rate
-from ..errors import DataError, ModelError, PreconditionError
+from ..errors import DataError, FiniteEscapeError, ModelError, PreconditionError
 from ..simulate._loop import Loop
 from ..estimation import Recording
 from ._regimes import FilterModel, filter_model, log_ndtr
@@ -505,8 +505,13 @@ def log_likelihood(design: Any, recording: Recording, *, params: Sequence[str] =
     Returns
     -------
     (float, numpy.ndarray)
-        log p(y | θ) and its gradient in θ (automatic differentiation through the filter; -inf and NaN when the
-        filter's state becomes non-finite).
+        log p(y | θ) and its gradient in θ (automatic differentiation through the filter).
+
+    Raises
+    ------
+    FiniteEscapeError
+        When the filter's state becomes non-finite at these values: with the sample and its time (the likelihood is
+        not a number there; a fit reads it as −∞ and steps back).
     """
     prob = _Problem(design, recording, params, learn_noise, max_step, on_missing, engine, "log_likelihood",
                     smoothing, censor)
@@ -515,5 +520,12 @@ def log_likelihood(design: Any, recording: Recording, *, params: Sequence[str] =
         if k not in prob.names:
             raise ModelError(f"log_likelihood: `values` names {k!r}, which is not one of {', '.join(prob.names) or '(none)'}")
         theta[prob.names.index(k)] = float(v)
-    ll, g, _ = prob(theta)
+    ll, g, _, bad = prob.evaluate(theta)
+    if bad >= 0:
+        t = recording.t
+        k = min(int(bad), t.size - 1)
+        raise FiniteEscapeError("the filter of log_likelihood", float(t[max(k - 1, 0)]), np.full(1, np.nan), ["state"], np.inf,
+                                message=f"log_likelihood: the filter's state became non-finite at sample {k} (t = {t[k]:.6g}) "
+                                        f"of the recording ({recording.source}) at these parameter values: the likelihood "
+                                        "is not a number there. Check the values, or pass a smaller `max_step`")
     return ll, g
