@@ -218,7 +218,8 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
     engine : {"auto", "vm", "c"}
         Numeric backend of the comparison run.
     seed : int
-        Seed of the structural analysis.
+        Seed of the structural analysis, and of the comparison run's noise where the model file's [simulation] sets
+        no ``seed`` (so that the same call ranks the same way every time).
     budget : float or None
         Seconds each candidate may take in the run and the screening, compiling included (None: no limit).
     tune : bool

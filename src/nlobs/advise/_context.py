@@ -730,7 +730,9 @@ def build_context(model: System, *, model_file: ModelFile | None = None, unknown
         x0_plant = np.concatenate([scen.x0, [truth[k] for k in unknown]])
         scen = Scenario(scen.t_final, scen.dt, x0_plant, scen.inputs, scen.noise, scen.noise_std,
                         scen.process_std,   # per state and unknown parameter (a parameter's: its random walk)
-                        scen.sample_period, scen.seed, scen.periods, scen.delay, scen.initial_std)
+                        scen.sample_period,
+                        seed if scen.seed is None else scen.seed,   # a ranking that is the same at every call
+                        scen.periods, scen.delay, scen.initial_std)
         try:
             nominal = simulate(system, None, t_final=scen.t_final, dt=scen.dt, x0=scen.x0, inputs=scen.inputs)
         except FiniteEscapeError as e:
