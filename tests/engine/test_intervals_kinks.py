@@ -136,3 +136,24 @@ def test_a_weir_that_only_the_last_stage_overflows_is_refined_on_both_engines(tm
         assert np.isfinite(x).all() and x[:, 0].min() > 2.0 and x[:, 0].max() < 10.1, e
         assert np.abs(x - ref).max() < 1e-4, (e, np.abs(x - ref).max(axis=0))
         assert abs(x[k + 1, 0] - 10.0) < 0.01, (e, x[k + 1])
+
+
+@pytest.mark.parametrize("grow", [True, False])
+def test_the_rows_after_a_failure_or_a_refusal_read_the_same_on_both_engines(grow, time_limit):
+    """The compiled driver leaves the rows it did not reach unwritten (its arrays are not pre-filled): they must read
+    as the VM's do, NaN states and rates and 0 sub-steps from the interval that failed (or was refused) on."""
+    A = np.array([[0.0, 1.0], [1.0, 1.0], [2.0, 1.0], [3.0, 1.0]])
+    runs = {}
+    for b in ("vm", "c"):
+        r = _runner(grow, b)
+        runs[b] = r.run(np.array([1e-3 if grow else 0.3]), A, np.ones(4), rate0=1.0,
+                        **({} if grow else {"max_substeps": 2}))   # the relay refused: its kink needs more than 2
+    vm, c = runs["vm"], runs["c"]
+    assert (vm.failed, vm.refused) == (c.failed, c.refused) and (c.failed is not None or c.refused is not None)
+    k = c.failed if c.failed is not None else c.refused[0]
+    for res in (vm, c):
+        assert np.isnan(res.states[k + 1:]).all() and np.isnan(res.rate[k + 1:]).all()
+        assert (res.substeps[k + 1:] == 0).all()
+    if c.refused is not None:
+        assert np.isnan(c.rate[k]) and c.substeps[k] == 0 and np.isnan(c.states[k]).all()
+    np.testing.assert_array_equal(vm.substeps, c.substeps)

@@ -222,6 +222,9 @@ class IntervalResult:
     unconverged : float or None
         With `failed`: the interval was taken for a kink, but its end state still changed by this much (relative, see
         :data:`KINK_RTOL`) when its sub-steps were doubled: a diverging interval, not a kink.
+    lead : numpy.ndarray of shape (N + 1, ns) or None
+        The start state stacked above `states` in one array (`states` is a view of its rows 1..N), where the runner
+        wrote them so (the compiled path without a schedule); None otherwise.
 
     With a :class:`Schedule`, `states` and `outputs` have one row per emitted row of the schedule, and the other
     arrays one entry per interval of the schedule.
@@ -236,6 +239,7 @@ class IntervalResult:
     backend: str = "vm"
     carry: np.ndarray | None = None
     unconverged: float | None = None
+    lead: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -731,9 +735,15 @@ class _CompiledIntervals:
     def __call__(self, s0: np.ndarray, A: np.ndarray, nmin: np.ndarray, rate0: float, target: float, reject: float,
                  max_substeps: int, sched: Schedule | None = None, slots: np.ndarray | None = None) -> IntervalResult:
         N = A.shape[0]
-        rows = N if sched is None else sched.n_emit
-        states, outputs = np.full((rows, self.ns), np.nan), np.full((rows, max(self.no, 1)), np.nan)
-        substeps, rate, carry, need = np.zeros(N), np.full(N, np.nan), np.full(N, np.nan), np.zeros(2)
+        if sched is None:   # every row written up to a failure, the rest set below (a fifth of a short run's set-up)
+            lead = np.empty((N + 1, self.ns))   # row 0: the start state, for callers that stack it above the rows
+            lead[0] = s0
+            states, outputs = lead[1:], np.empty((N, max(self.no, 1)))
+            substeps, rate, carry, need = np.empty(N), np.empty(N), np.empty(N), np.zeros(2)
+        else:
+            lead, rows = None, sched.n_emit
+            states, outputs = np.full((rows, self.ns), np.nan), np.full((rows, max(self.no, 1)), np.nan)
+            substeps, rate, carry, need = np.zeros(N), np.full(N, np.nan), np.full(N, np.nan), np.zeros(2)
         ops = None if sched is None else np.ascontiguousarray(sched.ops(), dtype=np.int64)
         slots = None if sched is None else np.ascontiguousarray(slots, dtype=float)
         with Watchdog() as dog:
@@ -743,13 +753,18 @@ class _CompiledIntervals:
                           None if slots is None else slots.ctypes.data, carry.ctypes.data, dog.ref)
         if rc < 0 and need[0] == -1:
             dog.raise_if_tripped("running its compiled loop")
+        if rc != 0 and sched is None:   # the rows from the interval that failed on are NaN (substeps 0), as documented
+            k = int(abs(rc) - 1)
+            states[k:], outputs[k:], rate[k + 1:], carry[k:], substeps[k + 1:] = np.nan, np.nan, np.nan, np.nan, 0
+            if rc < 0:   # refused before its sub-steps ran
+                rate[k], substeps[k] = np.nan, 0
         outputs = outputs[:, :self.no]
         if rc > 0:
             return IntervalResult(states, outputs, substeps, rate, failed=int(rc - 1), backend="c", carry=carry,
-                                  unconverged=float(need[1]) if need[0] == -2 else None)
+                                  unconverged=float(need[1]) if need[0] == -2 else None, lead=lead)
         if rc < 0:
             return IntervalResult(states, outputs, substeps, rate, refused=(int(-rc - 1), float(need[0])), backend="c",
-                                  carry=carry)
-        if not np.all(np.isfinite(states)):  # pragma: no cover - the driver checks every interval
+                                  carry=carry, lead=lead)
+        if not np.isfinite(states).all():  # pragma: no cover - the driver checks every interval
             raise EngineError("the compiled interval driver returned non-finite states without reporting them")
-        return IntervalResult(states, outputs, substeps, rate, backend="c", carry=carry)
+        return IntervalResult(states, outputs, substeps, rate, backend="c", carry=carry, lead=lead)

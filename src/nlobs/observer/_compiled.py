@@ -22,7 +22,7 @@ import numpy as np
 
 from ..design import ObserverDesign
 from ..engine import Backend, compile_system, rows
-from ..engine._batch import evaluate_one
+from ..engine._batch import PointEvaluator
 from ..engine._integrate import rk4_step_rate
 from ..engine._intervals import MAX_SUBSTEPS, IntervalRunner, fastest_rate
 from .._progress import as_progress
@@ -175,21 +175,19 @@ class CompiledObserver:
     def _start(self, z0: np.ndarray, t0: float, u0: np.ndarray, y0: np.ndarray, m0: np.ndarray) -> list[np.ndarray]:
         """`start` evaluated into NumPy buffers (no DM conversion: a tenth of a short run's set-up time):
         the prior, the first update, the held measurement, x̂ after it, ∂F/∂z there, the predicted output."""
-        f = self.start
-        sizes = self.__dict__.get("_start_sizes")
-        if sizes is None:  # asked once (CasADi calls, a fifth of this function's time)
-            sizes = self._start_sizes = [f.size1_out(i) * f.size2_out(i) for i in range(f.n_out())]
-        outs = [np.empty(k) for k in sizes]
         if self.design.needs_mx:  # an NLP inside (MHE): the plain call, whose Python callbacks report their errors
-            return [np.asarray(v, dtype=float).reshape(-1, order="F") for v in f(z0, t0, u0, y0, m0)]
-        buf, ev = f.buffer()
-        ins = [np.ascontiguousarray(v, dtype=float).reshape(-1) for v in (z0, [t0], u0, y0, m0)]
-        for i, v in enumerate(ins):
-            buf.set_arg(i, memoryview(v))
-        for i, v in enumerate(outs):
-            buf.set_res(i, memoryview(v))
-        ev()
-        return outs
+            return [np.asarray(v, dtype=float).reshape(-1, order="F") for v in self.start(z0, t0, u0, y0, m0)]
+        ev = self.__dict__.get("_start_eval")
+        if ev is None:   # its buffer set up once
+            ev = self._start_eval = PointEvaluator(self.start)
+        return ev(z0, t0, u0, y0, m0)
+
+    def _initial(self, x0: Any) -> np.ndarray:
+        """The design's initial internal state from the estimate `x0`."""
+        ev = self.__dict__.get("_initial_eval")
+        if ev is None:
+            ev = self._initial_eval = PointEvaluator(self.design.initial)
+        return ev(x0)[0]
 
     def _first_rate(self, J: np.ndarray) -> float:
         """:func:`fastest_rate` of ∂F/∂z at the start, kept for the last J seen (a run from the design's initial
@@ -255,7 +253,7 @@ class CompiledObserver:
             raise ShapeError(f"{label}: `max_step` must be a positive number, got {max_step!r}")
         if z0 is None:
             x0 = self.design.xhat0 if xhat0 is None else np.asarray(xhat0, dtype=float).reshape(self.n)
-            z0 = evaluate_one(self.design.initial, x0)
+            z0 = self._initial(x0)
         prior, zs, ys, xs, J, yp0 = self._start(np.asarray(z0, dtype=float), t[0], u[0], y[0], m[0])
         J = J.reshape(self.nz, self.nz, order="F")  # CasADi's column-major
         if not np.all(np.isfinite(zs)):
@@ -269,8 +267,9 @@ class CompiledObserver:
         nmin = np.ones(N - 1) if max_step is None else np.maximum(1.0, np.ceil(dts / max_step - 1e-9))
         runner = self._runner(engine)
         report = as_progress(progress, f"estimate {name or self.design.method}")
-        res = runner.run(np.concatenate([zs, ys]), A, nmin, rate0=rate0, on_progress=report)
-        S = np.vstack([np.concatenate([zs, ys]), res.states])
+        s0 = np.concatenate([zs, ys])
+        res = runner.run(s0, A, nmin, rate0=rate0, on_progress=report)
+        S = res.lead if res.lead is not None else np.vstack([s0, res.states])
         if res.refused is not None:
             k, need = res.refused
             rate = res.rate[k - 1] if k > 0 and np.isfinite(res.rate[k - 1]) else rate0
