@@ -44,7 +44,7 @@ from ._deferred import raise_deferred
 from ._codegen import (COSTS, Backend, _build, _forced, _generate, _renamed, built_path, choose_backend, code_size,
                        signature_of)
 
-__all__ = ["IntervalRunner", "IntervalResult", "Schedule", "MAX_SUBSTEPS", "fastest_rate"]
+__all__ = ["IntervalRunner", "IntervalResult", "Schedule", "MAX_SUBSTEPS", "EXACT_RATE_MAX", "fastest_rate", "power_rate"]
 
 #: The most RK4 sub-steps one interval may take before it is refused.
 MAX_SUBSTEPS = 10**8
@@ -663,25 +663,36 @@ def _kink_change(fine: np.ndarray, coarse: np.ndarray, start: np.ndarray) -> flo
 
 def fastest_rate(J: np.ndarray) -> float:
     """The flow's fastest local rate from its Jacobian J (n x n): the spectral radius, exactly (eigenvalues) up to
-    n = 64, above that estimated by 48 steps of power iteration from a fixed vector (the geometric mean of the growth
-    over the last 24: a dominant complex pair makes single steps oscillate). It only sets the first interval's
-    sub-steps — the rate measured by the RK4 stages takes over after it, and redoes an interval whose steps were too
-    long — so an estimate is enough, and a 16-state EKF's 272 x 272 Jacobian costs 0.1 ms instead of an eigenvalue
-    problem of 50-250 ms. 0 when J is empty or not finite."""
+    n = 64, above that estimated by :func:`power_rate`. It only sets the first interval's sub-steps — the rate measured
+    by the RK4 stages takes over after it, and redoes an interval whose steps were too long — so an estimate is enough,
+    and a 16-state EKF's 272 x 272 Jacobian costs 0.1 ms instead of an eigenvalue problem of 50-250 ms. 0 when J is
+    empty or not finite."""
     J = np.asarray(J, dtype=float)
     n = J.shape[0] if J.ndim == 2 else 0
     if n == 0 or not np.all(np.isfinite(J)):
         return 0.0
-    if n <= 64:
+    if n <= EXACT_RATE_MAX:
         return float(np.max(np.abs(np.linalg.eigvals(J))))
+    return power_rate(lambda v: J @ v, n)
+
+
+#: Up to this many states the fastest rate is the spectral radius of the Jacobian, exactly; above it the power
+#: iteration of :func:`power_rate`, on Jacobian-vector products (no n x n Jacobian is formed).
+EXACT_RATE_MAX = 64
+
+
+def power_rate(matvec: Callable[[np.ndarray], np.ndarray], n: int) -> float:
+    """The spectral radius of a linear map of R^n given by its product `matvec(v)`, estimated by 48 steps of power
+    iteration from a fixed vector: the geometric mean of the growth over the last 24 (a dominant complex pair makes
+    single steps oscillate). 0 when a product is 0 or not finite."""
     v = 1.0 + 0.5 * np.cos(np.arange(n) * 2.399963229728653)   # no symmetry a structured J could be blind to
     v /= np.linalg.norm(v)
     logs = np.empty(48)
     for i in range(48):
-        w = J @ v
+        w = np.asarray(matvec(v), dtype=float).reshape(-1)
         nw = float(np.linalg.norm(w))
         if not (nw > 0 and np.isfinite(nw)):
-            return 0.0 if nw == 0 else float(np.max(np.abs(np.linalg.eigvals(J))))
+            return 0.0
         logs[i], v = np.log(nw), w / nw
     return float(np.exp(np.mean(logs[24:])))
 

@@ -22,9 +22,9 @@ import numpy as np
 from ..design import ObserverDesign, check_positive
 from ..engine import compile_system, raise_deferred, rk4_step
 from ..engine._batch import evaluate_one
-from ..engine._intervals import fastest_rate
 from ..errors import DataError, FiniteEscapeError, ShapeError
 from ._compiled import CompiledObserver, compiled_observer
+from ._rate import FlowRate
 from ._signals import signals_by_keyword, time_first
 
 __all__ = ["AbstractObserver", "Observer", "OnlineObserver"]
@@ -98,19 +98,12 @@ class AbstractObserver(ABC):
 
     def rate(self, t: float, z: Any, u: Any, y: Any) -> float:
         """The flow's fastest local rate at (t, z): the spectral radius of ∂F/∂z (1/time; estimated above 64 internal
-        states, see :func:`nlobs.engine._intervals.fastest_rate`), 0 where it is not finite."""
-        fn = getattr(self, "_rate_fn", None)
+        states, see :mod:`nlobs.observer._rate`), 0 where it is not finite."""
+        fn = self.__dict__.get("_rate_fn")
         if fn is None:
-            d, s = self.design, self.system
-            X = ca.MX if d.needs_mx else ca.SX   # SX where the flow allows it: evaluated on every online step
-            zz, tt = X.sym("z", d.n_z), X.sym("t")
-            uu, yy = X.sym("u", s.n_inputs), X.sym("y", s.n_outputs)
-            fn = ca.Function("flow_jacobian", [tt, zz, uu, yy], [ca.densify(ca.jacobian(d.flow(tt, zz, uu, yy), zz))])
-            self._rate_fn = fn
+            fn = self._rate_fn = FlowRate(self.design)
         n = self.n_z
-        J = evaluate_one(fn, np.array([float(t)]), _vec(z, n, "z"), _vec(u, self.system.n_inputs, "u"),
-                         _vec(y, self.system.n_outputs, "y")).reshape(n, n, order="F")
-        return fastest_rate(J)
+        return fn(float(t), _vec(z, n, "z"), _vec(u, self.system.n_inputs, "u"), _vec(y, self.system.n_outputs, "y"))
 
 
 class Observer(AbstractObserver):

@@ -5,7 +5,7 @@ input and the measurement held (zero-order hold, or linear interpolation to the 
 in RK4 sub-steps whose number is chosen per interval at run time (see :mod:`nlobs.engine`'s
 interval runner): at least ``ceil(dt_k / max_step)``, and enough that h·ρ ≤ 1 for the fastest
 rate ρ of the flow, measured as the run goes (the first interval uses the spectral radius of
-∂F/∂z at the initial state, estimated for large observers: :func:`nlobs.engine._intervals.fastest_rate`). At each sample the continuous-discrete observers apply their
+∂F/∂z at the initial state, estimated for large observers: :mod:`nlobs.observer._rate`). At each sample the continuous-discrete observers apply their
 update. The functions are built once per design; the C code for them is compiled once per
 machine and cached on disk.
 """
@@ -24,9 +24,10 @@ from ..design import ObserverDesign
 from ..engine import Backend, compile_system, rows
 from ..engine._batch import PointEvaluator
 from ..engine._integrate import rk4_step_rate
-from ..engine._intervals import MAX_SUBSTEPS, IntervalRunner, fastest_rate
+from ..engine._intervals import MAX_SUBSTEPS, IntervalRunner
 from .._progress import as_progress
 from ..errors import DataError, FiniteEscapeError, ShapeError
+from ._rate import FlowRate
 from ._signals import signals_by_keyword
 
 __all__ = ["CompiledObserver", "ObserverTrajectory", "compiled_observer"]
@@ -140,16 +141,14 @@ class CompiledObserver:
         o = y_prior if self.selects_state else ca.vertcat(d.output(t + dt, z_plus, u1, yh_plus), y_prior)
         self.jump = ca.Function(f"{d.method}_sample", [S, a], [ca.vertcat(z_plus, yh_plus), o])
 
-        # the start: the prior, the first update, the held measurement, and dF/dz there (for the first rate)
+        # the start: the prior, the first update, the held measurement, x̂ after it, the predicted output
         z0, t0, u0_, y0_, m0_ = X.sym("z0", nz), X.sym("t0"), X.sym("u0", nu), X.sym("y0", ny), X.sym("m0", ny)
         prior = d.output(t0, z0, u0_, y0_)
         zs = d.update(t0, z0, u0_, y0_, m0_) if d.update is not None else z0
         ys = fill(t0, zs, u0_, y0_, m0_)
-        zj, tj, uj, yj = X.sym("zj", nz), X.sym("tj"), X.sym("uj", nu), X.sym("yj", ny)
-        jac = ca.Function("flow_jacobian", [zj, tj, uj, yj], [ca.jacobian(d.flow(tj, zj, uj, yj), zj)])
         self.start = ca.Function(f"{d.method}_start", [z0, t0, u0_, y0_, m0_],
-                                 [ca.densify(v) for v in (prior, zs, ys, d.output(t0, zs, u0_, ys), jac(zs, t0, u0_, ys),
-                                                          h(t0, prior, u0_))])
+                                 [ca.densify(v) for v in (prior, zs, ys, d.output(t0, zs, u0_, ys), h(t0, prior, u0_))])
+        self.rate = FlowRate(d)   # the first interval's rate at the start (no n x n Jacobian for large observers)
 
     def _substep(self, X: Any) -> ca.Function:
         """``(S, a, th) -> (S_next, rate)``: one RK4 step of the flow (:func:`nlobs.engine.rk4_step_rate`) over symbols
@@ -174,7 +173,7 @@ class CompiledObserver:
 
     def _start(self, z0: np.ndarray, t0: float, u0: np.ndarray, y0: np.ndarray, m0: np.ndarray) -> list[np.ndarray]:
         """`start` evaluated into NumPy buffers (no DM conversion: a tenth of a short run's set-up time):
-        the prior, the first update, the held measurement, x̂ after it, ∂F/∂z there, the predicted output."""
+        the prior, the first update, the held measurement, x̂ after it, the predicted output."""
         if self.design.needs_mx:  # an NLP inside (MHE): the plain call, whose Python callbacks report their errors
             return [np.asarray(v, dtype=float).reshape(-1, order="F") for v in self.start(z0, t0, u0, y0, m0)]
         ev = self.__dict__.get("_start_eval")
@@ -188,17 +187,6 @@ class CompiledObserver:
         if ev is None:
             ev = self._initial_eval = PointEvaluator(self.design.initial)
         return ev(x0)[0]
-
-    def _first_rate(self, J: np.ndarray) -> float:
-        """:func:`fastest_rate` of ∂F/∂z at the start, kept for the last J seen (a run from the design's initial
-        estimate starts from the same J every time, and the eigenvalues were a tenth of a short run's time)."""
-        key = J.tobytes()
-        last = self.__dict__.get("_last_rate")
-        if last is not None and last[0] == key:
-            return last[1]
-        rate = fastest_rate(J)
-        self._last_rate = (key, rate)
-        return rate
 
     def _runner(self, engine: Backend) -> IntervalRunner:
         r = self._runners.get(engine)
@@ -254,14 +242,13 @@ class CompiledObserver:
         if z0 is None:
             x0 = self.design.xhat0 if xhat0 is None else np.asarray(xhat0, dtype=float).reshape(self.n)
             z0 = self._initial(x0)
-        prior, zs, ys, xs, J, yp0 = self._start(np.asarray(z0, dtype=float), t[0], u[0], y[0], m[0])
-        J = J.reshape(self.nz, self.nz, order="F")  # CasADi's column-major
+        prior, zs, ys, xs, yp0 = self._start(np.asarray(z0, dtype=float), t[0], u[0], y[0], m[0])
         if not np.all(np.isfinite(zs)):
             err = FiniteEscapeError(label, float(t[0]), np.asarray(z0, dtype=float).reshape(-1), self.design.z_names, np.inf,
                                     hint=f"at its first sample (t = {t[0]:g})")
             err.interval, err.substeps = -1, 0
             raise err
-        rate0 = self._first_rate(J)
+        rate0 = self.rate(t[0], zs, u[0], ys)
         A = interval_table(t, u, y, m)
         dts = A[:, 1]
         nmin = np.ones(N - 1) if max_step is None else np.maximum(1.0, np.ceil(dts / max_step - 1e-9))
@@ -309,14 +296,13 @@ class CompiledObserver:
         if max_step is not None and not (np.isfinite(max_step) and max_step > 0):
             raise ShapeError(f"{label}: `max_step` must be a positive number, got {max_step!r}")
         z0 = np.asarray(z0, dtype=float).reshape(-1)
-        _, zs, ys, _, J, _ = self._start(z0, float(t[0]), u[0], plan.y0, plan.m0)
+        _, zs, ys, _, _ = self._start(z0, float(t[0]), u[0], plan.y0, plan.m0)
         if not np.all(np.isfinite(zs)):
             err = FiniteEscapeError(label, float(t[0]), z0, self.design.z_names, np.inf,
                                     hint=f"at its first sample (t = {t[0]:g})")
             err.interval, err.substeps = -1, 0
             raise err
-        J = J.reshape(self.nz, self.nz, order="F")
-        rate0 = fastest_rate(J)
+        rate0 = self.rate(t[0], zs, u[0], ys)
         A = plan.table
         nmin = np.ones(A.shape[0]) if max_step is None else np.maximum(1.0, np.ceil(A[:, 1] / max_step - 1e-9))
         res = self._runner(engine).run(np.concatenate([z0, np.zeros(self.ny)]), A, nmin, rate0=rate0,
