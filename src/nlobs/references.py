@@ -166,6 +166,8 @@ _ALL = (
               "Proc. IEEE International Conference on Acoustics, Speech, and Signal Processing (ICASSP) 6:3461–3464", 2001),
     Reference("arasaratnam2009", "I. Arasaratnam, S. Haykin", "Arasaratnam & Haykin", "Cubature Kalman filters",
               "IEEE Transactions on Automatic Control 54(6):1254–1269", 2009),
+    Reference("golub2013", "G. H. Golub, C. F. Van Loan", "Golub & Van Loan", "Matrix Computations",
+              "4th ed., Johns Hopkins University Press, Baltimore", 2013),
     Reference("kaminski1971", "P. G. Kaminski, A. E. Bryson, S. F. Schmidt", "Kaminski, Bryson & Schmidt",
               "Discrete square root filtering: a survey of current techniques",
               "IEEE Transactions on Automatic Control 16(6):727–736", 1971),

@@ -100,7 +100,7 @@ def discrete_srekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any
     S_new = tria(ca.horzcat(S_pred - K @ HS, K @ Rh))
     x0, z0 = _start(system, P0m)
     values = {"Q": Qm, "R": Rm, "P0": P0m, "sample_time": system.sample_time,
-              "square root": "lower Cholesky factor S (P = SSᵀ) from Givens QR at each step; no Cholesky factorisation"}
+              "square root": "lower Cholesky factor S (P = SSᵀ) from Householder QR at each step; no Cholesky factorisation"}
     cert = Certificate("Square-root extended Kalman filter (discrete time)", REF_SREKF, tuple(_checks(Qm, Rm, P0m)), values)
     return ObserverDesign.build("srekf", system, s, z_names=_names(system, _factor_names(system)),
                                 flow=ca.SX.zeros(s.z.shape[0]), xhat=x, xhat0_sym=x0, z0=z0, xhat0=x0v, certificate=cert,
@@ -144,7 +144,7 @@ def discrete_srukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any
                                            f"n + λ = {n + lam:g}, min W = {Wc.min():g}")]
     values = {"Q": Qm, "R": Rm, "P0": P0m, "alpha": float(alpha), "beta": float(beta), "kappa": float(kappa), "lambda": lam,
               "weights_mean": Wm, "weights_cov": Wc, "sample_time": system.sample_time,
-              "square root": "lower Cholesky factor S (P = SSᵀ) from Givens QR; no Cholesky factorisation or downdate"}
+              "square root": "lower Cholesky factor S (P = SSᵀ) from Householder QR; no Cholesky factorisation or downdate"}
     cert = Certificate("Square-root unscented Kalman filter (discrete time)", REF_SRUKF, tuple(checks), values)
     return ObserverDesign.build("srukf", system, s, z_names=_names(system, _factor_names(system)),
                                 flow=ca.SX.zeros(s.z.shape[0]), xhat=x, xhat0_sym=x0, z0=z0, xhat0=x0v, certificate=cert,

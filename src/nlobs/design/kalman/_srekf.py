@@ -107,7 +107,7 @@ def design_srekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any =
     P = G @ G.T + tau / 2 * (Gq @ Gq.T + ca.DM(Qm))
     x0 = ca.SX.sym("xhat0", n)
     values: dict[str, Any] = {"Q": Qm, "R": Rm, "P0": P0m,
-                              "square root": "lower Cholesky factor S (P = SSᵀ) from Givens QR at each sample; "
+                              "square root": "lower Cholesky factor S (P = SSᵀ) from Householder QR at each sample; "
                                              "between samples G = ΦS, process noise by the trapezoid rule"}
     cert = Certificate("Square-root extended Kalman filter (continuous-discrete)", REF, tuple(checks), values)
     names = ([f"xhat_{v}" for v in system.states] + [f"G_{i}_{j}" for j in range(n) for i in range(n)]

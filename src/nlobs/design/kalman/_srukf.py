@@ -58,7 +58,7 @@ def design_srukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any =
     an exact factor of the UKF's :math:`P^- - KS_yS_y^\top K^\top` (expand the product and use
     :math:`KS_yS_y^\top = \tilde X\tilde Y^\top`; Arasaratnam & Haykin (2009)). It is built from a sum of
     squares, so unlike the Cholesky downdate of van der Merwe & Wan (2001) it cannot fail when R is
-    tiny (1e-10). Tria is a QR triangularisation by Givens rotations. The new sigma points
+    tiny (1e-10). Tria is a QR triangularisation by Householder reflections. The new sigma points
     :math:`m^+ + \sqrt{c}[0, S^+, -S^+]` are the filter's internal state. Outputs missing at a sample are
     left out.
 
@@ -147,7 +147,7 @@ def design_srukf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any =
     checks.append(Check("sigma-point spread n + λ > 0 and covariance weights ≥ 0", True, f"n + λ = {c:g}, min W = {wc.min():g}"))
     values: dict[str, Any] = {"Q": Qm, "R": Rm, "P0": P0m, "alpha": float(alpha), "beta": float(beta), "kappa": float(kappa),
                               "weights_mean": wm, "weights_cov": wc,
-                              "square root": "lower Cholesky factor S (P = SSᵀ) from Givens QR; no Cholesky factorisation or downdate"}
+                              "square root": "lower Cholesky factor S (P = SSᵀ) from Householder QR; no Cholesky factorisation or downdate"}
     if box is not None:
         checks.append(bounds_check(box, evidence))
         values.update({"bounds": box.describe(), "bounds policy": POLICY})

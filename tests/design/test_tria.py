@@ -1,0 +1,48 @@
+"""design/kalman/_sqrt.tria: L lower triangular with a non-negative diagonal and L Lᵀ = A Aᵀ. The reference is
+NumPy's Cholesky factor of A Aᵀ (unique for a full-row-rank A) and, for rank-deficient blocks, A Aᵀ itself."""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from nlobs.design.kalman._sqrt import tria
+
+
+def _tria_numeric(A: np.ndarray, pattern: np.ndarray | None = None) -> np.ndarray:
+    """tria of a symbolic block, with structural zeros where `pattern` is False, evaluated at A."""
+    n, k = A.shape
+    x = ca.SX.sym("A", n, k)
+    S = ca.SX.zeros(n, k)   # entries never set stay structural zeros
+    for i in range(n):
+        for j in range(k):
+            if pattern is None or pattern[i, j]:
+                S[i, j] = x[i, j]
+    return np.array(ca.Function("tria", [x], [tria(S)])(A))
+
+
+@pytest.mark.parametrize("n,k", [(24, 73), (5, 5), (4, 9), (6, 3)])
+def test_a_full_block_gives_the_cholesky_factor(n, k):
+    rng = np.random.default_rng(n * 100 + k)
+    A = rng.normal(size=(n, k))
+    L = _tria_numeric(A)
+    assert np.array_equal(L, np.tril(L)) and (np.diag(L) >= 0).all()
+    np.testing.assert_allclose(L @ L.T, A @ A.T, atol=1e-12 * np.abs(A @ A.T).max())
+    if k >= n:
+        np.testing.assert_allclose(L, np.linalg.cholesky(A @ A.T), atol=1e-11 * np.abs(A).max())
+
+
+def test_structural_zeros_a_zero_row_and_a_row_already_triangular():
+    rng = np.random.default_rng(7)
+    n, k = 6, 10
+    pattern = rng.random((n, k)) < 0.6
+    pattern[2, :] = False            # a zero row
+    pattern[0, 1:] = False           # a row with only its diagonal (negative below: its column's sign flips)
+    pattern[0, 0] = True
+    A = np.where(pattern, rng.normal(size=(n, k)), 0.0)
+    A[0, 0] = -abs(A[0, 0]) - 0.5
+    L = _tria_numeric(A, pattern)
+    assert np.array_equal(L, np.tril(L)) and (np.diag(L) >= 0).all()
+    np.testing.assert_allclose(L @ L.T, A @ A.T, atol=1e-12 * np.abs(A @ A.T).max())
+    assert np.all(L[2, :] == 0)
