@@ -166,7 +166,8 @@ class Advice:
     scores : tuple of Score or None
         With a run: every runnable candidate, best first.
     run : Run or None
-        The comparison run (all candidates that did not diverge).
+        The comparison run (all candidates that did not diverge): their estimates and standard deviations, without the
+        observers' internal states (:func:`nlobs.simulate` with a candidate's design gives those).
     scenario : str
         What the run was (horizon, step, sampling, noise, x̂(0)), or the recording.
     seconds : float

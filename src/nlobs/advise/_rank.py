@@ -37,6 +37,7 @@ from ..model import System
 from ..estimation import estimate
 from ..simulate import Run, simulate
 from ..simulate._isolate import failure_of
+from ..simulate._results import lean_traces
 from ._advice import WHAT_TO_TRY, Candidate, Score
 from ._context import Context
 
@@ -333,7 +334,9 @@ def _without_diverging(ctx: Context, designs: dict[str, Any], t_final: float | N
     while designs:
         try:
             # several observers: each gets its own budget (side by side); one alone: the whole run's budget
-            with observer_budget(budget), time_budget(budget if len(designs) == 1 else None):
+            # the candidates' estimates and standard deviations, not their internal states (memory: a large model's
+            # square-root filters carry hundreds of numbers per sample)
+            with observer_budget(budget), time_budget(budget if len(designs) == 1 else None), lean_traces():
                 if rec is not None:
                     run = estimate(designs, rec, engine=engine)
                 else:

@@ -152,10 +152,15 @@ def run_all_delayed(obs: dict[str, AbstractObserver], t: np.ndarray, u: np.ndarr
     reads; `z0s` the initial states by name. Raises the first error when none ran, and any error that is not a run's
     failure (a bug) at once."""
 
-    done = each_observer(list(obs), lambda name: run_delayed(obs[name], t, u, events, z0s[name], max_step=max_step,
-                                                             name=name, engine=engine, the_plan=the_plan,
-                                                             knot_rows=knot_rows),
-                         alone=[k for k, o in obs.items() if getattr(o.design, "needs_mx", False)])
+    def one(name: str) -> ObserverTrace:   # the trace made in the observer's thread (lean_traces frees z there)
+        o = obs[name]
+        Z, X = run_delayed(o, t, u, events, z0s[name], max_step=max_step, name=name, engine=engine, the_plan=the_plan,
+                           knot_rows=knot_rows)
+        return ObserverTrace(name, o.design.method, o.design.z_names, Z, X,
+                             z0s[name] if isinstance(o, ParticleObserver) else o.estimate(t[0], z0s[name], u[0], y0),
+                             covariance=getattr(o.design, "covariance", None))
+
+    done = each_observer(list(obs), one, alone=[k for k, o in obs.items() if getattr(o.design, "needs_mx", False)])
     traces: dict[str, ObserverTrace] = {}
     failures: dict[str, ObserverFailure] = {}
     errors: list[BaseException] = []
@@ -167,10 +172,7 @@ def run_all_delayed(obs: dict[str, AbstractObserver], t: np.ndarray, u: np.ndarr
             failures[name] = failure_of(name, o.design.method, res)
             errors.append(res)
             continue
-        Z, X = res
-        traces[name] = ObserverTrace(name, o.design.method, o.design.z_names, Z, X,
-                                     z0s[name] if isinstance(o, ParticleObserver) else o.estimate(t[0], z0s[name], u[0], y0),
-                                     covariance=getattr(o.design, "covariance", None))
+        traces[name] = res
     if errors and not traces:
         raise errors[0]
     return traces, failures
