@@ -24,7 +24,7 @@ SRC = Path(__file__).resolve().parents[2] / "src"
 
 #: Lowest first. Leaf utilities (no nlobs imports of their own, or only of each other) form layer 0.
 LAYERS: tuple[frozenset[str], ...] = (
-    frozenset({"_version", "_text", "_display", "_progress", "_deprecate", "_process", "references", "errors"}),
+    frozenset({"_version", "_text", "_display", "_progress", "_deprecate", "_process", "_memory", "references", "errors"}),
     frozenset({"model"}),
     frozenset({"engine"}),
     frozenset({"algebra"}),             # exact and modular tools (no verdicts): below analysis, used by design too

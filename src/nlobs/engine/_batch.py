@@ -14,6 +14,8 @@ from ._deferred import raise_deferred
 __all__ = ["PointEvaluator", "evaluate_many", "evaluate_one"]
 
 CHUNK = 4096
+#: Bytes of arguments copied per chunk of :func:`evaluate_many` at most (above 64 rows).
+CHUNK_BYTES = 4 << 20
 _MAPS: OrderedDict[tuple[int, int], tuple[ca.Function, ca.Function]] = OrderedDict()
 
 
@@ -39,9 +41,13 @@ def evaluate_many(fn: ca.Function, *args: np.ndarray) -> np.ndarray:
     N = max((a.shape[0] for a in args if np.ndim(a) == 2), default=1)
     m = fn.size1_out(0) * fn.size2_out(0)
     out = np.empty((N, m))
+    # rows per chunk: at most CHUNK, and at most CHUNK_BYTES of copied arguments (a wide state, e.g. a 24-state
+    # square-root UKF's 1,177 sigma-point entries, would otherwise copy 38 MB per chunk)
+    width = sum(int(np.shape(a)[1]) for a in args if np.ndim(a) == 2)
+    rows = max(64, min(CHUNK, CHUNK_BYTES // max(8 * width, 1)))
     k = 0
     while k < N:
-        K = min(CHUNK, N - k)
+        K = min(rows, N - k)
         g = _mapped(fn, K)
         buf, ev = g.buffer()
         keep: list[Any] = []

@@ -20,6 +20,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from .._memory import release_free_memory
 from ..engine import Backend
 from ..engine._budget import per_observer, time_budget
 from ..errors import DataError, EngineError, FiniteEscapeError, ModelError, SolverError, TimeBudgetError
@@ -123,12 +124,17 @@ def each_observer(names: Sequence[str], work: Callable[[str], T], *, alone: Sequ
     out: dict[str, Any] = {}
     budget = per_observer()   # each observer's own time budget (nlobs design --run), from when it starts
 
+    many = len(names) > 1
+
     def guarded(name: str) -> Any:
         try:
             with time_budget(budget):
                 return work(name)
         except Exception as e:   # noqa: BLE001 - returned to the caller, who decides per observer
             return e
+        finally:
+            if many:   # what this observer's run freed, given back before the next one allocates (nlobs._memory)
+                release_free_memory()
 
     for name in alone:
         out[name] = guarded(name)

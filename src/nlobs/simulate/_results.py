@@ -97,7 +97,7 @@ _LEAN: ContextVar[bool] = ContextVar("nlobs_lean_traces", default=False)
 def lean_traces() -> Iterator[None]:
     """Within it, each :class:`ObserverTrace` keeps the estimate and its standard deviations but not the observer's
     internal state z (its `z` has no columns): for runs that only compare estimates, such as the advisor's ranking,
-    where a 24-state square-root UKF's internal state (1,177 numbers per sample) would take 114 MB on 12,000 samples.
+    where a 24-state square-root UKF's internal state (1,177 numbers per sample) would take 114 MB on twelve thousand samples.
     Threads started with a copy of the context (as the observers' threads are) inherit it."""
     token = _LEAN.set(True)
     try:
@@ -156,7 +156,7 @@ _DIAGONALS: dict[int, tuple[Any, Any]] = {}
 
 def _diagonal_of(cov: Any) -> Any:
     """The diagonal of `cov(z)` as a function of z: only the operations the diagonal needs (a square-root UKF's
-    P = D Dᵀ from its 49 sigma points: 1,200 of 28,000 for 24 states)."""
+    P = D Dᵀ from its 49 sigma points: 1.2 thousand of 28 thousand for 24 states)."""
     hit = _DIAGONALS.get(id(cov))
     if hit is not None and hit[0] is cov:
         return hit[1]
