@@ -70,3 +70,29 @@ def test_a_split_step_compiles_in_units_and_runs_as_the_vm(monkeypatch, tmp_path
         assert abs(float(o) - obuf[k, 0]) <= 1e-12 * abs(float(o))
         x_vm = np.array(x_next).ravel()
         np.testing.assert_allclose(out[k], x_vm, rtol=1e-12, atol=0)
+
+
+def test_big_code_compiles_at_o1_with_gccs_faster_register_allocation(monkeypatch):
+    """Above BIG_CODE lines: -O1, and with gcc the priority colouring in one region (register allocation is most of
+    gcc's time on straight-line code); below it -O3 and nothing else; another compiler gets no gcc-only flag."""
+    from nlobs.engine import _codegen as cg
+
+    monkeypatch.setattr(cg, "find_compiler", lambda: "/usr/bin/gcc")
+    monkeypatch.setattr(cg, "_is_gcc", lambda cc: True)
+    small, big = cg.cflags(100), cg.cflags(cg.BIG_CODE + 1)
+    assert "-O3" in small and not set(cg.BIG_CODE_GCC) & set(small)
+    assert "-O1" in big and "-O3" not in big and set(cg.BIG_CODE_GCC) <= set(big)
+    monkeypatch.setattr(cg, "_is_gcc", lambda cc: False)
+    assert not set(cg.BIG_CODE_GCC) & set(cg.cflags(cg.BIG_CODE + 1))
+
+
+def test_gcc_is_recognised_and_clang_is_not():
+    import shutil
+
+    from nlobs.engine import _codegen as cg
+
+    gcc = shutil.which("gcc")
+    if gcc is None:
+        pytest.skip("no gcc here (CI has it)")
+    assert cg._is_gcc(gcc)
+    assert not cg._is_gcc(None) and not cg._is_gcc("/nonexistent/cc")

@@ -48,9 +48,29 @@ CFLAGS = ("-O3", "-march=native", "-shared", "-fPIC", "-fno-semantic-interpositi
 BIG_CODE = 20_000
 
 
+#: Added for code above :data:`BIG_CODE` when the compiler is gcc: register allocation is most of -O1's time on
+#: CasADi's straight-line code, and priority colouring in one region does it faster (a 35,000-line unit of the
+#: 24-state square-root UKF's update: 3.2 s -> 2.6 s; its whole build 19.9 s -> 17.3 s, running as fast: 337 and
+#: 342 µs a call).
+BIG_CODE_GCC = ("-fira-algorithm=priority", "-fira-region=one", "-fno-ira-hoist-pressure")
+
+
 def cflags(lines: int) -> tuple[str, ...]:
     """The compiler flags for generated code of `lines` lines (see :data:`BIG_CODE`)."""
-    return tuple("-O1" if f == "-O3" and lines > BIG_CODE else f for f in CFLAGS)
+    flags = tuple("-O1" if f == "-O3" and lines > BIG_CODE else f for f in CFLAGS)
+    return flags + BIG_CODE_GCC if lines > BIG_CODE and _is_gcc(find_compiler()) else flags
+
+
+@functools.lru_cache(maxsize=8)
+def _is_gcc(cc: str | None) -> bool:
+    """Whether the compiler `cc` is gcc (its ``--version`` says so)."""
+    if cc is None:
+        return False
+    try:
+        out = subprocess.run([cc, "--version"], capture_output=True, text=True, timeout=30).stdout
+    except (OSError, subprocess.SubprocessError):
+        return False
+    return "Free Software Foundation" in out and "clang" not in out.lower()
 
 
 def cache_dir() -> Path:
