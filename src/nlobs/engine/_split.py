@@ -5,8 +5,10 @@ one function: the sample-time update of a 24-state square-root UKF, plant includ
 and 1.4 GB at -O1 (full redundancy elimination 26 s, register allocation most of the rest), and its interval run did
 not finish compiling within ``nlobs design --run``'s budget. Here the function's instructions, in CasADi's own order,
 are cut into parts of about :data:`PART` operations; each part is an SX function of the original inputs and of the
-values it reads from earlier parts, returning the values that later parts or the outputs read; an MX function calls
-the parts in order. Every operation is the original one on the same operands, so the VM gives the same numbers bit
+outputs of the earlier parts it reads from (passed whole and read in place), returning the values that later parts or
+the outputs read; an MX function calls the parts in order. (Gathering the values a part reads into one vector of
+their own cost a copy of each at every call: the 24-state square-root UKF's update took 348 µs a call that way,
+237 µs reading in place.) Every operation is the original one on the same operands, so the VM gives the same numbers bit
 for bit; compiled, the parts are separate C functions, in translation units of their own (:func:`units`) that gcc
 compiles apart, two at a time, and links: on that update, 16 units of about 3 s and 150-380 MB each at -O1 (-O1 as
 before for code this long, see :data:`nlobs.engine._codegen.BIG_CODE`), where the one file took 91 s and 1.4 GB.
@@ -79,10 +81,12 @@ def _chain(fn: ca.Function, code: list, final: list, part_of: dict, parts: int) 
     where: dict[int, tuple[int, int]] = {}   # value -> (part, its position in that part's output)
     outs: list[ca.MX] = []
     c = 0
+    sizes: list[int] = []
     for p in range(parts):
-        need = sorted(reads[p], key=lambda v: where[v])   # grouped by the part that made them, in its output's order
-        cin = ca.SX.sym("c", len(need))
-        val = {v: cin[j] for j, v in enumerate(need)}
+        # the outputs of the earlier parts it reads, passed whole (read in place: no gathered copy per call)
+        sources = sorted({where[v][0] for v in reads[p]})
+        cins = {q: ca.SX.sym(f"c{q}", sizes[q]) for q in sources}
+        val = {v: cins[where[v][0]][where[v][1]] for v in reads[p]}
         produced = []
         while c < len(code) and part_of[code[c][0]] == p:
             k, op, args = code[c]
@@ -92,12 +96,9 @@ def _chain(fn: ca.Function, code: list, final: list, part_of: dict, parts: int) 
                 where[k] = (p, len(produced))
                 produced.append(k)
             c += 1
-        g = ca.Function(f"{fn.name()}_part{p}", [*sx_in, cin], [ca.vertcat(*[val[v] for v in produced])])
-        by: dict[int, list[int]] = {}
-        for v in need:
-            by.setdefault(where[v][0], []).append(where[v][1])
-        gathered = ca.vertcat(*[outs[q][idx] for q, idx in by.items()]) if by else ca.MX(0, 1)
-        outs.append(g(*mx_in, gathered))
+        g = ca.Function(f"{fn.name()}_part{p}", [*sx_in, *cins.values()], [ca.vertcat(*[val[v] for v in produced])])
+        sizes.append(len(produced))
+        outs.append(g.call([*mx_in, *[outs[q] for q in sources]])[0])
     res = []
     for o in range(fn.n_out()):
         sp = fn.sparsity_out(o)
@@ -135,11 +136,13 @@ def units(code: str) -> list[str] | None:
     # the preamble of a unit of parts: its functions (helpers, the version queries) local to the unit
     preamble = _DEFINITION.sub("static ", code[:first.start()] if first is not None else "")
     main, bodies, at = [], [], 0
+    own = min(m["ins"].count(",") + 1 if m["ins"] else 0 for m in parts)   # the function's inputs (part 0 has no others)
     for m in parts:
         main += [code[at:m.start()], f"{_HIDDEN}int {m['name']}({m['sig']});\n"]
-        carried = m["ins"].count(",")   # the last input of a part: the values it reads from earlier parts
         body = m.group(0).replace(f"static int {m['name']}(", f"{_HIDDEN}int {m['name']}(", 1)
-        body = re.sub(rf"arg\[{carried}\]\? arg\[{carried}\]\[(\d+)\] : 0", rf"arg[{carried}][\1]", body)
+        # the inputs after the function's own: the outputs of earlier parts it reads
+        body = re.sub(r"arg\[(\d+)\]\? arg\[\1\]\[(\d+)\] : 0",
+                      lambda a: f"arg[{a[1]}][{a[2]}]" if int(a[1]) >= own else a[0], body)
         bodies.append(body.replace("if (res[0]!=0) res[0][", "res[0]["))
         at = m.end()
     main.append(code[at:])
