@@ -44,3 +44,13 @@ def test_a_point_that_is_not_finite_has_rate_0():
     z = np.zeros(80)
     z[3] = np.nan
     assert FlowRate(design_luenberger(sys_, L=L, xhat0=np.zeros(80)))(0.0, z, np.zeros(0), np.array([0.0])) == 0.0
+
+
+def test_one_rate_per_design_shared_by_the_prepared_and_the_online_observers():
+    from nlobs.observer._compiled import compiled_observer
+    from nlobs.observer._rate import flow_rate
+
+    sys_, L, want = _chain(12, fast=40.0)
+    d = design_luenberger(sys_, L=L, xhat0=np.zeros(12))
+    assert compiled_observer(d).rate is flow_rate(d) is flow_rate(d)
+    assert nlobs.Observer(d).rate(0.0, np.zeros(12), np.zeros(0), np.array([0.0])) == pytest.approx(want, rel=1e-9)

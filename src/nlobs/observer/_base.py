@@ -13,7 +13,6 @@ each sample. Between samples the measurement and the input are held (zero-order 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections import OrderedDict
 from typing import Any, Literal
 
 import casadi as ca
@@ -23,8 +22,8 @@ from ..design import ObserverDesign, check_positive
 from ..engine import compile_system, raise_deferred, rk4_step
 from ..engine._batch import evaluate_one
 from ..errors import DataError, FiniteEscapeError, ShapeError
-from ._compiled import CompiledObserver, compiled_observer
-from ._rate import FlowRate
+from ._compiled import CompiledObserver, compiled_observer, initial_state_of
+from ._rate import flow_rate
 from ._signals import signals_by_keyword, time_first
 
 __all__ = ["AbstractObserver", "Observer", "OnlineObserver"]
@@ -35,11 +34,6 @@ def _vec(value: Any, n: int, name: str) -> np.ndarray:
     if v.size != n:
         raise ShapeError(f"`{name}` must have {n} entries, got {v.size}")
     return v
-
-
-#: The last initial state of each design's `initial` function (id -> (function, x̂0 bytes, z0)): an estimate or run
-#: from the design's estimate asks for the same one every time (Observer wrappers are made per call).
-_INITIAL: OrderedDict[int, tuple[Any, bytes, np.ndarray]] = OrderedDict()
 
 
 class AbstractObserver(ABC):
@@ -82,15 +76,7 @@ class AbstractObserver(ABC):
         """The internal state that starts from the estimate `xhat0` (default: the design's); the last one is kept
         (a run from the design's estimate asks for the same one every time: a tenth of a short estimate's time)."""
         x0 = self.design.xhat0 if xhat0 is None else _vec(xhat0, self.system.n_states, "xhat0")
-        fn, key = self.design.initial, np.asarray(x0, dtype=float).tobytes()
-        last = _INITIAL.get(id(fn))
-        if last is not None and last[0] is fn and last[1] == key:
-            return last[2].copy()
-        z0 = evaluate_one(fn, x0)
-        _INITIAL[id(fn)] = (fn, key, z0.copy())   # fn kept: its id is not reused while it is here
-        if len(_INITIAL) > 64:
-            _INITIAL.popitem(last=False)
-        return z0
+        return initial_state_of(self.design, x0)
 
     def start(self, xhat0: Any = None, *, max_step: float | None = None) -> OnlineObserver:
         """An online estimator fed one sample at a time (see :class:`OnlineObserver`)."""
@@ -99,11 +85,8 @@ class AbstractObserver(ABC):
     def rate(self, t: float, z: Any, u: Any, y: Any) -> float:
         """The flow's fastest local rate at (t, z): the spectral radius of ∂F/∂z (1/time; estimated above 64 internal
         states, see :mod:`nlobs.observer._rate`), 0 where it is not finite."""
-        fn = self.__dict__.get("_rate_fn")
-        if fn is None:
-            fn = self._rate_fn = FlowRate(self.design)
         n = self.n_z
-        return fn(float(t), _vec(z, n, "z"), _vec(u, self.system.n_inputs, "u"), _vec(y, self.system.n_outputs, "y"))
+        return flow_rate(self.design)(float(t), _vec(z, n, "z"), _vec(u, self.system.n_inputs, "u"), _vec(y, self.system.n_outputs, "y"))
 
 
 class Observer(AbstractObserver):

@@ -22,15 +22,15 @@ import numpy as np
 
 from ..design import ObserverDesign
 from ..engine import Backend, compile_system, rows
-from ..engine._batch import PointEvaluator
+from ..engine._batch import PointEvaluator, evaluate_one
 from ..engine._integrate import rk4_step_rate
 from ..engine._intervals import MAX_SUBSTEPS, IntervalRunner
 from .._progress import as_progress
 from ..errors import DataError, FiniteEscapeError, ShapeError
-from ._rate import FlowRate
+from ._rate import flow_rate
 from ._signals import signals_by_keyword
 
-__all__ = ["CompiledObserver", "ObserverTrajectory", "compiled_observer"]
+__all__ = ["CompiledObserver", "ObserverTrajectory", "compiled_observer", "initial_state_of"]
 
 Hold = Literal["zoh", "linear"]
 
@@ -148,7 +148,7 @@ class CompiledObserver:
         ys = fill(t0, zs, u0_, y0_, m0_)
         self.start = ca.Function(f"{d.method}_start", [z0, t0, u0_, y0_, m0_],
                                  [ca.densify(v) for v in (prior, zs, ys, d.output(t0, zs, u0_, ys), h(t0, prior, u0_))])
-        self.rate = FlowRate(d)   # the first interval's rate at the start (no n x n Jacobian for large observers)
+        self.rate = flow_rate(d)   # the first interval's rate at the start (no n x n Jacobian for large observers)
 
     def _substep(self, X: Any) -> ca.Function:
         """``(S, a, th) -> (S_next, rate)``: one RK4 step of the flow (:func:`nlobs.engine.rk4_step_rate`) over symbols
@@ -180,13 +180,6 @@ class CompiledObserver:
         if ev is None:   # its buffer set up once
             ev = self._start_eval = PointEvaluator(self.start)
         return ev(z0, t0, u0, y0, m0)
-
-    def _initial(self, x0: Any) -> np.ndarray:
-        """The design's initial internal state from the estimate `x0`."""
-        ev = self.__dict__.get("_initial_eval")
-        if ev is None:
-            ev = self._initial_eval = PointEvaluator(self.design.initial)
-        return ev(x0)[0]
 
     def _runner(self, engine: Backend) -> IntervalRunner:
         r = self._runners.get(engine)
@@ -241,7 +234,7 @@ class CompiledObserver:
             raise ShapeError(f"{label}: `max_step` must be a positive number, got {max_step!r}")
         if z0 is None:
             x0 = self.design.xhat0 if xhat0 is None else np.asarray(xhat0, dtype=float).reshape(self.n)
-            z0 = self._initial(x0)
+            z0 = initial_state_of(self.design, x0)
         prior, zs, ys, xs, yp0 = self._start(np.asarray(z0, dtype=float), t[0], u[0], y[0], m[0])
         if not np.all(np.isfinite(zs)):
             err = FiniteEscapeError(label, float(t[0]), np.asarray(z0, dtype=float).reshape(-1), self.design.z_names, np.inf,
@@ -354,6 +347,24 @@ def interval_table(t: np.ndarray, u: np.ndarray, y: np.ndarray, m: np.ndarray) -
 
 
 _CACHE: OrderedDict[tuple[int, str], CompiledObserver] = OrderedDict()
+
+#: The last initial state of each design's `initial` function (id -> (function, x̂0 bytes, z0)): an estimate or run
+#: from the design's estimate asks for the same one every time (Observer wrappers are made per call).
+_INITIAL: OrderedDict[int, tuple[Any, bytes, np.ndarray]] = OrderedDict()
+
+
+def initial_state_of(design: ObserverDesign, x0: Any) -> np.ndarray:
+    """The internal state of `design` that starts from the estimate `x0` (a new array); the last one per design is
+    kept (a run from the design's estimate asks for the same one every time: a tenth of a short estimate's time)."""
+    fn, key = design.initial, np.asarray(x0, dtype=float).tobytes()
+    last = _INITIAL.get(id(fn))
+    if last is not None and last[0] is fn and last[1] == key:
+        return last[2].copy()
+    z0 = evaluate_one(fn, x0)
+    _INITIAL[id(fn)] = (fn, key, z0.copy())   # fn kept: its id is not reused while it is here
+    if len(_INITIAL) > 64:
+        _INITIAL.popitem(last=False)
+    return z0
 
 
 def compiled_observer(design: ObserverDesign, hold: Hold = "zoh") -> CompiledObserver:

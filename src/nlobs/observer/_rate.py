@@ -10,6 +10,7 @@ and 560 MB to build, for one number.
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from typing import Any
 
 import casadi as ca
@@ -19,7 +20,7 @@ from ..design import ObserverDesign
 from ..engine._batch import PointEvaluator
 from ..engine._intervals import EXACT_RATE_MAX, fastest_rate, power_rate
 
-__all__ = ["FlowRate"]
+__all__ = ["FlowRate", "flow_rate"]
 
 
 class FlowRate:
@@ -68,3 +69,19 @@ class FlowRate:
             rate = power_rate(lambda vec: ev(*args, vec)[0], self.n)
         self._last = (key, rate)
         return rate
+
+
+_RATES: OrderedDict[int, FlowRate] = OrderedDict()
+
+
+def flow_rate(design: ObserverDesign) -> FlowRate:
+    """The :class:`FlowRate` of `design`, one per design in the process (the prepared observer and the online
+    observers made per call share its functions)."""
+    hit = _RATES.get(id(design))
+    if hit is not None and hit.design is design:   # the entry keeps the design alive: its id is not reused
+        _RATES.move_to_end(id(design))
+        return hit
+    rate = _RATES[id(design)] = FlowRate(design)
+    if len(_RATES) > 64:
+        _RATES.popitem(last=False)
+    return rate
