@@ -77,23 +77,29 @@ _C_DRIVER = r"""
    the rate it passes on are written to slot ops[3k+1] when >= 0, and to row ops[3k+2] of out/obuf when >= 0.
    Without one, interval k's end is row k. carry[k] (when carry != NULL) is the rate interval k passes on.
    When *stop is raised (a time budget), returns -(k + 1) with need[0] = -1. When an interval accepted as a kink
-   fails its step-doubling check, returns k + 1 with need[0] = -2 and need[1] = the relative change. */
+   fails its step-doubling check, returns k + 1 with need[0] = -2 and need[1] = the relative change.
+   With A == NULL, interval k's row is assembled from the sample times tg (n_int + 1) and the sample rows B
+   ((n_int + 1) x NW): (tg[k], tg[k+1] - tg[k], B[k], B[k+1]), the layout of the table A. */
 long long nlobs_intervals(const double* s0, const double* A, const double* nmin, double rate0, double target,
                           double reject, double max_sub, double* out, double* obuf, double* nsub, double* rate,
                           long long n_int, double* need, const long long* ops, double* slots, double* carry,
-                          const volatile int* stop) {
+                          const volatile int* stop, const double* tg, const double* B) {
   const double* arg[NLOBS_SZ_ARG];
   double* res[NLOBS_SZ_RES];
   casadi_int iw[NLOBS_SZ_IW + 1];
   double w[NLOBS_SZ_W + 1];
-  double start[NS], cur[NS], nxt[NS], th[2], r, o[NO + 1], end[NS], oend[NO + 1];
+  double start[NS], cur[NS], nxt[NS], th[2], r, o[NO + 1], end[NS], oend[NO + 1], arow[NA];
   double rho = rate0, t, dt, n, m, h, rmax, hr, prev_hr;
   double *dst, *odst, *slot;
   long long k, i, ni;
   int j, bad, stiff, check, idle;
   for (j = 0; j < NS; ++j) start[j] = s0[j];
   for (k = 0; k < n_int; ++k) {
-    const double* a = A + k * NA;
+    const double* a = A ? A + k * NA : arow;
+    if (!A) {
+      arow[0] = tg[k]; arow[1] = tg[k + 1] - tg[k];
+      for (j = 0; j < NW; ++j) { arow[2 + j] = B[k * NW + j]; arow[2 + NW + j] = B[(k + 1) * NW + j]; }
+    }
     if (stop && *stop) { need[0] = -1; return -(k + 1); }
     if (ops && ops[3 * k] >= 0) {
       slot = slots + ops[3 * k] * (NS + 1);
@@ -225,6 +231,8 @@ class IntervalResult:
     lead : numpy.ndarray of shape (N + 1, ns) or None
         The start state stacked above `states` in one array (`states` is a view of its rows 1..N), where the runner
         wrote them so (the compiled path without a schedule); None otherwise.
+    olead : numpy.ndarray of shape (N + 1, no) or None
+        Likewise for `outputs`: its row 0 is left unset for the caller (e.g. the output at the start); None otherwise.
 
     With a :class:`Schedule`, `states` and `outputs` have one row per emitted row of the schedule, and the other
     arrays one entry per interval of the schedule.
@@ -240,6 +248,33 @@ class IntervalResult:
     carry: np.ndarray | None = None
     unconverged: float | None = None
     lead: np.ndarray | None = None
+    olead: np.ndarray | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Rows:
+    """The intervals as the samples that bound them: times `t` (N + 1,) and one row of `B` (N + 1, w) per sample;
+    interval k reads (t_k, t_{k+1} - t_k, B_k, B_{k+1}), the row the table of :meth:`IntervalRunner.run` has. The
+    compiled driver assembles each interval's row as it goes (building the (N, 2 + 2w) table costs a short run more
+    than a tenth of its time); :meth:`table` builds it for the virtual machine."""
+
+    t: np.ndarray
+    B: np.ndarray
+
+    @property
+    def n(self) -> int:
+        """The number of intervals."""
+        return self.t.size - 1
+
+    def table(self) -> np.ndarray:
+        """The (N, 2 + 2w) table: one row per interval."""
+        N, w = self.n, self.B.shape[1]
+        A = np.empty((N, 2 + 2 * w))
+        A[:, 0] = self.t[:-1]
+        np.subtract(self.t[1:], self.t[:-1], out=A[:, 1])
+        A[:, 2:2 + w] = self.B[:-1]
+        A[:, 2 + w:] = self.B[1:]
+        return A
 
 
 @dataclass(frozen=True, eq=False)
@@ -343,7 +378,7 @@ class IntervalRunner:
         return choose_backend(self.backend, ready=ready, n_instr=self._n_instr, vm_instr=self.vm_instructions(work, intervals),
                               signature=self._sig)
 
-    def run(self, s0: np.ndarray, A: np.ndarray, nmin: np.ndarray, *, rate0: float, target: float = 1.0,
+    def run(self, s0: np.ndarray, A: np.ndarray | Rows, nmin: np.ndarray, *, rate0: float, target: float = 1.0,
             reject: float = 2.0, max_substeps: int = MAX_SUBSTEPS,
             on_progress: Callable[[float], None] | None = None, schedule: Schedule | None = None) -> IntervalResult:
         """Integrate from `s0` over the intervals described by the rows of `A` (shape (N, na)).
@@ -352,18 +387,26 @@ class IntervalRunner:
         on the virtual machine (a long gap reports as it goes), once at the end for the compiled loop.
         With a `schedule` the intervals are run as it says (states restored from and saved to slots; see
         :class:`Schedule`): on the compiled path in one call, on the virtual machine one call per stretch
-        of intervals that continue each other (never a Python step per interval)."""
+        of intervals that continue each other (never a Python step per interval). `A` may be given as
+        :class:`Rows` (the samples; the compiled driver then assembles each row itself)."""
+        if isinstance(A, Rows) and (schedule is not None or self._c is None or _forced(self.backend) == "vm"):
+            A = A.table()   # (the table is built only where it is read whole)
         if schedule is not None:
             return self._run_schedule(s0, A, nmin, rate0, target, reject, max_substeps, schedule, on_progress)
-        A = np.ascontiguousarray(A, dtype=float)
+        if isinstance(A, Rows):   # the compiled driver is loaded and not overridden: it runs
+            A = Rows(np.ascontiguousarray(A.t, dtype=float), np.ascontiguousarray(A.B, dtype=float))
+            backend, N = "c", A.n
+        else:
+            A = np.ascontiguousarray(A, dtype=float)
+            N = A.shape[0]
         nmin = np.ascontiguousarray(nmin, dtype=float)
         s0 = np.ascontiguousarray(s0, dtype=float).reshape(self.ns)
-        N = A.shape[0]
         rate0 = _finite_rate(rate0)
         # the work predicted from the first rate (a long gap needs many sub-steps although nmin is small there); not
         # needed once the compiled driver is loaded and no backend is forced (then it runs)
-        backend = "c" if self._c is not None and _forced(self.backend) != "vm" else \
-            self.backend_for(float(np.maximum(nmin, np.ceil(A[:, 1] * rate0 / target)).sum()), N)
+        if not isinstance(A, Rows):
+            backend = "c" if self._c is not None and _forced(self.backend) != "vm" else \
+                self.backend_for(float(np.maximum(nmin, np.ceil(A[:, 1] * rate0 / target)).sum()), N)
         if backend == "c" and self._compiled() is not None:
             res = self._c(s0, A, nmin, rate0, target, reject, max_substeps)
             if on_progress is not None and res.failed is None and res.refused is None:
@@ -726,7 +769,7 @@ class _CompiledIntervals:
                     "NLOBS_SZ_IW": max(f.sz_iw() for f in fns), "NLOBS_SZ_W": max(f.sz_w() for f in fns),
                     "IDLEAT": skip.start if skip is not None else 0,
                     "IDLEN": (skip.stop - skip.start) if skip is not None else 0,
-                    "NS": self.ns, "NA": self.na, "NO": self.no}
+                    "NS": self.ns, "NA": self.na, "NW": (self.na - 2) // 2, "NO": self.no}
             driver = (_C_DRIVER.replace("SUB(", "nlobs_sub(").replace("JUMP0(", "nlobs_jump0(" if skip is not None else
                                                                       "nlobs_jump(").replace("JUMP(", "nlobs_jump("))
             for k, v in defs.items():
@@ -739,29 +782,47 @@ class _CompiledIntervals:
         self._fn = lib.nlobs_intervals
         ptr = ctypes.c_void_p  # arrays passed by address (ndarray.ctypes.data: a third of the cost of data_as)
         self._fn.argtypes = [ptr, ptr, ptr, ctypes.c_double, ctypes.c_double, ctypes.c_double, ctypes.c_double,
-                             ptr, ptr, ptr, ptr, ctypes.c_longlong, ptr, ptr, ptr, ptr, ctypes.c_void_p]
+                             ptr, ptr, ptr, ptr, ctypes.c_longlong, ptr, ptr, ptr, ptr, ctypes.c_void_p, ptr, ptr]
         self._fn.restype = ctypes.c_longlong
         self._lib = lib
 
-    def __call__(self, s0: np.ndarray, A: np.ndarray, nmin: np.ndarray, rate0: float, target: float, reject: float,
-                 max_substeps: int, sched: Schedule | None = None, slots: np.ndarray | None = None) -> IntervalResult:
-        N = A.shape[0]
+    def __call__(self, s0: np.ndarray, A: np.ndarray | Rows, nmin: np.ndarray, rate0: float, target: float,
+                 reject: float, max_substeps: int, sched: Schedule | None = None,
+                 slots: np.ndarray | None = None) -> IntervalResult:
+        rows_in = A if isinstance(A, Rows) else None
+        N = A.n if rows_in is not None else A.shape[0]
+        ns, no = self.ns, max(self.no, 1)
         if sched is None:   # every row written up to a failure, the rest set below (a fifth of a short run's set-up)
-            lead = np.empty((N + 1, self.ns))   # row 0: the start state, for callers that stack it above the rows
+            # one block for every result (one allocation, one address: ndarray.ctypes costs a microsecond a call):
+            # the states and the outputs each with a row 0 above (the start state; the caller's), then the sub-steps,
+            # rates, carried rates and the two entries of `need`
+            buf = np.empty((N + 1) * (ns + no) + 3 * N + 2)
+            base, f8 = buf.ctypes.data, buf.itemsize
+            lead = buf[:(N + 1) * ns].reshape(N + 1, ns)
             lead[0] = s0
-            states, outputs = lead[1:], np.empty((N, max(self.no, 1)))
-            substeps, rate, carry, need = np.empty(N), np.empty(N), np.empty(N), np.zeros(2)
+            o0 = (N + 1) * ns
+            olead = buf[o0:o0 + (N + 1) * no].reshape(N + 1, no)
+            v0 = o0 + (N + 1) * no
+            states, outputs = lead[1:], olead[1:]
+            substeps, rate, carry, need = buf[v0:v0 + N], buf[v0 + N:v0 + 2 * N], buf[v0 + 2 * N:v0 + 3 * N], \
+                buf[v0 + 3 * N:]
+            need[:] = 0
+            at = (base + ns * f8, base + (o0 + no) * f8, base + v0 * f8, base + (v0 + N) * f8, base + (v0 + 3 * N) * f8,
+                  base + (v0 + 2 * N) * f8)
         else:
-            lead, rows = None, sched.n_emit
-            states, outputs = np.full((rows, self.ns), np.nan), np.full((rows, max(self.no, 1)), np.nan)
+            lead, olead, rows = None, None, sched.n_emit
+            states, outputs = np.full((rows, ns), np.nan), np.full((rows, no), np.nan)
             substeps, rate, carry, need = np.zeros(N), np.full(N, np.nan), np.full(N, np.nan), np.zeros(2)
+            at = (states.ctypes.data, outputs.ctypes.data, substeps.ctypes.data, rate.ctypes.data, need.ctypes.data,
+                  carry.ctypes.data)
         ops = None if sched is None else np.ascontiguousarray(sched.ops(), dtype=np.int64)
         slots = None if sched is None else np.ascontiguousarray(slots, dtype=float)
         with Watchdog() as dog:
-            rc = self._fn(s0.ctypes.data, A.ctypes.data, nmin.ctypes.data, rate0, target, reject, float(max_substeps),
-                          states.ctypes.data, outputs.ctypes.data, substeps.ctypes.data, rate.ctypes.data, N,
-                          need.ctypes.data, None if ops is None else ops.ctypes.data,
-                          None if slots is None else slots.ctypes.data, carry.ctypes.data, dog.ref)
+            rc = self._fn(s0.ctypes.data, None if rows_in is not None else A.ctypes.data, nmin.ctypes.data, rate0,
+                          target, reject, float(max_substeps), at[0], at[1], at[2], at[3], N, at[4],
+                          None if ops is None else ops.ctypes.data, None if slots is None else slots.ctypes.data,
+                          at[5], dog.ref, None if rows_in is None else rows_in.t.ctypes.data,
+                          None if rows_in is None else rows_in.B.ctypes.data)
         if rc < 0 and need[0] == -1:
             dog.raise_if_tripped("running its compiled loop")
         if rc != 0 and sched is None:   # the rows from the interval that failed on are NaN (substeps 0), as documented
@@ -770,12 +831,12 @@ class _CompiledIntervals:
             if rc < 0:   # refused before its sub-steps ran
                 rate[k], substeps[k] = np.nan, 0
         outputs = outputs[:, :self.no]
+        olead = None if olead is None else olead[:, :self.no]
         if rc > 0:
             return IntervalResult(states, outputs, substeps, rate, failed=int(rc - 1), backend="c", carry=carry,
-                                  unconverged=float(need[1]) if need[0] == -2 else None, lead=lead)
+                                  unconverged=float(need[1]) if need[0] == -2 else None, lead=lead, olead=olead)
         if rc < 0:
             return IntervalResult(states, outputs, substeps, rate, refused=(int(-rc - 1), float(need[0])), backend="c",
-                                  carry=carry, lead=lead)
-        if not np.isfinite(states).all():  # pragma: no cover - the driver checks every interval
-            raise EngineError("the compiled interval driver returned non-finite states without reporting them")
-        return IntervalResult(states, outputs, substeps, rate, backend="c", carry=carry, lead=lead)
+                                  carry=carry, lead=lead, olead=olead)
+        # (the driver checks every state and output of every interval it finishes: rc == 0 means all are finite)
+        return IntervalResult(states, outputs, substeps, rate, backend="c", carry=carry, lead=lead, olead=olead)

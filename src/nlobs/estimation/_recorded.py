@@ -397,23 +397,29 @@ def _estimate_one(name: str, o: AbstractObserver, recording: Recording, xhat0: A
                               innovation=np.where(mask > 0, recording.y - yp, np.nan), covariance=o.design.covariance)
         return trace, {"substeps": 0, "max_substeps": 1, "fastest_rate": 0.0, "engine": "c",
                        "particles": o.design.particles, "min_ess": float(pr.ess.min()), "resampled": int(pr.resampled.sum())}
+    prepared = compiled_observer(o.design, hold)
+    complete = bool(mask.all())   # every output measured at every row (y0 is then the recording's y)
     try:
-        traj = compiled_observer(o.design, hold).run(t, u=u, y=y0, mask=mask, z0=z0, max_step=max_step, engine=engine,
-                                                     name=name, progress=part)
+        traj = prepared.run(t, u=u, y=y0, mask=None if complete else mask, z0=z0, max_step=max_step, engine=engine,
+                            name=name, progress=part)
     except FiniteEscapeError as e:
         if getattr(e, "interval", None) is None:
             raise
         raise _non_finite(name, o, recording, e) from None
     except DataError as e:   # an interval too long to integrate: name the recording it comes from
         raise DataError(f"recording ({recording.source}): {e}") from None
-    bad = np.argwhere(~np.isfinite(traj.xhat)) if not np.isfinite(traj.xhat).all() else np.empty((0, 2), dtype=int)
+    # (an estimate that is part of the internal state is finite: the run checked every state)
+    bad = np.empty((0, 2), dtype=int) if prepared.selects_state or np.isfinite(traj.xhat).all() else \
+        np.argwhere(~np.isfinite(traj.xhat))
     if bad.size:  # the internal state is finite, but the estimate read from it is not
         r, c = (int(v) for v in bad[0])
         raise FiniteEscapeError(f"observer {name!r}", float(t[r]), traj.z[r], o.design.z_names, np.inf,
                                 message=f"observer {name!r} on the recording {recording.source}: its estimate of "
                                         f"{o.system.states[c]} is {traj.xhat[r, c]} at t = {t[r]:.6g} (row {r}) although its "
                                         "internal state is finite; check the observer's output map x̂ = H(t, z, u, y)")
-    innovation = np.where(mask > 0, recording.y - traj.yhat_prior, np.nan)
+    innovation = recording.y - traj.yhat_prior
+    if not complete:
+        innovation[mask == 0] = np.nan
     smoothed: dict[str, Any] = {}
     info = traj.info()
     xs = traj.xhat

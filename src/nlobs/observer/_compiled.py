@@ -24,7 +24,7 @@ from ..design import ObserverDesign
 from ..engine import Backend, compile_system, rows
 from ..engine._batch import PointEvaluator, evaluate_one
 from ..engine._integrate import rk4_step_rate
-from ..engine._intervals import MAX_SUBSTEPS, IntervalRunner
+from ..engine._intervals import MAX_SUBSTEPS, IntervalRunner, Rows
 from .._progress import as_progress
 from ..errors import DataError, FiniteEscapeError, ShapeError
 from ._rate import flow_rate
@@ -229,7 +229,8 @@ class CompiledObserver:
         y = np.asarray(y, dtype=float).reshape(N, self.ny)
         u = np.zeros((N, 0)) if u is None and self.nu == 0 else np.asarray(u, dtype=float).reshape(N, self.nu)
         m = np.ones((N, self.ny)) if mask is None else np.asarray(mask, dtype=float).reshape(N, self.ny)
-        y = np.where(m > 0, y, 0.0)
+        if mask is not None:
+            y = np.where(m > 0, y, 0.0)
         if max_step is not None and not (np.isfinite(max_step) and max_step > 0):
             raise ShapeError(f"{label}: `max_step` must be a positive number, got {max_step!r}")
         if z0 is None:
@@ -242,16 +243,16 @@ class CompiledObserver:
             err.interval, err.substeps = -1, 0
             raise err
         rate0 = self.rate(t[0], zs, u[0], ys)
-        A = interval_table(t, u, y, m)
-        dts = A[:, 1]
-        nmin = np.ones(N - 1) if max_step is None else np.maximum(1.0, np.ceil(dts / max_step - 1e-9))
+        samples = Rows(t, np.concatenate((u, y, m), axis=1))   # the intervals' table, assembled by the driver
+        nmin = np.ones(N - 1) if max_step is None else np.maximum(1.0, np.ceil(np.diff(t) / max_step - 1e-9))
         runner = self._runner(engine)
         report = as_progress(progress, f"estimate {name or self.design.method}")
         s0 = np.concatenate([zs, ys])
-        res = runner.run(s0, A, nmin, rate0=rate0, on_progress=report)
+        res = runner.run(s0, samples, nmin, rate0=rate0, on_progress=report)
         S = res.lead if res.lead is not None else np.vstack([s0, res.states])
         if res.refused is not None:
             k, need = res.refused
+            dts = np.diff(t)
             rate = res.rate[k - 1] if k > 0 and np.isfinite(res.rate[k - 1]) else rate0
             raise DataError(
                 f"{label}: the interval from t = {t[k]:g} to {t[k + 1]:g} (length {dts[k]:g}) would need {need:.3g} RK4 steps "
@@ -266,8 +267,14 @@ class CompiledObserver:
             err.interval, err.substeps = k, int(res.substeps[k])  # the step from sample k to sample k + 1
             raise err
         z = S[:, :self.nz]
-        yhat_prior = np.vstack([yp0.reshape(1, -1), res.outputs[:, res.outputs.shape[1] - self.ny:]])
-        xhat = z[:, :self.n] if self.selects_state else np.vstack([xs.reshape(1, -1), res.outputs[:, :self.n]])
+        no = res.outputs.shape[1]
+        # the outputs with the start's above them (written into the free row 0 the compiled driver leaves)
+        O = res.olead if res.olead is not None else np.vstack([np.empty((1, no)), res.outputs])
+        O[0, no - self.ny:] = yp0.reshape(-1)
+        if not self.selects_state:
+            O[0, :self.n] = xs.reshape(-1)
+        yhat_prior = O[:, no - self.ny:]
+        xhat = z[:, :self.n] if self.selects_state else O[:, :self.n]
         return ObserverTrajectory(t, z, np.ascontiguousarray(xhat), S[:, self.nz:], prior.reshape(-1), yhat_prior,
                                   res.substeps, res.rate, res.backend)
 
@@ -333,17 +340,8 @@ def _unconverged(res: Any) -> str:
 
 def interval_table(t: np.ndarray, u: np.ndarray, y: np.ndarray, m: np.ndarray) -> np.ndarray:
     """One row per interval k: (t_k, dt_k, u_k, y_k, m_k, u_{k+1}, y_{k+1}, m_{k+1}), as the sub-step and sample
-    functions read it (y: zero where m is 0). Written column block by column block into one array (a third of the
-    time of stacking the eight pieces, which counts on a short recording)."""
-    N, nu, ny = t.size - 1, u.shape[1], y.shape[1]
-    A = np.empty((N, 2 + 2 * (nu + 2 * ny)))
-    A[:, 0] = t[:-1]
-    np.subtract(t[1:], t[:-1], out=A[:, 1])
-    j = 2
-    for block in (u[:-1], y[:-1], m[:-1], u[1:], y[1:], m[1:]):
-        A[:, j:j + block.shape[1]] = block
-        j += block.shape[1]
-    return A
+    functions read it (y: zero where m is 0); the layout of :class:`nlobs.engine._intervals.Rows`."""
+    return Rows(t, np.concatenate((u, y, m), axis=1)).table()
 
 
 _CACHE: OrderedDict[tuple[int, str], CompiledObserver] = OrderedDict()

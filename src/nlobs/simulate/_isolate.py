@@ -128,6 +128,8 @@ def each_observer(names: Sequence[str], work: Callable[[str], T], *, alone: Sequ
 
     def guarded(name: str) -> Any:
         try:
+            if budget is None:
+                return work(name)
             with time_budget(budget):
                 return work(name)
         except Exception as e:   # noqa: BLE001 - returned to the caller, who decides per observer
