@@ -20,6 +20,7 @@ from ..estimation import Recording
 from ._advice import Advice, Candidate, Score
 from ..design._constructions import evaluate
 from ._context import Context, build_context, file_true_parameters, file_unknown_params
+from ._early import EarlyBuild
 from ._kinds import try_kind
 from ._present import model_text
 from ._rank import compare, demoted, own_observers, screen, unscreened
@@ -287,8 +288,15 @@ def advise(model: System | ModelFile | str | Path, *, unknown_params: Sequence[s
     candidates: list[Candidate] = []
     if say:
         say(f"advise {system.name}: trying {len(chosen)} observer kinds ({time.perf_counter() - t_ctx:.1f} s so far) ...")
-    for i, kind in enumerate(chosen):
-        candidates.append(_try_with_progress(ctx, kind, f"{i + 1} of {len(chosen)}", say))
+    early = EarlyBuild(ctx, engine, budget, tune) if run and not ctx.run_blockers else None
+    try:
+        for i, kind in enumerate(chosen):
+            candidates.append(_try_with_progress(ctx, kind, f"{i + 1} of {len(chosen)}", say))
+            if early is not None:   # its comparison run's code built beside the next designs (large models)
+                early.add(candidates[-1])
+    finally:
+        if early is not None:
+            early.stop()
     if not run and not ctx.blockers and not ctx.run_blockers:
         if say:
             say(f"advise {system.name}: screening the applicable designs on the start of the simulation run ...")

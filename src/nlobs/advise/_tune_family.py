@@ -44,6 +44,18 @@ def scenario_recording(ctx: Any) -> Recording:
                                  source="the comparison run's measurements")
 
 
+def _rows(ctx: Any) -> int:
+    """Rows of the comparison run: the recording's, or the scenario's steps."""
+    return ctx.recording.t.size if ctx.recording is not None else int(round(ctx.scenario.t_final / ctx.scenario.dt)) + 1
+
+
+def tunes_here(ctx: Any) -> bool:
+    """Whether ``design --run`` tunes the Kalman family on this model and run: at most :data:`TUNE_MAX_STATES`
+    states and :data:`TUNE_MAX_WORK` state-rows (above, compiling and fitting the likelihood takes minutes)."""
+    n = ctx.system.n_states
+    return n <= TUNE_MAX_STATES and _rows(ctx) * (n + n * (n + 1) // 2) <= TUNE_MAX_WORK
+
+
 def tune_candidates(ctx: Any, candidates: list[Any], say: Any = None) -> tuple[list[Any], str | None]:
     """The Kalman-family candidates with Q and R tuned on the comparison run's measurements (or the recording), and a
     note saying what was done. One tuning, of the EKF's innovations likelihood (the UKF's when there is no EKF), is
@@ -61,9 +73,8 @@ def tune_candidates(ctx: Any, candidates: list[Any], say: Any = None) -> tuple[l
     if base is None:
         return candidates, None
     n = ctx.system.n_states
-    rows = ctx.recording.t.size if ctx.recording is not None else int(round(ctx.scenario.t_final / ctx.scenario.dt)) + 1
-    work = rows * (n + n * (n + 1) // 2)
-    if n > TUNE_MAX_STATES or work > TUNE_MAX_WORK:
+    rows = _rows(ctx)
+    if not tunes_here(ctx):
         return candidates, (f"Q and R were not tuned on the run's measurements here ({n} states, {rows} rows: compiling and "
                             "fitting the likelihood takes minutes); `nlobs tune MODEL DATA --observer ekf` tunes them once "
                             "(`nlobs simulate MODEL --output DATA` writes the run's measurements)")

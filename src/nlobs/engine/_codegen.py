@@ -19,6 +19,7 @@ import platform
 import shutil
 import subprocess
 import tempfile
+import threading
 import time
 import warnings
 from collections.abc import Callable
@@ -342,9 +343,16 @@ def _generate(*fns: ca.Function) -> str:
     return _ERFINV + "#define erfinv nlobs_erfinv\n" + code if "erfinv(" in code else code
 
 
+#: One lock per shared object being built in this process: a second thread that needs the same code (the advisor's
+#: early build of a candidate and its run) waits for the first build instead of compiling it again beside it.
+_BUILDING: dict[Path, threading.Lock] = {}
+_BUILDING_LOCK = threading.Lock()
+
+
 def _build(code: str | Callable[[], str], tag: str, so: Path | None = None, n_instr: int = 0) -> Path:
     """Compile `code` (or `code()`, generated only when needed) to a shared object in the cache, once per
-    machine, and return its path: `so` when given (keyed by the function's signature), else keyed by the code."""
+    machine, and return its path: `so` when given (keyed by the function's signature), else keyed by the code.
+    Builds of the same object in this process run one at a time (the later ones then find it built)."""
     cc = find_compiler()
     if cc is None:
         raise EngineError("no C compiler found: install gcc or set $CC, or use the 'vm' backend")
@@ -353,6 +361,21 @@ def _build(code: str | Callable[[], str], tag: str, so: Path | None = None, n_in
         key = hashlib.sha256("\0".join([code, cc, *cflags(code.count("\n")), platform.machine(), platform.node(),
                                          ca.__version__]).encode()).hexdigest()[:32]
         so = cache_dir() / f"{tag}-{key}.so"
+    if so.exists():
+        return so
+    with _BUILDING_LOCK:
+        lock = _BUILDING.setdefault(so, threading.Lock())
+    left = remaining()
+    if not lock.acquire(timeout=-1 if left is None else max(left, 0.0)):
+        raise expired(f"waiting for another thread's build of its C code ({tag})")
+    try:
+        return _build_locked(code, tag, so, cc, n_instr)
+    finally:
+        lock.release()
+
+
+def _build_locked(code: str | Callable[[], str], tag: str, so: Path, cc: str, n_instr: int) -> Path:
+    """:func:`_build` holding the lock of `so`."""
     if not so.exists():
         code = code() if callable(code) else code
         out_dir = so.parent

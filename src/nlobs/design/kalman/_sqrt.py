@@ -23,10 +23,6 @@ from .._checks import check_matrix
 __all__ = ["tria", "lower_solve", "lower_t_solve", "phi", "sqrt_psd", "covariance_inputs", "unpack_lower", "pack_lower"]
 
 
-def _cells(A: ca.SX) -> list[list[ca.SX]]:
-    return [[A[i, j] for j in range(A.shape[1])] for i in range(A.shape[0])]
-
-
 def tria(A: ca.SX) -> ca.SX:
     """Lower-triangular L (n x n, non-negative diagonal) with L Lᵀ = A Aᵀ for A of shape (n, k), k >= n.
 
@@ -36,38 +32,35 @@ def tria(A: ca.SX) -> ca.SX:
     its diagonal is left alone, and so are structural zeros. One square root per row: Givens rotations took one per
     entry, and on a 24 x 73 block (the square-root UKF's time update for 24 states) 135,554 operations that compiled
     in 19 s and ran in 85 µs, against 96,792 operations, 10 s and 25 µs here.
+
+    Each reflection is applied to the rows below as two matrix products (CasADi's SX arithmetic drops a product with
+    a zero and a sum with zero as it builds them, so the structural zeros cost nothing): the same 94,364 operations
+    on a 24 x 73 block with half its entries zero as a loop over the entries, built 30x faster.
     """
     n, k = A.shape
     if k < n:
         A = ca.horzcat(A, ca.SX.zeros(n, n - k))
         k = n
-    M = _cells(A)
+    M = ca.densify(ca.SX(A))
     for i in range(n):
-        cols = [j for j in range(i, k) if not ca.is_equal(M[i][j], 0)]
-        if not cols or cols == [i]:   # nothing right of the diagonal: no reflection (its sign is fixed below)
+        row = M[i, i:]
+        nonzero = [j for j in range(k - i) if not ca.is_equal(row[j], 0)]
+        if not nonzero or nonzero == [0]:   # nothing right of the diagonal: no reflection (its sign is fixed below)
             continue
-        a = M[i][i]
-        sig = sum((M[i][j] * M[i][j] for j in cols), ca.SX(0))
+        a = row[0]
+        sig = ca.dot(row, row)
         alpha = -ca.if_else(a >= 0, 1, -1) * ca.sqrt(sig)   # the new diagonal; its sign avoids cancellation in v_i
-        v = {j: M[i][j] for j in cols}
-        v[i] = a - alpha
-        vtv = sig - a * a + v[i] * v[i]                      # ‖v‖² = 2‖x‖² + 2|a|‖x‖: 0 only when the row is 0
+        v = ca.SX(row.T)
+        v[0] = a - alpha
+        vtv = sig - a * a + v[0] * v[0]                       # ‖v‖² = 2‖x‖² + 2|a|‖x‖: 0 only when the row is 0
         beta = ca.if_else(vtv > 0, 2 / ca.if_else(vtv > 0, vtv, 1), 0)
-        for row in range(i + 1, n):   # (I - β v vᵀ) applied from the right to the rows below
-            g = beta * sum((M[row][j] * v[j] for j in v if not ca.is_equal(M[row][j], 0)), ca.SX(0))
-            if ca.is_equal(g, 0):
-                continue
-            for j in v:
-                M[row][j] = M[row][j] - g * v[j]
-        for j in cols:
-            M[i][j] = ca.SX(0)
-        M[i][i] = alpha
+        if i + 1 < n:   # (I - β v vᵀ) applied from the right to the rows below
+            below = M[i + 1:, i:]
+            M[i + 1:, i:] = below - ca.mtimes(beta * ca.mtimes(below, v), v.T)
+        M[i, i:] = ca.horzcat(alpha, ca.SX.zeros(1, k - i - 1))
     L = ca.SX.zeros(n, n)
-    for j in range(n):
-        sign = ca.if_else(M[j][j] >= 0, 1, -1)
-        for i in range(j, n):
-            if not ca.is_equal(M[i][j], 0):
-                L[i, j] = sign * M[i][j]
+    for j in range(n):   # a column whose diagonal came out negative is negated
+        L[j:, j] = ca.if_else(M[j, j] >= 0, 1, -1) * M[j:, j]
     return L
 
 
