@@ -59,3 +59,26 @@ def test_a_sparse_output_takes_the_plain_call():
     ev = PointEvaluator(f)
     assert not ev.dense
     np.testing.assert_array_equal(ev([1.0, 2.0])[0], [1.0, 0.0, 0.0, 2.0])
+
+
+def test_evaluate_one_keeps_a_buffer_per_function_and_gives_fresh_results():
+    """evaluate_one sets a function's buffer up once (engine._batch._POINT): every later call must still give that
+    point's value (against CasADi's own call), as a new array, and another function must not get the first one's."""
+    from nlobs.engine._batch import _POINT, evaluate_one
+
+    x, p = ca.SX.sym("x", 3), ca.SX.sym("p", 2)
+    f = ca.Function("f", [x, p], [ca.vertcat(x[0] * p[0], ca.sin(x[1]) + p[1], x[2] ** 2), ca.sumsqr(x)])
+    g = ca.Function("g", [x, p], [ca.vertcat(x[0] - p[0], x[1], x[2] * p[1])])
+    rng = np.random.default_rng(1)
+    outs = []
+    for _ in range(5):
+        a, b = rng.normal(size=3), rng.normal(size=2)
+        for fn in (f, g):
+            got = evaluate_one(fn, a, b)
+            np.testing.assert_allclose(got, np.asarray(fn(a, b)[0] if fn.n_out() > 1 else fn(a, b)).reshape(-1),
+                                       rtol=0, atol=1e-15)
+            outs.append(got)
+    assert id(f) in _POINT and _POINT[id(f)][0] is f
+    assert len({id(o) for o in outs}) == len(outs)   # a new array each time
+    outs[-2][:] = np.nan                              # the caller's array is its own
+    assert np.isfinite(evaluate_one(f, np.ones(3), np.ones(2))).all()
