@@ -144,11 +144,18 @@ def test_aligned_equations_render_as_aligned_rows(site):
     assert html.count("<mtr>") == 2 and html.count("<mtd") == 4 and ">&<" not in html and "&amp;" not in html
     assert nlobs_docs._mathml(r"\begin{aligned} a &= b \\ d &= e \end{aligned}", True).count("<mtr>") == 2
     assert nlobs_docs.aligned(r"A = \begin{bmatrix} 1 & 2 \\ 3 & 4 \end{bmatrix}").startswith("A = ")  # a matrix only
+    # Chromium renders MathML Core, which ignores `columnalign` and `columnspacing`: each cell carries its alignment as
+    # a style (else every cell is centred and the `=` of the rows do not line up), and split's cells no padding
+    cells = re.findall(r"<mtd[^>]*>", html)
+    assert cells == ['<mtd columnalign="right" style="text-align: right; padding-inline: 0">',
+                     '<mtd columnalign="left" style="text-align: left; padding-inline: 0">'] * 2, cells
+    cases = nlobs_docs._mathml(r"|x| = \begin{cases} x & x > 0 \\ -x & x \le 0 \end{cases}", True)
+    assert re.findall(r"<mtd[^>]*>", cases) == ['<mtd columnalign="left" style="text-align: left">'] * 4
     # on the built pages: the grey-box model of the learning guide, the design_gpebo equations of the API
     for page, rows in (("guide/learning.html", 3), ("api/generated/nlobs.design.design_gpebo.html", 2)):
         text = (site / page).read_text(encoding="utf-8")
         tables = re.findall(r"<div class='math-block'>(.*?)</div>", text, flags=re.S)
-        aligned = [t for t in tables if "columnalign=\"right\"" in t and t.count("<mtr>") == rows]
+        aligned = [t for t in tables if 'columnalign="right" style="text-align: right' in t and t.count("<mtr>") == rows]
         assert aligned, f"{page}: no displayed equation with {rows} aligned rows"
         assert not any(">&<" in t for t in tables), f"{page}: a literal & in displayed maths"
 
