@@ -181,6 +181,16 @@ def test_no_page_has_an_empty_sidebar(site):
     assert not empty, f"empty 'Section Navigation' on {empty[:10]}"
 
 
+def test_long_code_lines_wrap_instead_of_scrolling_sideways(site):
+    # a guide's code is about 105 characters wide at most, the column beside both sidebars of a 1400 px window; in a
+    # narrower window, and for a program's output or a generated file, lines wrap: none hides its end off the column
+    css = (site / "_static" / "nlobs.css").read_text(encoding="utf-8")
+    rules = dict(re.findall(r"([^{}]+)\{([^{}]*)\}", re.sub(r"/\*.*?\*/", "", css, flags=re.S)))
+    wrapping = [sel for sel, body in rules.items() if "white-space: pre-wrap" in body]
+    assert any('.bd-article div[class*="highlight-"] pre' in sel for sel in wrapping), wrapping
+    assert 'href="../_static/nlobs.css' in (site / "guide" / "simulation.html").read_text(encoding="utf-8")
+
+
 def test_api_reference_has_a_page_for_every_public_function_and_class(site):
     sys.path.insert(0, str(DOCS / "_ext"))
     import nlobs_docs
