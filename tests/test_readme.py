@@ -70,11 +70,14 @@ def test_the_speed_table_dates_each_figure_and_links_to_the_page_with_the_full_t
 
 
 def test_no_user_facing_page_names_an_issue():
-    """Issue numbers are the project's bookkeeping: the README, the docs and the CLI's and report's text do not show them
-    (file names such as cascaded_tanks_issue39.toml are names, not references)."""
+    """Issue numbers are the project's bookkeeping: the README, the docs, the CLI's and report's text and the model files
+    the docs send a user to do not show them, in words or in a file name (``cascaded_tanks_issue39.toml``)."""
     root = README.parent
     pages = [README, *(root / "docs").rglob("*.rst"), *(root / "src" / "nlobs" / "cli").rglob("*.py"),
-             *(root / "src" / "nlobs" / "report").rglob("*.py")]
+             *(root / "src" / "nlobs" / "report").rglob("*.py"), *(root / "benchmarks" / "models").glob("*.toml"),
+             *(root / "src" / "nlobs" / "models").glob("*.toml")]
     found = [f"{p.relative_to(root)}: {m.group(0)}" for p in pages
-             for m in re.finditer(r"\bissues? #?\d+|\(issue \d+|\bthe issue's\b", p.read_text(encoding="utf-8"), flags=re.I)]
+             for m in re.finditer(r"\bissues? #?\d+|\(issue \d+|\bthe issue's\b|issue_?\d+", p.read_text(encoding="utf-8"),
+                                  flags=re.I)]
+    found += [str(p.relative_to(root)) for p in pages if re.search(r"issue_?\d+", p.name, flags=re.I)]
     assert not found, found
