@@ -31,6 +31,24 @@ def test_every_python_block_runs_in_order_in_an_empty_folder(tmp_path):
     assert "Ljung-Box" in out.stdout  # the estimate on the recording (no true state) prints its innovations table
 
 
+def test_the_readme_needs_nothing_the_demo_does_not_install():
+    # the README sends a newcomer from `./dev.sh demo` to its example, in that environment (`source .venv/bin/activate`);
+    # the test above runs in the test environment, which has more: every package the blocks use must be one the demo's
+    # install brings (pyproject's dependencies and the extras of dev.sh's demo spec)
+    import tomllib
+
+    root = README.parent
+    spec = re.search(r"need=demo; spec='([^']*)'", (root / "dev.sh").read_text(encoding="utf-8")).group(1)
+    project = tomllib.loads((root / "pyproject.toml").read_text(encoding="utf-8"))["project"]
+    extras = re.findall(r"\w+", spec.partition("[")[2])
+    deps = project["dependencies"] + [d for e in extras for d in project["optional-dependencies"][e]]
+    installed = {re.match(r"[A-Za-z0-9_.-]+", d).group(0).lower() for d in deps} | {"nlobs"}
+    code = "\n".join(python_blocks(README.read_text(encoding="utf-8")))
+    used = set(re.findall(r"^\s*(?:import|from) (\w+)", code, flags=re.M)) - set(sys.stdlib_module_names)
+    used |= {"pandas"} if re.search(r"\.to_pandas\(|\bdf\b", code) else set()
+    assert used <= installed, f"the README uses {sorted(used - installed)}, which `./dev.sh demo` ({spec}) does not install"
+
+
 def test_readme_names_the_papers_by_the_table_and_points_to_nothing_outside_the_project():
     text = README.read_text(encoding="utf-8")
     for key in ("000", "001", "002", "003", "004"):
