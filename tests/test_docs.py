@@ -246,6 +246,19 @@ def test_no_page_names_an_internal_file_or_loads_anything_from_elsewhere(site):
         assert not re.search(r"<script[^>]+src=['\"]https?://", text), f"{page} loads a script from the network"
 
 
+def test_no_page_speaks_of_the_projects_issues(site):
+    # the API pages come from the docstrings, which the README test does not read: no "issue 39", no "the core
+    # issue" (another project's issue, e.g. "SI.jl issue #144", names whose it is)
+    said = []
+    for page in site.rglob("*.html"):
+        if page.relative_to(site).parts[0] in ("_modules", "_static", "_sources"):
+            continue
+        text = " ".join(_visible_text(page.read_text(encoding="utf-8")).split())
+        said += [f"{page.relative_to(site)}: {m.group(0)}" for m in
+                 re.finditer(r"(?<!\.jl )\bissues? #?\d+|issue_?\d+|\bthe (?:core |same )?issue(?:'s)?\b", text, flags=re.I)]
+    assert not said, said
+
+
 def test_references_page_lists_the_table(site):
     from nlobs.references import REFERENCES
 
