@@ -22,21 +22,22 @@ fi
 if [ ! -x .venv/bin/python ]; then
   "$PY" -m venv .venv
 fi
-# what each command needs, installed once (again when pyproject.toml changes): the demo and the nlobs and python
-# helpers the library alone (pip install -e .); test and docs the test extra too (pytest, Sphinx, Dask, JAX,
-# python-control). Each has its stamp: `./dev.sh demo` never pulls in the test tools.
+# what each command needs, installed once (again when pyproject.toml or the spec changes): the demo and the nlobs and
+# python helpers the library and pandas (pip install -e '.[pandas]': the README's example makes DataFrames); test and
+# docs the test extra too (pytest, Sphinx, Dask, JAX, python-control). Each has its stamp, holding the spec it
+# installed: `./dev.sh demo` never pulls in the test tools.
 case "${1:-}" in
   test|docs) need=test; spec='.[test]' ;;
-  *) need=demo; spec='.' ;;
+  *) need=demo; spec='.[pandas]' ;;
 esac
 stamp=.venv/.nlobs-installed-$need
 if [ "$need" = demo ] && [ -f .venv/.nlobs-installed-test ] && [ ! pyproject.toml -nt .venv/.nlobs-installed-test ]; then
-  stamp=.venv/.nlobs-installed-test   # the test install holds the demo's
+  stamp=.venv/.nlobs-installed-test; spec='.[test]'   # the test install holds the demo's
 fi
-if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
+if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ] || [ "$(cat "$stamp")" != "$spec" ]; then
   .venv/bin/python -m pip install --quiet --upgrade pip
   .venv/bin/python -m pip install --quiet -e "$spec"
-  touch "$stamp"
+  echo "$spec" > "$stamp"
 fi
 case "${1:-}" in
   demo) shift; exec .venv/bin/nlobs demo "$@" ;;

@@ -1,4 +1,4 @@
-"""Writes the two navigation models of issue 42 (benchmarks/models/car_nav.toml, vessel_nav.toml).
+"""Writes the two navigation models (benchmarks/models/car_nav.toml, vessel_nav.toml).
 
 The models are plain TOML files (committed); this script is how they were made: the trajectory's IMU inputs are
 written once as definitions of t, x0 is those definitions evaluated at t = 0, and the hand-tuned EKF's Q, R, P(0) and
@@ -175,7 +175,7 @@ def car_toml() -> str:
     xhat0.append(c["ks_guess"])
     R = [c["noise"][k] ** 2 for k in ["gpx", "gpy", "gpz", "wheel", "mx", "my", "mz"]]
     bg, ba = c["bg"], c["ba"]
-    return f'''# Car navigation, 16 states and an unknown wheel-speed scale (issue 42, benchmarks/nav_models.py writes this file).
+    return f'''# Car navigation, 16 states and an unknown wheel-speed scale (benchmarks/nav_models.py writes this file).
 # Strapdown INS as in src/nlobs/models/ins16.toml (Groves (2013), Ch. 5 and 14; Sola (2017) quaternion kinematics):
 # ENU navigation frame, FLU body frame, flat earth, q = body-to-navigation Hamilton quaternion, the IMU is the input
 # (gyros omega + bg, accelerometers the specific force + ba). Aiding, each at the rate such sensors run on a car:
@@ -347,7 +347,7 @@ def vessel_toml() -> str:
     outs = ["gpx", "gpy", "gpz", "dvx", "dvy", "dvz", "stw", "mx", "my", "mz"]
     R = [c["noise"][k] ** 2 for k in outs]
     bg, ba, cur = c["bg"], c["ba"], c["cur"]
-    return f'''# Surface vessel navigation, 18 states (issue 42, benchmarks/nav_models.py writes this file): strapdown INS as in
+    return f'''# Surface vessel navigation, 18 states (benchmarks/nav_models.py writes this file): strapdown INS as in
 # src/nlobs/models/ins16.toml (ENU, FLU body, q body-to-navigation; Groves (2013) Ch. 5, 14; Sola (2017)) plus the
 # horizontal water current (cE, cN, a random walk). The IMU is the input at 100 Hz. Aiding:
 #   GNSS      gpx, gpy, gpz   position, 1 Hz, arriving 0.3 s late               sigma 1.5 / 1.5 / 3 m

@@ -144,11 +144,18 @@ def test_aligned_equations_render_as_aligned_rows(site):
     assert html.count("<mtr>") == 2 and html.count("<mtd") == 4 and ">&<" not in html and "&amp;" not in html
     assert nlobs_docs._mathml(r"\begin{aligned} a &= b \\ d &= e \end{aligned}", True).count("<mtr>") == 2
     assert nlobs_docs.aligned(r"A = \begin{bmatrix} 1 & 2 \\ 3 & 4 \end{bmatrix}").startswith("A = ")  # a matrix only
+    # Chromium renders MathML Core, which ignores `columnalign` and `columnspacing`: each cell carries its alignment as
+    # a style (else every cell is centred and the `=` of the rows do not line up), and split's cells no padding
+    cells = re.findall(r"<mtd[^>]*>", html)
+    assert cells == ['<mtd columnalign="right" style="text-align: right; padding-inline: 0">',
+                     '<mtd columnalign="left" style="text-align: left; padding-inline: 0">'] * 2, cells
+    cases = nlobs_docs._mathml(r"|x| = \begin{cases} x & x > 0 \\ -x & x \le 0 \end{cases}", True)
+    assert re.findall(r"<mtd[^>]*>", cases) == ['<mtd columnalign="left" style="text-align: left">'] * 4
     # on the built pages: the grey-box model of the learning guide, the design_gpebo equations of the API
     for page, rows in (("guide/learning.html", 3), ("api/generated/nlobs.design.design_gpebo.html", 2)):
         text = (site / page).read_text(encoding="utf-8")
         tables = re.findall(r"<div class='math-block'>(.*?)</div>", text, flags=re.S)
-        aligned = [t for t in tables if "columnalign=\"right\"" in t and t.count("<mtr>") == rows]
+        aligned = [t for t in tables if 'columnalign="right" style="text-align: right' in t and t.count("<mtr>") == rows]
         assert aligned, f"{page}: no displayed equation with {rows} aligned rows"
         assert not any(">&<" in t for t in tables), f"{page}: a literal & in displayed maths"
 
@@ -172,6 +179,16 @@ def test_no_page_has_an_empty_sidebar(site):
     empty = [str(p.relative_to(site)) for p in site.rglob("*.html") if p.relative_to(site).parts[0] != "_static"
              and re.search(r'<div class="bd-toc-item navbar-nav">\s*</div>', p.read_text(encoding="utf-8"))]
     assert not empty, f"empty 'Section Navigation' on {empty[:10]}"
+
+
+def test_long_code_lines_wrap_instead_of_scrolling_sideways(site):
+    # a guide's code is about 105 characters wide at most, the column beside both sidebars of a 1400 px window; in a
+    # narrower window, and for a program's output or a generated file, lines wrap: none hides its end off the column
+    css = (site / "_static" / "nlobs.css").read_text(encoding="utf-8")
+    rules = dict(re.findall(r"([^{}]+)\{([^{}]*)\}", re.sub(r"/\*.*?\*/", "", css, flags=re.S)))
+    wrapping = [sel for sel, body in rules.items() if "white-space: pre-wrap" in body]
+    assert any('.bd-article div[class*="highlight-"] pre' in sel for sel in wrapping), wrapping
+    assert 'href="../_static/nlobs.css' in (site / "guide" / "simulation.html").read_text(encoding="utf-8")
 
 
 def test_api_reference_has_a_page_for_every_public_function_and_class(site):
@@ -227,6 +244,19 @@ def test_no_page_names_an_internal_file_or_loads_anything_from_elsewhere(site):
             assert not FILE_NAME.search(text), page
         assert "shared/papers" not in text and "papers README" not in text, page
         assert not re.search(r"<script[^>]+src=['\"]https?://", text), f"{page} loads a script from the network"
+
+
+def test_no_page_speaks_of_the_projects_issues(site):
+    # the API pages come from the docstrings, which the README test does not read: no "issue 39", no "the core
+    # issue" (another project's issue, e.g. "SI.jl issue #144", names whose it is)
+    said = []
+    for page in site.rglob("*.html"):
+        if page.relative_to(site).parts[0] in ("_modules", "_static", "_sources"):
+            continue
+        text = " ".join(_visible_text(page.read_text(encoding="utf-8")).split())
+        said += [f"{page.relative_to(site)}: {m.group(0)}" for m in
+                 re.finditer(r"(?<!\.jl )\bissues? #?\d+|issue_?\d+|\bthe (?:core |same )?issue(?:'s)?\b", text, flags=re.I)]
+    assert not said, said
 
 
 def test_references_page_lists_the_table(site):

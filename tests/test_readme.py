@@ -31,6 +31,24 @@ def test_every_python_block_runs_in_order_in_an_empty_folder(tmp_path):
     assert "Ljung-Box" in out.stdout  # the estimate on the recording (no true state) prints its innovations table
 
 
+def test_the_readme_needs_nothing_the_demo_does_not_install():
+    # the README sends a newcomer from `./dev.sh demo` to its example, in that environment (`source .venv/bin/activate`);
+    # the test above runs in the test environment, which has more: every package the blocks use must be one the demo's
+    # install brings (pyproject's dependencies and the extras of dev.sh's demo spec)
+    import tomllib
+
+    root = README.parent
+    spec = re.search(r"need=demo; spec='([^']*)'", (root / "dev.sh").read_text(encoding="utf-8")).group(1)
+    project = tomllib.loads((root / "pyproject.toml").read_text(encoding="utf-8"))["project"]
+    extras = re.findall(r"\w+", spec.partition("[")[2])
+    deps = project["dependencies"] + [d for e in extras for d in project["optional-dependencies"][e]]
+    installed = {re.match(r"[A-Za-z0-9_.-]+", d).group(0).lower() for d in deps} | {"nlobs"}
+    code = "\n".join(python_blocks(README.read_text(encoding="utf-8")))
+    used = set(re.findall(r"^\s*(?:import|from) (\w+)", code, flags=re.M)) - set(sys.stdlib_module_names)
+    used |= {"pandas"} if re.search(r"\.to_pandas\(|\bdf\b", code) else set()
+    assert used <= installed, f"the README uses {sorted(used - installed)}, which `./dev.sh demo` ({spec}) does not install"
+
+
 def test_readme_names_the_papers_by_the_table_and_points_to_nothing_outside_the_project():
     text = README.read_text(encoding="utf-8")
     for key in ("000", "001", "002", "003", "004"):
@@ -70,11 +88,14 @@ def test_the_speed_table_dates_each_figure_and_links_to_the_page_with_the_full_t
 
 
 def test_no_user_facing_page_names_an_issue():
-    """Issue numbers are the project's bookkeeping: the README, the docs and the CLI's and report's text do not show them
-    (file names such as cascaded_tanks_issue39.toml are names, not references)."""
+    """Issue numbers are the project's bookkeeping: the README, the docs, the CLI's and report's text and the model files
+    the docs send a user to do not show them, in words or in a file name (``cascaded_tanks_issue39.toml``)."""
     root = README.parent
     pages = [README, *(root / "docs").rglob("*.rst"), *(root / "src" / "nlobs" / "cli").rglob("*.py"),
-             *(root / "src" / "nlobs" / "report").rglob("*.py")]
+             *(root / "src" / "nlobs" / "report").rglob("*.py"), *(root / "benchmarks" / "models").glob("*.toml"),
+             *(root / "src" / "nlobs" / "models").glob("*.toml")]
     found = [f"{p.relative_to(root)}: {m.group(0)}" for p in pages
-             for m in re.finditer(r"\bissues? #?\d+|\(issue \d+|\bthe issue's\b", p.read_text(encoding="utf-8"), flags=re.I)]
+             for m in re.finditer(r"\bissues? #?\d+|\(issue \d+|\bthe issue's\b|issue_?\d+", p.read_text(encoding="utf-8"),
+                                  flags=re.I)]
+    found += [str(p.relative_to(root)) for p in pages if re.search(r"issue_?\d+", p.name, flags=re.I)]
     assert not found, found

@@ -47,9 +47,33 @@ def aligned(latex: str) -> str:
     return latex
 
 
+_TABLE_TAG = re.compile(r"<mtable\b[^>]*>|</mtable>|<mtd columnalign=\"(\w+)\">")
+
+
+def _core_alignment(mathml: str) -> str:
+    """latex2mathml's tables with their alignment as styles: browsers of MathML Core (Chromium) ignore ``columnalign``
+    and ``columnspacing``, and would centre every cell. A cell keeps its column's side; the cells of a table
+    with no space between its columns (``split``: a right-aligned side, then ``= ...`` left-aligned) lose the
+    padding the browser gives cells."""
+    tight: list[bool] = []   # the open tables, innermost last: spaced 0em?
+
+    def style(m: re.Match[str]) -> str:
+        tag = m.group(0)
+        if tag.startswith("<mtable"):
+            tight.append('columnspacing="0em"' in tag)
+            return tag
+        if tag == "</mtable>":
+            tight.pop()
+            return tag
+        pad = "; padding-inline: 0" if tight and tight[-1] else ""
+        return f'<mtd columnalign="{m.group(1)}" style="text-align: {m.group(1)}{pad}">'
+
+    return _TABLE_TAG.sub(style, mathml)
+
+
 def _mathml(latex: str, display: bool) -> str:
     try:
-        return convert(aligned(latex) if display else latex.strip(), display="block" if display else "inline")
+        return _core_alignment(convert(aligned(latex) if display else latex.strip(), display="block" if display else "inline"))
     except Exception:  # noqa: BLE001 - an expression latex2mathml does not know: show its source
         return f"<code class='latex'>{html.escape(latex)}</code>"
 

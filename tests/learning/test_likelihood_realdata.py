@@ -21,7 +21,7 @@ from nlobs.learning import fit_likelihood
 
 ROOT = Path(__file__).resolve().parents[2]
 DATA = ROOT / "tests" / "data" / "cascaded_tanks_estimation.csv"
-MODEL = ROOT / "benchmarks" / "models" / "cascaded_tanks_issue39.toml"
+MODEL = ROOT / "benchmarks" / "models" / "cascaded_tanks_overflow.toml"
 #: The issue's data-derived guesses of a, k3, k4, k5.
 GUESS = {"a": 0.03, "k3": 0.03, "k4": 0.025, "k5": 0.5}
 #: The simulation-error fit the issue reports (nlobs fit --method simulation --fit-x0 x1; SciPy's least squares

@@ -55,7 +55,7 @@ ROOMS: dict[str, tuple[frozenset[str], ...]] = {
         frozenset({"_checks", "_kind", "_common", "_bounds"}),  # preconditions, the kind registry, symbolic helpers
         frozenset({"_constructions"}),                          # chains, Ψ, KKL maps, Banks' gain
         frozenset({"_tune"}),                                   # the advisor's tunings shared by the kinds
-        frozenset({"lipschitz", "banks", "_custom", "_mhe", "_registry"}),
+        frozenset({"lipschitz", "banks", "mhe", "_custom", "_registry"}),
         frozenset({"high_gain"}),                               # uses the region's Lipschitz constant
         frozenset({"kalman"}),                                  # the high-gain Kalman observer uses the high-gain chains
         frozenset({"pebo", "linear"}),                          # GPEBO and the augmented observer use the Riccati design

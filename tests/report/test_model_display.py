@@ -53,3 +53,14 @@ def test_code_between_backticks_shows_as_code_not_as_markdown():
     assert prose("Copy it: `nlobs design cell.toml --run` ranks the kinds; $x^2$ a < b") == (
         "Copy it: <code>nlobs design cell.toml --run</code> ranks the kinds; " + maths("x^2") + " a &lt; b")
     assert prose("a lone ` stays") == "a lone ` stays"
+
+
+def test_a_parameter_in_scientific_notation_shows_as_a_power_of_ten():
+    # {v:g} gives "4e+06", which MathML shows as the letter e plus 06 (latex2mathml reads it as maths)
+    wall = nlobs.System(states=["T"], f=["(To - T)/(C*R)"], inputs=["To"], outputs=["y"], h=["T"],
+                        params={"C": 4.0e6, "R": 0.002, "k": 1.5e-7, "n": 3.0})
+    note = re.search(r"<p class='note'>parameters: (.*)</p>", equations(wall)).group(1)
+    assert "<mi>e</mi>" not in note and "&#x0002B;" not in note, note
+    assert note.count("<msup><mn>10</mn>") == 2, note     # C = 4·10⁶, k = 1.5·10⁻⁷; R and n as they are
+    assert "<mn>4</mn><mo>&#x000B7;</mo><msup><mn>10</mn><mrow><mn>6</mn></mrow></msup>" in note, note
+    assert "<mn>0.002</mn>" in note and "<mn>3</mn>" in note, note

@@ -7,10 +7,10 @@ collected in :data:`KINDS`; the ``design_<kind>`` functions exported here and fr
 import warnings as _warnings
 
 # Importing a design module declares its kinds (the order here is the order of `nlobs kinds` and of the advisor).
-# Each family is a sub-package: `linear`, `high_gain`, `lipschitz`, `banks`, `kalman` (the Kalman family, the
-# Riccati observers and the particle filter) and `pebo` (regression estimators, PEBO, GPEBO, KKL, I&I); the modules
-# shared by the families (`_base`, `_checks`, `_common`, `_kind`, `_tune`, ...) and the kinds of their own
-# (`_custom`, `_mhe`) are at the top.
+# Each family is a sub-package: `linear`, `high_gain`, `lipschitz`, `banks`, `mhe`, `kalman` (the Kalman family,
+# the Riccati observers and the particle filter) and `pebo` (regression estimators, PEBO, GPEBO, KKL, I&I); the
+# modules shared by the families (`_base`, `_checks`, `_common`, `_kind`, `_tune`, ...) and the observer written by
+# its equations (`_custom`) are at the top.
 from .linear import _linear  # noqa: F401
 from .kalman import _ekf  # noqa: F401
 from .linear import _augmented  # noqa: F401
@@ -20,7 +20,7 @@ from .lipschitz import _lipschitz  # noqa: F401
 from .kalman import _riccati  # noqa: F401
 from .banks import _banks  # noqa: F401
 from .kalman import _ukf  # noqa: F401
-from . import _mhe  # noqa: F401
+from .mhe import _mhe  # noqa: F401
 from .kalman import _srukf, _srekf, _iekf, _pf  # noqa: F401
 from .pebo import _regression, _gpebo, _pebo, _kkl, _cascade, _iandi  # noqa: F401
 from ._base import Certificate as Certificate

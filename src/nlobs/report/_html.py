@@ -148,6 +148,15 @@ def _next(name: str) -> str:
     return rf"{sp.latex(sp.Symbol(name))}[k+1]"
 
 
+def _number(v: float) -> str:
+    """A number as LaTeX, 6 significant digits: 0.002, 4 \\cdot 10^{6} (not 4e+06, which maths reads as e + 06)."""
+    mantissa, _, exponent = f"{v:g}".partition("e")
+    if not exponent:
+        return mantissa
+    power = f"10^{{{int(exponent)}}}"
+    return power if mantissa == "1" else rf"{mantissa} \cdot {power}"
+
+
 def equations(system: Any, *, display: bool = True) -> str:
     """A model's equations, ẋᵢ = fᵢ(x, u, t) (xᵢ[k+1] = fᵢ(x, u, t) for a map, ``time="discrete"``) and
     yⱼ = hⱼ(x, u, t), as one aligned MathML block."""
@@ -158,7 +167,7 @@ def equations(system: Any, *, display: bool = True) -> str:
     params = getattr(system, "params", {}) or {}
     if params:
         body += "<p class='note'>parameters: " + ", ".join(
-            maths(f"{sp.latex(sp.Symbol(k))} = {v:g}") for k, v in params.items()) + "</p>"
+            maths(f"{sp.latex(sp.Symbol(k))} = {_number(v)}") for k, v in params.items()) + "</p>"
     return f"<div class='eqs'>{body}</div>"
 
 

@@ -30,19 +30,19 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from ..engine import compile_c, compile_system, compiled_nlpsol, defer_error, find_compiler, rk4_step
-from ..engine._codegen import COSTS, built_path, choose_backend, code_size, signature_of
-from ..engine._nlp import nlp_built, nlp_signature
-from ..engine._budget import check_time
-from ..errors import EngineError, PreconditionError, SolverError, TimeBudgetError
-from ..model import System
-from ..references import cite, work
-from ._base import Certificate, Check, ObserverDesign, check_vector
-from ._bounds import bounds_check, check_start, clip, clip_const, parse_bounds
-from ._checks import check_matrix
-from ._common import require_system
-from ._kind import Tuning, kind
-from ._tune import domain_bounds, square
+from ...engine import compile_c, compile_system, compiled_nlpsol, defer_error, find_compiler, rk4_step
+from ...engine._codegen import COSTS, built_path, choose_backend, code_size, signature_of
+from ...engine._nlp import nlp_built, nlp_signature
+from ...engine._budget import check_time
+from ...errors import EngineError, PreconditionError, SolverError, TimeBudgetError
+from ...model import System
+from ...references import cite, work
+from .._base import Certificate, Check, ObserverDesign, check_vector
+from .._bounds import bounds_check, check_start, clip, clip_const, parse_bounds
+from .._checks import check_matrix
+from .._common import require_system
+from .._kind import Tuning, kind
+from .._tune import domain_bounds, square
 
 __all__ = ["design_mhe"]
 
