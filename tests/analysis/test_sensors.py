@@ -532,3 +532,22 @@ def test_each_candidate_is_sampled_at_its_own_rate():
     sel = select_sensors(loads_model(table))
     assert np.allclose(sel.fisher.information[0], F_alone, rtol=1e-9, atol=1e-12 * np.abs(F_alone).max())
     assert any("odo" in n and "fastest" in n for n in sel.notes)
+
+
+def test_periods_that_are_not_multiples_of_the_fastest():
+    """Issue 44, item 2: a 20 Hz and a 50 Hz sensor (0.05 s and 0.02 s, both whole multiples of dt, as `simulate`
+    takes them) are each sampled at their own rate on the grid of their common divisor (0.01 s), not refused for 0.05
+    not being a multiple of 0.02: each candidate's information equals that of a run sampled at its period alone."""
+    both = RATES.replace("sample_period = { gps = 1.0, wheel = 0.1 }", "sample_period = { gps = 0.05, wheel = 0.02 }")
+    mixed = select_sensors(loads_model(both))
+    names = [c.name for c in mixed.pool]
+    for name, period in (("gps", "0.05"), ("wheel", "0.02")):
+        alone = select_sensors(loads_model(RATES.replace("sample_period = { gps = 1.0, wheel = 0.1 }",
+                                                         f"sample_period = {period}")))
+        F_alone = alone.fisher.information[[c.name for c in alone.pool].index(name)]
+        assert np.allclose(mixed.fisher.information[names.index(name)], F_alone, rtol=1e-9,
+                           atol=1e-12 * np.abs(F_alone).max())
+        assert mixed.run["periods"][name] == pytest.approx(float(period))
+    table = both + '[sensors.gnss]\nexpr = "p"\nnoise = 1.0\nperiod = 0.05\n[sensors.odo]\nexpr = "v + b"\nnoise = 0.1\nperiod = 0.02\n'
+    sel = select_sensors(loads_model(table))
+    assert sel.run["periods"] == {"gnss": pytest.approx(0.05), "odo": pytest.approx(0.02)}
