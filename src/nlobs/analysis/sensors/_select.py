@@ -192,10 +192,18 @@ def _targets(targets: Any, unknowns: Sequence[str]) -> tuple[str, ...]:
     return tuple(dict.fromkeys(names))
 
 
-def _common_period(periods: Sequence[float], pool: Sequence[Candidate]) -> float:
+def _common_period(periods: Sequence[float], pool: Sequence[Candidate], dt: float | None) -> float:
     """The grid every candidate's period is a whole multiple of: their greatest common divisor (20 Hz and 50 Hz
-    sensors on a 100 Hz grid), the periods read as fractions of at most 1e9 in the denominator."""
+    sensors on a 100 Hz grid), the periods read as fractions of at most 1e9 in the denominator. With the run's `dt`
+    each period must be a whole multiple of it, as the [simulation] sample periods must."""
     from fractions import Fraction
+
+    from ...model._toml import period_multiple_problem
+
+    for c in pool:
+        why = period_multiple_problem(float(c.period), float(dt)) if dt and c.period is not None else ""
+        if why:
+            raise ModelError(f"sensors.{c.name}.period: {why}")
 
     fr = [Fraction(p).limit_denominator(10 ** 9) for p in periods]
     g = fr[0]
@@ -226,7 +234,8 @@ def _fisher(system: System, pool: Sequence[Candidate], unknown: Sequence[str], c
     every_each = None
     if any(c.period is not None for c in pool):
         base = float(period) if period else min(float(c.period) for c in pool if c.period is not None)
-        grid = _common_period([float(c.period) if c.period is not None else base for c in pool], pool)
+        grid = _common_period([float(c.period) if c.period is not None else base for c in pool], pool,
+                              _get(cfg, "dt"))
         every_each = [int(round((float(c.period) if c.period is not None else base) / grid)) for c in pool]
         period = grid
     if any(float(v) > 0 for v in (_get(cfg, "process_noise", {}) or {}).values()):
