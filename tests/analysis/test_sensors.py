@@ -455,6 +455,23 @@ def test_a_smoothed_kalman_filter_reaches_the_posterior_bound_on_the_lti_model(l
     assert "RMS error of x̂(0)" in str(out) and out.to_dict()["sets"][0]["sensors"] == list(best)
 
 
+
+def test_the_run_of_each_set_does_not_keep_its_smoother_alive(lti):
+    """Issue 44, item 2 (acceptance, memory): each listed set's filter is designed for that set and used for its draws
+    only; its smoother's compiled replay (about 100 MB for a 17-state navigation model) must not stay in the smoother's
+    cache after the set is done (eight sets of a drone's pool took `sensors --run` to 1.3 GB)."""
+    from nlobs.estimation import _smooth
+    from nlobs.estimation._sensors import sensor_errors
+    from nlobs.observer import _compiled
+
+    mf = loads_model(_lti_text(), path="lti4.toml")
+    before, prepared = set(_smooth._CACHE), set(_compiled._CACHE)
+    sets = [s.sensors for s in lti.sets][:3]
+    out = sensor_errors(mf, lti, sets=sets, seeds=2)
+    assert all(s in out.rms for s in sets)
+    assert set(_smooth._CACHE) <= before and set(_compiled._CACHE) <= prepared
+
+
 LEVEL = """
 name = "level"
 states = ["px", "vx", "th", "vz", "b"]

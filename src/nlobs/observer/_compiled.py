@@ -30,7 +30,7 @@ from ..errors import DataError, FiniteEscapeError, ShapeError
 from ._rate import flow_rate
 from ._signals import signals_by_keyword
 
-__all__ = ["CompiledObserver", "ObserverTrajectory", "compiled_observer", "initial_state_of"]
+__all__ = ["CompiledObserver", "ObserverTrajectory", "compiled_observer", "initial_state_of", "forget"]
 
 Hold = Literal["zoh", "linear"]
 
@@ -365,6 +365,14 @@ def initial_state_of(design: ObserverDesign, x0: Any) -> np.ndarray:
     if len(_INITIAL) > 64:
         _INITIAL.popitem(last=False)
     return z0
+
+
+def forget(design: ObserverDesign) -> None:
+    """Drop what is kept for `design` (its prepared observers, its last initial state): for a caller that designs
+    filters it will not run again (``nlobs sensors --run``, one per set of sensors)."""
+    for key in [k for k, c in _CACHE.items() if c.design is design]:
+        del _CACHE[key]
+    _INITIAL.pop(id(design.initial), None)
 
 
 def compiled_observer(design: ObserverDesign, hold: Hold = "zoh") -> CompiledObserver:
