@@ -568,3 +568,20 @@ def test_periods_that_are_not_multiples_of_the_fastest():
     table = both + '[sensors.gnss]\nexpr = "p"\nnoise = 1.0\nperiod = 0.05\n[sensors.odo]\nexpr = "v + b"\nnoise = 0.1\nperiod = 0.02\n'
     sel = select_sensors(loads_model(table))
     assert sel.run["periods"] == {"gnss": pytest.approx(0.05), "odo": pytest.approx(0.02)}
+
+
+def test_the_run_takes_sensors_named_as_no_model_name_could_be():
+    """Issue 44, item 1 (acceptance): a [sensors] table's name is any TOML key — `lambda` (a Python keyword),
+    `sin` (a function), `for`. The bounds were computed, but --run said "not run (output name 'lambda' is not
+    valid ...)": the filter's outputs need names of their own, and the text keeps the user's."""
+    from nlobs.estimation._sensors import sensor_errors
+
+    table = (RATES + '[sensors.lambda]\nexpr = "p"\nnoise = 1.0\n[sensors.wheel_speed]\nexpr = "v + b"\nnoise = 0.1\n'
+             '[sensors.sin]\nexpr = "v"\nnoise = 0.1\n')
+    mf = loads_model(table, path="names.toml")
+    sel = select_sensors(mf)
+    sets = [("lambda", "wheel_speed"), ("lambda", "sin", "wheel_speed")]
+    out = sensor_errors(mf, sel, sets=sets, seeds=2)
+    assert not out.failures, out.failures
+    assert all(np.isfinite(list(out.rms[s].values())).all() for s in sets)
+    assert "{lambda, wheel_speed}" in str(out)

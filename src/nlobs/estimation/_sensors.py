@@ -110,6 +110,24 @@ def _plain(text: str, renames: dict[str, str]) -> str:
     return text.rstrip(". ")
 
 
+def _output_names(names: Sequence[str], taken: Sequence[str]) -> list[str]:
+    """The filter's names for the sensors' outputs: each sensor's own, unless it is a model name (a sensor named as the
+    state it reads: then with a trailing _) or cannot name a model's output (a [sensors] table may be called `lambda`
+    or `sin`: then `sensorK`); the text maps them back."""
+    import keyword
+
+    from ..model._system import RESERVED
+
+    used, out = set(taken), []
+    for k, n in enumerate(names):
+        name = n if n.isidentifier() and not keyword.iskeyword(n) and n not in RESERVED else f"sensor{k}"
+        while name in used:
+            name += "_"
+        used.add(name)
+        out.append(name)
+    return out
+
+
 def _set_errors(mf: ModelFile, sel: Any, members: Sequence[int], seeds: int, engine: str) -> tuple[dict, dict]:
     """The RMS error of the smoothed x̂(0) of one set over `seeds` draws, and its posterior bound. Raises _Diverged
     when a draw's filter or smoother diverges, or its x̂(0) is not finite or lies beyond DIVERGED prior σ."""
@@ -117,7 +135,7 @@ def _set_errors(mf: ModelFile, sel: Any, members: Sequence[int], seeds: int, eng
     pool = sel.pool
     unknown = sel.unknowns[mf.system.n_states:]
     names = [pool[i].name for i in members]
-    outputs = [f"{n}_" if n in (*sel.unknowns, *mf.system.inputs, *mf.system.params) else n for n in names]
+    outputs = _output_names(names, (*sel.unknowns, *mf.system.inputs, *mf.system.params))
     obs = mf.system.augmented(unknown)
     obs = obs._copy(outputs=outputs, h=[pool[i].expr for i in members])
     F = fi.information[list(members)].sum(axis=0)
