@@ -327,3 +327,16 @@ def test_rates_are_written_in_the_models_time_unit():
         adv = advise(loads_model(textwrap.dedent(text.format(unit=unit))), kinds=["ekf"])
         note = next(n for n in adv.notes if n.startswith("time scale"))
         assert f"ω_p = 2 {per}" in note and f"ω_o = 6 {per}" in note, note
+
+
+def test_the_ranking_scenario_says_each_output_is_sampled_at_its_own_period():
+    """Issue 44, item 2 (acceptance): a run with a 0.2 s GNSS beside a 0.02 s magnetometer was described as
+    "measurements every 0.02" (the fastest clock), as if every sensor ran at 50 Hz; the run itself samples each at its
+    own period, and the description says so."""
+    from nlobs.advise._context import Scenario
+
+    sc = Scenario(10.0, 0.01, np.zeros(2), {}, None, None, None, 0.02, 1, periods={"gps": 0.2, "mag": 0.02})
+    text = sc.describe()
+    assert "gps every 0.2" in text and "mag every 0.02" in text and "measurements every 0.02," not in text
+    one = Scenario(10.0, 0.01, np.zeros(2), {}, None, None, None, 0.05, 1)
+    assert "measurements every 0.05" in one.describe()

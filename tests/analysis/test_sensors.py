@@ -455,6 +455,23 @@ def test_a_smoothed_kalman_filter_reaches_the_posterior_bound_on_the_lti_model(l
     assert "RMS error of x̂(0)" in str(out) and out.to_dict()["sets"][0]["sensors"] == list(best)
 
 
+
+def test_the_run_of_each_set_does_not_keep_its_smoother_alive(lti):
+    """Issue 44, item 2 (acceptance, memory): each listed set's filter is designed for that set and used for its draws
+    only; its smoother's compiled replay (about 100 MB for a 17-state navigation model) must not stay in the smoother's
+    cache after the set is done (eight sets of a drone's pool took `sensors --run` to 1.3 GB)."""
+    from nlobs.estimation import _smooth
+    from nlobs.estimation._sensors import sensor_errors
+    from nlobs.observer import _compiled
+
+    mf = loads_model(_lti_text(), path="lti4.toml")
+    before, prepared = set(_smooth._CACHE), set(_compiled._CACHE)
+    sets = [s.sensors for s in lti.sets][:3]
+    out = sensor_errors(mf, lti, sets=sets, seeds=2)
+    assert all(s in out.rms for s in sets)
+    assert set(_smooth._CACHE) <= before and set(_compiled._CACHE) <= prepared
+
+
 LEVEL = """
 name = "level"
 states = ["px", "vx", "th", "vz", "b"]
@@ -532,3 +549,39 @@ def test_each_candidate_is_sampled_at_its_own_rate():
     sel = select_sensors(loads_model(table))
     assert np.allclose(sel.fisher.information[0], F_alone, rtol=1e-9, atol=1e-12 * np.abs(F_alone).max())
     assert any("odo" in n and "fastest" in n for n in sel.notes)
+
+
+def test_periods_that_are_not_multiples_of_the_fastest():
+    """Issue 44, item 2: a 20 Hz and a 50 Hz sensor (0.05 s and 0.02 s, both whole multiples of dt, as `simulate`
+    takes them) are each sampled at their own rate on the grid of their common divisor (0.01 s), not refused for 0.05
+    not being a multiple of 0.02: each candidate's information equals that of a run sampled at its period alone."""
+    both = RATES.replace("sample_period = { gps = 1.0, wheel = 0.1 }", "sample_period = { gps = 0.05, wheel = 0.02 }")
+    mixed = select_sensors(loads_model(both))
+    names = [c.name for c in mixed.pool]
+    for name, period in (("gps", "0.05"), ("wheel", "0.02")):
+        alone = select_sensors(loads_model(RATES.replace("sample_period = { gps = 1.0, wheel = 0.1 }",
+                                                         f"sample_period = {period}")))
+        F_alone = alone.fisher.information[[c.name for c in alone.pool].index(name)]
+        assert np.allclose(mixed.fisher.information[names.index(name)], F_alone, rtol=1e-9,
+                           atol=1e-12 * np.abs(F_alone).max())
+        assert mixed.run["periods"][name] == pytest.approx(float(period))
+    table = both + '[sensors.gnss]\nexpr = "p"\nnoise = 1.0\nperiod = 0.05\n[sensors.odo]\nexpr = "v + b"\nnoise = 0.1\nperiod = 0.02\n'
+    sel = select_sensors(loads_model(table))
+    assert sel.run["periods"] == {"gnss": pytest.approx(0.05), "odo": pytest.approx(0.02)}
+
+
+def test_the_run_takes_sensors_named_as_no_model_name_could_be():
+    """Issue 44, item 1 (acceptance): a [sensors] table's name is any TOML key — `lambda` (a Python keyword),
+    `sin` (a function), `for`. The bounds were computed, but --run said "not run (output name 'lambda' is not
+    valid ...)": the filter's outputs need names of their own, and the text keeps the user's."""
+    from nlobs.estimation._sensors import sensor_errors
+
+    table = (RATES + '[sensors.lambda]\nexpr = "p"\nnoise = 1.0\n[sensors.wheel_speed]\nexpr = "v + b"\nnoise = 0.1\n'
+             '[sensors.sin]\nexpr = "v"\nnoise = 0.1\n')
+    mf = loads_model(table, path="names.toml")
+    sel = select_sensors(mf)
+    sets = [("lambda", "wheel_speed"), ("lambda", "sin", "wheel_speed")]
+    out = sensor_errors(mf, sel, sets=sets, seeds=2)
+    assert not out.failures, out.failures
+    assert all(np.isfinite(list(out.rms[s].values())).all() for s in sets)
+    assert "{lambda, wheel_speed}" in str(out)

@@ -103,7 +103,7 @@ def test_an_interval_taken_for_a_kink_is_refused_when_step_doubling_shows_it_div
 def test_the_kink_constants_of_the_c_driver_are_the_python_ones():
     from nlobs.engine import _intervals as I
 
-    for name in ("KINK_DOUBLINGS", "KINK_RTOL", "KINK_ATOL", "KINK_SHRINK", "REDO_GROWTH"):
+    for name in ("KINK_DOUBLINGS", "KINK_RTOL", "KINK_ATOL", "KINK_SHRINK", "REDO_GROWTH", "BLOWUP_REDOS"):
         line = next(ln for ln in I._C_DRIVER.splitlines() if ln.startswith(f"#define {name} "))
         assert float(line.split()[-1]) == float(getattr(I, name))
 
@@ -157,3 +157,45 @@ def test_the_rows_after_a_failure_or_a_refusal_read_the_same_on_both_engines(gro
     if c.refused is not None:
         assert np.isnan(c.rate[k]) and c.substeps[k] == 0 and np.isnan(c.states[k]).all()
     np.testing.assert_array_equal(vm.substeps, c.substeps)
+
+
+# -- an interval whose state becomes non-finite before its rate is measured (issue 44 item 4, acceptance) -------------
+
+WEIR = nlobs.System(states=["h1", "h2"], inputs=["d"], outputs=["y"],
+                    f=["(0.25 - 0.15*sqrt(max(h1, 0)) - 2000*max(h1 - 1, 0))/0.5", "0.15*sqrt(max(h1, 0)) - 0.08*sqrt(max(h2, 0)) - d"],
+                    h=["h2"], name="weir")
+
+
+@pytest.mark.parametrize("engine", ["vm", "c"])
+def test_an_interval_that_blows_up_before_its_rate_is_seen_is_redone_with_more_substeps(engine, time_limit):
+    """A UKF starting at h1 = 0.6 with P0 = 0.2 puts sigma points at h1 = 1.37, over a weir of rate 4000/s: the first
+    interval's rate (the flow's Jacobian at the start estimate) sees no weir, and its one RK4 step of 0.01 s turned the
+    state non-finite before any stage could measure the rate: 'its state became non-finite ... (1 RK4 steps)', while
+    the same filter at max_step 1e-4 runs through. The EKF's estimate crosses the rim at t = 0.14: that interval's rate
+    does not shrink with more sub-steps (a kink), its 24 sub-steps are unstable past the rim (rate 8000/s on P), and
+    the kink's step-doubling check refused it as diverging. Such an interval is now redone with REDO_GROWTH times the
+    sub-steps and the rate rule on (at most twice) before it is called a failure: both runs go through and agree with
+    the fine ones."""
+    from nlobs.design import design_ukf
+
+    t = np.round(np.arange(0.0, 3.0, 0.01), 10)
+    y = 0.2 + 0.1 * t + 0.005 * np.sin(7 * t)
+    rec = nlobs.Recording.from_arrays(WEIR, t, y[:, None], np.full((t.size, 1), 0.01))
+    for design in (design_ukf, design_ekf):
+        d = design(WEIR, Q=np.diag([1e-5, 1e-6]), R=[[2.5e-5]], P0=np.diag([0.2, 0.01]), xhat0=[0.6, 0.25])
+        run = nlobs.estimate({"o": d}, rec, engine=engine)
+        fine = nlobs.estimate({"o": d}, rec, engine="c", max_step=1e-4)
+        x = run.observers["o"].xhat
+        assert np.isfinite(x).all() and x[:, 0].max() < 1.05   # an update may lift h1 a little over the rim
+        assert np.abs(x - fine.observers["o"].xhat).max() < 1e-3, design
+        other = nlobs.estimate({"o": d}, rec, engine="c" if engine == "vm" else "vm")   # the same rule on both engines
+        assert run.info["integration"]["o"]["substeps"] == other.info["integration"]["o"]["substeps"]
+        assert np.abs(x - other.observers["o"].xhat).max() < 1e-10
+    # a true finite escape (x' = x², from 1 at t = 0: infinite at t = 1) still fails, on both engines
+    from nlobs.design import design_custom
+
+    decay = nlobs.System(states=["x"], outputs=["y"], f=["-x"], h=["x"], name="decay")
+    ts = np.arange(0.0, 2.0, 0.5)
+    with pytest.raises(nlobs.errors.FiniteEscapeError, match="from the sample at t = 1 "):
+        nlobs.estimate(design_custom(decay, states=["xh"], flow=["xh**2"], xhat0=[1.0]),
+                       nlobs.Recording.from_arrays(decay, ts, np.ones((ts.size, 1))), engine=engine)

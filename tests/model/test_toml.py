@@ -142,7 +142,8 @@ x0 = [1.0]
 
 
 @pytest.mark.parametrize("line, key", [("sample_period = 0.0123", "simulation.sample_period"),
-                                       ("sample_period = { y = 0.01, gps = 0.0123 }", "simulation.sample_period.gps")])
+                                       ("sample_period = { y = 0.01, gps = 0.0123 }", "simulation.sample_period.gps"),
+                                       ('[sensors.pos]\nexpr = "x"\nnoise = 0.1\nperiod = 0.0123', "sensors.pos.period")])
 def test_a_sample_period_off_the_integration_grid_is_refused_at_load_naming_file_and_key(tmp_path, line, key):
     """Issue 44, item 8a: the period 0.0123 is 2.46 steps of dt = 0.005; said at once by load_model, with the file and
     the key (before: "Sampling: the period 0.0123 must be a whole multiple of dt = 0.005" after the run had started)."""
@@ -153,7 +154,8 @@ def test_a_sample_period_off_the_integration_grid_is_refused_at_load_naming_file
     msg = str(err.value)
     assert str(p) in msg and f"key `{key}`" in msg and "whole multiple of dt = 0.005" in msg and "2.46 steps" in msg
     p.write_text(PERIOD + line.replace("0.0123", "0.015") + "\n", encoding="utf-8")  # 3 steps: fine
-    assert load_model(p).simulation.sample_period is not None
+    mf = load_model(p)
+    assert (mf.simulation.sample_period if key.startswith("simulation") else mf.sensors["pos"].period) is not None
 
 
 def test_without_dt_the_default_step_is_checked_before_the_run_naming_file_and_key(tmp_path, capsys):

@@ -310,3 +310,21 @@ def test_design_run_reports_a_candidate_over_its_budget_and_ranks_the_others(tmp
     assert by["ekf"].status == "ok" and by["ukf"].status == "failed"
     assert by["ukf"].detail.startswith("did not finish within 0.5 s")
     assert "ukf" in str(adv) and "did not finish within 0.5 s" in str(adv)
+
+
+def test_a_filter_whose_covariance_turns_indefinite_is_reported_where_it_did_not_where_it_overflowed():
+    """Issue 44, item 4 (acceptance): on a stiff overflow (rate 300/s above a tank's rim) RK4 at the run's dt = 0.01
+    is unstable for the EKF's covariance. Its variances turned negative steps before anything left |x| <= 1e12, and
+    the error showed that state (P_0_0 = -4e9, P_1_1 = -666) as the "last finite state". It must name the step where
+    the covariance lost its positive definiteness and show the last state before it, every variance >= 0."""
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[2] / "benchmarks" / "models" / "relay_overflow_tanks.toml").read_text()
+    mf = nlobs.loads_model(text.replace("c = 2000.0", "c = 150.0"), path="relay.toml")
+    with pytest.raises(FiniteEscapeError) as info:
+        simulate(mf, ["ekf"])
+    err, msg = info.value, str(info.value)
+    assert "covariance" in msg and "last finite state" not in msg and "reduce `dt`" in msg
+    P = {k: v for k, v in zip(("P_0_0", "P_1_0", "P_0_1", "P_1_1"), err.x[2:6])}
+    assert P["P_0_0"] >= 0 and P["P_1_1"] >= 0 and P["P_0_0"] * P["P_1_1"] >= P["P_1_0"] ** 2 * (1 - 1e-9)
+    assert err.t < 2.0   # before the sample at t = 2, where the old report stood

@@ -158,3 +158,21 @@ def test_simulate_output_keeps_every_input_sample_and_estimate_replays_the_run(t
     back = np.genfromtxt(est, delimiter=",", names=True)
     for s in ("p", "v"):
         assert np.max(np.abs(back[f"ekf{s}"] - rec[f"ekf{s}"])) < 1e-9
+
+
+def test_run_to_csv_writes_a_single_rate_run_at_its_own_samples(tmp_path):
+    """Issue 44, item 3 (the Python side): `Run.to_csv(path)` without `every` on a run sampled every 0.02 s on a
+    0.005 s grid writes the sensor in its 101 sample rows only, not its held value in all 401 rows (which estimate
+    read back as 401 measurements, four copies of each), and every input sample; estimate on the file replays the
+    run's EKF."""
+    mf = nlobs.loads_model(IMU.replace("dt = 0.005", 'dt = 0.005\ninputs = { a = "sin(7*t) + cos(3*t)" }'),
+                           path="imu.toml")
+    run = nlobs.simulate(mf)
+    path = tmp_path / "run.csv"
+    run.to_csv(path)
+    rec = np.genfromtxt(path, delimiter=",", names=True)
+    assert rec.size == 401 and np.isfinite(rec["gps"]).sum() == 101 and np.all(np.isfinite(rec["gps"][::4]))
+    back = nlobs.estimate(mf, nlobs.Recording.from_csv(path, mf.system), hold="linear")
+    # the file's inputs are the expression's samples, linearly interpolated for the RK4 midpoints the run evaluated:
+    # 2e-5 off (the held outputs as 401 measurements: 0.53)
+    assert np.max(np.abs(back.observers["ekf"].xhat[::4] - run.observers["ekf"].xhat[::4])) < 1e-4

@@ -130,7 +130,12 @@ class Scenario:
 
     def describe(self) -> str:
         bits = [f"t in [0, {self.t_final:g}], dt = {self.dt:g}"]
-        if self.sample_period:
+        if self.periods:   # each output at its own period, not all at the fastest
+            by: dict[float, list[str]] = {}
+            for k, v in self.periods.items():
+                by.setdefault(float(v), []).append(k)
+            bits.append("measurements " + "; ".join(f"{', '.join(ks)} every {v:g}" for v, ks in by.items()))
+        elif self.sample_period:
             bits.append(f"measurements every {self.sample_period:g}")
         if self.noise_std is not None:
             bits.append("noise σ = " + ", ".join(f"{v:.3g}" for v in self.noise_std))

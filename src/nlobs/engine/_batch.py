@@ -11,7 +11,7 @@ import numpy as np
 
 from ._deferred import raise_deferred
 
-__all__ = ["PointEvaluator", "evaluate_many", "evaluate_one"]
+__all__ = ["PointEvaluator", "evaluate_many", "evaluate_one", "forget_point"]
 
 CHUNK = 4096
 #: Bytes of arguments copied per chunk of :func:`evaluate_many` at most (above 64 rows).
@@ -110,6 +110,14 @@ def evaluate_one(fn: ca.Function, *args: Any) -> np.ndarray:
 POINT_CACHE = 64
 _POINT: OrderedDict[int, tuple[ca.Function, PointEvaluator]] = OrderedDict()
 _POINT_LOCK = threading.Lock()
+
+
+def forget_point(fn: ca.Function) -> None:
+    """Drop the evaluator :func:`evaluate_one` keeps for `fn` (a caller done with a design; its functions are freed)."""
+    with _POINT_LOCK:
+        hit = _POINT.get(id(fn))
+        if hit is not None and hit[0] is fn:
+            del _POINT[id(fn)]
 
 
 class PointEvaluator:

@@ -18,7 +18,9 @@ cannot silently inflate the state between samples. When twice the sub-steps do n
 least a quarter), the interval holds a kink or a jump of the flow (abs, sign, min, max: the difference
 quotient grows as 1/h there), not a fast mode: it is finished with those sub-steps and its rate is not
 passed on to the next interval. An interval needing more than `max_substeps`
-sub-steps is refused (with its index and the count needed), and a state that becomes non-finite
+sub-steps is refused (with its index and the count needed). A state that becomes non-finite, or a kink whose
+step-doubling check fails, first has its interval redone with REDO_GROWTH times the sub-steps and the rate rule on
+(at most BLOWUP_REDOS times: a stiff region past a kink, or a rate the previous interval could not see), and then
 stops the run (with the interval).
 
 The C path is a generated loop over the intervals with the sub-step loop inside (nothing is
@@ -44,7 +46,8 @@ from ._deferred import raise_deferred
 from ._codegen import (COSTS, Backend, _build, _forced, _generate, _renamed, built_path, choose_backend, code_size,
                        signature_of)
 
-__all__ = ["IntervalRunner", "IntervalResult", "Schedule", "MAX_SUBSTEPS", "EXACT_RATE_MAX", "fastest_rate", "power_rate"]
+__all__ = ["IntervalRunner", "IntervalResult", "Schedule", "MAX_SUBSTEPS", "EXACT_RATE_MAX", "fastest_rate", "power_rate",
+           "BLOWUP_REDOS"]
 
 #: The most RK4 sub-steps one interval may take before it is refused.
 MAX_SUBSTEPS = 10**8
@@ -63,8 +66,16 @@ KINK_DOUBLINGS, KINK_RTOL, KINK_ATOL, KINK_SHRINK = 3, 1e-2, 1e-8, 0.7
 #: step hardly excited) from being taken for a kink unless it rose 48-fold.
 REDO_GROWTH = 64
 
+#: An interval whose state becomes non-finite (in its sub-steps or at the event after them) before any stage measured a
+#: rate above the rejection threshold — the first interval's rate comes from the start estimate, and a UKF's sigma points
+#: may already sit on a stiff weir it does not see; an interval finished as a kink may run into a stiff region past it —
+#: is redone with REDO_GROWTH times its sub-steps and the rate rule on, at most BLOWUP_REDOS times (a true finite escape
+#: or a bad sample costs at most 64 + 4096 times that interval's sub-steps more before it is reported).
+BLOWUP_REDOS = 2
+
 _C_DRIVER = r"""
 #define REDO_GROWTH 64
+#define BLOWUP_REDOS 2
 #define KINK_DOUBLINGS 3
 #define KINK_RTOL 1e-2
 #define KINK_ATOL 1e-8
@@ -77,7 +88,7 @@ _C_DRIVER = r"""
    the rate it passes on are written to slot ops[3k+1] when >= 0, and to row ops[3k+2] of out/obuf when >= 0.
    Without one, interval k's end is row k. carry[k] (when carry != NULL) is the rate interval k passes on.
    When *stop is raised (a time budget), returns -(k + 1) with need[0] = -1. When an interval accepted as a kink
-   fails its step-doubling check, returns k + 1 with need[0] = -2 and need[1] = the relative change.
+   fails its step-doubling check (and its redos), returns k + 1 with need[0] = -2 and need[1] = the relative change.
    With A == NULL, interval k's row is assembled from the sample times tg (n_int + 1) and the sample rows B
    ((n_int + 1) x NW): (tg[k], tg[k+1] - tg[k], B[k], B[k+1]), the layout of the table A. */
 long long nlobs_intervals(const double* s0, const double* A, const double* nmin, double rate0, double target,
@@ -89,10 +100,10 @@ long long nlobs_intervals(const double* s0, const double* A, const double* nmin,
   casadi_int iw[NLOBS_SZ_IW + 1];
   double w[NLOBS_SZ_W + 1];
   double start[NS], cur[NS], nxt[NS], th[2], r, o[NO + 1], end[NS], oend[NO + 1], arow[NA];
-  double rho = rate0, t, dt, n, m, h, rmax, hr, prev_hr;
+  double rho = rate0, t, dt, n, m, h, rmax, hr, prev_hr, kink_e;
   double *dst, *odst, *slot;
   long long k, i, ni;
-  int j, bad, stiff, check, idle;
+  int j, bad, stiff, check, idle, redos;
   for (j = 0; j < NS; ++j) start[j] = s0[j];
   for (k = 0; k < n_int; ++k) {
     const double* a = A ? A + k * NA : arow;
@@ -110,11 +121,12 @@ long long nlobs_intervals(const double* s0, const double* A, const double* nmin,
     n = nmin[k];
     m = ceil(dt * rho / target);
     if (m > n) n = m;
-    prev_hr = INFINITY; check = 1;
+    prev_hr = INFINITY; check = 1; redos = 0; kink_e = -1;
     if (!(dt > 0)) {                            /* a zero-length interval (an update only): no flow, the rate kept */
       for (j = 0; j < NS; ++j) cur[j] = start[j];
       nsub[k] = 0; rate[k] = nan("");
-    } else for (;;) {
+    } else again: for (;;) {
+      if (n > max_sub && kink_e >= 0) { nsub[k] = n; need[0] = -2; need[1] = kink_e; return k + 1; }
       if (n > max_sub) { need[0] = n; return -(k + 1); }
       ni = (long long)n; h = dt / n; rmax = 0; bad = 0; stiff = 0;
       for (j = 0; j < NS; ++j) cur[j] = start[j];
@@ -138,11 +150,17 @@ long long nlobs_intervals(const double* s0, const double* A, const double* nmin,
         prev_hr = hr; m = ceil(dt * rmax / target); if (m > REDO_GROWTH * n) m = REDO_GROWTH * n;
         n = m > 2 * n ? m : 2 * n; continue;
       }
+      if (bad && redos < BLOWUP_REDOS && REDO_GROWTH * n <= max_sub) {  /* (dt > 0 here) */
+        /* non-finite before any rate was seen, or past a kink into a stiff region (a weir): too few sub-steps, or a
+           true escape (redone at most BLOWUP_REDOS times, the rate rule on again) */
+        ++redos; n *= REDO_GROWTH; prev_hr = INFINITY; check = 1; continue;
+      }
       nsub[k] = n; rate[k] = rmax;
+      if (bad && kink_e >= 0) { need[0] = -2; need[1] = kink_e; }  /* a diverging 'kink' redone to no avail */
       if (bad) return k + 1;
       if (!check) {  /* accepted as a kink: check its end state (after the jump, as the VM path compares) by step
                         doubling; a diverging interval fails it */
-        double e = INFINITY, e_prev = INFINITY, sc, jc[NS], jf[NS], ob[NO + 1];
+        double e = INFINITY, e_prev = INFINITY, sc, jc[NS], jf[NS], ob[NO + 1], n_kink = n;
         int d, idle0 = IDLEN > 0;
         for (j = 0; j < IDLEN; ++j) idle0 &= a[IDLEAT + j] == 0;
         arg[0] = cur; arg[1] = a; res[0] = jc; res[1] = ob;
@@ -171,7 +189,14 @@ long long nlobs_intervals(const double* s0, const double* A, const double* nmin,
           if (e <= 1) break;
         }
         /* refused: the end state still moves with the step, and no longer shrinks as a kink's error does */
-        if (!(e <= 1) && !(e <= KINK_SHRINK * e_prev)) { need[0] = -2; need[1] = e; return k + 1; }
+        if (!(e <= 1) && !(e <= KINK_SHRINK * e_prev)) {
+          if (redos < BLOWUP_REDOS && REDO_GROWTH * n_kink <= max_sub) {
+            /* a kink into a stiff region (a weir) whose first count was unstable there: REDO_GROWTH times its first
+               sub-steps, the rate rule on again, before it is called diverging */
+            ++redos; n = REDO_GROWTH * n_kink; prev_hr = INFINITY; check = 1; kink_e = e; continue;
+          }
+          need[0] = -2; need[1] = e; return k + 1;
+        }
       }
       if (check) rho = rmax;  /* a kink's rate (about 2/h) says nothing about the next interval */
       break;
@@ -190,6 +215,11 @@ long long nlobs_intervals(const double* s0, const double* A, const double* nmin,
     bad = 0;
     for (j = 0; j < NS; ++j) bad |= !(fabs(dst[j]) < INFINITY);
     for (j = 0; j < NO; ++j) bad |= !(fabs(odst[j]) < INFINITY);
+    if (bad && dt > 0 && redos < BLOWUP_REDOS && REDO_GROWTH * n <= max_sub) {
+      /* finite sub-steps, but so far off (an unstable step past a kink) that the event overflows: redone alike */
+      ++redos; n *= REDO_GROWTH; prev_hr = INFINITY; check = 1; goto again;
+    }
+    if (bad && kink_e >= 0) { need[0] = -2; need[1] = kink_e; }
     if (bad) return k + 1;
     for (j = 0; j < NS; ++j) start[j] = dst[j];
     if (carry) carry[k] = rho;
@@ -227,7 +257,8 @@ class IntervalResult:
         kink); NaN where not reached.
     unconverged : float or None
         With `failed`: the interval was taken for a kink, but its end state still changed by this much (relative, see
-        :data:`KINK_RTOL`) when its sub-steps were doubled: a diverging interval, not a kink.
+        :data:`KINK_RTOL`) when its sub-steps were doubled, and again after its redos (:data:`BLOWUP_REDOS`): a
+        diverging interval, not a kink.
     lead : numpy.ndarray of shape (N + 1, ns) or None
         The start state stacked above `states` in one array (`states` is a view of its rows 1..N), where the runner
         wrote them so (the compiled path without a schedule); None otherwise.
@@ -553,9 +584,14 @@ class IntervalRunner:
         start, rho, k = s0.copy(), rate0, 0
         forced: float | None = None  # the count for interval k after a rejection
         stiff_k, stiff_hr, kink_k = -1, np.inf, -1  # the last stiff rejection (interval, h·rate); an interval with a kink
+        redo_k, redos = -1, 0  # the interval redone after its state became non-finite in its sub-steps, and how often
+        kink_e: dict[int, float] = {}  # an interval redone after its kink check failed: the change it measured
         budget = 4096  # sub-step rows per VM call; shrinks where the predictions fail, grows while they hold
         while k < N:
             n_k = forced if forced is not None else max(nmin[k], np.ceil(dt[k] * rho / target))
+            if n_k > max_substeps and k in kink_e:
+                substeps[k] = n_k
+                return IntervalResult(states, outputs, substeps, rate, failed=k, carry=carry, unconverged=kink_e[k])
             if n_k > max_substeps:
                 return IntervalResult(states, outputs, substeps, rate, refused=(k, float(n_k)), carry=carry)
             # predicted counts for k, k+1, ... while the rate stays at rho, as many as fit in the budget of rows
@@ -582,7 +618,7 @@ class IntervalRunner:
             if k <= kink_k < k + accepted:   # the kink is accepted: check it by step doubling, as the C driver does
                 i_k = kink_k - k
                 s_start = start if i_k == 0 else finals[i_k - 1]
-                e, e_prev = np.inf, np.inf
+                e, e_prev, n_kink = np.inf, np.inf, float(counts[i_k])
                 for _ in range(KINK_DOUBLINGS):
                     n2 = 2 * int(counts[i_k])
                     if n2 > max_substeps:
@@ -596,6 +632,17 @@ class IntervalRunner:
                     sl = slice(k, kink_k)
                     substeps[sl], rate[sl], states[sl], outputs[sl] = counts[:i_k], rmaxes[:i_k], finals[:i_k], outs[:i_k]
                     carry[sl] = eff[:i_k]
+                    if redo_k != kink_k:
+                        redo_k, redos = kink_k, 0
+                    if redos < BLOWUP_REDOS and REDO_GROWTH * n_kink <= max_substeps:
+                        # as the C driver: a kink into a stiff region whose first count was unstable there
+                        redos += 1
+                        kink_e[kink_k] = float(e)
+                        if i_k:
+                            start, rho = finals[i_k - 1].copy(), float(eff[i_k - 1])
+                        k, forced, stiff_k, stiff_hr, kink_k = kink_k, REDO_GROWTH * n_kink, -1, np.inf, -1
+                        budget = max(64, budget // 4)
+                        continue
                     substeps[kink_k], rate[kink_k] = counts[i_k], rmaxes[i_k]
                     return IntervalResult(states, outputs, substeps, rate, failed=kink_k, carry=carry, unconverged=float(e))
                 accepted = i_k + 1          # the intervals after it started from its old end: they are run again
@@ -608,14 +655,24 @@ class IntervalRunner:
                 b = accepted
                 reason = "recount" if recount[b] else ("stiff" if stiff[b] else "broken")
                 if reason == "broken":
-                    substeps[k + b], rate[k + b] = counts[b], rmaxes[b]
-                    return IntervalResult(states, outputs, substeps, rate, failed=k + b, carry=carry)
+                    if redo_k != k + b:
+                        redo_k, redos = k + b, 0
+                    if redos < BLOWUP_REDOS and REDO_GROWTH * counts[b] <= max_substeps and dt[k + b] > 0:
+                        redos += 1   # as the C driver: too few sub-steps before any rate was seen, or a true escape
+                        reason = "redo"
+                    else:
+                        substeps[k + b], rate[k + b] = counts[b], rmaxes[b]
+                        return IntervalResult(states, outputs, substeps, rate, failed=k + b, carry=carry,
+                                              unconverged=kink_e.get(k + b))
                 rho_stiff = float(rfirst[b])  # the rate where the C loop stops the interval
             prev_rate = float(eff[accepted - 1]) if accepted else rho
             forced = None
             if accepted:
                 start, rho, k = states[k + accepted - 1].copy(), prev_rate, k + accepted
-            if reason == "stiff":
+            if reason == "redo":   # the rate rule on again (a kink into a stiff region is no kink to finish)
+                forced, stiff_k, stiff_hr, kink_k = REDO_GROWTH * float(counts[accepted]), -1, np.inf, -1
+                budget = max(64, budget // 4)
+            elif reason == "stiff":
                 hr = dt[k] / counts[accepted] * rho_stiff
                 if k == stiff_k and hr > 0.75 * stiff_hr:
                     # more sub-steps did not shrink h·rate: a kink or jump of the flow (abs, sign, min, max), not a

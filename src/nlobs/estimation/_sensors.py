@@ -24,11 +24,13 @@ from typing import Any
 
 import numpy as np
 
+from .._memory import release_free_memory
 from ..design import design_ekf
 from ..errors import DataError, FiniteEscapeError, NlobsError
 from ..model import ModelFile, input_signals
 from ..references import cite
 from ._recorded import Recording, estimate
+from ._smooth import forget
 
 __all__ = ["SensorErrors", "sensor_errors", "PRIOR_FACTOR", "Q_FLOOR", "DIVERGED"]
 
@@ -108,6 +110,24 @@ def _plain(text: str, renames: dict[str, str]) -> str:
     return text.rstrip(". ")
 
 
+def _output_names(names: Sequence[str], taken: Sequence[str]) -> list[str]:
+    """The filter's names for the sensors' outputs: each sensor's own, unless it is a model name (a sensor named as the
+    state it reads: then with a trailing _) or cannot name a model's output (a [sensors] table may be called `lambda`
+    or `sin`: then `sensorK`); the text maps them back."""
+    import keyword
+
+    from ..model._system import RESERVED
+
+    used, out = set(taken), []
+    for k, n in enumerate(names):
+        name = n if n.isidentifier() and not keyword.iskeyword(n) and n not in RESERVED else f"sensor{k}"
+        while name in used:
+            name += "_"
+        used.add(name)
+        out.append(name)
+    return out
+
+
 def _set_errors(mf: ModelFile, sel: Any, members: Sequence[int], seeds: int, engine: str) -> tuple[dict, dict]:
     """The RMS error of the smoothed x̂(0) of one set over `seeds` draws, and its posterior bound. Raises _Diverged
     when a draw's filter or smoother diverges, or its x̂(0) is not finite or lies beyond DIVERGED prior σ."""
@@ -115,7 +135,7 @@ def _set_errors(mf: ModelFile, sel: Any, members: Sequence[int], seeds: int, eng
     pool = sel.pool
     unknown = sel.unknowns[mf.system.n_states:]
     names = [pool[i].name for i in members]
-    outputs = [f"{n}_" if n in (*sel.unknowns, *mf.system.inputs, *mf.system.params) else n for n in names]
+    outputs = _output_names(names, (*sel.unknowns, *mf.system.inputs, *mf.system.params))
     obs = mf.system.augmented(unknown)
     obs = obs._copy(outputs=outputs, h=[pool[i].expr for i in members])
     F = fi.information[list(members)].sum(axis=0)
@@ -141,25 +161,29 @@ def _set_errors(mf: ModelFile, sel: Any, members: Sequence[int], seeds: int, eng
         for j, name in enumerate(names):
             k = int(round(periods[name] / sel.run["sample_period"]))
             y_true[np.arange(t.size) % k != 0, j] = np.nan
-    errors = []
-    rng = np.random.default_rng(mf.simulation.seed if mf.simulation.seed is not None else 0)
-    for draw in range(seeds):
-        rec = Recording.from_arrays(obs, t, y_true + sigma * rng.standard_normal(y_true.shape), u)
-        start = z0 + s0 * rng.standard_normal(z0.size)
-        try:
-            run = estimate({"ekf": design}, rec, smooth=True, xhat0=start, engine=engine, hold="linear",
-                           max_step=fi.dt * (1 + 1e-12))
-        except (FiniteEscapeError, DataError) as e:  # non-finite, or rates so large an interval needs 1e8 steps
-            what = "the smoother, going backwards," if "smoother diverged" in str(e) else "the filter"
-            raise _Diverged(f"diverged: {what} on draw {draw + 1}: {_plain(str(e).splitlines()[0], renames)} (a prior "
-                            f"σ₀ = {PRIOR_FACTOR:g} × bound too wide for the EKF's linearisation?)") from None
-        err = run.observers["ekf"].xhat[0] - z0
-        far = np.flatnonzero(~np.isfinite(err) | (np.abs(err) > DIVERGED * s0))
-        if far.size:
-            i = int(far[0])
-            raise _Diverged(f"diverged: on draw {draw + 1} the smoothed {sel.unknowns[i]}(0) is off by {abs(err[i]):.3g}, "
-                            f"beyond {DIVERGED:g} × its prior σ₀ = {s0[i]:.3g}")
-        errors.append(err)
+    try:
+        errors = []
+        rng = np.random.default_rng(mf.simulation.seed if mf.simulation.seed is not None else 0)
+        for draw in range(seeds):
+            rec = Recording.from_arrays(obs, t, y_true + sigma * rng.standard_normal(y_true.shape), u)
+            start = z0 + s0 * rng.standard_normal(z0.size)
+            try:
+                run = estimate({"ekf": design}, rec, smooth=True, xhat0=start, engine=engine, hold="linear",
+                               max_step=fi.dt * (1 + 1e-12))
+            except (FiniteEscapeError, DataError) as e:  # non-finite, or rates so large an interval needs 1e8 steps
+                what = "the smoother, going backwards," if "smoother diverged" in str(e) else "the filter"
+                raise _Diverged(f"diverged: {what} on draw {draw + 1}: {_plain(str(e).splitlines()[0], renames)} (a prior "
+                                f"σ₀ = {PRIOR_FACTOR:g} × bound too wide for the EKF's linearisation?)") from None
+            err = run.observers["ekf"].xhat[0] - z0
+            far = np.flatnonzero(~np.isfinite(err) | (np.abs(err) > DIVERGED * s0))
+            if far.size:
+                i = int(far[0])
+                raise _Diverged(f"diverged: on draw {draw + 1} the smoothed {sel.unknowns[i]}(0) is off by {abs(err[i]):.3g}, "
+                                f"beyond {DIVERGED:g} × its prior σ₀ = {s0[i]:.3g}")
+            errors.append(err)
+    finally:
+        forget(design)   # this set's design is not used again: its smoother's replay must not stay cached
+        release_free_memory()
     rms = np.sqrt(np.mean(np.square(errors), axis=0))
     return dict(zip(sel.unknowns, map(float, rms))), dict(zip(sel.unknowns, map(float, post)))
 

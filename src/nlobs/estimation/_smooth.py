@@ -41,7 +41,7 @@ from ..engine._intervals import IntervalRunner
 from ..errors import FiniteEscapeError, PreconditionError
 from ..simulate._loop import Loop
 
-__all__ = ["SMOOTHABLE", "rts_smooth", "check_smoothable", "INFLATION"]
+__all__ = ["SMOOTHABLE", "rts_smooth", "check_smoothable", "INFLATION", "forget"]
 
 #: The observer kinds a fixed-interval smoother exists for (continuous-discrete, without state bounds).
 SMOOTHABLE = ("ekf", "ukf")
@@ -158,6 +158,16 @@ class _Backward:
 
 _CACHE: dict[tuple[int, str], tuple[ObserverDesign, _Replay]] = {}  # (id of design, hold)
 _BACK: dict[int, _Backward] = {}
+
+
+def forget(design: ObserverDesign) -> None:
+    """Drop the compiled replays kept for `design`, and its prepared observers (a caller that smooths with a design it
+    will not use again: each holds its CasADi functions, about 100 MB for a 17-state EKF)."""
+    from ..observer._compiled import forget as forget_observer
+
+    for key in [k for k, (d, _) in _CACHE.items() if d is design]:
+        del _CACHE[key]
+    forget_observer(design)
 
 
 def rts_smooth(design: ObserverDesign, traj: Any, u: np.ndarray, y: np.ndarray, mask: np.ndarray, *,

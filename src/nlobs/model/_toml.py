@@ -410,7 +410,7 @@ class _Loader:
         observer_system = system.augmented(unknown_params)
         guesses = {k: params[k] for k in unknown_params}
         observers = self.observers(doc, definitions, observer_system, guesses)
-        sensors = self.sensors(doc, symbols)
+        sensors = self.sensors(doc, symbols, None if system.is_discrete else simulation.dt)
         return ModelFile(self.path, system, simulation, observers, description, unknown_params,
                          MappingProxyType(definitions), MappingProxyType(units), sensors)
 
@@ -623,7 +623,8 @@ class _Loader:
             out[name] = ObserverConfig(name, kind, MappingProxyType(options), system, MappingProxyType(dict(guesses)))
         return MappingProxyType(out)
 
-    def sensors(self, doc: Mapping[str, Any], symbols: Mapping[str, sp.Expr]) -> Mapping[str, SensorConfig]:
+    def sensors(self, doc: Mapping[str, Any], symbols: Mapping[str, sp.Expr],
+                dt: float | None = None) -> Mapping[str, SensorConfig]:
         """[sensors.NAME]: candidate sensors (expr, noise, optional cost) for ``nlobs sensors``."""
         if "sensors" not in doc:
             return MappingProxyType({})
@@ -658,6 +659,9 @@ class _Loader:
             if cost < 0:
                 raise self.err("must be non-negative", f"{key}.cost", spec["cost"])
             period = self.number(spec["period"], f"{key}.period", positive=True) if "period" in spec else None
+            why = period_multiple_problem(period, dt) if period is not None and dt else ""
+            if why:  # at once, as the [simulation] sample periods
+                raise self.err(why, f"{key}.period", spec["period"])
             text = spec["expr"] if isinstance(spec["expr"], str) else repr(spec["expr"])
             out[name] = SensorConfig(name, expr, noise, cost, text, period)
         return MappingProxyType(out)

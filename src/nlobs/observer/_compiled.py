@@ -22,15 +22,15 @@ import numpy as np
 
 from ..design import ObserverDesign
 from ..engine import Backend, compile_system, rows
-from ..engine._batch import PointEvaluator, evaluate_one
+from ..engine._batch import PointEvaluator, evaluate_one, forget_point
 from ..engine._integrate import rk4_step_rate
 from ..engine._intervals import MAX_SUBSTEPS, IntervalRunner, Rows
 from .._progress import as_progress
 from ..errors import DataError, FiniteEscapeError, ShapeError
-from ._rate import flow_rate
+from ._rate import flow_rate, forget_rate
 from ._signals import signals_by_keyword
 
-__all__ = ["CompiledObserver", "ObserverTrajectory", "compiled_observer", "initial_state_of"]
+__all__ = ["CompiledObserver", "ObserverTrajectory", "compiled_observer", "initial_state_of", "forget"]
 
 Hold = Literal["zoh", "linear"]
 
@@ -363,6 +363,18 @@ def initial_state_of(design: ObserverDesign, x0: Any) -> np.ndarray:
     if len(_INITIAL) > 64:
         _INITIAL.popitem(last=False)
     return z0
+
+
+def forget(design: ObserverDesign) -> None:
+    """Drop what is kept for `design` (its prepared observers, its last initial state): for a caller that designs
+    filters it will not run again (``nlobs sensors --run``, one per set of sensors)."""
+    for key in [k for k, c in _CACHE.items() if c.design is design]:
+        del _CACHE[key]
+    _INITIAL.pop(id(design.initial), None)
+    forget_rate(design)
+    for fn in (design.initial, design.output, design.flow, design.update):
+        if fn is not None:
+            forget_point(fn)
 
 
 def compiled_observer(design: ObserverDesign, hold: Hold = "zoh") -> CompiledObserver:

@@ -20,7 +20,7 @@ from ..design import ObserverDesign
 from ..engine._batch import PointEvaluator
 from ..engine._intervals import EXACT_RATE_MAX, fastest_rate, power_rate
 
-__all__ = ["FlowRate", "flow_rate"]
+__all__ = ["FlowRate", "flow_rate", "forget_rate"]
 
 
 class FlowRate:
@@ -85,3 +85,10 @@ def flow_rate(design: ObserverDesign) -> FlowRate:
     if len(_RATES) > 64:
         _RATES.popitem(last=False)
     return rate
+
+
+def forget_rate(design: ObserverDesign) -> None:
+    """Drop the :class:`FlowRate` kept for `design` (see :func:`nlobs.observer._compiled.forget`)."""
+    hit = _RATES.get(id(design))
+    if hit is not None and hit.design is design:
+        del _RATES[id(design)]

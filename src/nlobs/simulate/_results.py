@@ -454,13 +454,14 @@ class Run:
             out["notes"] = list(self.info["notes"])
         return out
 
-    def to_csv(self, path: Any, *, every: int = 1) -> None:
+    def to_csv(self, path: Any, *, every: int | None = None) -> None:
         """Write the run as a CSV that :meth:`nlobs.Recording.from_csv` (and ``nlobs estimate``) reads back.
 
         Columns: ``t``, the inputs, the measured outputs, the true states (when known), then
         ``NAME.STATE`` for each observer's estimate. Numbers are written in their shortest form
         that reads back to the same double (Python's ``repr``); missing values as empty cells.
-        `every` > 1 (a sampled run: `every` steps per sample) keeps the sample instants, rows 0, k, 2k, ... (with
+        `every` > 1 (a sampled run: `every` steps per sample; by default the run's own, from its sample period and
+        step, so a sampled run's held outputs are never written as new measurements) keeps the sample instants, rows 0, k, 2k, ... (with
         per-output sample periods, the rows where any output was sampled), and every row where an input changes:
         every input sample the run saw reaches the file (a 200 Hz input beside a 50 Hz sensor is written at
         200 Hz), so ``estimate`` holding the inputs between rows drives its observers with the inputs of the run. An
@@ -471,6 +472,10 @@ class Run:
         """
         from ._schedule import SampleSchedule
 
+        if every is None:   # the run's own: its one sample period in steps (per-output periods: `measured` says)
+            period, dt = self.info.get("sampling"), self.info.get("dt")
+            k = float(period) / float(dt) if isinstance(period, (int, float)) and period and dt else 1.0
+            every = int(round(k)) if abs(k - round(k)) <= 1e-9 * k else 1
         every = int(every)
         if every < 1:
             raise ValueError(f"to_csv: `every` must be a positive whole number of rows, got {every!r}")

@@ -405,6 +405,8 @@ class Simulation:
             where, sl, names = layout.owner(col)
             O[r] = runner.outputs(S[r:r + 1], A[r:r + 1], c)[0]
             err = _plant_output_failure(plant, S, A, c, layout, runner, r) if where != "plant" else None
+            if err is None and where != "plant":
+                err = _indefinite_failure(where, S[:r + 2, sl], names, t, escape_bound)
             if err is None:
                 err = FiniteEscapeError(where, float(t[r]), S[r, sl], names, escape_bound,
                                         culprits=culprits(names, S[r + 1, sl], escape_bound))
@@ -413,6 +415,33 @@ class Simulation:
         S = S[:N + 1]
         run = _assemble(plant, obs, layout, S, O, t, A, info)
         return _with_particles(run, prep, xhat0) if prep.particle else run
+
+
+def _indefinite_failure(where: str, Z: np.ndarray, names: Sequence[str], t: np.ndarray,
+                        bound: float) -> FiniteEscapeError | None:
+    """When a filter's variance (an internal state named P_i_i) went negative before its state left the bound (rows
+    Z[0..r+1], the last one the first out of bound), the filter had diverged there: its state at that step is no
+    "last finite state" to show. The error then names the first step with a negative variance and shows the state
+    before it (RK4 at a fixed step unstable for a stiff covariance equation: every variance positive, then negative)."""
+    import re
+
+    diag = [j for j, nm in enumerate(names) if re.fullmatch(r"P_(\d+)_\1", str(nm))]
+    if not diag:
+        return None
+    neg = np.flatnonzero((Z[:-1, diag] < 0).any(axis=1))
+    if not neg.size or neg[0] == 0:
+        return None
+    k = int(neg[0])
+    j = diag[int(np.flatnonzero(Z[k, diag] < 0)[0])]
+    dt = float(t[1] - t[0]) if t.size > 1 else float("nan")
+    err = FiniteEscapeError(where, float(t[k - 1]), Z[k - 1], names, bound, culprits=[(names[j], float(Z[k, j]))])
+    went = (f"{where} diverged after t = {t[k - 1]:.6g}: its covariance lost its positive definiteness in the next step "
+            f"({names[j]} = {Z[k, j]:.3g} < 0), and its state left |x| <= {bound:g} at t = {t[Z.shape[0] - 1]:.6g}")
+    shown = str(err).split("last finite state: ", 1)[1].split(". Check", 1)[0]
+    return FiniteEscapeError(where, float(t[k - 1]), Z[k - 1], names, bound, culprits=[(names[j], float(Z[k, j]))],
+                             message=f"{went}; last state with a positive covariance: {shown}. A fixed RK4 step of "
+                                     f"dt = {dt:g} may be too long for a stiff flow (h·rate above 2.8: unstable): "
+                                     "reduce `dt`, or check the observer's tuning and its initial estimate.")
 
 
 def _plant_output_failure(plant: System, S: np.ndarray, A: np.ndarray, c: np.ndarray, layout: _Layout, runner: _Runner,

@@ -192,6 +192,31 @@ def _targets(targets: Any, unknowns: Sequence[str]) -> tuple[str, ...]:
     return tuple(dict.fromkeys(names))
 
 
+def _common_period(periods: Sequence[float], pool: Sequence[Candidate], dt: float | None) -> float:
+    """The grid every candidate's period is a whole multiple of: their greatest common divisor (20 Hz and 50 Hz
+    sensors on a 100 Hz grid), the periods read as fractions of at most 1e9 in the denominator. With the run's `dt`
+    each period must be a whole multiple of it, as the [simulation] sample periods must."""
+    from fractions import Fraction
+
+    from ...model._toml import period_multiple_problem
+
+    for c in pool:
+        why = period_multiple_problem(float(c.period), float(dt)) if dt and c.period is not None else ""
+        if why:
+            raise ModelError(f"sensors.{c.name}.period: {why}")
+
+    fr = [Fraction(p).limit_denominator(10 ** 9) for p in periods]
+    g = fr[0]
+    for f in fr[1:]:
+        g = Fraction(math.gcd(g.numerator * f.denominator, f.numerator * g.denominator), g.denominator * f.denominator)
+    grid = float(g)
+    for c, p in zip(pool, periods):
+        if abs(p / grid - round(p / grid)) > 1e-9 * max(1.0, p / grid):  # a period not near a fraction of 1e9 at most
+            raise ModelError(f"sensors.{c.name}.period: {p:g} s has no common divisor with the other periods of the "
+                             "pool; choose periods that are whole multiples of one grid (the run's dt)")
+    return grid
+
+
 def _fisher(system: System, pool: Sequence[Candidate], unknown: Sequence[str], cfg: Any,
             engine: str) -> tuple[CandidateFisher, tuple[Candidate, ...], dict[str, Any], list[str]]:
     """Each candidate's information on the run (computed with unit noise, then scaled by its noise), the pool with
@@ -208,16 +233,10 @@ def _fisher(system: System, pool: Sequence[Candidate], unknown: Sequence[str], c
                          f"is taken every {period:g} (the fastest; [sensors.NAME] period sets one)")
     every_each = None
     if any(c.period is not None for c in pool):
-        grid = min([float(c.period) for c in pool if c.period is not None] + ([float(period)] if period else []))
-        base = float(period) if period else grid
-        every_each = []
-        for c in pool:
-            own = float(c.period) if c.period is not None else base
-            k = own / grid
-            if abs(k - round(k)) > 1e-9 * max(1.0, k):
-                raise ModelError(f"sensors.{c.name}.period: {own:g} s is not a whole multiple of the fastest sample period "
-                                 f"{grid:g} s of the pool; choose periods that are multiples of each other")
-            every_each.append(int(round(k)))
+        base = float(period) if period else min(float(c.period) for c in pool if c.period is not None)
+        grid = _common_period([float(c.period) if c.period is not None else base for c in pool], pool,
+                              _get(cfg, "dt"))
+        every_each = [int(round((float(c.period) if c.period is not None else base) / grid)) for c in pool]
         period = grid
     if any(float(v) > 0 for v in (_get(cfg, "process_noise", {}) or {}).values()):
         notes.append("the bounds are those of the deterministic model: the [simulation] process_noise is not in them "
