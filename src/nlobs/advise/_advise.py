@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import contextvars
 import sys
 import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -344,11 +346,15 @@ def _run_and_rank(ctx: Context, candidates: list[Candidate], mf: ModelFile | Non
     if own:
         ctx.notes.append("your own observer(s) " + ", ".join(f"[observers.{k.split(':', 1)[1]}]" for k in own)
                          + " run beside the candidates (as " + ", ".join(own) + ") and are ranked with them")
-    scores, runres = compare(ctx, candidates, engine=engine, budget=budget, own=own)
+    # the candidates left out of the run (an NLP estimator on many samples; a particle filter) screened on the run's
+    # start beside it, on a thread of their own: the comparison leaves a core idle at its start and its end
+    left_out = [c for c in candidates if c.applies and not c.runnable]
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="nlobs-screen") as pool:
+        pending = pool.submit(contextvars.copy_context().run, screen, ctx, left_out, budget)
+        scores, runres = compare(ctx, candidates, engine=engine, budget=budget, own=own)
+        screened = pending.result()
     where = "the comparison run" if ctx.recording is not None else "the [simulation] run"
     candidates = demoted(candidates, scores, where)
-    left_out = [c for c in candidates if c.applies and not c.runnable]   # not in the run: screened on its start
-    screened = screen(ctx, left_out, budget)
     candidates = unscreened(demoted(candidates, screened, "the start of the [simulation] run"), screened)
     _reconcile_choice(ctx, candidates, [*scores, *(s for s in screened if s.status != "unscreened")], where, scores)
     scores = [s for s in scores if s.status != "diverged"]
