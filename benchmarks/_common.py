@@ -26,21 +26,31 @@ from typing import Any
 RESULTS = Path(__file__).with_name("results")
 
 
+#: Seconds of untimed calls before each timed one with ``warm=True`` (see :func:`interleaved`).
+WARM_S = 0.02
+
+
 def interleaved(fns: Mapping[str, Callable[[], Any]], rounds: int, pause: float = 0.05,
                 warm: bool = False) -> dict[str, tuple[float, float, Any]]:
     """Time implementations round by round (A, B, C, A, B, C, ...) so machine noise hits them alike;
     return (min, median, last output) per implementation.
 
-    `warm`: each timed call follows an untimed call of the same implementation, so that it runs with its own code and
-    data in the caches, as a call in a loop does (after the pause, another implementation's run has evicted them: a
-    call of a few hundred microseconds then pays a refill that a call of milliseconds hides)."""
+    `warm`: each timed call follows untimed calls of the same implementation for at least WARM_S seconds (at least
+    one), so that it runs with its own code and data in the caches and the core at the clock a loop of calls reaches,
+    as a call in a loop does. After the pause another implementation's run has evicted the caches and the core has
+    slowed down: one warm call leaves a call of a few hundred microseconds timed at the lower clock, which a call of
+    milliseconds outlasts (measured on the 2-core machine: nlobs's P3 EKF 347 µs after one warm call, 292 µs after
+    20 ms of them, no change beyond; dynamax's 3.16 ms and 3.09 ms)."""
     times: dict[str, list[float]] = {k: [] for k in fns}
     outs: dict[str, Any] = {}
     for _ in range(rounds):
         for k, fn in fns.items():
             time.sleep(pause)  # let another implementation's worker threads (JAX/XLA spin-waits) go idle first
             if warm:
+                until = time.perf_counter() + WARM_S
                 fn()
+                while time.perf_counter() < until:
+                    fn()
             t0 = time.perf_counter()
             outs[k] = fn()
             times[k].append(time.perf_counter() - t0)

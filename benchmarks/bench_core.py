@@ -175,7 +175,7 @@ def p1(rounds: int) -> list[dict]:
             return rows
         rtol, d = chosen
         pc = python_control_p1(rtol)
-        t_pc = cm.interleaved({"pc": pc, "c": fns["c"]}, max(3, rounds // 5))
+        t_pc = cm.interleaved({"pc": pc, "c": fns["c"]}, max(3, rounds // 5), warm=True)   # both as in a loop
         rows.append(cm.row("P1", "same problem, matched accuracy",
                            nlobs="nlobs.simulate(engine='c')", t_nlobs=t_pc["c"][:2], err_nlobs=f"max |dev| from C {dev['c']:.1e}",
                            peer=f"python-control {ct.__version__} input_output_response, RK45 rtol {rtol:g} atol {rtol / 100:g}",
