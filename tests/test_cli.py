@@ -359,3 +359,12 @@ def test_estimate_on_a_simulated_csv_reads_the_parameters_truth(tmp_path, capsys
     p_est = est["observers"]["ekf"]["parameters"]["k"]
     assert p_est["true"] == 0.5 == p_sim["true"]
     assert abs(p_est["estimate"] - p_sim["estimate"]) < 0.01   # the recording holds the input between its rows
+
+
+def test_a_huge_number_on_the_command_line_is_named_not_printed_whole(capsys):
+    """--param and --x0 refuse a 4,301-digit number (no finite float) with its start and length, not all its digits."""
+    big = "9" * 4301
+    for argv in (["simulate", PEND, "--param", f"a1={big}"], ["simulate", PEND, "--x0", f"{big},0"]):
+        assert main(argv) == 1
+        err = capsys.readouterr().err
+        assert "is not a finite number" in err and "(4301 characters)" in err and len(err) < 400, err[:500]

@@ -11,6 +11,8 @@ from typing import Any
 
 import numpy as np
 
+from .._text import shorten
+
 __all__ = ["designs_of", "clean", "error_message", "positive_float", "parse_vector", "parse_assignments", "parse_matrix",
            "parse_columns", "HELP_ENGINE", "HELP_HOLD"]
 
@@ -112,9 +114,9 @@ def _number(text: str, what: str) -> float:
     try:
         v = float(text)
     except ValueError:
-        raise ValueError(f"{what}: {text.strip()!r} is not a number") from None
+        raise ValueError(f"{what}: {shorten(text.strip())} is not a number") from None
     if not math.isfinite(v):
-        raise ValueError(f"{what}: {text.strip()!r} is not a finite number")
+        raise ValueError(f"{what}: {shorten(text.strip())} is not a finite number")
     return v
 
 
