@@ -150,6 +150,8 @@ def test_the_reference_model_file_loads_and_recovers_its_parameter():
     block = re.match(r"((?:   .*\n|\n)+)", page[start:]).group(1)   # the indented lines of the code block
     mf = loads_model(textwrap.dedent(block), path="docs/model_files.rst")
     assert mf.unknown_params == ("k2",) and mf.units["t"] == "s"
+    level = mf.sensors["level1"]   # the candidate sensor table, each key as the page says
+    assert (str(level.expr), level.noise, level.cost, level.period) == ("x1", 0.02, 2.0, 0.5)
     run = nlobs.simulate(mf, t_final=60.0)
     p = run.parameters("ekf")["k2"]
     assert p["true"] == 0.25 and abs(p["estimate"] - 0.25) < 2 * p["std"]
