@@ -420,24 +420,21 @@ class IntervalRunner:
         :class:`Schedule`): on the compiled path in one call, on the virtual machine one call per stretch
         of intervals that continue each other (never a Python step per interval). `A` may be given as
         :class:`Rows` (the samples; the compiled driver then assembles each row itself)."""
-        if isinstance(A, Rows) and (schedule is not None or self._c is None or _forced(self.backend) == "vm"):
-            A = A.table()   # (the table is built only where it is read whole)
+        loaded = self._c is not None and _forced(self.backend) != "vm"   # the compiled driver runs, as loaded
+        if isinstance(A, Rows):   # the table is built only where it is read whole
+            A = Rows(np.ascontiguousarray(A.t, dtype=float), np.ascontiguousarray(A.B, dtype=float)) \
+                if loaded and schedule is None else A.table()
         if schedule is not None:
             return self._run_schedule(s0, A, nmin, rate0, target, reject, max_substeps, schedule, on_progress)
-        if isinstance(A, Rows):   # the compiled driver is loaded and not overridden: it runs
-            A = Rows(np.ascontiguousarray(A.t, dtype=float), np.ascontiguousarray(A.B, dtype=float))
-            backend, N = "c", A.n
-        else:
-            A = np.ascontiguousarray(A, dtype=float)
-            N = A.shape[0]
+        A = A if isinstance(A, Rows) else np.ascontiguousarray(A, dtype=float)
+        N = A.n if isinstance(A, Rows) else A.shape[0]
         nmin = np.ascontiguousarray(nmin, dtype=float)
         s0 = np.ascontiguousarray(s0, dtype=float).reshape(self.ns)
         rate0 = _finite_rate(rate0)
         # the work predicted from the first rate (a long gap needs many sub-steps although nmin is small there); not
         # needed once the compiled driver is loaded and no backend is forced (then it runs)
-        if not isinstance(A, Rows):
-            backend = "c" if self._c is not None and _forced(self.backend) != "vm" else \
-                self.backend_for(float(np.maximum(nmin, np.ceil(A[:, 1] * rate0 / target)).sum()), N)
+        backend = "c" if loaded else \
+            self.backend_for(float(np.maximum(nmin, np.ceil(A[:, 1] * rate0 / target)).sum()), N)
         if backend == "c" and self._compiled() is not None:
             res = self._c(s0, A, nmin, rate0, target, reject, max_substeps)
             if on_progress is not None and res.failed is None and res.refused is None:
