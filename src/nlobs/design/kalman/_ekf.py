@@ -19,7 +19,7 @@ from .._kind import Tuning
 from .._kind import kind
 from .._bounds import POLICY, bounds_check, check_start, clip_const, parse_bounds
 from .._checks import check_matrix
-from .._common import joseph_part, require_system, symmetric_part
+from .._common import require_system, symmetric_part
 
 __all__ = ["design_ekf"]
 
@@ -61,9 +61,9 @@ def design_ekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
     intensity σ²Δt, and a small R makes the gain P Hᵀ R⁻¹ H large, so the integration step
     must resolve it (RK4 is stable for Δt·abs(λ) < 2.8).
 
-    P is stored in full and kept exactly symmetric (its rate is computed on the lower triangle
-    and mirrored, the Joseph update is averaged with its transpose), so P stays symmetric to the
-    last bit and positive definite as long as the integration step resolves its dynamics.
+    P is stored in full and kept exactly symmetric: every derivative and update is computed
+    on its lower triangle and mirrored, so P stays symmetric to the last bit and positive
+    definite as long as the integration step resolves its dynamics.
 
     Parameters
     ----------
@@ -139,7 +139,7 @@ def design_ekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
         K = ca.solve(S, Hm @ P).T
         x_plus = clip_const(xh + K @ (s.m * (s.y - hx)), box)  # projected onto the bounds (identity without)
         IKH = ca.DM.eye(n) - K @ Hm
-        P_plus = joseph_part(IKH @ P @ IKH.T + K @ Rmask @ K.T)
+        P_plus = symmetric_part(IKH @ P @ IKH.T + K @ Rmask @ K.T)
         update = ca.vertcat(x_plus, ca.vec(P_plus))
     x0 = ca.SX.sym("xhat0", n)
     checks = [Check("Q positive semidefinite", True, f"min eig {np.linalg.eigvalsh(Qm).min():.3g}"),

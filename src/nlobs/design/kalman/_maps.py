@@ -29,7 +29,7 @@ from ...model import System
 from ...references import cite
 from .._base import Certificate, Check, ObserverDesign, Symbols, check_vector
 from .._checks import check_matrix
-from .._common import joseph_part, symmetric_part
+from .._common import symmetric_part
 
 __all__ = ["discrete_ekf", "discrete_ukf"]
 
@@ -63,7 +63,7 @@ def _masked_correction(x: ca.SX, P: ca.SX, hx: ca.SX, H: ca.SX, Rd: ca.DM, y: ca
     K = ca.solve(S, Hm @ P).T
     x_plus = x + K @ (m * (y - hx))
     IKH = ca.DM.eye(n) - K @ Hm
-    return x_plus, joseph_part(IKH @ P @ IKH.T + K @ Rmask @ K.T)
+    return x_plus, symmetric_part(IKH @ P @ IKH.T + K @ Rmask @ K.T)
 
 
 def _names(system: System, core: list[str]) -> list[str]:

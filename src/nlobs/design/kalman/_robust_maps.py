@@ -38,7 +38,7 @@ from ...errors import PreconditionError
 from ...model import System
 from ...references import cite
 from .._base import Certificate, Check, ObserverDesign
-from .._common import joseph_part, symmetric_part
+from .._common import symmetric_part
 from ._maps import _layout, _names, _sigma_weights, _weights
 from ._sqrt import lower_solve, lower_t_solve, sqrt_psd, tria
 
@@ -175,7 +175,7 @@ def iterated_update(h: Any, s: Any, x_prior: Any, P_prior: Any, Rm: np.ndarray, 
         xi = ca.if_else(done, xi, x_next)
         done = ca.logic_or(done, step < float(tol))
     IKH = ca.DM.eye(n) - K @ Hm
-    return xi, joseph_part(IKH @ P_prior @ IKH.T + K @ Rmask @ K.T)
+    return xi, symmetric_part(IKH @ P_prior @ IKH.T + K @ Rmask @ K.T)
 
 
 def discrete_iekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = None, iterations: int = 5,
