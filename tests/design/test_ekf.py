@@ -95,18 +95,3 @@ def test_covariances_stay_symmetric_positive_definite_over_a_million_steps():
         assert np.array_equal(P, P.transpose(0, 2, 1))  # exactly symmetric, bit for bit
         assert np.all(np.linalg.eigvalsh(P)[:, 0] > 0)
         assert run.metrics(name).rms_error < 0.05
-
-
-def test_covariance_updates_are_built_from_their_lower_triangle():
-    """symmetric_part mirrors M's lower triangle: the result is exactly symmetric, and the entries above M's diagonal
-    are never read (so an SX update never computes them)."""
-    import casadi as ca
-
-    from nlobs.design._common import symmetric_part
-
-    M = ca.SX.sym("M", 4, 4)
-    S = symmetric_part(M)
-    A = np.random.default_rng(5).normal(size=(4, 4))
-    got = np.array(ca.Function("f", [M], [S])(A))
-    assert np.array_equal(got, np.tril(A) + np.tril(A, -1).T)
-    assert not any(ca.depends_on(S, M[i, j]) for i in range(4) for j in range(i + 1, 4))

@@ -150,9 +150,5 @@ def batch(fn: ca.Function, points: np.ndarray) -> np.ndarray:
 
 
 def symmetric_part(M: ca.SX) -> ca.SX:
-    """M's lower triangle mirrored: what a covariance update keeps, so that round-off never makes P asymmetric.
-
-    Only the lower triangle of M is read, so in SX the entries above the diagonal never become part of a function:
-    the 24-state EKF's update is 52,158 operations instead of 74,015, its covariance rate 3,233 instead of 6,889,
-    where (M + Mᵀ)/2 computed both triangles and their mean."""
-    return ca.tril(M) + ca.tril(M, False).T
+    """(M + Mᵀ)/2: what a covariance update keeps, so that round-off never makes P asymmetric."""
+    return (M + M.T) / 2

@@ -61,9 +61,9 @@ def design_ekf(system: System, *, Q: Any, R: Any, P0: Any = None, xhat0: Any = N
     intensity σ²Δt, and a small R makes the gain P Hᵀ R⁻¹ H large, so the integration step
     must resolve it (RK4 is stable for Δt·abs(λ) < 2.8).
 
-    P is stored in full and kept exactly symmetric: every derivative and update is computed
-    on its lower triangle and mirrored, so P stays symmetric to the last bit and positive
-    definite as long as the integration step resolves its dynamics.
+    P is stored in full and kept exactly symmetric: every derivative and update is
+    symmetrised, so P stays symmetric to the last bit and positive definite as long as the
+    integration step resolves its dynamics.
 
     Parameters
     ----------
