@@ -150,5 +150,10 @@ def batch(fn: ca.Function, points: np.ndarray) -> np.ndarray:
 
 
 def symmetric_part(M: ca.SX) -> ca.SX:
-    """(M + Mᵀ)/2: what a covariance update keeps, so that round-off never makes P asymmetric."""
+    """(M + Mᵀ)/2: what a covariance update keeps, so that round-off never makes P asymmetric.
+
+    Tried and dropped: M's lower triangle mirrored (the 24-state EKF's covariance rate 6,889 -> 3,233 operations, the
+    whole advisor run on it 5 % fewer) made gcc's register allocation of the EKF's Joseph update take 42 s instead of
+    9 s (each lower entry then lives until its mirror is written), and on a stiff reactor one sensor set's RTS
+    smoother diverged that runs with the mean."""
     return (M + M.T) / 2

@@ -6,12 +6,13 @@ and 1.4 GB at -O1 (full redundancy elimination 26 s, register allocation most of
 not finish compiling within ``nlobs design --run``'s budget. Here the function's instructions, in CasADi's own order,
 are cut into parts of about :data:`PART` operations; each part is an SX function of the original inputs and of the
 outputs of the earlier parts it reads from (passed whole and read in place), returning the values that later parts or
-the outputs read; an MX function calls the parts in order. (Gathering the values a part reads into one vector of
-their own cost a copy of each at every call: the 24-state square-root UKF's update took 348 µs a call that way,
-237 µs reading in place.) Every operation is the original one on the same operands, so the VM gives the same numbers bit
-for bit; compiled, the parts are separate C functions, in translation units of their own (:func:`units`) that gcc
-compiles apart, two at a time, and links: on that update, 16 units of about 3 s and 150-380 MB each at -O1 (-O1 as
-before for code this long, see :data:`nlobs.engine._codegen.BIG_CODE`), where the one file took 91 s and 1.4 GB.
+the outputs read; an MX function calls the parts in order, and a last part copies the outputs into place. (Gathering
+the values a part reads into one vector of their own cost a copy of each at every call: the 24-state square-root UKF's
+update took 348 µs a call that way, 237 µs reading in place.) Every operation is the original one on the same
+operands, so the VM gives the same numbers bit for bit; compiled, the parts are separate C functions, in translation
+units of their own (:func:`units`) that gcc compiles apart, two at a time, and links: on that update, 16 units of
+about 3 s and 150-380 MB each at -O1 (-O1 as before for code this long, see :data:`nlobs.engine._codegen.BIG_CODE`),
+where the one file took 91 s and 1.4 GB.
 """
 
 from __future__ import annotations
@@ -101,7 +102,7 @@ def _chain(fn: ca.Function, code: list, final: list, part_of: dict, parts: int) 
         outs.append(g.call([*mx_in, *[outs[q] for q in sources]])[0])
     # the outputs gathered by one more part, an SX function of copies (one line of C each): gathered by the MX
     # function instead, each nonzero was a copy loop and a test of its own, which took gcc longer than 15,000 lines
-    # of arithmetic (4.6 s of the 24-state square-root UKF's 50 s build)
+    # of arithmetic (the 24-state square-root UKF's chain: 4.6 s of gcc, now 0.15 s, in a build of 38-40 s of CPU)
     nzs: list[list] = []
     for o in range(fn.n_out()):
         nz: list = [None] * fn.sparsity_out(o).nnz()
