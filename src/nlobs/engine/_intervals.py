@@ -32,6 +32,7 @@ count and re-running from the first interval whose prediction proves wrong.
 from __future__ import annotations
 
 import ctypes
+import math
 import time
 import warnings
 from collections.abc import Callable
@@ -796,7 +797,8 @@ def power_rate(matvec: Callable[[np.ndarray], np.ndarray], n: int) -> float:
 
 def _finite_rate(rate: float) -> float:
     """A usable first rate: 0 where it is not finite or negative."""
-    return float(rate) if np.isfinite(rate) and rate >= 0 else 0.0
+    rate = float(rate)
+    return rate if math.isfinite(rate) and rate >= 0 else 0.0
 
 
 class _CompiledIntervals:
