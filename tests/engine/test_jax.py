@@ -90,6 +90,28 @@ def check_montecarlo_jax_equals_c():
     np.testing.assert_allclose(got.observers["ekf"].xhat, ref.observers["ekf"].xhat, rtol=1e-12, atol=1e-12)
 
 
+def check_montecarlo_jax_noise_inputs_stay_under_their_budget():
+    """With noise, each run's per-step inputs are drawn on the host (as the C engine draws them) and sent to the
+    device: runs whose inputs pass JAX_CHUNK_BYTES go in equal chunks under it, with the same results (to rounding)."""
+    from nlobs.simulate import _montecarlo as mcm
+
+    vdp = nlobs.System(states=["x1", "x2"], f=["x2", "mu*(1 - x1**2)*x2 - x1"], outputs=["y"], h=["x1"], params={"mu": 1.0})
+    ekf = nlobs.design_ekf(vdp, Q=np.eye(2) * 1e-2, R=np.eye(1) * 1e-2, P0=np.eye(2), xhat0=[0.0, 0.0])
+    kw = dict(t_final=0.5, dt=1e-3, x0=np.random.default_rng(4).normal(size=(30, 2)), noise=nlobs.Noise.gaussian(0.05),
+              seed=5, save_every=50)
+    whole = nlobs.montecarlo(vdp, {"ekf": ekf}, engine="jax", **kw)
+    budget = mcm.JAX_CHUNK_BYTES
+    try:
+        mcm.JAX_CHUNK_BYTES = 1   # less than one run's inputs: one run a chunk
+        split = nlobs.montecarlo(vdp, {"ekf": ekf}, engine="jax", **kw)
+    finally:
+        mcm.JAX_CHUNK_BYTES = budget
+    assert whole.info["chunk"] == 30 and split.info["chunk"] == 1, (whole.info, split.info)
+    # (XLA compiles a batch of one run and one of 30 apart: equal to rounding, not bit for bit)
+    np.testing.assert_allclose(split.x, whole.x, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(split.observers["ekf"].xhat, whole.observers["ekf"].xhat, rtol=1e-12, atol=1e-12)
+
+
 def test_in_a_process_of_its_own():
     """JAX starts threads, and a process that has imported it must not fork afterwards (the global check races its
     routes in forked children): these checks run in a fresh interpreter, one after another, and each failure is shown."""

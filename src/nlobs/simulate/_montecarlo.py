@@ -383,7 +383,9 @@ def montecarlo(
     engine : {"auto", "vm", "c", "jax"}
         Where the batches run; ``"auto"`` decides once for the whole Monte Carlo run (every chunk runs there).
         ``"jax"`` (the optional ``nlobs[jax]`` extra): the same compiled step as one XLA program over every run
-        (vmap over runs, scan over steps), on a GPU when JAX has one; equal to the C engine to rounding.
+        (vmap over runs, scan over steps), on a GPU when JAX has one; equal to the C engine to rounding. Noise is
+        drawn on the host, as the C engine draws it (the same seeds give the same numbers), and sent to the device
+        with the runs, in chunks of at most 512 MB of it: with noise, drawing it costs more than the runs.
     scheduler : str or dask.distributed.Client, optional
         Run the chunks on a Dask cluster (its address, or a client); needs ``nlobs[dask]``.
     workers : int, optional
@@ -482,7 +484,10 @@ def _on_this_machine(spec: _Spec, M: int, N: int, engine: str, workers: int | No
     """The chunks on this machine's threads (JAX: one XLA program over every run, the device parallelises)."""
     prep = spec.prep
     if engine == "jax":
-        size = int(chunk) if chunk is not None else M
+        # one program over every run, unless the runs' noise inputs (drawn here, sent to the device) would pass
+        # JAX_CHUNK_BYTES: then equal chunks under it, one after another (one more trace for a shorter last chunk)
+        parts = max(1, -(-M * per_run // JAX_CHUNK_BYTES))
+        size = int(chunk) if chunk is not None else -(-M // parts)
         return _on_threads(spec, [(j, min(j + size, M)) for j in range(0, M, size)], 1, report), size, {"workers": 1}
     # where the whole batch runs, decided (and compiled) once: every chunk, on every thread, runs there
     where = batch_backend(prep.layout.step, M, N, engine)
@@ -497,6 +502,9 @@ def _on_this_machine(spec: _Spec, M: int, N: int, engine: str, workers: int | No
 
 #: About this many bytes of noise inputs per chunk (the per-step inputs of its runs, made before the chunk runs).
 CHUNK_BYTES = 64 * 2**20
+#: At most this many bytes of noise inputs per chunk on the JAX engine (drawn on the host as the C engine draws them,
+#: then copied to the device): 16,000 runs of 10,000 steps with one noisy output are 1.3 GB of them, 160,000 runs 13 GB.
+JAX_CHUNK_BYTES = 512 * 2**20
 
 
 def _chunk_size(M: int, slots: int, per_run: int) -> int:
