@@ -18,6 +18,7 @@ engine is first used (``jax_enable_x64``), as nlobs computes in float64 everywhe
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import casadi as ca
@@ -25,7 +26,7 @@ import numpy as np
 
 from ..errors import EngineError
 
-__all__ = ["jax_available", "to_jax", "run_batch_jax"]
+__all__ = ["jax_available", "to_jax", "run_batch_jax", "DeviceNoise"]
 
 
 def _jax() -> Any:
@@ -159,26 +160,76 @@ def to_jax(fn: ca.Function) -> Callable[..., tuple[Any, ...]]:
     return run
 
 
-_BATCH_CACHE: dict[int, tuple[ca.Function, Any]] = {}
+@dataclass(frozen=True)
+class DeviceNoise:
+    """Noise drawn on the device, step by step inside the runs, by JAX's counter-based generator: the columns
+    ``[at, at + len(scales))`` of the per-step inputs are measurement noise (Gaussian with standard deviation
+    `scales[j]` where `gaussian[j]`, else uniform in ±`scales[j]`; a fresh draw every `every` steps, held in between)
+    and the `process` columns after them process-noise increments (standard deviation ``process[j]``, none at the
+    last row `last`). Run r's draws at step k depend on its seed, the stream and k only (``fold_in``), so they do not
+    depend on how the runs are chunked, nor on the horizon."""
+
+    at: int
+    scales: tuple[float, ...]
+    gaussian: tuple[bool, ...]
+    every: int
+    process: tuple[float, ...]
+    last: int
 
 
-def _batch_program(step: ca.Function, bound: float, shared_a: bool, shared_c: bool) -> Any:
+def _noisy_inputs(jax: Any, noise: DeviceNoise | None) -> Callable[[Any, Any, Any], Any]:
+    """``inputs(a, key, k)``: row k of the shared inputs `a` with run `key`'s noise written into its noise columns."""
+    if noise is None:
+        return lambda a, key, k: a[k]
+    jnp, random = jax.numpy, jax.random
+    nv, nw = len(noise.scales), len(noise.process)
+    s_v, gauss = jnp.asarray(noise.scales, dtype=jnp.float64), jnp.asarray(noise.gaussian)
+    s_w = jnp.asarray(noise.process, dtype=jnp.float64)
+
+    def inputs(a: Any, key: Any, k: Any) -> Any:
+        row = a[k]
+        if nv:
+            kv = random.fold_in(random.fold_in(key, 0), k // noise.every)
+            if all(noise.gaussian):   # one kind: only its draws (the generator is most of a step's cost on a CPU)
+                v = random.normal(kv, (nv,), dtype=jnp.float64)
+            elif not any(noise.gaussian):
+                v = random.uniform(kv, (nv,), dtype=jnp.float64, minval=-1.0, maxval=1.0)
+            else:
+                g, u = random.split(kv)
+                v = jnp.where(gauss, random.normal(g, (nv,), dtype=jnp.float64),
+                              random.uniform(u, (nv,), dtype=jnp.float64, minval=-1.0, maxval=1.0))
+            row = row.at[noise.at:noise.at + nv].set(s_v * v)
+        if nw:
+            w = s_w * random.normal(random.fold_in(random.fold_in(key, 1), k), (nw,), dtype=jnp.float64)
+            row = row.at[noise.at + nv:noise.at + nv + nw].set(jnp.where(k < noise.last, w, 0.0))
+        return row
+
+    return inputs
+
+
+_BATCH_CACHE: dict[tuple[Any, ...], tuple[ca.Function, Any]] = {}
+
+
+def _batch_program(step: ca.Function, bound: float, shared_a: bool, shared_c: bool, noise: DeviceNoise | None = None) -> Any:
     jax = _jax()
     jnp, lax = jax.numpy, jax.lax
     f = to_jax(step)
+    inputs = _noisy_inputs(jax, noise)
 
-    def trajectory(s0: Any, a: Any, c: Any, targets: Any) -> tuple[Any, Any, Any]:
+    def trajectory(s0: Any, a: Any, c: Any, seed: Any, targets: Any) -> tuple[Any, Any, Any]:
+        key = jax.random.key(seed)
+
         def advance(carry: Any, target: Any) -> tuple[Any, tuple[Any, Any]]:
             def body(state: Any) -> Any:
                 s, k, alive, status = state
-                nxt = f(s, a[k], c)[0]
+                nxt = f(s, inputs(a, key, k), c)[0]
                 bad = ~jnp.all(jnp.abs(nxt) <= bound)   # NaN compares false: non-finite is bad
                 status = jnp.where(alive & bad, k, status)
                 alive = alive & ~bad
                 return jnp.where(alive, nxt, s), k + 1, alive, status
 
             s, k, alive, status = lax.while_loop(lambda st: st[1] < target, body, carry)
-            o = f(s, a[target], c)[1]
+            o = f(s, inputs(a, key, target), c)[1]
             nan = jnp.float64(np.nan)
             return (s, k, alive, status), (jnp.where(alive, s, nan), jnp.where(alive, o, nan))
 
@@ -187,26 +238,31 @@ def _batch_program(step: ca.Function, bound: float, shared_a: bool, shared_c: bo
         (_, _, _, status), (S, O) = lax.scan(advance, init, targets)
         return S, O, status
 
-    batched = jax.vmap(trajectory, in_axes=(0, None if shared_a else 0, None if shared_c else 0, None))
+    batched = jax.vmap(trajectory, in_axes=(0, None if shared_a else 0, None if shared_c else 0, 0, None))
     return jax.jit(batched)
 
 
 def run_batch_jax(step: ca.Function, S0: np.ndarray, A: np.ndarray, C: np.ndarray, steps: np.ndarray,
-                  bound: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                  bound: float, *, noise: DeviceNoise | None = None,
+                  seeds: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`nlobs.engine.run_batch` on JAX (one XLA program: vmap over trajectories, scan over saves).
 
     `steps` are the saved step indices (:func:`nlobs.engine.saved_steps`); the semantics, NaN after a
-    trajectory stops and `status`, are those of the C batch driver.
+    trajectory stops and `status`, are those of the C batch driver. With `noise`, each run's noise is drawn on the
+    device from its entry of `seeds` (non-negative integers below 2**32) into the shared inputs `A` (N + 1, na).
     """
     jax = _jax()
     shared_a, shared_c = A.ndim == 2, C.ndim == 1
-    key = (id(step), float(bound), shared_a, shared_c)
-    hit = _BATCH_CACHE.get(key)   # type: ignore[call-overload]
+    if noise is not None and (not shared_a or seeds is None or len(seeds) != S0.shape[0]):
+        raise ValueError("run_batch_jax: noise drawn on the device needs shared inputs A (N + 1, na) and one seed a run")
+    key = (id(step), float(bound), shared_a, shared_c, noise)
+    hit = _BATCH_CACHE.get(key)
     if hit is None or hit[0] is not step:
-        hit = _BATCH_CACHE[key] = (step, _batch_program(step, bound, shared_a, shared_c))   # type: ignore[index]
+        hit = _BATCH_CACHE[key] = (step, _batch_program(step, bound, shared_a, shared_c, noise))
         if len(_BATCH_CACHE) > 64:
             _BATCH_CACHE.pop(next(iter(_BATCH_CACHE)))
     program = hit[1]
-    S, O, status = program(jax.numpy.asarray(S0), jax.numpy.asarray(A), jax.numpy.asarray(C),
+    seeds = np.zeros(S0.shape[0], dtype=np.uint32) if seeds is None else np.asarray(seeds).astype(np.uint32)
+    S, O, status = program(jax.numpy.asarray(S0), jax.numpy.asarray(A), jax.numpy.asarray(C), jax.numpy.asarray(seeds),
                            jax.numpy.asarray(np.asarray(steps, dtype=np.int64)))
     return np.asarray(S), np.asarray(O), np.asarray(status, dtype=np.int64)

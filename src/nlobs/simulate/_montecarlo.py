@@ -8,6 +8,10 @@ both release Python's lock while they run, so the chunks run side by side.
 With a Dask scheduler the chunks run on its workers with the same code. Every trajectory's inputs
 depend on its seed alone, so the same seeds give the same numbers however the runs are chunked,
 threaded or distributed.
+
+On the JAX engine with ``draws="device"`` the noise is drawn inside the runs by JAX's generator
+(:class:`nlobs.engine._jax.DeviceNoise`): the same distributions and the same rule (a run's noise
+depends on its seed alone), other numbers, so those runs are not re-run by :func:`simulate`.
 """
 
 from __future__ import annotations
@@ -192,6 +196,10 @@ class MonteCarloResult:
         """Re-run trajectory `j` alone with :func:`simulate` (full resolution, every signal)."""
         if self._spec is None:
             raise ValueError("this result does not keep its set-up; re-run montecarlo")
+        if getattr(self._spec, "draws", "host") == "device":
+            raise ValueError("montecarlo ran with draws='device': its noise was drawn by JAX on the device, and "
+                             f"simulate(seed={int(self.seeds[j])}) would draw other numbers. Run montecarlo with "
+                             "draws='host' (the default) to replay its runs")
         return self._spec.rerun(j, self._inputs)
 
     def plot(self, path: str | None = None) -> Any:
@@ -229,6 +237,7 @@ class _Spec:
     stride: int
     bound: float
     engine: str
+    draws: str = "host"       # "device": the noise drawn by JAX on the device (engine "jax")
 
     def run_chunk(self, j0: int, j1: int, buffers: _Buffers | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Runs j0 .. j1 - 1: final arrays (states, outputs, status) of :func:`nlobs.engine.run_batch`; `buffers`
@@ -245,6 +254,12 @@ class _Spec:
         if not prep.seeded:
             return run_batch(layout.step, S0, prep.inputs_for(None), C, prep.n_steps, stride=self.stride, bound=self.bound,
                              backend=self.engine)
+        if self.draws == "device":
+            from ..engine._jax import run_batch_jax
+
+            A, noise = device_noise(prep)
+            return run_batch_jax(layout.step, S0, A, C, saved_steps(prep.n_steps, self.stride), self.bound, noise=noise,
+                                 seeds=self.seeds[j0:j1])
         flat = (buffers or _Buffers()).take((j1 - j0) * (prep.n_steps + 1) * prep.layout.step.size1_in(1))
         try:
             A = seeded_inputs(prep, self.seeds[j0:j1], flat)
@@ -316,6 +331,30 @@ def seeded_inputs(prep: Prepared, seeds: np.ndarray, flat: np.ndarray | None = N
     return A
 
 
+def device_noise(prep: Prepared) -> tuple[np.ndarray, Any]:
+    """The per-step inputs every run shares (N + 1, na), noise columns 0, and the noise JAX draws into them on the
+    device (:class:`nlobs.engine._jax.DeviceNoise`): the same columns, scales, kinds and hold as :func:`seeded_inputs`,
+    drawn by JAX's generator instead of NumPy's."""
+    from ..engine._jax import DeviceNoise
+
+    N, plant = prep.n_steps, prep.plant
+    A = seeded_inputs(prep, np.zeros(1, dtype=np.int64))[0]
+    nb = prep.base.shape[1]
+    nv = plant.n_outputs if prep.noise is not None else 0
+    nw = plant.n_states if prep.process_noise is not None else 0
+    A[:, nb:nb + nv + nw] = 0.0
+    scales: tuple[float, ...] = ()
+    gaussian: tuple[bool, ...] = ()
+    every = 1
+    if nv:
+        noise = prep.noise
+        scales = tuple(float(v) for v in noise.scales(plant.outputs))  # type: ignore[union-attr]
+        gaussian = tuple(k == "gaussian" for k in noise.kind_of(plant.outputs))  # type: ignore[union-attr]
+        every = Sampling(noise.hold).every(prep.dt) if noise.hold is not None else 1  # type: ignore[union-attr]
+    process = tuple(float(v) for v in prep.process_noise.scales(plant.states) * np.sqrt(prep.dt)) if nw else ()  # type: ignore[union-attr]
+    return np.ascontiguousarray(A), DeviceNoise(nb, scales, gaussian, int(every), process, N)
+
+
 def _per_run(value: Any, M: int, n: int, name: str) -> np.ndarray:
     a = np.asarray(value, dtype=float)
     if a.ndim == 1:
@@ -348,6 +387,7 @@ def montecarlo(
     chunk: int | None = None,
     progress: bool | Callable[[float], None] | None = None,
     escape_bound: float = 1e12,
+    draws: str = "host",
 ) -> MonteCarloResult:
     """Run a plant and observers over many initial states, noise seeds and parameter draws.
 
@@ -385,7 +425,7 @@ def montecarlo(
         ``"jax"`` (the optional ``nlobs[jax]`` extra): the same compiled step as one XLA program over every run
         (vmap over runs, scan over steps), on a GPU when JAX has one; equal to the C engine to rounding. Noise is
         drawn on the host, as the C engine draws it (the same seeds give the same numbers), and sent to the device
-        with the runs, in chunks of at most 512 MB of it: with noise, drawing it costs more than the runs.
+        with the runs, in chunks of at most 512 MB of it, unless ``draws="device"`` (below).
     scheduler : str or dask.distributed.Client, optional
         Run the chunks on a Dask cluster (its address, or a client); needs ``nlobs[dask]``.
     workers : int, optional
@@ -401,11 +441,19 @@ def montecarlo(
     progress : bool or callable, optional
     escape_bound : float
         A run whose state leaves this bound is stopped and reported as failed (the others go on).
+    draws : {"host", "device"}
+        Where the noise is drawn. ``"host"``: by NumPy, run j's exactly as ``simulate(seed=seeds[j])`` draws it, on
+        every engine. ``"device"`` (``engine="jax"`` only): by JAX's generator, step by step inside the runs on the
+        device, from each run's seed: no noise array is made or sent (on a GPU, drawing on the host costs more than
+        the runs). The noise has the same distribution, scales, hold and seeds-to-runs rule, but other numbers than
+        ``simulate``'s: :meth:`MonteCarloResult.trajectory` is then refused, and a run that blows up is reported
+        whole, its observers not isolated by a re-run.
 
     Returns
     -------
     MonteCarloResult
     """
+    _check_draws(draws, engine, plant)
     if tol is not None:
         tol = check_positive(tol, "tol", "montecarlo")
     for name, value in (("workers", workers), ("chunk", chunk)):
@@ -446,9 +494,10 @@ def montecarlo(
     stride = max(1, N // 1000) if save_every is None else int(save_every)
     if stride < 1:
         raise ShapeError(f"montecarlo: `save_every` must be a positive number of steps, got {save_every}")
-    spec = _Spec(prep, X0, XH, P, seeds, stride, escape_bound, engine)
+    spec = _Spec(prep, X0, XH, P, seeds, stride, escape_bound, engine, draws if prep.seeded else "host")
     report = as_progress(progress, f"montecarlo {plant.name}")
-    per_run = (N + 1) * prep.layout.step.size1_in(1) * 8 if prep.seeded else 0  # bytes of one run's noise inputs
+    # bytes of one run's noise inputs (none drawn on the host with draws="device")
+    per_run = (N + 1) * prep.layout.step.size1_in(1) * 8 if prep.seeded and spec.draws == "host" else 0
     if scheduler is None:
         parts, size, info = _on_this_machine(spec, M, N, engine, workers, chunk, per_run, report)
     else:
@@ -457,8 +506,21 @@ def montecarlo(
     O = np.concatenate([p[1] for p in parts])
     status = np.concatenate([p[2] for p in parts])
     return _result(spec, S, O, status, tol, inputs, info={"dt": dt, "save_every": stride, "engine": engine,
-                                                          "dask": scheduler is not None, "chunk": size, **info})
+                                                          "dask": scheduler is not None, "chunk": size, "draws": spec.draws,
+                                                          **info})
 
+
+
+def _check_draws(draws: str, engine: str, plant: Any) -> None:
+    """ShapeError unless `draws` is "host", or "device" on the JAX engine with a continuous-time plant."""
+    if draws not in ("host", "device"):
+        raise ShapeError(f"montecarlo: `draws` must be 'host' or 'device', got {draws!r}")
+    if draws == "device" and engine != "jax":
+        raise ShapeError(f"montecarlo: draws='device' draws the noise with JAX on the device: it needs engine='jax' "
+                         f"(got engine={engine!r})")
+    if draws == "device" and isinstance(plant, System) and plant.is_discrete:
+        raise ShapeError(f"montecarlo: draws='device' runs continuous-time plants on JAX; {plant.name!r} is a "
+                         "discrete-time map, whose runs are drawn and iterated on the host: leave `draws` out")
 
 
 def _count_runs(x0: Any, xhat0: Any, params: Any, runs: int | None) -> int:
@@ -694,6 +756,10 @@ def _isolate_failed_runs(spec: _Spec, status: np.ndarray, x: np.ndarray, xhats: 
     N, failures = spec.prep.n_steps, []
     for k, j in enumerate(np.flatnonzero(status < N)):
         j = int(j)
+        if spec.draws == "device":   # simulate would draw other noise: the run is reported whole
+            failures.append((j, f"left |x| <= {spec.bound:g} after t = {status[j] * spec.prep.dt:.6g} (not re-run: its "
+                                "noise was drawn on the device, draws='device')"))
+            continue
         if k >= RERUN_LIMIT:
             failures.append((j, f"left |x| <= {spec.bound:g} after t = {status[j] * spec.prep.dt:.6g} (not re-run: more than "
                                 f"{RERUN_LIMIT} runs stopped)"))
