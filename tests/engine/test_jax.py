@@ -171,6 +171,30 @@ def check_noise_drawn_on_the_device_depends_on_the_seeds_alone():
         nlobs.montecarlo(plant, {}, t_final=0.1, dt=1e-2, x0=np.zeros((2, 1)), noise=noise, draws="device")
 
 
+def check_a_step_too_large_for_xla_is_refused_before_compiling():
+    """The 12-state quadrotor's EKF step (34,545 operations) took XLA more than 4 minutes and 19 GB: refused at once,
+    naming the engine that runs it; the limit can be lowered (and raised) by the environment."""
+    import os
+    import time
+
+    m = nlobs.load_model("quadrotor")
+    s, sc = m.system, m.simulation
+    ekf = nlobs.design_ekf(s, Q=np.eye(12) * 1e-3, R=np.eye(13) * 1e-2, P0=np.eye(12), xhat0=np.array(sc.x0) + 0.1)
+    t0 = time.perf_counter()
+    with pytest.raises(EngineError, match=r"has 3\d,\d{3} scalar operations.*engine='c'"):
+        nlobs.montecarlo(s, {"ekf": ekf}, t_final=0.01, dt=sc.dt, x0=np.tile(sc.x0, (2, 1)), inputs=dict(sc.inputs),
+                         engine="jax")
+    assert time.perf_counter() - t0 < 60
+    vdp = nlobs.System(states=["x1", "x2"], f=["x2", "mu*(1 - x1**2)*x2 - x1"], outputs=["y"], h=["x1"], params={"mu": 1.0})
+    small = nlobs.design_ekf(vdp, Q=np.eye(2) * 1e-2, R=np.eye(1) * 1e-2, P0=np.eye(2), xhat0=[0.0, 0.0])
+    os.environ["NLOBS_JAX_MAX_OPERATIONS"] = "100"
+    try:
+        with pytest.raises(EngineError, match="more than the 100 "):
+            nlobs.montecarlo(vdp, {"ekf": small}, t_final=0.1, dt=1e-2, x0=np.ones((2, 2)), engine="jax")
+    finally:
+        del os.environ["NLOBS_JAX_MAX_OPERATIONS"]
+
+
 def test_in_a_process_of_its_own():
     """JAX starts threads, and a process that has imported it must not fork afterwards (the global check races its
     routes in forked children): these checks run in a fresh interpreter, one after another, and each failure is shown."""

@@ -17,6 +17,7 @@ engine is first used (``jax_enable_x64``), as nlobs computes in float64 everywhe
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -209,6 +210,27 @@ def _noisy_inputs(jax: Any, noise: DeviceNoise | None) -> Callable[[Any, Any, An
 
 _BATCH_CACHE: dict[tuple[Any, ...], tuple[ca.Function, Any]] = {}
 
+#: The most scalar operations a Monte Carlo step may have on this engine (``$NLOBS_JAX_MAX_OPERATIONS`` overrides it).
+#: Each becomes one XLA operation, and XLA's compile grows faster than their number, the more so the denser the
+#: covariance they update (first calls on 2 CPU cores, JAX 0.10: a chain-coupled 15-state EKF, 15,345 operations,
+#: 23 s and 1.5 GB; a fully coupled 8-state EKF, 12,532, 48 s; a fully coupled 10-state EKF, 22,519, over 150 s;
+#: the 12-state quadrotor's EKF, 34,545, over 4 minutes and 19 GB, unfinished). The C engine compiles these in seconds.
+MAX_OPERATIONS = 12_000
+
+
+def _check_size(step: ca.Function) -> None:
+    """EngineError when `step` has more scalar operations than :data:`MAX_OPERATIONS` (or its override)."""
+    try:
+        limit = int(os.environ.get("NLOBS_JAX_MAX_OPERATIONS", MAX_OPERATIONS))
+    except ValueError:
+        limit = MAX_OPERATIONS
+    n = _sx(step).n_instructions()
+    if n > limit:
+        raise EngineError(f"engine='jax': the step {step.name()!r} has {n:,} scalar operations, more than the "
+                          f"{limit:,} this engine compiles in reasonable time and memory (each is one XLA operation; a "
+                          "12-state EKF's 34,545 took XLA more than 4 minutes and 19 GB without finishing). Use "
+                          "engine='c', which compiles it in seconds; or set NLOBS_JAX_MAX_OPERATIONS to try anyway")
+
 
 def _batch_program(step: ca.Function, bound: float, shared_a: bool, shared_c: bool, noise: DeviceNoise | None = None) -> Any:
     jax = _jax()
@@ -258,6 +280,7 @@ def run_batch_jax(step: ca.Function, S0: np.ndarray, A: np.ndarray, C: np.ndarra
     key = (id(step), float(bound), shared_a, shared_c, noise)
     hit = _BATCH_CACHE.get(key)
     if hit is None or hit[0] is not step:
+        _check_size(step)
         hit = _BATCH_CACHE[key] = (step, _batch_program(step, bound, shared_a, shared_c, noise))
         if len(_BATCH_CACHE) > 64:
             _BATCH_CACHE.pop(next(iter(_BATCH_CACHE)))
