@@ -425,9 +425,9 @@ def montecarlo(
         ``"jax"`` (the optional ``nlobs[jax]`` extra): the same compiled step as one XLA program over every run
         (vmap over runs, scan over steps), on a GPU when JAX has one; equal to the C engine to rounding. Noise is
         drawn on the host, as the C engine draws it (the same seeds give the same numbers), and sent to the device
-        with the runs, in chunks of at most 512 MB of it, unless ``draws="device"`` (below). A step with more than
-        12,000 scalar operations is refused, since XLA then takes minutes and GB to compile it; a 12-state EKF has
-        34,545.
+        with the runs, in chunks of at most 512 MB of it, unless ``draws="device"`` (below). A step with more scalar
+        operations than :data:`nlobs.engine._jax.MAX_OPERATIONS` is refused, since XLA then takes minutes and GB to
+        compile it; a 12-state EKF has 34,545.
     scheduler : str or dask.distributed.Client, optional
         Run the chunks on a Dask cluster (its address, or a client); needs ``nlobs[dask]``.
     workers : int, optional
