@@ -21,7 +21,8 @@ runs a Python loop strictly inside that call. A call that held Python's lock wou
 On a shared machine the other processes take cores too: the load average at the start is written with the results.
 Where the scheduler shares the CPU between sessions (Linux autogroups), a session's threads share its part: threads
 then cannot show a speed-up however free of locks they are, and "CPU / wall" below says so.
-Run:  python benchmarks/bench_cores.py [--rounds N] [--sizes 1000,10000]
+Run:  python benchmarks/bench_cores.py [--rounds N] [--sizes 1000,10000] [--workers 1,2,4,8,16] [--noise-max M] [--dask]
+(--workers: the thread and worker counts timed, default 1 .. N; --noise-max: the largest M of the noise case)
 Results: benchmarks/results/bench_cores.json (rows "P2c" for the README's speed table, and the full table).
 """
 
@@ -90,8 +91,8 @@ def lock_check(vdp, obs, engine: str) -> dict:
     return {"engine": engine, "call_s": t1 - t0, "iterations_inside": inside}
 
 
-def on_dask(vdp, obs, sizes, cores, args) -> list[dict]:
-    """montecarlo on LocalClusters of 1 .. N single-threaded worker processes against the local serial run."""
+def on_dask(vdp, obs, sizes, counts, args) -> list[dict]:
+    """montecarlo on LocalClusters of `counts` single-threaded worker processes against the local serial run."""
     from dask.distributed import Client, LocalCluster
 
     out = []
@@ -100,7 +101,7 @@ def on_dask(vdp, obs, sizes, cores, args) -> list[dict]:
         kw = dict(t_final=T_FINAL, dt=DT, x0=X0, save_every=N, engine=args.engine, seed=SEED)
         ref = nlobs.montecarlo(vdp, {"obs": obs}, workers=1, **kw)
         t_serial = cm.interleaved({"s": lambda: nlobs.montecarlo(vdp, {"obs": obs}, workers=1, **kw)}, args.rounds)["s"][0]
-        for W in range(1, cores + 1):
+        for W in counts:
             with LocalCluster(n_workers=W, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
                     Client(cluster) as client:
                 nlobs.montecarlo(vdp, {"obs": obs}, scheduler=client, **kw)  # each worker builds (or loads) the batch
@@ -121,20 +122,31 @@ def main() -> int:
     ap.add_argument("--sizes", default="1000,10000", help="numbers of trajectories, comma-separated")
     ap.add_argument("--engine", default="c", choices=("c", "vm", "auto"))
     ap.add_argument("--dask", action="store_true", help="also on a Dask LocalCluster of 1 .. N worker processes")
+    ap.add_argument("--workers", default=None, help="thread and worker counts, comma-separated (default 1 .. N; 1 first)")
+    ap.add_argument("--noise-max", type=int, default=None, help="the largest M of the noise case (default: every M)")
     args = ap.parse_args()
     cores = usable_cores()
     vdp = nlobs.System(states=["x1", "x2"], f=["x2", "mu*(1 - x1**2)*x2 - x1"], outputs=["y"], h=["x1"], params={"mu": 1.0})
     obs = nlobs.design_custom(vdp, states=["xh1", "xh2"], params={"L": 5.0},
                               flow=["xh2 + 2*L*(y - xh1)", "mu*(1 - xh1**2)*xh2 - xh1 + L**2*(y - xh1)"])
+    counts = sorted({1, *(int(v) for v in args.workers.split(","))}) if args.workers else list(range(1, cores + 1))
+
+    def save(rows, table, dask):
+        return cm.write("bench_cores", rows, {"cores": cores, "workers": counts, "engine": args.engine, "table": table,
+                                              "lock_check": locks, "dask": dask,
+                                              "load_at_end": os.getloadavg()[0] if hasattr(os, "getloadavg") else None})
+
     locks = [lock_check(vdp, obs, e) for e in ("c", "vm")]
     for r in locks:
         print(f"lock check, engine {r['engine']}: a {r['call_s']:.2f} s chunk in another thread; this thread's loop ran "
               f"{r['iterations_inside']:,} times inside it ({'released' if r['iterations_inside'] else 'HELD'})")
-    print(f"montecarlo on 1..{cores} threads: Van der Pol + observer, RK4, dt = {DT:g}, t in [0, {T_FINAL:g}], final states")
+    print(f"montecarlo on {', '.join(map(str, counts))} threads: Van der Pol + observer, RK4, dt = {DT:g}, t in [0, {T_FINAL:g}], final states")
     table, rows = [], []
     for M in (int(s) for s in args.sizes.split(",")):
         X0 = np.random.default_rng(SEED).uniform(-3, 3, (M, 2))
         for noisy in (False, True):
+            if noisy and args.noise_max is not None and M > args.noise_max:
+                continue
             kw = dict(t_final=T_FINAL, dt=DT, x0=X0, save_every=N, engine=args.engine, seed=SEED,
                       noise=nlobs.Noise.gaussian(0.05) if noisy else None)
 
@@ -151,7 +163,7 @@ def main() -> int:
                     return np.column_stack([mc.x[:, -1], mc.observers["obs"].xhat[:, -1]]), mc.info
                 return go
 
-            fns = {w: run(w) for w in range(1, cores + 1)}
+            fns = {w: run(w) for w in counts}
             for fn in fns.values():
                 fn()  # build once, warm the caches
             timed = cm.interleaved(fns, args.rounds)
@@ -173,20 +185,19 @@ def main() -> int:
                       f"{cm.fmt_time(med):>9}  speed-up {t1 / mn:5.2f}  efficiency {t1 / (w * mn):4.2f}  "
                       f"CPU / wall {used / wall:4.2f}  projected on dedicated cores {projected:4.2f} "
                       f"(efficiency {projected / w:4.2f})  {'identical' if same else 'DIFFERS'}")
-            if cores > 1:
-                w = cores
-                rows.append(cm.row("P2c", f"{case}, t in [0, {T_FINAL:g}], final states, on {cores} cores",
+            if max(counts) > 1:
+                w = max(counts)
+                rows.append(cm.row("P2c", f"{case}, t in [0, {T_FINAL:g}], final states, on {w} cores",
                                    nlobs=f"nlobs.montecarlo(workers={w}) (default: every core)", t_nlobs=timed[w][:2],
                                    err_nlobs="identical to serial" if np.array_equal(timed[w][2][0], ref) else "DIFFERS from serial",
                                    peer="nlobs.montecarlo(workers=1), the chunks one after another", t_peer=timed[1][:2],
                                    err_peer="reference", kind="peer/nlobs",
-                                   target=">= 1.8x on 2 cores" if cores == 2 else f"(report; efficiency {t1 / (w * timed[w][0]):.2f})",
-                                   threshold=1.8 if cores == 2 else None))
+                                   target=">= 1.8x on 2 cores" if w == 2 else f"(report; efficiency {t1 / (w * timed[w][0]):.2f})",
+                                   threshold=1.8 if w == 2 else None))
                 cm.print_row(rows[-1])
-    dask = on_dask(vdp, obs, [int(v) for v in args.sizes.split(",")], cores, args) if args.dask else []
-    path = cm.write("bench_cores", rows, {"cores": cores, "engine": args.engine, "table": table, "lock_check": locks, "dask": dask,
-                                          "load_at_end": os.getloadavg()[0] if hasattr(os, "getloadavg") else None})
-    print(f"wrote {path}")
+            save(rows, table, [])   # after every case: a run cut short keeps what it did
+    dask = on_dask(vdp, obs, [int(v) for v in args.sizes.split(",")], counts, args) if args.dask else []
+    print(f"wrote {save(rows, table, dask)}")
     return 0
 
 

@@ -18,6 +18,7 @@ Without a GPU, JAX runs on its CPU backend and the sizes default to small ones: 
 costs on a CPU, not what a GPU gives; the device is printed and recorded with every row.
 
 Run:  python benchmarks/bench_jax.py [--sizes 16000 160000 1000000] [--particles 100000 1000000] [--rounds 3]
+      [--noise-max 160000] (the largest M with host-drawn noise; above it only draws='device' is run)
 Needs JAX (pip install 'nlobs[jax]'; jax[cuda12] for an NVIDIA GPU). Results: benchmarks/results/bench_jax.json
 (only from a machine with a GPU, unless --write: the CPU figures are not the GPU rows' figures).
 """
@@ -73,7 +74,8 @@ def nlobs_mc(engine: str, noise: bool, draws: str = "host"):
     return run
 
 
-def monte_carlo(jax, sizes: list[int], rounds: int, device: str) -> list[dict]:
+def monte_carlo(jax, sizes: list[int], rounds: int, device: str, noise_max: int | None,
+                save) -> list[dict]:
     rows = []
     ref = hand_written(jax)
     for M in sizes:
@@ -83,14 +85,18 @@ def monte_carlo(jax, sizes: list[int], rounds: int, device: str) -> list[dict]:
                "nlobs jax, noise": lambda X0=X0: nlobs_mc("jax", True)(X0),
                "nlobs jax, noise on device": lambda X0=X0: nlobs_mc("jax", True, "device")(X0),
                "nlobs c, noise": lambda X0=X0: nlobs_mc("c", True)(X0)}
+        host = noise_max is None or M <= noise_max   # host-drawn noise: M x N numbers drawn, and sent to the device
+        if not host:
+            del fns["nlobs jax, noise"], fns["nlobs c, noise"]
         first = {k: cm.first_call(fn) for k, fn in fns.items()}
         timed = cm.interleaved(fns, rounds)
         print(f"\nG1: M = {M:,} runs of {N:,} RK4 steps (plant + observer), final states; JAX on {device}, C on "
               f"{usable_cores()} core(s)")
         for k, (mn, med, out) in timed.items():
             if "device" in k:   # other draws: the estimate's error, beside that of the host's draws
-                rms = [float(np.sqrt(np.mean((v[:, 2:] - v[:, :2]) ** 2))) for v in (out, timed["nlobs c, noise"][2])]
-                dev = f"RMS x̂ - x {rms[0]:.2e} (host draws {rms[1]:.2e})"
+                rms = [float(np.sqrt(np.mean((v[:, 2:] - v[:, :2]) ** 2)))
+                       for v in (out, *([timed["nlobs c, noise"][2]] if host else []))]
+                dev = f"RMS x̂ - x {rms[0]:.2e}" + (f" (host draws {rms[1]:.2e})" if host else "")
             else:
                 base = timed["hand-written JAX"][2] if "noise" not in k else timed["nlobs c, noise"][2]
                 dev = f"max |dev| {np.max(np.abs(out - base)):.1e} (against {'the reference' if 'noise' not in k else 'nlobs c'})"
@@ -102,15 +108,17 @@ def monte_carlo(jax, sizes: list[int], rounds: int, device: str) -> list[dict]:
                            t_peer=timed["hand-written JAX"][:2], err_peer="reference", kind="nlobs/peer",
                            target="<= 2x (GPU)", threshold=2.0 if device.startswith("gpu") else None,
                            note=f"engine='c' on {usable_cores()} core(s): {timed['nlobs c'][0]:.3f} s min; with noise: "
-                                f"jax {timed['nlobs jax, noise'][0]:.3f} s (drawn on the host), "
-                                f"{timed['nlobs jax, noise on device'][0]:.3f} s (draws='device'), "
-                                f"c {timed['nlobs c, noise'][0]:.3f} s min; "
-                                f"first calls jax {first['nlobs jax']:.1f} s, hand-written {first['hand-written JAX']:.1f} s"))
+                                + (f"jax {timed['nlobs jax, noise'][0]:.3f} s (drawn on the host), " if host else "")
+                                + f"{timed['nlobs jax, noise on device'][0]:.3f} s (draws='device')"
+                                + (f", c {timed['nlobs c, noise'][0]:.3f} s min" if host else
+                                   f" (host draws not run above M = {noise_max:,}: --noise-max)")
+                                + f"; first calls jax {first['nlobs jax']:.1f} s, hand-written {first['hand-written JAX']:.1f} s"))
         cm.print_row(rows[-1])
+        save(rows)
     return rows
 
 
-def particle_filter(particles: list[int], rounds: int, device: str) -> list[dict]:
+def particle_filter(particles: list[int], rounds: int, device: str, save, done: list[dict]) -> list[dict]:
     rows = []
     run = nlobs.simulate(VDP, {}, t_final=20.0, dt=1e-3, x0=[2.0, 0.0], noise=nlobs.Noise.gaussian(0.05),
                          sampling=nlobs.Sampling(0.05), seed=0)
@@ -132,6 +140,7 @@ def particle_filter(particles: list[int], rounds: int, device: str) -> list[dict
                            peer="design_pf(engine='c'), the C loop", t_peer=timed["c"][:2], err_peer=f"RMS {err['c']:.4f}",
                            kind="peer/nlobs", target="(report)", threshold=None))
         cm.print_row(rows[-1])
+        save(done + rows)
     return rows
 
 
@@ -143,6 +152,9 @@ def main() -> int:
                     "on a CPU)")
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--write", action="store_true", help="write the results file from a machine without a GPU too")
+    ap.add_argument("--noise-max", type=int, default=160_000,
+                    help="the largest M run with noise drawn on the host (M x 10,000 numbers drawn and sent; default "
+                         "160,000); larger M run with draws='device' only")
     args = ap.parse_args()
     try:
         import jax
@@ -155,11 +167,18 @@ def main() -> int:
     sizes = args.sizes if args.sizes is not None else ([16_000, 160_000, 1_000_000] if gpu else [1_000, 4_000])
     particles = args.particles if args.particles is not None else ([100_000, 1_000_000] if gpu else [10_000])
     t0 = time.perf_counter()
-    rows = monte_carlo(jax, sizes, args.rounds, device) + particle_filter(particles, args.rounds, device)
+
+    def save(rows: list[dict], final: bool = False) -> None:   # after every row: a run cut short keeps what it did
+        if gpu or args.write:
+            path = cm.write("bench_jax", rows, {"device": device, "complete": final})
+            if final:
+                print(f"wrote {path}")
+
+    mc = monte_carlo(jax, sizes, args.rounds, device, args.noise_max, save)
+    rows = mc + particle_filter(particles, args.rounds, device, save, mc)
     print(f"\n{time.perf_counter() - t0:.0f} s in all")
-    if gpu or args.write:
-        print(f"wrote {cm.write('bench_jax', rows, {'device': device})}")
-    else:
+    save(rows, final=True)
+    if not (gpu or args.write):
         print("no GPU: the results file is left as it is (--write to record these CPU figures)")
     return 0
 
