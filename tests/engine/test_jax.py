@@ -195,6 +195,22 @@ def check_a_step_too_large_for_xla_is_refused_before_compiling():
         del os.environ["NLOBS_JAX_MAX_OPERATIONS"]
 
 
+def check_xla_programs_are_kept_beside_the_c_builds():
+    """JAX's persistent cache is nlobs's cache directory's ``jax`` folder, so a compiled program outlives the process
+    (the threshold lowered here: this program compiles in well under JAX's default second)."""
+    import jax
+
+    from nlobs.engine import cache_dir
+
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0)
+    folder = cache_dir() / "jax"
+    before = set(folder.glob("*")) if folder.exists() else set()
+    plant = nlobs.System(states=["x"], f=["-1.5*x + sin(x)"], outputs=["y"], h=["x"])
+    nlobs.montecarlo(plant, {}, t_final=0.3, dt=1e-2, x0=np.ones((3, 1)), engine="jax")
+    assert jax.config.jax_compilation_cache_dir == str(folder)
+    assert set(folder.glob("*")) - before, f"nothing written to {folder}"
+
+
 def test_in_a_process_of_its_own():
     """JAX starts threads, and a process that has imported it must not fork afterwards (the global check races its
     routes in forked children): these checks run in a fresh interpreter, one after another, and each failure is shown."""
