@@ -255,7 +255,7 @@ def _check_size(step: ca.Function) -> None:
 def _batch_program(step: ca.Function, bound: float, shared_a: bool, shared_c: bool, noise: DeviceNoise | None = None) -> Any:
     jax = _jax()
     jnp, lax = jax.numpy, jax.lax
-    f = to_jax(step)
+    f = jax.jit(to_jax(step))   # traced once, called twice (the step in the loop, its outputs after it)
     inputs = _noisy_inputs(jax, noise)
 
     def trajectory(s0: Any, a: Any, c: Any, seed: Any, targets: Any) -> tuple[Any, Any, Any]:
