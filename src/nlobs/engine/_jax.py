@@ -47,8 +47,8 @@ def _persistent_cache(jax: Any) -> None:
     """XLA's compiled programs kept on disk beside the C engine's builds (``<cache>/jax``, see
     :func:`nlobs.engine.cache_dir`), as JAX's persistent compilation cache, unless the user chose a directory of their
     own (``jax_compilation_cache_dir``). A program JAX took at least a second to compile (its default threshold) is then
-    compiled once per machine, as the C engine's are: a 12-state EKF's Monte Carlo, 14.2 s for its first call in a
-    fresh process, 6.1 s in the next (tracing the program is what remains)."""
+    compiled once per machine, as the C engine's are: a 12-state EKF's Monte Carlo, 13.5 s for its first call in a
+    fresh process, 4.7 s in the next (tracing the program is most of what remains)."""
     global _CACHE_CHOSEN
     if _CACHE_CHOSEN:
         return
