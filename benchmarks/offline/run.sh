@@ -1,7 +1,8 @@
 #!/bin/bash
 # The GPU and many-core figures in one command, on a machine without network access (pack.py beside says what it
 # carries): installs .offline/ into a scratch folder, then runs
-#   1. bench_jax.py: the JAX engine on the GPU (Monte Carlo 16,000 .. 1,000,000 runs, particle filter 10^5, 10^6),
+#   1. bench_jax.py: the JAX engine on the GPU (Monte Carlo 16,000 .. 1,000,000 runs, particle filter 10^5, 10^6;
+#      noise drawn on the host only up to 16,000 runs: at 160,000 it is 13 GB drawn and sent, at each of 3 calls),
 #   2. bench_cores.py --dask: montecarlo on 1, 2, 4, 8, 16 threads and on Dask LocalClusters of as many workers,
 # each within its own time limit, and copies each results file to $OUT (default ./offline-results) as soon as it is
 # written, so a stage cut short still leaves the ones before it. Sizes and limits can be changed through the
@@ -28,16 +29,22 @@ stage() {   # stage NAME SECONDS COMMAND...: run it within SECONDS, log to $OUT/
   local name=$1 limit=$2
   shift 2
   echo "== $name (at most $limit s): $*" | tee -a "$OUT/stages.txt"
-  local t0=$SECONDS
+  local t0=$SECONDS mark="$OUT/.start-$name"
+  touch "$mark"; sleep 1
   timeout "$limit" "$@" > "$OUT/$name.log" 2>&1
   local rc=$?
   echo "   rc $rc after $((SECONDS - t0)) s" | tee -a "$OUT/stages.txt"
   tail -n 40 "$OUT/$name.log"
-  cp "benchmarks/results/$name.json" "$OUT/" 2>/dev/null || echo "   (no results file)"
+  if [ "benchmarks/results/$name.json" -nt "$mark" ]; then   # written by this stage, not the checkout's old one
+    cp "benchmarks/results/$name.json" "$OUT/"
+  else
+    echo "   (no results file written)" | tee -a "$OUT/stages.txt"
+  fi
+  rm -f "$mark"
 }
 
 # shellcheck disable=SC2086
-stage bench_jax "${JAX_S:-270}" "$PY" benchmarks/bench_jax.py ${JAX_ARGS:---rounds 2}
+stage bench_jax "${JAX_S:-240}" "$PY" benchmarks/bench_jax.py ${JAX_ARGS:---rounds 2 --noise-max 16000}
 # shellcheck disable=SC2086
-stage bench_cores "${CORES_S:-210}" "$PY" benchmarks/bench_cores.py ${CORES_ARGS:---rounds 2 --sizes 16000,160000 --workers 1,2,4,8,16 --noise-max 16000 --dask}
+stage bench_cores "${CORES_S:-240}" "$PY" benchmarks/bench_cores.py ${CORES_ARGS:---rounds 2 --sizes 16000,160000 --workers 1,2,4,8,16 --noise-max 16000 --dask}
 echo "results in $OUT: $(ls "$OUT" | tr '\n' ' ')"
