@@ -47,8 +47,8 @@ def _persistent_cache(jax: Any) -> None:
     """XLA's compiled programs kept on disk beside the C engine's builds (``<cache>/jax``, see
     :func:`nlobs.engine.cache_dir`), as JAX's persistent compilation cache, unless the user chose a directory of their
     own (``jax_compilation_cache_dir``). A program JAX took at least a second to compile (its default threshold) is then
-    compiled once per machine, as the C engine's are: a 12-state EKF's Monte Carlo, 13.5 s for its first call in a
-    fresh process, 4.7 s in the next (tracing the program is most of what remains)."""
+    compiled once per machine, as the C engine's are: a 12-state EKF's Monte Carlo, 11-12 s for its first call in a
+    fresh process, about 5 s in the next (tracing the program is most of what remains)."""
     global _CACHE_CHOSEN
     if _CACHE_CHOSEN:
         return
@@ -252,6 +252,15 @@ def _check_size(step: ca.Function) -> None:
                           "engine='c', which compiles it in seconds; or set NLOBS_JAX_MAX_OPERATIONS to try anyway")
 
 
+def _cpu_options(jax: Any) -> dict[str, Any] | None:
+    """XLA options for a batch program compiled for the CPU: without XLA's newer CPU fusion emitters, which recompute
+    a fused value for each use, so that a step's run time grew exponentially with its depth (2 CPU cores, JAX 0.10, 64
+    runs of a 6-state chain integrated by RK4 inside one function: 0.2 ms a call for 1 step, 18 ms for 3, 0.41 s for
+    4, 9.2 s for 5; 0.5 ms for 5 without them). A fully coupled 8-state EKF's 200 steps for 64 runs: 5.75 s -> 0.135
+    s, compiled in 36 s instead of 64.5 s. None on other backends."""
+    return {"xla_cpu_use_fusion_emitters": False} if jax.default_backend() == "cpu" else None
+
+
 def _batch_program(step: ca.Function, bound: float, shared_a: bool, shared_c: bool, noise: DeviceNoise | None = None) -> Any:
     jax = _jax()
     jnp, lax = jax.numpy, jax.lax
@@ -281,7 +290,7 @@ def _batch_program(step: ca.Function, bound: float, shared_a: bool, shared_c: bo
         return S, O, status
 
     batched = jax.vmap(trajectory, in_axes=(0, None if shared_a else 0, None if shared_c else 0, 0, None))
-    return jax.jit(batched)
+    return jax.jit(batched, compiler_options=_cpu_options(jax))
 
 
 def run_batch_jax(step: ca.Function, S0: np.ndarray, A: np.ndarray, C: np.ndarray, steps: np.ndarray,
