@@ -34,3 +34,22 @@ def test_a_second_thread_waits_for_the_first_build_of_the_same_object(monkeypatc
         th.join()
     assert len(runs) == 1, runs
     assert len(paths) == 2 and paths[0] == paths[1] and paths[0].exists()
+
+
+def test_stopped_compilers_leave_no_open_pipe(monkeypatch):
+    """A compiler run stopped because another failed (or the time ran out) is killed, reaped and its pipes closed: an
+    open pipe was found later, at some other test's garbage collection, as an unraisable ResourceWarning."""
+    import gc
+    import sys
+    import warnings
+
+    from nlobs.errors import EngineError
+
+    monkeypatch.setattr(_codegen, "UNIT_WORKERS", 2)
+    cmds = [[sys.executable, "-c", "import sys; sys.exit(3)"], [sys.executable, "-c", "import time; time.sleep(30)"]]
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        with pytest.raises(EngineError, match="failed"):
+            _codegen._run_compilers("cc", cmds, "test", None)
+        gc.collect()
+    assert not [w for w in seen if issubclass(w.category, ResourceWarning)], [str(w.message) for w in seen]

@@ -437,9 +437,9 @@ def _run_compilers(cc: str, commands: list[list[str]], tag: str, left: float | N
             if proc.returncode != 0:
                 raise EngineError(f"the C compiler {cc} failed on the generated code for {tag}:\n{err[-2000:]}")
     finally:
-        for proc in running:
+        for proc in running:   # stopped (a failure, the time running out): killed, reaped and its pipes closed
             proc.kill()
-            proc.wait()
+            proc.communicate()
 
 
 def compile_c(fn: ca.Function, *, sig: str | None = None, tag: str | None = None) -> ca.Function:
